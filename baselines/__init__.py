@@ -1,0 +1,1 @@
+"""Baseline policies of steer-envs (installed as ``steer_envs.baselines``)."""

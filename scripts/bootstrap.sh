@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Set up everything steer-envs needs from a fresh clone: apt packages (when we
+# may install them), a virtual environment in .venv and the pinned packages.
+# Idempotent and quick when nothing changed (a stamp holds the hash of the inputs).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PYTHON=${PYTHON:-python3.11}
+command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
+
+# Offscreen MuJoCo rendering on CPUs needs OSMesa.
+if ! dpkg -s libosmesa6 >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "[bootstrap] apt-get install libosmesa6"
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libosmesa6 >/dev/null) \
+      || echo "[bootstrap] warning: could not install libosmesa6; MuJoCo rendering will be unavailable" >&2
+  elif command -v sudo >/dev/null 2>&1; then
+    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libosmesa6 >/dev/null \
+      || echo "[bootstrap] warning: could not install libosmesa6" >&2
+  else
+    echo "[bootstrap] warning: libosmesa6 missing and no root; MuJoCo rendering will be unavailable" >&2
+  fi
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  echo "[bootstrap] creating .venv with $PYTHON"
+  "$PYTHON" -m venv .venv
+fi
+
+stamp=.venv/.steer-envs-stamp
+want=$(cat setup.cfg pyproject.toml requirements/constraints.txt | sha256sum | cut -d' ' -f1)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "[bootstrap] installing steer-envs and pinned dependencies (about 2 minutes the first time)"
+  .venv/bin/python -m pip install -q --upgrade "pip>=24" >/dev/null
+  # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
+  .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray]"
+  echo "$want" > "$stamp"
+fi

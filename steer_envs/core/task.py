@@ -1,0 +1,202 @@
+"""TaskSpec: the discrete structure of a multistep task.
+
+A task is a set of named *modes* (discrete task states), a set of boolean
+*sensor atomic propositions* (APs) that the environment reports, the map from a
+sensor reading to a mode, and the allowed mode transitions. From the allowed
+transitions GLiDE (thesis §4.2) derives a *feasibility matrix*
+``F[i, j] = -(number of modes skipped)``; LTL text (thesis ch. 3) can be attached
+for the replanner.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import networkx as nx
+import numpy as np
+
+SensorKey = frozenset[str]
+
+
+def _as_sensor_key(sensors: Mapping[str, bool] | Iterable[str]) -> SensorKey:
+    if isinstance(sensors, Mapping):
+        return frozenset(name for name, value in sensors.items() if bool(value))
+    return frozenset(sensors)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """Modes, sensor APs, the sensor -> mode labelling and allowed transitions.
+
+    Args:
+        name: human-readable task name.
+        modes: ordered mode names; the index of a mode is its integer id
+            (``info["mode"]`` in every env).
+        sensors: ordered sensor AP names (keys of ``info["sensors"]``).
+        sensor_modes: map from the *set of true APs* to a mode name. Sensor
+            readings that are not listed map to no mode (``mode_of`` raises).
+            May be empty for tasks whose modes are geometric (PolygonNav).
+        transitions: allowed ``(from, to)`` pairs between distinct modes;
+            self-loops are always allowed.
+        initial: the mode a task starts in (default: the first mode).
+        goal: the modes that complete the task (default: the last mode).
+        ltl: optional LTL text (Spot syntax) of the task specification.
+        ltl_variants: optional named alternative specifications (e.g. the
+            cooking re-taskings ``phi_cb``, ``phi_bc``...).
+    """
+
+    name: str
+    modes: tuple[str, ...]
+    sensors: tuple[str, ...] = ()
+    sensor_modes: Mapping[SensorKey, str] = field(default_factory=dict)
+    transitions: frozenset[tuple[str, str]] = frozenset()
+    initial: str | None = None
+    goal: tuple[str, ...] = ()
+    ltl: str | None = None
+    ltl_variants: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        modes = tuple(self.modes)
+        if len(modes) == 0:
+            raise ValueError("TaskSpec: `modes` must name at least one mode")
+        if len(set(modes)) != len(modes):
+            raise ValueError(f"TaskSpec: `modes` has duplicates: {modes}")
+        sensors = tuple(self.sensors)
+        if len(set(sensors)) != len(sensors):
+            raise ValueError(f"TaskSpec: `sensors` has duplicates: {sensors}")
+        object.__setattr__(self, "modes", modes)
+        object.__setattr__(self, "sensors", sensors)
+        sensor_modes = {_as_sensor_key(k): v for k, v in dict(self.sensor_modes).items()}
+        for key, mode in sensor_modes.items():
+            if mode not in modes:
+                raise ValueError(f"TaskSpec: `sensor_modes` maps to unknown mode {mode!r}")
+            unknown = key - set(sensors)
+            if unknown:
+                raise ValueError(f"TaskSpec: `sensor_modes` uses unknown sensor APs {sorted(unknown)}")
+        object.__setattr__(self, "sensor_modes", sensor_modes)
+        transitions = frozenset((str(a), str(b)) for a, b in self.transitions)
+        for a, b in transitions:
+            if a not in modes or b not in modes:
+                raise ValueError(f"TaskSpec: transition ({a!r}, {b!r}) names an unknown mode")
+        object.__setattr__(self, "transitions", frozenset((a, b) for a, b in transitions if a != b))
+        initial = modes[0] if self.initial is None else self.initial
+        if initial not in modes:
+            raise ValueError(f"TaskSpec: `initial` must be one of {modes}, got {initial!r}")
+        object.__setattr__(self, "initial", initial)
+        goal = (modes[-1],) if not self.goal else tuple(self.goal)
+        for g in goal:
+            if g not in modes:
+                raise ValueError(f"TaskSpec: `goal` mode {g!r} is not one of {modes}")
+        object.__setattr__(self, "goal", goal)
+        object.__setattr__(self, "ltl_variants", dict(self.ltl_variants))
+
+    # ------------------------------------------------------------------ modes
+    @property
+    def num_modes(self) -> int:
+        return len(self.modes)
+
+    def mode_index(self, mode: str | int) -> int:
+        """Index of a mode given by name or index (validated)."""
+        if isinstance(mode, (int, np.integer)) and not isinstance(mode, bool):
+            if not 0 <= int(mode) < self.num_modes:
+                raise ValueError(f"mode index must be in [0, {self.num_modes}), got {mode}")
+            return int(mode)
+        if mode not in self.modes:
+            raise ValueError(f"unknown mode {mode!r}; expected one of {self.modes}")
+        return self.modes.index(mode)
+
+    def mode_of(self, sensors: Mapping[str, bool] | Iterable[str]) -> str:
+        """The mode labelled by a sensor reading (thesis: sigma = L(alpha))."""
+        key = _as_sensor_key(sensors)
+        unknown = key - set(self.sensors)
+        if unknown:
+            raise ValueError(f"unknown sensor APs {sorted(unknown)}; expected a subset of {self.sensors}")
+        try:
+            return self.sensor_modes[key]
+        except KeyError:
+            raise ValueError(
+                f"sensor reading {sorted(key)} labels no mode of task {self.name!r}"
+            ) from None
+
+    def sensors_of(self, mode: str) -> dict[str, bool]:
+        """The (first) sensor reading that labels ``mode``, as AP -> bool."""
+        self.mode_index(mode)
+        for key, m in self.sensor_modes.items():
+            if m == mode:
+                return {ap: ap in key for ap in self.sensors}
+        raise ValueError(f"no sensor reading labels mode {mode!r} in task {self.name!r}")
+
+    # ------------------------------------------------------------ transitions
+    def is_allowed(self, src: str | int, dst: str | int) -> bool:
+        """True for self-loops and listed transitions."""
+        a, b = self.modes[self.mode_index(src)], self.modes[self.mode_index(dst)]
+        return a == b or (a, b) in self.transitions
+
+    def graph(self) -> nx.DiGraph:
+        """Directed graph of allowed transitions (nodes are mode names)."""
+        g = nx.DiGraph()
+        g.add_nodes_from(self.modes)
+        g.add_edges_from(sorted(self.transitions))
+        return g
+
+    def allowed_matrix(self) -> np.ndarray:
+        """Boolean ``(K, K)`` matrix: ``A[i, j]`` iff mode i may step to mode j."""
+        k = self.num_modes
+        allowed = np.eye(k, dtype=bool)
+        for a, b in self.transitions:
+            allowed[self.modes.index(a), self.modes.index(b)] = True
+        return allowed
+
+    def feasibility_matrix(self, convention: Literal["shortest_path", "forward"] = "shortest_path") -> np.ndarray:
+        """GLiDE feasibility matrix ``F`` (thesis §4.2).
+
+        ``"shortest_path"`` (thesis text): ``F[i, j] = 0`` for allowed moves and
+        ``-(d(i, j) - 1)`` otherwise, with ``d`` the shortest path length in the
+        transition graph (unreachable pairs count as ``K`` steps).
+        ``"forward"`` (public GLiDE code, linear tasks only): ``F[i, j] =
+        -(j - i - 1)`` for ``j > i + 1`` and 0 otherwise, i.e. every backward
+        move is free.
+        """
+        k = self.num_modes
+        if convention == "forward":
+            i, j = np.indices((k, k))
+            return np.where(j > i + 1, -(j - i - 1), 0).astype(np.float64)
+        if convention != "shortest_path":
+            raise ValueError(f"convention must be 'shortest_path' or 'forward', got {convention!r}")
+        lengths = dict(nx.all_pairs_shortest_path_length(self.graph()))
+        feas = np.zeros((k, k), dtype=np.float64)
+        for i, a in enumerate(self.modes):
+            for j, b in enumerate(self.modes):
+                if self.is_allowed(a, b):
+                    continue
+                d = lengths.get(a, {}).get(b, k)
+                feas[i, j] = -(d - 1)
+        return feas
+
+    def shortest_plan(self, src: str | int, dst: str | int | None = None) -> list[str]:
+        """Shortest mode sequence from ``src`` to ``dst`` (default: nearest goal)."""
+        a = self.modes[self.mode_index(src)]
+        targets = self.goal if dst is None else (self.modes[self.mode_index(dst)],)
+        g = self.graph()
+        best: list[str] | None = None
+        for t in targets:
+            try:
+                path = nx.shortest_path(g, a, t)
+            except nx.NetworkXNoPath:
+                continue
+            if best is None or len(path) < len(best):
+                best = path
+        if best is None:
+            raise ValueError(f"no allowed mode sequence from {a!r} to {targets}")
+        return best
+
+    @classmethod
+    def linear(cls, name: str, modes: Iterable[str], *, back_edges: bool = False, **kwargs: object) -> TaskSpec:
+        """A chain ``m0 -> m1 -> ... -> mK`` (optionally with ``m(i+1) -> m(i)``)."""
+        modes = tuple(modes)
+        transitions = {(modes[i], modes[i + 1]) for i in range(len(modes) - 1)}
+        if back_edges:
+            transitions |= {(modes[i + 1], modes[i]) for i in range(len(modes) - 1)}
+        return cls(name=name, modes=modes, transitions=frozenset(transitions), **kwargs)  # type: ignore[arg-type]

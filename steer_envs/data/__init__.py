@@ -1,0 +1,1 @@
+"""Scripted experts (demonstration generators) and dataset writing/reading."""

@@ -1,0 +1,1 @@
+"""Environments of steer-envs; one module per domain. See ``registry.py`` for ids."""

@@ -1,0 +1,1 @@
+"""Simulated users: sketchers, pointers and perturbers."""

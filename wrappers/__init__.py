@@ -1,0 +1,1 @@
+"""Composable wrappers of steer-envs (installed as ``steer_envs.wrappers``)."""
