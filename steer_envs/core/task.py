@@ -116,9 +116,7 @@ class TaskSpec:
         try:
             return self.sensor_modes[key]
         except KeyError:
-            raise ValueError(
-                f"sensor reading {sorted(key)} labels no mode of task {self.name!r}"
-            ) from None
+            raise ValueError(f"sensor reading {sorted(key)} labels no mode of task {self.name!r}") from None
 
     def sensors_of(self, mode: str) -> dict[str, bool]:
         """The (first) sensor reading that labels ``mode``, as AP -> bool."""

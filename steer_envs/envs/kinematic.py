@@ -129,7 +129,9 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self.terminate_on_violation = bool(terminate_on_violation)
         self.render_mode = render_mode
         self.render_size = int(render_size)
-        self.observation_space = spaces.Box(model.low.astype(np.float32), model.high.astype(np.float32), dtype=np.float32)
+        self.observation_space = spaces.Box(
+            model.low.astype(np.float32), model.high.astype(np.float32), dtype=np.float32
+        )
         self.action_space = spaces.Box(-self.max_speed, self.max_speed, shape=(2,), dtype=np.float32)
         self._pos = np.zeros((1, 2))
         self._memory = np.zeros((1, model.memory_size), dtype=np.int64)
@@ -148,7 +150,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return {
             "mode": mode,
             "mode_name": self.task.modes[mode],
-            "sensors": {ap: bool(v) for ap, v in zip(self.task.sensors, reading.sensors[0])},
+            "sensors": {ap: bool(v) for ap, v in zip(self.task.sensors, reading.sensors[0], strict=True)},
             "success": bool(reading.success[0]),
             "constraint_violation": bool(violation),
             "perturbed": perturbed,
@@ -158,7 +160,9 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._pos[0].astype(np.float32)
 
     # ------------------------------------------------------------------- API
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode; ``options={"state": xy}`` starts from a given state."""
         super().reset(seed=seed)
         options = options or {}
@@ -251,7 +255,9 @@ class Kinematic2DVectorEnv(VectorEnv):
             "constraint_violation": violation.astype(bool),
         }
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._pos = self.model.sample_start(self.np_random, self.num_envs).astype(np.float64)
         self._memory = self.model.reset_memory(self._pos)

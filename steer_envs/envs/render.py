@@ -7,6 +7,8 @@ GUI toolkit. The canvas maps a world rectangle to an ``H x W`` RGB image with
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 #: A palette for region labels; index 0 is "free space" (white).
@@ -71,7 +73,7 @@ class Canvas:
         pix = self.to_pixel(points).astype(np.float64)
         if len(pix) == 1:
             pix = np.vstack([pix, pix])
-        for a, b in zip(pix[:-1], pix[1:]):
+        for a, b in itertools.pairwise(pix):
             n = int(max(abs(b - a).max(), 1)) + 1
             t = np.linspace(0.0, 1.0, n)[:, None]
             seg = np.rint(a + t * (b - a)).astype(np.int64)

@@ -1,0 +1,94 @@
+"""Demonstrations from the scripted experts.
+
+A :class:`Demonstration` is one expert episode: states, actions and the mode
+sensors at every state. TLI fits mode policies from 1-3 of them, GLiDE uses
+fewer than 10.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from steer_envs.data.experts import make_expert
+
+
+@dataclass(frozen=True)
+class Demonstration:
+    """One expert episode of ``T`` states and ``T - 1`` actions."""
+
+    env_id: str
+    seed: int
+    states: np.ndarray  # (T, d)
+    actions: np.ndarray  # (T - 1, a)
+    modes: np.ndarray  # (T,) int
+    sensors: np.ndarray  # (T, num_aps) bool, columns in task.sensors order
+    success: bool
+
+    def __len__(self) -> int:
+        return len(self.states)
+
+
+def rollout_expert(env: gym.Env, seed: int, max_steps: int | None = None) -> Demonstration:
+    """Run the scripted expert of ``env`` for one episode from ``reset(seed=seed)``."""
+    if not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"seed must be an int, got {type(seed).__name__}")
+    expert = make_expert(env)
+    task = env.unwrapped.task
+    obs, info = env.reset(seed=int(seed))
+    expert.reset(obs, info)
+    states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
+    limit = max_steps if max_steps is not None else (env.spec.max_episode_steps if env.spec else None) or 10_000
+    success = bool(info["success"])
+    for _ in range(limit):
+        if success:
+            break
+        action = np.asarray(expert.act(obs, info))
+        obs, _, terminated, truncated, info = env.step(action)
+        states.append(np.asarray(obs, dtype=np.float64))
+        actions.append(action.astype(np.float64))
+        modes.append(info["mode"])
+        sensors.append(_sensor_row(task, info))
+        success = bool(info["success"])
+        if terminated or truncated:
+            break
+    return Demonstration(
+        env_id=env.spec.id if env.spec else type(env.unwrapped).__name__,
+        seed=int(seed),
+        states=np.asarray(states),
+        actions=np.asarray(actions).reshape(len(actions), -1),
+        modes=np.asarray(modes, dtype=np.int64),
+        sensors=np.asarray(sensors, dtype=bool).reshape(len(states), len(task.sensors)),
+        success=success,
+    )
+
+
+def collect_demonstrations(
+    env_id: str, n: int, seed: int = 0, *, only_successful: bool = True, **make_kwargs: Any
+) -> list[Demonstration]:
+    """``n`` expert demonstrations of ``env_id`` from seeds ``seed, seed + 1, ...``.
+
+    With ``only_successful`` (default), failed episodes are skipped and more
+    seeds are tried (at most ``10 * n``) until ``n`` successes are found.
+    """
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be a positive int, got {n!r}")
+    env = gym.make(env_id, **make_kwargs)
+    demos: list[Demonstration] = []
+    try:
+        for s in range(int(seed), int(seed) + 10 * int(n)):
+            demo = rollout_expert(env, s)
+            if demo.success or not only_successful:
+                demos.append(demo)
+            if len(demos) == n:
+                return demos
+    finally:
+        env.close()
+    raise RuntimeError(f"the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes")
+
+
+def _sensor_row(task: Any, info: dict[str, Any]) -> list[bool]:
+    return [bool(info["sensors"][ap]) for ap in task.sensors]
