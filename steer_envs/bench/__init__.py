@@ -1,0 +1,1 @@
+"""steer-bench: the benchmark runner."""

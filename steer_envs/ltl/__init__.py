@@ -1,0 +1,1 @@
+"""LTL: parser, automata, replanner, Spot backend."""
