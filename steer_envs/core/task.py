@@ -21,6 +21,8 @@ SensorKey = frozenset[str]
 
 
 def _as_sensor_key(sensors: Mapping[str, bool] | Iterable[str]) -> SensorKey:
+    if isinstance(sensors, str):  # one AP name, not an iterable of characters
+        return frozenset((sensors,))
     if isinstance(sensors, Mapping):
         return frozenset(name for name, value in sensors.items() if bool(value))
     return frozenset(sensors)
@@ -50,12 +52,12 @@ class TaskSpec:
     name: str
     modes: tuple[str, ...]
     sensors: tuple[str, ...] = ()
-    sensor_modes: Mapping[SensorKey, str] = field(default_factory=dict)
+    sensor_modes: Mapping[SensorKey, str] = field(default_factory=dict, hash=False)
     transitions: frozenset[tuple[str, str]] = frozenset()
     initial: str | None = None
     goal: tuple[str, ...] = ()
     ltl: str | None = None
-    ltl_variants: Mapping[str, str] = field(default_factory=dict)
+    ltl_variants: Mapping[str, str] = field(default_factory=dict, hash=False)
 
     def __post_init__(self) -> None:
         modes = tuple(self.modes)
@@ -118,9 +120,9 @@ class TaskSpec:
         except KeyError:
             raise ValueError(f"sensor reading {sorted(key)} labels no mode of task {self.name!r}") from None
 
-    def sensors_of(self, mode: str) -> dict[str, bool]:
-        """The (first) sensor reading that labels ``mode``, as AP -> bool."""
-        self.mode_index(mode)
+    def sensors_of(self, mode: str | int) -> dict[str, bool]:
+        """The (first) sensor reading that labels ``mode`` (name or index), as AP -> bool."""
+        mode = self.modes[self.mode_index(mode)]
         for key, m in self.sensor_modes.items():
             if m == mode:
                 return {ap: ap in key for ap in self.sensors}
