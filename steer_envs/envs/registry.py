@@ -63,6 +63,15 @@ ENTRIES: tuple[EnvEntry, ...] = (
         )
         for k in (3, 4, 5)
     ),
+    *(
+        EnvEntry(
+            f"Maze2D-{maze}-v0",
+            "steer_envs.envs.maze2d:Maze2DEnv",
+            max_episode_steps=steps,
+            kwargs={"maze": maze.lower()},
+        )
+        for maze, steps in (("Umaze", 300), ("Medium", 600), ("Large", 800))
+    ),
 )
 
 

@@ -23,6 +23,9 @@ _EXPERTS: dict[str, str] = {
     "PolygonNav-3Mode-v0": "steer_envs.data.experts.polygon_nav:PolygonNavExpert",
     "PolygonNav-4Mode-v0": "steer_envs.data.experts.polygon_nav:PolygonNavExpert",
     "PolygonNav-5Mode-v0": "steer_envs.data.experts.polygon_nav:PolygonNavExpert",
+    "Maze2D-Umaze-v0": "steer_envs.data.experts.maze2d:Maze2DExpert",
+    "Maze2D-Medium-v0": "steer_envs.data.experts.maze2d:Maze2DExpert",
+    "Maze2D-Large-v0": "steer_envs.data.experts.maze2d:Maze2DExpert",
 }
 
 
