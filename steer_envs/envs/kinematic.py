@@ -258,8 +258,18 @@ class Kinematic2DVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start all episodes; ``options={"state": xy}`` with ``xy`` of shape ``(num_envs, 2)`` sets the starts."""
         super().reset(seed=seed)
-        self._pos = self.model.sample_start(self.np_random, self.num_envs).astype(np.float64)
+        options = options or {}
+        if options.get("state") is not None:
+            states = np.asarray(options["state"], dtype=np.float64)
+            if states.shape != (self.num_envs, 2) or not np.all(np.isfinite(states)):
+                raise ValueError(
+                    f"options['state'] must be a finite array of shape ({self.num_envs}, 2), got {states.shape}"
+                )
+            self._pos = np.clip(states, self.model.low, self.model.high)
+        else:
+            self._pos = self.model.sample_start(self.np_random, self.num_envs).astype(np.float64)
         self._memory = self.model.reset_memory(self._pos)
         self._elapsed[:] = 0
         self._needs_reset[:] = False

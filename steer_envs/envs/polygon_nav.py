@@ -1,0 +1,283 @@
+"""PolygonNav-{3,4,5}Mode-v0: traverse a chain of random convex polygons (GLiDE 2D navigation).
+
+Thesis §4.3 "2D Navigation": mode 0 is the free space, modes ``1..K-1`` are a
+chain of random convex quadrilaterals, consecutive ones sharing a full edge.
+The agent starts in free space and must reach the last polygon, crossing the
+chain in order. Allowed mode transitions: self-loops, ``i -> i+1``,
+``i+1 -> i`` and any polygon back to free space; anything else (e.g. free space
+straight into polygon 2) is an invalid transition: a constraint violation that
+ends the episode. Dynamics (public GLiDE code): single integrator whose step
+is the action with its length clipped to 0.1 (``dt = 1``, ``max_speed = 0.1``),
+500 steps per episode.
+
+Geometry (glide.md "Polygon domain"): each polygon is a random convex
+quadrilateral scaled to the unit box; polygon ``j+1`` is attached by the
+orientation-preserving similarity that maps its first edge ``(v0, v1)`` onto
+polygon ``j``'s last edge ``(v2, v3)`` (reversed, so it lies on the other side);
+coordinates are then scaled ``x5 - 4``. "Last edge" is read as the last edge of
+the open vertex list, opposite the first edge, so a polygon's two shared edges
+never meet at a vertex and non-consecutive polygons stay apart. Unlike the
+public generator, a layout is redrawn (deterministically, from the layout rng)
+until every polygon lies ``workspace_margin`` inside ``[-8, 8]^2``,
+non-consecutive polygons are at least ``min_gap`` apart, and each polygon has
+area >= 1; the union of the chain is then a disk away from the walls, so the
+free space is connected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from shapely.geometry import MultiPoint, Polygon, box
+from shapely.geometry.polygon import orient
+from shapely.ops import unary_union
+
+from steer_envs.core.task import TaskSpec
+from steer_envs.envs.convex_mode import check_layout_seed, convex_halfspaces, in_halfspaces
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.render import Canvas
+
+WORKSPACE_HALF_WIDTH = 8.0
+#: unit-box coordinates map to the workspace by ``x * SCALE + OFFSET`` (public code: x5 - 4).
+SCALE, OFFSET = 5.0, -4.0
+MIN_POLYGON_AREA = 1.0
+#: shape limits of a random quadrilateral in unit-box coordinates (keeps polygons navigable).
+_MIN_ANGLE_DEG, _MAX_ANGLE_DEG, _MIN_EDGE, _MIN_UNIT_AREA = 30.0, 150.0, 0.3, 0.3
+_MAX_LAYOUT_TRIES = 100_000
+
+
+def polygon_nav_task(num_modes: int) -> TaskSpec:
+    """The TaskSpec of a ``num_modes`` chain: modes ``free, p1, ..., p{K-1}``.
+
+    One sensor AP per polygon (``in_p1``, ...), true while the agent is in that
+    polygon; no AP true means free space.
+    """
+    polys = tuple(f"p{j}" for j in range(1, num_modes))
+    modes = ("free", *polys)
+    transitions = {(modes[i], modes[i + 1]) for i in range(num_modes - 1)}
+    transitions |= {(modes[i + 1], modes[i]) for i in range(num_modes - 1)}
+    transitions |= {(p, "free") for p in polys}
+    sensor_modes = {frozenset(): "free", **{frozenset({f"in_{p}"}): p for p in polys}}
+    return TaskSpec(
+        name=f"PolygonNav-{num_modes}Mode",
+        modes=modes,
+        sensors=tuple(f"in_{p}" for p in polys),
+        sensor_modes=sensor_modes,
+        transitions=frozenset(transitions),
+        initial="free",
+        goal=(modes[-1],),
+    )
+
+
+def _random_quad(rng: np.random.Generator) -> np.ndarray:
+    """A random convex quadrilateral scaled to the unit box, CCW vertices ``(4, 2)``."""
+    while True:
+        pts = rng.uniform(0.0, 1.0, size=(4, 2))
+        hull = MultiPoint([tuple(p) for p in pts]).convex_hull
+        if not isinstance(hull, Polygon):
+            continue
+        v = np.asarray(orient(hull, sign=1.0).exterior.coords, dtype=np.float64)[:-1]
+        if len(v) != 4:
+            continue
+        v = (v - v.min(axis=0)) / (v.max(axis=0) - v.min(axis=0))
+        edges = np.roll(v, -1, axis=0) - v
+        prev_edges = -np.roll(edges, 1, axis=0)
+        cos = np.einsum("ij,ij->i", edges, prev_edges) / (
+            np.linalg.norm(edges, axis=1) * np.linalg.norm(prev_edges, axis=1)
+        )
+        angles = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        if (
+            angles.min() >= _MIN_ANGLE_DEG
+            and angles.max() <= _MAX_ANGLE_DEG
+            and np.linalg.norm(edges, axis=1).min() >= _MIN_EDGE
+            and Polygon(v).area >= _MIN_UNIT_AREA
+        ):
+            return v
+
+
+def _attach(prev: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """Map ``new``'s first edge (v0, v1) onto ``prev``'s last edge (v2, v3), reversed."""
+    q2, q3 = prev[2], prev[3]
+    a = complex(*(q2 - q3)) / complex(*(new[1] - new[0]))
+    z = (new[:, 0] + 1j * new[:, 1] - complex(*new[0])) * a + complex(*q3)
+    out = np.stack([z.real, z.imag], axis=1)
+    out[0], out[1] = q3, q2  # share the edge exactly, not up to rounding
+    return out
+
+
+class PolygonNavModel(KinematicTaskModel):
+    """Batched task physics of PolygonNav (a chain of ``num_modes - 1`` polygons).
+
+    Public geometry (fixed by ``layout_seed``; polygon ``j`` of the task is index
+    ``j - 1`` below):
+        vertices: tuple of ``(4, 2)`` CCW vertex arrays; polygon ``j``'s edge
+            ``(v2, v3)`` is polygon ``j+1``'s edge ``(v1, v0)``.
+        polygons: the same as shapely ``Polygon`` objects.
+        A, b: stacked half-space forms, ``(P, 4, 2)`` and ``(P, 4)``: ``x`` is in
+            polygon ``j`` iff ``A[j-1] @ x <= b[j-1]``.
+        shared_edges: ``(P - 1, 2, 2)`` endpoints of the edge between polygons
+            ``j`` and ``j+1``.
+        union: shapely union of the polygons; free_space: the workspace minus it.
+        allowed: ``(K, K)`` bool matrix of allowed mode transitions.
+
+    Mode of a point: the polygon containing it (closed sets; on a shared edge
+    the later polygon wins), else 0 (free space). Task memory (1 slot):
+    whether an invalid transition was ever made by a step. Success: in the last
+    polygon with no invalid transition. External pushes (``perturb``) do not
+    count as transitions of the agent.
+    """
+
+    memory_size = 1
+
+    def __init__(
+        self,
+        num_modes: int = 4,
+        layout_seed: int = 0,
+        *,
+        workspace_margin: float = 0.5,
+        min_gap: float = 0.5,
+    ) -> None:
+        if isinstance(num_modes, bool) or not isinstance(num_modes, (int, np.integer)):
+            raise TypeError(f"num_modes must be an int >= 2, got {type(num_modes).__name__}")
+        if not 2 <= num_modes <= 9:
+            raise ValueError(f"num_modes must be in [2, 9] (free space + 1..8 polygons), got {num_modes}")
+        if not (np.isfinite(workspace_margin) and 0 <= workspace_margin < 2):
+            raise ValueError(f"workspace_margin must be in [0, 2), got {workspace_margin!r}")
+        if not (np.isfinite(min_gap) and 0 < min_gap < 4):
+            raise ValueError(f"min_gap must be in (0, 4), got {min_gap!r}")
+        self.num_modes = int(num_modes)
+        self.num_polygons = self.num_modes - 1
+        self.layout_seed = check_layout_seed(layout_seed)
+        self.workspace_margin = float(workspace_margin)
+        self.min_gap = float(min_gap)
+        self.task = polygon_nav_task(self.num_modes)
+        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
+        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
+        self.region_names = self.task.modes
+
+        verts = self._generate(np.random.default_rng(self.layout_seed))
+        self.vertices: tuple[np.ndarray, ...] = tuple(verts)
+        self.polygons: tuple[Polygon, ...] = tuple(Polygon(v) for v in verts)
+        halfspaces = [convex_halfspaces(v) for v in verts]
+        self.A = np.stack([h[0] for h in halfspaces])
+        self.b = np.stack([h[1] for h in halfspaces])
+        self.shared_edges = np.array([[v[2], v[3]] for v in verts[:-1]]).reshape(-1, 2, 2)
+        self.union = unary_union(self.polygons)
+        self.free_space = box(-WORKSPACE_HALF_WIDTH, -WORKSPACE_HALF_WIDTH, WORKSPACE_HALF_WIDTH, WORKSPACE_HALF_WIDTH)
+        self.free_space = self.free_space.difference(self.union)
+        self.allowed = self.task.allowed_matrix()
+
+    def _generate(self, rng: np.random.Generator) -> list[np.ndarray]:
+        lim = WORKSPACE_HALF_WIDTH - self.workspace_margin
+        for _ in range(_MAX_LAYOUT_TRIES):
+            unit = [_random_quad(rng)]
+            for _ in range(self.num_polygons - 1):
+                unit.append(_attach(unit[-1], _random_quad(rng)))
+            verts = [u * SCALE + OFFSET for u in unit]
+            stacked = np.vstack(verts)
+            if stacked.min() < -lim or stacked.max() > lim:
+                continue
+            polys = [Polygon(v) for v in verts]
+            if min(p.area for p in polys) < MIN_POLYGON_AREA:
+                continue
+            if any(
+                polys[i].distance(polys[j]) < self.min_gap for i in range(len(polys)) for j in range(i + 2, len(polys))
+            ):
+                continue
+            return verts
+        raise RuntimeError(  # pragma: no cover - ~1.4 / 3 / 8 draws per layout for 3 / 4 / 5 modes
+            f"PolygonNav: no valid layout in {_MAX_LAYOUT_TRIES} draws (num_modes={self.num_modes})"
+        )
+
+    # ------------------------------------------------------------ geometry
+    def contains(self, pos: np.ndarray) -> np.ndarray:
+        """Membership of each point in each (closed) polygon: ``(N, 2) -> (N, P)`` bool."""
+        return in_halfspaces(self.A, self.b, pos)
+
+    def mode_of(self, pos: np.ndarray) -> np.ndarray:
+        """Mode index of each point: ``(N, 2) -> (N,)`` int (0 = free space)."""
+        inside = self.contains(pos)
+        last = self.num_polygons - np.argmax(inside[:, ::-1], axis=1)
+        return np.where(inside.any(axis=1), last, 0).astype(np.int64)
+
+    def regions(self, pos: np.ndarray) -> np.ndarray:
+        return self.mode_of(pos)
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Uniform in free space (rejection sampling in the workspace)."""
+        out = np.empty((n, 2))
+        todo = np.arange(n)
+        while len(todo):
+            cand = rng.uniform(self.low, self.high, size=(len(todo), 2))
+            ok = self.mode_of(cand) == 0
+            out[todo[ok]] = cand[ok]
+            todo = todo[~ok]
+        return out
+
+    # ---------------------------------------------------------------- task
+    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        violation = ~self.allowed[self.mode_of(prev_pos), self.mode_of(pos)]
+        new_memory = memory.copy()
+        new_memory[:, 0] |= violation
+        return new_memory, violation
+
+    def teleport(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """A push is not a transition made by the agent: the memory is kept as it was."""
+        return memory.copy()
+
+    def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
+        mode = self.mode_of(pos)
+        sensors = mode[:, None] == np.arange(1, self.num_modes)[None, :]
+        return TaskReading(mode=mode, sensors=sensors, success=(mode == self.num_modes - 1) & (memory[:, 0] == 0))
+
+    def trajectory_success(self, xy: np.ndarray) -> bool:
+        """GLiDE's success check on a whole path ``(T, 2)``: every transition allowed up to
+        reaching the last polygon (used to label demonstration replays)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) == 0:
+            raise ValueError(f"xy must have shape (T>=1, 2), got {xy.shape}")
+        modes = self.mode_of(xy)
+        bad = np.concatenate([[False], ~self.allowed[modes[:-1], modes[1:]]])
+        reached = (modes == self.num_modes - 1) & ~np.logical_or.accumulate(bad)
+        return bool(reached.any())
+
+    def draw(self, canvas: Canvas) -> None:
+        for v in self.vertices:
+            canvas.polyline(np.vstack([v, v[:1]]), (60, 60, 60), thickness=1)
+
+
+class PolygonNavEnv(Kinematic2DEnv):
+    """PolygonNav-kMode-v0 (GLiDE 2D navigation); see the module docstring.
+
+    Args:
+        num_modes: number of modes K (free space + K-1 polygons); registered 3, 4, 5.
+        layout_seed: seed of the random polygon chain (geometry only).
+        terminate_on_violation: end the episode on an invalid transition (GLiDE: yes).
+        workspace_margin, min_gap: layout validity margins (see the module docstring).
+        render_mode: ``None`` or ``"rgb_array"``.
+        render_size: side of the rendered square image in pixels.
+    """
+
+    def __init__(
+        self,
+        num_modes: int = 4,
+        layout_seed: int = 0,
+        terminate_on_violation: bool = True,
+        workspace_margin: float = 0.5,
+        min_gap: float = 0.5,
+        render_mode: str | None = None,
+        render_size: int = 256,
+    ) -> None:
+        super().__init__(
+            PolygonNavModel(num_modes, layout_seed, workspace_margin=workspace_margin, min_gap=min_gap),
+            dt=1.0,
+            max_speed=0.1,
+            terminate_on_violation=terminate_on_violation,
+            render_mode=render_mode,
+            render_size=render_size,
+        )
+        self.model: PolygonNavModel
+
+
+make_vector_env = vector_factory(PolygonNavEnv)
+
+__all__ = ["PolygonNavEnv", "PolygonNavModel", "make_vector_env", "polygon_nav_task"]
