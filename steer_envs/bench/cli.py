@@ -1,0 +1,262 @@
+"""``steer-bench``: list suites, run them (resumably), report results.
+
+Exit status: 0 success; 1 some trials failed (they are logged in
+``failures.jsonl`` and re-run by the next ``run``); 2 bad usage or
+configuration (unknown suite/env/method/parameter, wrong ``--out``, missing
+optional dependency); 130 interrupted (finished trials are on disk).
+Set ``STEER_BENCH_DEBUG=1`` to get tracebacks instead of one-line errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from steer_envs.bench.executors import EXECUTORS
+from steer_envs.bench.report import FORMATS, render, render_markdown, summarize
+from steer_envs.bench.store import StoreLockedError, atomic_write_text, load_results
+from steer_envs.bench.suite import Suite, get_suite, load_plugins, suites
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _param(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` with VALUE parsed as JSON when it is JSON (``3``, ``0.5``, ``true``, ``[1, 2]``)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        parsed: Any = json.loads(value)
+    except json.JSONDecodeError:
+        parsed = value
+    return key.strip(), parsed
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``steer-bench`` (``--help`` on every sub-command)."""
+    from steer_envs import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="steer-bench",
+        description="Benchmark runner of steer-envs: suites of trials over the registered envs, "
+        "results as resumable JSON lines, reports beside the thesis's numbers.",
+    )
+    parser.add_argument("--version", action="version", version=f"steer-bench (steer-envs {__version__})")
+    sub = parser.add_subparsers(dest="command", metavar="{list,run,report}", required=True)
+
+    plugin = argparse.ArgumentParser(add_help=False)
+    plugin.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (it registers extra suites); also $STEER_BENCH_PLUGINS",
+    )
+
+    p_list = sub.add_parser("list", parents=[plugin], help="list suites, their envs, methods and metrics")
+    p_list.add_argument("suite", nargs="?", help="show only this suite")
+
+    p_run = sub.add_parser(
+        "run",
+        parents=[plugin],
+        help="run (or resume) a suite",
+        description="Run SUITE into --out; an existing --out is resumed (finished trials skipped).",
+    )
+    p_run.add_argument("suite", help="suite name (see `steer-bench list`)")
+    p_run.add_argument("--env", nargs="+", action="extend", metavar="ID", help="only these env ids (default: all)")
+    p_run.add_argument("--method", nargs="+", action="extend", metavar="NAME", help="only these methods (default: all)")
+    p_run.add_argument("--seeds", type=_positive_int, metavar="N", help="seeds 0..N-1 (default: the suite's)")
+    p_run.add_argument(
+        "--trials",
+        type=_positive_int,
+        metavar="N",
+        help="rollouts per trial (the suite's trials parameter, e.g. smoke's episodes)",
+    )
+    p_run.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a suite parameter (VALUE parsed as JSON if it is JSON); see `steer-bench list SUITE`",
+    )
+    p_run.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help="parallel workers: a local process pool when N > 1; Ray: CPUs to use (default: 1; Ray: all CPUs)",
+    )
+    p_run.add_argument("--executor", choices=EXECUTORS, default="local", help="where trials run (default: local)")
+    p_run.add_argument(
+        "--address", metavar="ADDR", help="Ray cluster address ('auto', 'ray://host:10001'); default: start a local Ray"
+    )
+    p_run.add_argument("--out", type=Path, metavar="DIR", help="results directory (default: runs/SUITE)")
+    p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    p_report = sub.add_parser("report", parents=[plugin], help="tables (and plots) from a results directory")
+    p_report.add_argument("dir", type=Path, help="a --out directory of `steer-bench run`")
+    p_report.add_argument("--format", choices=FORMATS, default="md", help="output format (default: md)")
+    p_report.add_argument("--plots", action="store_true", help="also write PNG figures")
+    p_report.add_argument("--plots-dir", type=Path, metavar="DIR", help="where the PNGs go (default: DIR/plots)")
+    return parser
+
+
+def _describe(suite: Suite) -> list[str]:
+    try:
+        envs = [e for e in suite.env_list() if e is not None]
+        methods = [m for m in suite.method_list() if m is not None]
+    except Exception as exc:  # a lazy axis failed: show it instead of crashing `list`
+        envs, methods = [f"<error: {exc}>"], []
+    lines = [f"{suite.name}: {suite.description}"]
+    if envs:
+        lines.append(f"    envs ({len(envs)}): {', '.join(envs)}")
+    if methods:
+        lines.append(f"    methods: {', '.join(methods)}")
+    if suite.metrics:
+        lines.append(f"    metrics: {', '.join(m.name for m in suite.metrics)}")
+    if suite.params:
+        lines.append(
+            f"    params: {', '.join(f'{k}={json.dumps(v)}' for k, v in suite.params.items())}"
+            + (f"  (--trials sets {suite.trials_param})" if suite.trials_param else "")
+        )
+    if suite.generate is None or suite.run_trial is not None:
+        lines.append(f"    default seeds: {suite.default_seeds}")
+    if suite.name == "quick":
+        from steer_envs.bench.suites_quick import quick_sections
+
+        lines.append(f"    tour of: {', '.join(s.name for s in quick_sections())}")
+    if suite.quick is not None:
+        lines.append(f"    in quick tour: {json.dumps(dict(suite.quick))}, seeds {suite.quick_seeds}")
+    if suite.references:
+        sources = ", ".join(sorted({r.source for r in suite.references}))
+        lines.append(f"    reference numbers: {len(suite.references)} ({sources})")
+    return lines
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    """Print the suites (or one suite) and the registered envs."""
+    load_plugins(args.plugin)
+    chosen = [get_suite(args.suite)] if args.suite else suites()
+    print("suites:")
+    for suite in chosen:
+        print("  " + "\n  ".join(_describe(suite)))
+    if not args.suite:
+        import importlib.util
+
+        import steer_envs
+        from steer_envs.data.experts import has_expert
+        from steer_envs.envs.registry import entry
+
+        print("envs:")
+        for env_id in steer_envs.env_ids():
+            e = entry(env_id)
+            module = e.entry_point.split(":")[0]
+            tags = ["kinematic+vector" if e.kinematic else "single", "expert" if has_expert(env_id) else "no expert"]
+            if importlib.util.find_spec(module) is None:
+                tags.append("module missing")
+            print(f"  {env_id}  ({', '.join(tags)})")
+    return EXIT_OK
+
+
+def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """Run a suite, print notes, failures and the summary table."""
+    from steer_envs.bench.runner import run_suite
+
+    load_plugins(args.plugin)
+    suite = get_suite(args.suite)
+    out = args.out if args.out is not None else Path("runs") / suite.name
+    params = dict(args.param)
+    summary = run_suite(
+        suite,
+        out,
+        envs=args.env,
+        methods=args.method,
+        seeds=args.seeds,
+        trials=args.trials,
+        params=params,
+        executor=args.executor,
+        workers=args.workers,
+        address=args.address,
+        progress=not args.no_progress,
+        argv=list(argv),
+    )
+    tables = summarize(summary.records)
+    title = f"steer-bench {suite.name}: {len(summary.records)} trials in {out}"
+    text = render_markdown(tables, title=title, notes=summary.notes)
+    atomic_write_text(out / "summary.md", text)
+    print(text)
+    print(
+        f"{summary.planned} trials planned: {summary.skipped} already done, {summary.completed} run now, "
+        f"{len(summary.failures)} failed -> {out}",
+        file=sys.stderr,
+    )
+    if summary.interrupted:
+        print("interrupted: finished trials are saved; run the same command again to resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if summary.failures:
+        print(f"{len(summary.failures)} trial(s) failed (details in {out / 'failures.jsonl'}):", file=sys.stderr)
+        for f in summary.failures[:10]:
+            print(f"  {f.trial.label}: {(f.error or '').splitlines()[0]}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Render the tables of a results directory; optionally write the plots."""
+    load_plugins(args.plugin)
+    manifest, records, read = load_results(args.dir)
+    if read.torn_tail:
+        print(f"note: ignored a torn last line in {args.dir} (a run was killed mid-write)", file=sys.stderr)
+    if read.corrupt_lines:
+        print(f"note: ignored corrupt lines {read.corrupt_lines} in {args.dir}", file=sys.stderr)
+    tables = summarize(records)
+    title = f"steer-bench {manifest.get('suite')}: {len(records)} trials in {args.dir}"
+    print(render(tables, args.format, title=title), end="")
+    if args.plots:
+        from steer_envs.bench.plots import write_plots
+
+        plots_dir = args.plots_dir if args.plots_dir is not None else args.dir / "plots"
+        for path in write_plots(records, plots_dir):
+            print(f"wrote {path}", file=sys.stderr)
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``steer-bench`` console script; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "list":
+            return cmd_list(args)
+        if args.command == "run":
+            return cmd_run(args, argv)
+        return cmd_report(args)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (KeyError, ValueError, TypeError, ImportError, FileNotFoundError, StoreLockedError) as exc:
+        if os.environ.get("STEER_BENCH_DEBUG"):
+            raise
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        print(f"steer-bench: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,112 @@
+"""PNG figures for ``steer-bench report --plots``.
+
+One bar chart per (suite, metric): the mean over seeds per cell with the
+standard deviation as error bar, the thesis's reference value of each cell
+drawn as a red tick across its bar, and the metric's goal as a dashed line.
+Suites may add their own figures through ``Suite.plot`` (e.g. throughput of
+single vs. vectorized envs, trajectories stored in a record's ``extra``).
+
+Figures are drawn with matplotlib's object API on the Agg canvas (no pyplot
+state, no display needed) and written atomically.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from steer_envs.bench.report import Table, summarize
+from steer_envs.bench.store import atomic_write_bytes
+from steer_envs.bench.suite import Suite, get_suite
+
+
+def new_figure(width: float = 7.0, height: float = 4.0) -> Any:
+    """A matplotlib ``Figure`` on an Agg canvas (safe in headless processes)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_figure(fig: Any, path: str | os.PathLike[str]) -> Path:
+    """Render ``fig`` to PNG and write it atomically to ``path``."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
+
+
+def safe_name(text: str) -> str:
+    """``text`` reduced to a file-name-safe token."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "plot"
+
+
+def metric_bar_chart(table: Table, metric: str, path: str | os.PathLike[str]) -> Path | None:
+    """Bar chart of ``metric`` across the cells of ``table`` (``None`` when no cell has a value)."""
+    m = next((x for x in table.metrics if x.name == metric), None)
+    if m is None:
+        raise ValueError(f"table {table.suite!r} has no metric {metric!r}")
+    rows = [r for r in table.rows if r.stats.get(metric) is not None]
+    if not rows:
+        return None
+    labels = [r.label(table.varying_params) for r in rows]
+    means = [r.stats[metric].mean for r in rows]  # type: ignore[union-attr]
+    stds = [r.stats[metric].std for r in rows]  # type: ignore[union-attr]
+    fig = new_figure(max(5.0, 0.9 * len(rows) + 2.5), 4.2)
+    ax = fig.add_subplot()
+    xs = list(range(len(rows)))
+    ax.bar(xs, means, yerr=stds, capsize=3, color="#4C72B0", label="measured (mean ± std over seeds)")
+    ref_drawn = False
+    for x, r in zip(xs, rows, strict=True):
+        ref = r.references.get(metric)
+        if ref is not None:
+            ax.hlines(
+                ref.value,
+                x - 0.4,
+                x + 0.4,
+                colors="#C44E52",
+                linewidth=2.5,
+                label=None if ref_drawn else f"reference ({ref.source or 'thesis'})",
+            )
+            ref_drawn = True
+    if m.goal is not None:
+        ax.axhline(m.goal, color="#55A868", linestyle="--", linewidth=1.5, label=f"goal {m.goal:g}")
+    positive = all(v > 0 for v in means)
+    if m.kind == "timing" and positive and max(means) / min(means) > 50:
+        ax.set_yscale("log")
+    ax.set_xticks(xs)
+    ax.set_xticklabels(labels, rotation=30 if len(rows) > 3 else 0, ha="right" if len(rows) > 3 else "center")
+    ax.set_ylabel(metric)
+    ax.set_title(f"{table.suite}: {m.description or metric}", fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8)
+    return save_figure(fig, path)
+
+
+def _lookup(name: str) -> Suite | None:
+    try:
+        return get_suite(name)
+    except KeyError:
+        return None
+
+
+def write_plots(records: Sequence[Mapping[str, Any]], out_dir: str | os.PathLike[str]) -> list[Path]:
+    """All figures for ``records``: a bar chart per (suite, metric) plus each suite's own plots."""
+    out_dir = Path(out_dir)
+    written: list[Path] = []
+    for table in summarize(records):
+        for m in table.metrics:
+            path = metric_bar_chart(table, m.name, out_dir / f"{safe_name(table.suite)}_{safe_name(m.name)}.png")
+            if path is not None:
+                written.append(path)
+        suite = _lookup(table.suite)
+        if suite is not None and suite.plot is not None:
+            suite_records = [r for r in records if r["config"]["suite"] == table.suite]
+            written += [Path(p) for p in suite.plot(suite, suite_records, str(out_dir))]
+    return written

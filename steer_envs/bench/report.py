@@ -1,0 +1,304 @@
+"""Aggregate trial records into tables; render them as markdown, CSV or JSON.
+
+Records are grouped by suite, then by cell (env, method, params); each metric
+gets mean, standard deviation (ddof=1), min, max and count over the cell's
+seeds. Where the suite declares a :class:`~steer_envs.bench.suite.Reference`
+(the thesis's number), the table shows it beside the measured mean together
+with the difference ``measured - reference``; metrics with a ``goal`` get a
+pass/fail line under the table.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import statistics
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from steer_envs.bench.suite import Metric, Reference, Suite, get_suite
+
+FORMATS: tuple[str, ...] = ("md", "csv", "json")
+
+
+@dataclass(frozen=True)
+class Stat:
+    """Summary of one metric over the seeds of one cell."""
+
+    n: int
+    mean: float
+    std: float
+    min: float
+    max: float
+
+    @classmethod
+    def of(cls, values: Sequence[float]) -> Stat:
+        if not values:
+            raise ValueError("Stat.of needs at least one value")
+        std = statistics.stdev(values) if len(values) > 1 else 0.0
+        return cls(len(values), statistics.fmean(values), std, min(values), max(values))
+
+
+@dataclass
+class Row:
+    """One cell of a table: an (env, method, params) combination over its seeds."""
+
+    env: str | None
+    method: str | None
+    params: dict[str, Any]
+    trials: int
+    seeds: list[int]
+    stats: dict[str, Stat | None]
+    references: dict[str, Reference]
+
+    def label(self, varying: Sequence[str] = ()) -> str:
+        """Short name for plots: env without namespace, method, varying params."""
+        parts = [p for p in (_short_env(self.env), self.method) if p]
+        parts += [f"{k}={self.params.get(k)}" for k in varying]
+        return " / ".join(parts) or "-"
+
+    def diff(self, metric: str) -> float | None:
+        """Measured mean minus the reference (``None`` without either)."""
+        stat, ref = self.stats.get(metric), self.references.get(metric)
+        if stat is None or ref is None:
+            return None
+        return stat.mean - ref.value
+
+
+@dataclass
+class Table:
+    """All cells of one suite."""
+
+    suite: str
+    description: str
+    metrics: list[Metric]
+    rows: list[Row] = field(default_factory=list)
+    varying_params: list[str] = field(default_factory=list)
+
+    def referenced_metrics(self) -> list[Metric]:
+        """Metrics that have a reference in at least one row."""
+        return [m for m in self.metrics if any(m.name in r.references for r in self.rows)]
+
+
+def _short_env(env: str | None) -> str | None:
+    return env.split("/", 1)[1] if env and "/" in env else env
+
+
+def _lookup(name: str) -> Suite | None:
+    try:
+        return get_suite(name)
+    except KeyError:
+        return None
+
+
+def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], Suite | None] = _lookup) -> list[Table]:
+    """Tables (one per suite found in ``records``) of per-cell statistics.
+
+    Suites that are not registered in this process still get a table, with
+    metric names taken from the records and no references.
+    """
+    by_suite: dict[str, list[Mapping[str, Any]]] = {}
+    for rec in records:
+        by_suite.setdefault(rec["config"]["suite"], []).append(rec)
+    tables: list[Table] = []
+    for suite_name in sorted(by_suite):
+        recs = by_suite[suite_name]
+        suite = lookup(suite_name)
+        if suite is not None:
+            metrics = list(suite.metrics)
+            known = {m.name for m in metrics}
+            metrics += [Metric(n) for n in sorted({k for r in recs for k in r["metrics"]} - known)]
+        else:
+            metrics = [Metric(n) for n in sorted({k for r in recs for k in r["metrics"]})]
+        cells: dict[str, list[Mapping[str, Any]]] = {}
+        for rec in recs:
+            cfg = rec["config"]
+            cell_key = json.dumps([cfg["env"], cfg["method"], cfg["params"]], sort_keys=True)
+            cells.setdefault(cell_key, []).append(rec)
+        rows = []
+        for cell_recs in cells.values():
+            cfg = cell_recs[0]["config"]
+            stats: dict[str, Stat | None] = {}
+            for m in metrics:
+                values = [float(r["metrics"][m.name]) for r in cell_recs if r["metrics"].get(m.name) is not None]
+                stats[m.name] = Stat.of(values) if values else None
+            refs = suite.references_for(cfg["env"], cfg["method"]) if suite is not None else {}
+            seeds = sorted(int(r["seed"]) for r in cell_recs)
+            rows.append(Row(cfg["env"], cfg["method"], dict(cfg["params"]), len(cell_recs), seeds, stats, refs))
+        rows.sort(key=lambda r: (_order(suite, "env", r.env), _order(suite, "method", r.method), json.dumps(r.params)))
+        all_keys = sorted({k for r in rows for k in r.params})
+        varying = [k for k in all_keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1]
+        description = suite.description if suite is not None else "(suite not registered in this process)"
+        tables.append(Table(suite_name, description, metrics, rows, varying))
+    return tables
+
+
+def _order(suite: Suite | None, axis: str, value: str | None) -> tuple[int, str]:
+    if suite is not None:
+        try:
+            items = suite.env_list() if axis == "env" else suite.method_list()
+        except Exception:  # a lazy axis that cannot be evaluated here
+            items = []
+        if value in items:
+            return (items.index(value), "")
+    return (1 << 30, str(value))
+
+
+def _fmt(value: float | None, spec: str, *, signed: bool = False) -> str:
+    if value is None or not math.isfinite(value):
+        return "—"
+    text = format(value, spec)
+    return f"+{text}" if signed and value >= 0 and not text.startswith("+") else text
+
+
+def _cell(stat: Stat | None, metric: Metric) -> str:
+    if stat is None:
+        return "—"
+    text = _fmt(stat.mean, metric.fmt)
+    if stat.n > 1:
+        text += f" ± {_fmt(stat.std, metric.fmt)}"
+    return text
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)]
+    lines = ["| " + " | ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)) + " |"]
+    lines.append("|" + "|".join("-" * (w + 2) for w in widths) + "|")
+    lines += ["| " + " | ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def goal_lines(table: Table) -> list[str]:
+    """``goal: metric >= x: k/n cells pass`` lines (naming failing cells)."""
+    lines = []
+    for m in table.metrics:
+        if m.goal is None:
+            continue
+        checked = [(r, r.stats.get(m.name)) for r in table.rows if r.stats.get(m.name) is not None]
+        if not checked:
+            continue
+        failing = [r.label(table.varying_params) for r, s in checked if not m.meets_goal(s.mean)]  # type: ignore[union-attr]
+        op = ">=" if m.higher_is_better else "<="
+        line = f"goal {m.name} {op} {m.goal:g}: {len(checked) - len(failing)}/{len(checked)} cells pass"
+        lines.append(line + (f" (below: {', '.join(failing)})" if failing else ""))
+    return lines
+
+
+def render_markdown(tables: Sequence[Table], *, title: str | None = None, notes: Sequence[str] = ()) -> str:
+    """Markdown: one table per suite; thesis numbers and differences beside measured means."""
+    out: list[str] = []
+    if title:
+        out += [f"# {title}", ""]
+    if notes:
+        out += [*(f"> note: {n}" for n in notes), ""]
+    if not tables:
+        out.append("(no finished trials)")
+    for table in tables:
+        out += [f"## {table.suite}", "", table.description, ""]
+        referenced = {m.name for m in table.referenced_metrics()}
+        header = ["env", "method", *table.varying_params, "n"]
+        for m in table.metrics:
+            header.append(m.name)
+            if m.name in referenced:
+                header += [f"{m.name} (ref)", f"Δ {m.name}"]
+        rows = []
+        for r in table.rows:
+            cells = [_short_env(r.env) or "-", r.method or "-", *(str(r.params.get(k)) for k in table.varying_params)]
+            cells.append(str(r.trials))
+            for m in table.metrics:
+                cells.append(_cell(r.stats.get(m.name), m))
+                if m.name in referenced:
+                    ref = r.references.get(m.name)
+                    cells += [_fmt(ref.value if ref else None, m.fmt), _fmt(r.diff(m.name), m.fmt, signed=True)]
+            rows.append(cells)
+        out.append(_md_table(header, rows))
+        sources = sorted({ref.source for r in table.rows for ref in r.references.values() if ref.source})
+        notes = [*goal_lines(table)]
+        if sources:
+            notes.append("references: " + "; ".join(sources))
+        described = [f"`{m.name}`: {m.description}" for m in table.metrics if m.description]
+        if described:
+            notes.append("metrics: " + "; ".join(described))
+        if notes:
+            out += [""] + [f"- {n}" for n in notes]
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
+
+
+def _long_rows(tables: Sequence[Table]) -> list[dict[str, Any]]:
+    rows = []
+    for table in tables:
+        for r in table.rows:
+            for m in table.metrics:
+                stat, ref = r.stats.get(m.name), r.references.get(m.name)
+                rows.append(
+                    {
+                        "suite": table.suite,
+                        "env": r.env,
+                        "method": r.method,
+                        "params": r.params,
+                        "metric": m.name,
+                        "kind": m.kind,
+                        "trials": r.trials,
+                        "n": stat.n if stat else 0,
+                        "mean": stat.mean if stat else None,
+                        "std": stat.std if stat else None,
+                        "min": stat.min if stat else None,
+                        "max": stat.max if stat else None,
+                        "reference": ref.value if ref else None,
+                        "diff": r.diff(m.name),
+                        "source": ref.source if ref else None,
+                        "goal": m.goal,
+                        "meets_goal": m.meets_goal(stat.mean) if stat else None,
+                    }
+                )
+    return rows
+
+
+def render_csv(tables: Sequence[Table]) -> str:
+    """CSV in long format: one line per (suite, env, method, params, metric)."""
+    rows = _long_rows(tables)
+    buf = io.StringIO()
+    fields = [
+        "suite",
+        "env",
+        "method",
+        "params",
+        "metric",
+        "kind",
+        "trials",
+        "n",
+        "mean",
+        "std",
+        "min",
+        "max",
+        "reference",
+        "diff",
+        "source",
+        "goal",
+        "meets_goal",
+    ]
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({**row, "params": json.dumps(row["params"], sort_keys=True)})
+    return buf.getvalue()
+
+
+def render_json(tables: Sequence[Table]) -> str:
+    """JSON: ``{"rows": [...]}`` in the same long format as the CSV."""
+    return json.dumps({"rows": _long_rows(tables)}, indent=2, sort_keys=True) + "\n"
+
+
+def render(tables: Sequence[Table], fmt: str = "md", *, title: str | None = None, notes: Sequence[str] = ()) -> str:
+    """Render ``tables`` as ``md``, ``csv`` or ``json`` (title and notes: markdown only)."""
+    if fmt == "md":
+        return render_markdown(tables, title=title, notes=notes)
+    if fmt == "csv":
+        return render_csv(tables)
+    if fmt == "json":
+        return render_json(tables)
+    raise ValueError(f"format must be one of {FORMATS}, got {fmt!r}")

@@ -1,0 +1,69 @@
+"""``selftest``: a tiny deterministic suite that checks the runner itself.
+
+Each trial estimates pi from ``samples`` points in the unit square, either
+plain Monte Carlo (``mc``) or jittered-grid stratified sampling
+(``stratified``); the reference is pi itself, so the report's difference
+column is the estimation error. It needs no environment, which makes it the
+suite to try an executor or a Ray cluster with
+(``steer-bench run selftest --executor ray --address auto``) and the one the
+runner's own tests use. ``sleep`` stretches trials (kill/resume tests);
+``fail_seeds`` makes chosen seeds raise (failure handling).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from steer_envs.bench.suite import Metric, Reference, Suite, Trial, register_suite
+
+
+def estimate_pi(method: str, samples: int, seed: int) -> float:
+    """Fraction of points in the quarter disc, times four."""
+    rng = np.random.default_rng(seed)
+    if method == "mc":
+        points = rng.random((samples, 2))
+    elif method == "stratified":
+        k = max(1, math.isqrt(samples))
+        cells = np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), axis=-1).reshape(-1, 2)
+        points = (cells + rng.random(cells.shape)) / k
+    else:
+        raise ValueError(f"method must be 'mc' or 'stratified', got {method!r}")
+    return 4.0 * float(np.mean(np.sum(points**2, axis=1) <= 1.0))
+
+
+def run_selftest_trial(trial: Trial) -> dict[str, float]:
+    """One pi estimate (sleeping ``sleep`` seconds first; raising on ``fail_seeds``)."""
+    params = trial.params
+    if params["sleep"] > 0:
+        time.sleep(params["sleep"])
+    if trial.seed in params["fail_seeds"]:
+        raise RuntimeError(f"selftest: seed {trial.seed} is listed in fail_seeds")
+    samples = int(params["samples"])
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples}")
+    t0 = time.perf_counter()
+    pi = estimate_pi(str(trial.method), samples, trial.seed)
+    elapsed = time.perf_counter() - t0
+    return {"pi": pi, "abs_error": abs(pi - math.pi), "samples_per_s": samples / max(elapsed, 1e-9)}
+
+
+SELFTEST = register_suite(
+    Suite(
+        name="selftest",
+        description="Runner self-check: pi by Monte Carlo vs. stratified sampling (no envs needed).",
+        metrics=(
+            Metric("pi", "estimate of pi", fmt=".4f"),
+            Metric("abs_error", "|estimate - pi|", higher_is_better=False, fmt=".2e"),
+            Metric("samples_per_s", "samples per second", kind="timing", fmt=".3g"),
+        ),
+        run_trial=run_selftest_trial,
+        methods=("mc", "stratified"),
+        params={"samples": 10_000, "sleep": 0.0, "fail_seeds": []},
+        trials_param="samples",
+        default_seeds=4,
+        references=(Reference("pi", math.pi, source="pi = 3.14159..."),),
+    )
+)

@@ -1,0 +1,235 @@
+"""``smoke``: scripted experts and step throughput on every registered env.
+
+One trial = one env x one seed:
+
+* the env's scripted expert runs ``episodes`` episodes (``gymnasium.make``,
+  so the registered time limit applies): success rate, constraint-violation
+  rate, episode length, expert+env steps/s;
+* ``single_steps`` random-action steps of the single env give ``env_sps``;
+* for the 2D kinematic envs, ``vec_steps`` random-action steps of
+  ``gymnasium.make_vec(id, num_envs, vectorization_mode="vector_entry_point")``
+  give ``vec_sps`` (agent-steps per second) and ``vec_speedup = vec_sps /
+  env_sps``, both measured in the same trial (goal: >= 20x).
+
+Envs whose module does not exist yet are skipped with a note; an env whose
+expert module is missing still gets its throughput measured.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.bench.suite import Metric, Suite, Trial, TrialPlan, TrialRequest, TrialResult, register_suite
+
+EXPERT_PACKAGE = "steer_envs.data.experts"
+
+
+def _registered_envs() -> list[str]:
+    import steer_envs
+
+    return steer_envs.env_ids()
+
+
+def _missing_env_module(env_id: str) -> str | None:
+    """Name of the env's entry-point module when it cannot be found, else ``None``."""
+    from steer_envs.envs.registry import entry
+
+    e = entry(env_id)
+    for point in (e.entry_point, e.vector_entry_point):
+        if point is None:
+            continue
+        module = point.split(":")[0]
+        try:
+            if importlib.util.find_spec(module) is None:
+                return module
+        except ModuleNotFoundError:
+            return module
+    return None
+
+
+def _plan_smoke(suite: Suite, request: TrialRequest) -> TrialPlan:
+    from steer_envs.data.experts import has_expert
+
+    params = suite.resolve_params(request.params, request.trials, base=request.base)
+    if params["num_envs"] < 1 or params["episodes"] < 0 or params["single_steps"] < 1 or params["vec_steps"] < 1:
+        raise ValueError(f"smoke: num_envs, single_steps, vec_steps must be >= 1 and episodes >= 0, got {params}")
+    trials: list[Trial] = []
+    notes: list[str] = []
+    for env_id in request.envs:
+        assert env_id is not None
+        missing = _missing_env_module(env_id)
+        if missing is not None:
+            notes.append(f"skipped {env_id}: module {missing} does not exist (yet)")
+            continue
+        if not has_expert(env_id):
+            notes.append(f"{env_id}: no scripted expert; throughput only")
+        for method in request.methods:
+            trials += [Trial(suite.name, env_id, method, seed, params, suite.fn) for seed in suite.seed_list(request)]
+    return TrialPlan(tuple(trials), tuple(notes))
+
+
+def _episode_seed(seed: int, episode: int) -> int:
+    """Independent reset seed of episode ``episode`` of trial ``seed``."""
+    return int(np.random.SeedSequence([seed, episode]).generate_state(1)[0])
+
+
+def _expert_episodes(env: Any, expert: Any, seed: int, episodes: int) -> dict[str, float]:
+    successes = violations = steps = 0
+    t0 = time.perf_counter()
+    for ep in range(episodes):
+        obs, info = env.reset(seed=_episode_seed(seed, ep))
+        expert.reset(obs, info)
+        violated = False
+        while True:
+            obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
+            steps += 1
+            violated |= bool(info.get("constraint_violation", False))
+            if terminated or truncated:
+                break
+        successes += bool(info.get("success", False))
+        violations += violated
+    elapsed = time.perf_counter() - t0
+    return {
+        "success_rate": successes / episodes,
+        "violation_rate": violations / episodes,
+        "episode_len": steps / episodes,
+        "expert_sps": steps / max(elapsed, 1e-9),
+    }
+
+
+def _single_throughput(env: Any, seed: int, steps: int) -> float:
+    """Random-action steps per second of a single env (resets included)."""
+    env.action_space.seed(seed)
+    actions = [env.action_space.sample() for _ in range(steps)]
+    env.reset(seed=seed)
+    env.step(actions[0])  # warm-up (lazy initialisation)
+    env.reset(seed=seed)
+    t0 = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return steps / max(time.perf_counter() - t0, 1e-9)
+
+
+def _vector_throughput(env_id: str, seed: int, num_envs: int, steps: int) -> float:
+    """Random-action agent-steps per second of the batched env (autoreset included)."""
+    import gymnasium as gym
+
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
+    try:
+        venv.action_space.seed(seed)
+        actions = [venv.action_space.sample() for _ in range(steps)]
+        venv.reset(seed=seed)
+        venv.step(actions[0])  # warm-up
+        venv.reset(seed=seed)
+        t0 = time.perf_counter()
+        for action in actions:
+            venv.step(action)
+        return steps * num_envs / max(time.perf_counter() - t0, 1e-9)
+    finally:
+        venv.close()
+
+
+def run_smoke_trial(trial: Trial) -> TrialResult:
+    """Expert episodes and throughput of ``trial.env`` (see the module docstring)."""
+    import gymnasium as gym
+
+    import steer_envs  # noqa: F401 - registers the envs in this (possibly fresh worker) process
+    from steer_envs.data.experts import has_expert, make_expert
+    from steer_envs.envs.registry import entry
+
+    params = trial.params
+    env_id = str(trial.env)
+    metrics: dict[str, float | None] = {m.name: None for m in SMOKE.metrics}
+    extra: dict[str, Any] = {}
+    env = gym.make(env_id)
+    try:
+        expert = None
+        if has_expert(env_id) and params["episodes"] > 0:
+            try:
+                expert = make_expert(env)
+            except ModuleNotFoundError as exc:
+                if not (exc.name or "").startswith(EXPERT_PACKAGE):
+                    raise
+                extra["note"] = f"expert module {exc.name} does not exist (yet)"
+        if expert is not None:
+            metrics.update(_expert_episodes(env, expert, trial.seed, int(params["episodes"])))
+        metrics["env_sps"] = _single_throughput(env, trial.seed, int(params["single_steps"]))
+    finally:
+        env.close()
+    if entry(env_id).kinematic and entry(env_id).vector_entry_point:
+        num_envs = int(params["num_envs"])
+        metrics["vec_sps"] = _vector_throughput(env_id, trial.seed, num_envs, int(params["vec_steps"]))
+        metrics["vec_speedup"] = metrics["vec_sps"] / metrics["env_sps"]  # type: ignore[operator]
+        extra["num_envs"] = num_envs
+    return TrialResult(metrics, extra)
+
+
+def plot_throughput(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
+    """Per-suite figure: single vs. vectorized steps/s per env (log scale), speed-up on top."""
+    from steer_envs.bench.plots import new_figure, save_figure
+    from steer_envs.bench.report import summarize
+
+    tables = [t for t in summarize(records) if t.suite == suite.name]
+    if not tables:
+        return []
+    rows = [r for r in tables[0].rows if r.stats.get("env_sps") is not None]
+    if not rows:
+        return []
+    fig = new_figure(max(6.0, 1.2 * len(rows) + 2.0), 4.5)
+    ax = fig.add_subplot()
+    xs = np.arange(len(rows))
+    single = [r.stats["env_sps"].mean for r in rows]  # type: ignore[union-attr]
+    vector = [r.stats["vec_sps"].mean if r.stats.get("vec_sps") else 0.0 for r in rows]  # type: ignore[union-attr]
+    ax.bar(xs - 0.2, single, 0.4, label="single env (gymnasium.make)", color="#4C72B0")
+    ax.bar(xs + 0.2, vector, 0.4, label="vectorized (make_vec)", color="#DD8452")
+    for x, s, v in zip(xs, single, vector, strict=True):
+        if v > 0:
+            ax.annotate(f"{v / s:.0f}x", (x + 0.2, v), ha="center", va="bottom", fontsize=8)
+    ax.set_yscale("log")
+    ax.set_xticks(xs)
+    ax.set_xticklabels([r.label() for r in rows], rotation=30, ha="right")
+    ax.set_ylabel("steps / s (random actions)")
+    ax.set_title("smoke: step throughput, single vs. vectorized", fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8)
+    return [str(save_figure(fig, Path(out_dir) / f"{suite.name}_throughput.png"))]
+
+
+SMOKE = register_suite(
+    Suite(
+        name="smoke",
+        description="Scripted experts on every registered env: success and step throughput (single vs. vectorized).",
+        metrics=(
+            Metric("success_rate", "fraction of expert episodes that succeed", fmt=".2f"),
+            Metric(
+                "violation_rate",
+                "fraction of expert episodes with a constraint violation",
+                higher_is_better=False,
+                fmt=".2f",
+            ),
+            Metric("episode_len", "mean expert episode length (steps)", higher_is_better=False, fmt=".1f"),
+            Metric("expert_sps", "expert + env steps/s (single env)", kind="timing", fmt=".0f"),
+            Metric("env_sps", "single-env steps/s, random actions (gymnasium.make)", kind="timing", fmt=".0f"),
+            Metric("vec_sps", "vectorized agent-steps/s, random actions (make_vec)", kind="timing", fmt=".0f"),
+            Metric("vec_speedup", "vec_sps / env_sps, same trial", kind="timing", fmt=".1f", goal=20.0),
+        ),
+        run_trial=run_smoke_trial,
+        envs=_registered_envs,
+        methods=("expert",),
+        params={"episodes": 10, "single_steps": 2000, "num_envs": 1024, "vec_steps": 50},
+        trials_param="episodes",
+        default_seeds=3,
+        generate=_plan_smoke,
+        quick={"episodes": 3, "single_steps": 1000, "vec_steps": 20},
+        quick_seeds=1,
+        plot=plot_throughput,
+    )
+)
