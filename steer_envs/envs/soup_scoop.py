@@ -1,0 +1,254 @@
+"""SoupScoop-v0: the 2D soup-scooping abstraction of TLI (thesis §3.2 Fig. 3.2, §3.6).
+
+The state ``x = (x1, x2)`` in ``[-8, 8]^2`` abstracts the spoon's orientation
+and its distance to the soup. Regions (rectangles ``[x0, x1] x [y0, y1]``; the
+public TLI code, see ``shared/reference/tli.md``):
+
+=========  ==========================  =====================================
+region     rectangle                   meaning
+=========  ==========================  =====================================
+white      everything else             spoon without soup
+yellow R   ``[-8, 8] x [-8, -4]``      spoon in contact with the soup
+pink S     ``[2, 6] x [-8, 6]``        spoon holding soup (transport)
+green T    ``[2, 6] x [6, 8]``         spoon at the target
+=========  ==========================  =====================================
+
+Where regions overlap the later one wins (pink over yellow, green over pink),
+and a point within ``0.4`` of a region's attractor counts as in that region
+(the segment attractors of the public demonstrations: yellow
+``(-6.47, -4.13)``, pink ``(2.06, -6.98)``, green ``(4.69, 6.03)``), so a DS
+converging to its attractor does trigger the next sensor.
+
+Physics (task memory: ``soup`` on the spoon, soup ``delivered``):
+
+* Soup gets on the spoon only by moving from the yellow region into the pink
+  region (scooping). White -> pink never loads soup: the mode stays ``a``.
+* Soup stays on while the spoon is in the transport region (pink or green)
+  and falls off when it leaves it (into white or back into yellow): a *spill*,
+  reported as ``info["constraint_violation"]`` (an invariance failure of mode
+  ``c``). Leaving the soup (yellow -> white) before scooping is an allowed
+  recovery (``b -> a``), not a violation.
+* Reaching green with soup delivers it: mode ``d``, ``info["success"]``; ``d``
+  absorbs (the memory is frozen once delivered).
+* Green without soup is just mode ``a`` (reaching).
+
+Sensor APs ``("r", "s", "t")``: ``r`` the spoon is in the soup (yellow),
+``s`` soup is on the spoon, ``t`` the soup arrived at the target. With the
+default ``sensor_convention="public"`` the env emits the sensor states of the
+public automaton table (a ``000``, b ``100``, c ``010``, d ``011``: the soup is
+still on the spoon at the target). ``sensor_convention="thesis"`` emits the
+thesis's appendix formula instead (d ``001``: the soup left the spoon into the
+target). The :data:`SOUP_TASK` ``sensor_modes`` map *both* readings of ``d``,
+so ``task.mode_of(info["sensors"]) == info["mode_name"]`` under either
+convention. ``t`` is never true without soup, so an empty spoon in green is
+never mistaken for ``d``.
+
+Modes: ``a`` reach, ``b`` scoop, ``c`` transport, ``d`` done. Transitions
+(thesis Fig. 3.3a): ``a -> b -> c -> d`` plus the recoveries ``b -> a``,
+``c -> a``, ``c -> b``. Violations do not end the episode
+(``terminate_on_violation=False``): TLI recovers by replanning.
+
+Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10`` (tli.md: speed
+clip 10; the public simulation steps 0.005, we use 0.01 so that perturbed DS
+rollouts fit the registered 1000-step limit). Starts are uniform in
+``[-7.5, -5.5] x [1, 5]`` (white, above the first segment attractor, where
+the reach segment of the demonstrations begins).
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+from typing import Literal
+
+import numpy as np
+
+from steer_envs.core.task import TaskSpec
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.render import REGION_PALETTE, Canvas
+
+#: half-width of the square workspace ``[-8, 8]^2``.
+WORKSPACE_HALF_WIDTH = 8.0
+#: region labels returned by :meth:`SoupScoopModel.regions`.
+WHITE, YELLOW, PINK, GREEN = 0, 1, 2, 3
+REGION_NAMES: tuple[str, ...] = ("white", "yellow", "pink", "green")
+#: closed rectangles ``(x0, y0, x1, y1)`` of the coloured regions (later wins).
+RECTS: MappingProxyType[str, tuple[float, float, float, float]] = MappingProxyType(
+    {
+        "yellow": (-8.0, -8.0, 8.0, -4.0),
+        "pink": (2.0, -8.0, 6.0, 6.0),
+        "green": (2.0, 6.0, 6.0, 8.0),
+    }
+)
+#: per-region attractors of the public demonstrations' segments (tli.md).
+REGION_ATTRACTORS: MappingProxyType[str, tuple[float, float]] = MappingProxyType(
+    {"yellow": (-6.47, -4.13), "pink": (2.06, -6.98), "green": (4.69, 6.03)}
+)
+#: a point within this distance of a region's attractor counts as in the region.
+ATTRACTOR_RADIUS = 0.4
+#: attractor of the unsegmented task (tli.md).
+TASK_ATTRACTOR = (4.75, 5.99)
+#: start box ``(low, high)`` corners.
+START_BOX = ((-7.5, 1.0), (-5.5, 5.0))
+
+SOUP_TASK = TaskSpec(
+    name="SoupScoop",
+    modes=("a", "b", "c", "d"),
+    sensors=("r", "s", "t"),
+    sensor_modes={
+        frozenset(): "a",
+        frozenset({"r"}): "b",
+        frozenset({"s"}): "c",
+        frozenset({"s", "t"}): "d",  # public automaton table (soup still on the spoon at the target)
+        frozenset({"t"}): "d",  # thesis appendix formula (soup delivered into the target)
+    },
+    transitions=frozenset({("a", "b"), ("b", "c"), ("c", "d"), ("b", "a"), ("c", "a"), ("c", "b")}),
+    initial="a",
+    goal=("d",),
+)
+
+MODE_A, MODE_B, MODE_C, MODE_D = range(4)
+SensorConvention = Literal["public", "thesis"]
+
+
+class SoupScoopModel(KinematicTaskModel):
+    """Batched task physics of SoupScoop; see the module docstring.
+
+    Public geometry (float64 arrays):
+        rects: region name -> ``(x0, y0, x1, y1)`` closed rectangle.
+        region_attractors: region name -> ``(2,)`` attractor (in-region within
+            ``attractor_radius``).
+        attractors: mode name -> ``(2,)`` the goal of that mode's policy
+            (``a``: yellow's, ``b``: pink's, ``c`` and ``d``: green's; the done
+            mode reuses the transport DS, as in the public code).
+        task_attractor: ``(2,)`` attractor of the unsegmented task.
+        start_low, start_high: corners of the uniform start box.
+
+    Task memory (2 slots): ``[soup on the spoon, soup delivered]``.
+    """
+
+    memory_size = 2
+    region_names = REGION_NAMES
+    region_palette = REGION_PALETTE[[0, 1, 2, 3]]
+
+    def __init__(self, sensor_convention: SensorConvention = "public") -> None:
+        if sensor_convention not in ("public", "thesis"):
+            raise ValueError(f"sensor_convention must be 'public' or 'thesis', got {sensor_convention!r}")
+        self.sensor_convention = sensor_convention
+        self.task = SOUP_TASK
+        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
+        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
+        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
+        self.region_attractors = {k: np.asarray(v, dtype=np.float64) for k, v in REGION_ATTRACTORS.items()}
+        self.attractor_radius = ATTRACTOR_RADIUS
+        self.attractors = {
+            "a": self.region_attractors["yellow"],
+            "b": self.region_attractors["pink"],
+            "c": self.region_attractors["green"],
+            "d": self.region_attractors["green"],
+        }
+        self.task_attractor = np.asarray(TASK_ATTRACTOR, dtype=np.float64)
+        # stacked in label order (yellow, pink, green) for the one-pass labelling in `regions`
+        self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])
+        self._att_stack = np.stack([self.region_attractors[n] for n in REGION_NAMES[1:]])
+        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
+        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
+
+    # ------------------------------------------------------------ geometry
+    def in_region(self, name: str, pos: np.ndarray) -> np.ndarray:
+        """Whether points lie in region ``name``'s rectangle or attractor disc, ignoring overlaps.
+
+        ``(N, 2) -> (N,)`` bool. Use :meth:`regions` for the label after the
+        "later region wins" rule.
+        """
+        if name not in self.rects:
+            raise ValueError(f"name must be one of {tuple(self.rects)}, got {name!r}")
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
+        x0, y0, x1, y1 = self.rects[name]
+        in_rect = (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
+        near = np.linalg.norm(p - self.region_attractors[name], axis=1) <= self.attractor_radius
+        return in_rect | near
+
+    def regions(self, pos: np.ndarray) -> np.ndarray:
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
+        r = self._rect_stack
+        in_rect = (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
+        near = np.sum((p - self._att_stack) ** 2, axis=-1) <= self.attractor_radius**2
+        # labels grow in drawing order, so "the later region wins" is a max over the matches
+        return np.max((in_rect | near) * np.arange(1, len(r) + 1), axis=1, initial=WHITE).astype(np.int64)
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
+
+    # ---------------------------------------------------------------- task
+    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        prev_reg, new_reg = self.regions(prev_pos), self.regions(pos)
+        soup, delivered = memory[:, 0].astype(bool), memory[:, 1].astype(bool)
+        in_transport = (new_reg == PINK) | (new_reg == GREEN)
+        scooped = ~soup & (prev_reg == YELLOW) & (new_reg == PINK)
+        spill = ~delivered & soup & ~in_transport
+        new_soup = np.where(delivered, soup, (soup & in_transport) | scooped)
+        new_delivered = delivered | (new_soup & (new_reg == GREEN))
+        new_memory = np.stack([new_soup, new_delivered], axis=1).astype(np.int64)
+        return new_memory, spill
+
+    def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
+        reg = self.regions(pos)
+        soup, delivered = memory[:, 0].astype(bool), memory[:, 1].astype(bool)
+        in_soup = ~delivered & ~soup & (reg == YELLOW)
+        mode = np.where(delivered, MODE_D, np.where(soup, MODE_C, np.where(in_soup, MODE_B, MODE_A)))
+        s = (soup & ~delivered) | (delivered & (self.sensor_convention == "public"))
+        sensors = np.stack([in_soup, s, delivered], axis=1)
+        return TaskReading(mode=mode.astype(np.int64), sensors=sensors, success=delivered.copy())
+
+    def draw(self, canvas: Canvas) -> None:
+        radius = max(2, round(self.attractor_radius / (self.high[0] - self.low[0]) * canvas.width))
+        for name in ("yellow", "pink", "green"):
+            x0, y0, x1, y1 = self.rects[name]
+            corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]])
+            canvas.polyline(corners, (150, 150, 150), thickness=1)
+            canvas.disc(self.region_attractors[name], radius, (255, 140, 0))
+
+
+class SoupScoopEnv(Kinematic2DEnv):
+    """SoupScoop-v0 (TLI soup scooping, reach -> scoop -> transport -> done); see the module docstring.
+
+    Args:
+        dt, max_speed: integration step and speed limit (0.01, 10).
+        sensor_convention: ``"public"`` (d = s & t, default) or ``"thesis"`` (d = t).
+        render_mode: ``None`` or ``"rgb_array"``.
+        render_size: side of the rendered square image in pixels.
+
+    Spills are reported, never terminal (``terminate_on_violation=False``).
+    """
+
+    def __init__(
+        self,
+        dt: float = 0.01,
+        max_speed: float = 10.0,
+        sensor_convention: SensorConvention = "public",
+        render_mode: str | None = None,
+        render_size: int = 256,
+    ) -> None:
+        super().__init__(
+            SoupScoopModel(sensor_convention=sensor_convention),
+            dt=dt,
+            max_speed=max_speed,
+            terminate_on_violation=False,
+            render_mode=render_mode,
+            render_size=render_size,
+        )
+        self.model: SoupScoopModel
+
+
+make_vector_env = vector_factory(SoupScoopEnv)
+
+__all__ = [
+    "ATTRACTOR_RADIUS",
+    "RECTS",
+    "REGION_ATTRACTORS",
+    "REGION_NAMES",
+    "SOUP_TASK",
+    "SoupScoopEnv",
+    "SoupScoopModel",
+    "make_vector_env",
+]
