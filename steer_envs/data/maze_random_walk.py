@@ -1,0 +1,546 @@
+"""D4RL maze2d random-walk data for the ITPS policies (thesis §2.4.1).
+
+The walk is D4RL's ``generate_maze2d_datasets.py`` controller on the
+:mod:`steer_envs.envs.maze2d` physics: Q-iteration over grid cells (50
+iterations, gamma 0.99) gives a cell path to the goal; every waypoint except
+the goal cell is jittered by ``-U(0, 0.2)`` per coordinate; the point mass
+tracks the current waypoint with the PD law ``clip(10 (wp - pos) - vel, +-1)``
+at 100 Hz, moving to the next waypoint once within 0.1 of it; when the goal is
+reached (or after ``max_leg_steps`` raw steps, D4RL's timeout) a new goal is a
+random free cell with ``+-U(0.1)`` noise, *without* resetting the agent. ITPS
+uses the first ~1M raw steps subsampled x4 with observation ``xy[t]`` and
+action ``xy[t + 1]``.
+
+Dataset file (``.npz``, written atomically; see :class:`RandomWalkDataset`)::
+
+    observations    float32 (N, 4)  x, y, vx, vy at every ``subsample``-th raw step
+    actions         float32 (N, 2)  xy of the next observation (ITPS: absolute next waypoint)
+    waypoints       float32 (N, 2)  the controller's jittered cell waypoint at that step
+    goals           float32 (N, 2)  the walk's current goal
+    wall_contact    bool    (N,)    the agent touched a wall in the raw steps of this sample
+    episode_starts  int64   (E,)    first sample of each continuous episode ([0]: the walk never resets)
+    leg_starts      int64   (L,)    samples where the walk picked a new goal
+    meta            str             JSON: maze, seed, raw_steps, subsample, dt, format, ...
+
+Minari is not used: minari 0.5 stores datasets through h5py or pyarrow (its
+``hdf5``/``arrow`` extras), neither of which is a dependency of steer-envs.
+:func:`to_minari` converts a dataset when one of them is installed.
+
+CLI: ``python -m steer_envs.data.maze_random_walk --out data/ --steps 1000000``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import os
+import tempfile
+import time
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
+
+FORMAT = "steer_envs.maze2d_random_walk/1"
+#: D4RL maze2d timeouts (raw steps per goal) by maze.
+MAX_LEG_STEPS = {"umaze": 300, "medium": 600, "large": 800}
+#: grid moves in Q-iteration's action order (ties go to the first): stay, -row, +row, -col, +col.
+_MOVES = np.array([[0, 0], [-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
+
+
+def q_iteration(walls: np.ndarray, target: tuple[int, int], iters: int = 50, gamma: float = 0.99) -> np.ndarray:
+    """Q-values ``(rows, cols, 5)`` of the grid world with reward 1 for entering ``target``.
+
+    Moves into walls or off the grid stay in place. With ``iters`` sweeps a
+    cell farther than ``iters`` moves from the target keeps Q = 0 (D4RL).
+    """
+    walls = np.asarray(walls, dtype=bool)
+    rows, cols = walls.shape
+    tr, tc = target
+    if not (0 <= tr < rows and 0 <= tc < cols) or walls[tr, tc]:
+        raise ValueError(f"target {target} must be a free cell of the {walls.shape} grid")
+    cells = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), axis=-1)  # (R, C, 2)
+    dest = cells[:, :, None, :] + _MOVES  # (R, C, 5, 2)
+    inside = (dest[..., 0] >= 0) & (dest[..., 0] < rows) & (dest[..., 1] >= 0) & (dest[..., 1] < cols)
+    dest = np.where(inside[..., None], dest, cells[:, :, None, :])
+    blocked = walls[dest[..., 0], dest[..., 1]]
+    dest = np.where(blocked[..., None], cells[:, :, None, :], dest)
+    reward = ((dest[..., 0] == tr) & (dest[..., 1] == tc)).astype(np.float64)
+    q = np.zeros((rows, cols, len(_MOVES)))
+    for _ in range(int(iters)):
+        v = q.max(axis=-1)
+        q = reward + gamma * v[dest[..., 0], dest[..., 1]]
+    return q
+
+
+def cell_path(
+    grid: MazeGrid, start: tuple[int, int], target: tuple[int, int], iters: int = 50
+) -> list[tuple[int, int]]:
+    """Greedy cell path ``start -> target`` (excluding ``start``) from :func:`q_iteration`."""
+    if start == target:
+        return [target]
+    q = q_iteration(grid.walls, target, iters=iters)
+    path, cell = [], start
+    for _ in range(grid.walls.size):
+        move = _MOVES[int(np.argmax(q[cell]))]
+        nxt = (cell[0] + int(move[0]), cell[1] + int(move[1]))
+        if nxt == cell:
+            raise ValueError(f"no path from {start} to {target} within {iters} Q-iterations")
+        path.append(nxt)
+        cell = nxt
+        if cell == target:
+            return path
+    raise ValueError(f"no path from {start} to {target}")
+
+
+class WaypointController:
+    """D4RL's maze2d waypoint controller, returning the waypoint the PD law tracks.
+
+    Args:
+        grid: the maze.
+        rng: randomness of the waypoint jitter.
+        jitter: waypoints (except the goal cell) are ``cell - U(0, jitter)`` per coordinate.
+        solve_thresh: distance at which a waypoint (or the goal) counts as reached.
+        vel_thresh: bound on the displacement between two calls for reaching
+            (D4RL: 0.1 per 0.01 s step; scale it with the call period).
+    """
+
+    def __init__(
+        self,
+        grid: MazeGrid,
+        rng: np.random.Generator | None = None,
+        *,
+        jitter: float = 0.2,
+        solve_thresh: float = 0.1,
+        vel_thresh: float = 0.1,
+    ) -> None:
+        for name, value in (("jitter", jitter), ("solve_thresh", solve_thresh), ("vel_thresh", vel_thresh)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite float >= 0, got {value!r}")
+        self.grid = grid
+        self.rng = rng if rng is not None else np.random.default_rng()
+        self.jitter = float(jitter)
+        self.solve_thresh = float(solve_thresh)
+        self.vel_thresh = float(vel_thresh)
+        self.target: tuple[int, int] | None = None
+        self.waypoints: list[tuple[float, float]] = []
+        self.index = 0
+        self._prev = (0.0, 0.0)
+
+    def plan(self, pos: np.ndarray, goal_xy: np.ndarray) -> None:
+        """Waypoints from the cell of ``pos`` to the cell of ``goal_xy``."""
+        start = tuple(int(v) for v in self.grid.xy_to_cell(pos))
+        target = tuple(int(v) for v in self.grid.xy_to_cell(goal_xy))
+        if self.grid.walls[target]:
+            raise ValueError(f"goal {np.asarray(goal_xy).tolist()} lies in a wall cell")
+        waypoints = []
+        for cell in cell_path(self.grid, start, target):  # type: ignore[arg-type]
+            wp = np.array(cell, dtype=np.float64)
+            if cell != target:
+                wp = wp - self.rng.uniform(size=2) * self.jitter
+            waypoints.append((float(wp[0]), float(wp[1])))
+        self.target = target  # type: ignore[assignment]
+        self.waypoints = waypoints
+        self.index = 0
+        self._prev = (float(pos[0]), float(pos[1]))
+
+    def update(self, x: float, y: float) -> tuple[tuple[float, float], bool]:
+        """The waypoint to track from ``(x, y)`` and whether the goal is solved (D4RL ``get_action``)."""
+        if self.target is None:
+            raise RuntimeError("WaypointController.update called before plan()")
+        tx, ty = self.target
+        moved = math.hypot(self._prev[0] - x, self._prev[1] - y)
+        solved = math.hypot(x - tx, y - ty) < self.solve_thresh and moved < self.vel_thresh
+        wp = (float(tx), float(ty)) if solved else self.waypoints[self.index]
+        if not solved and math.hypot(x - wp[0], y - wp[1]) < self.solve_thresh and moved < self.vel_thresh:
+            self.index = min(self.index + 1, len(self.waypoints) - 1)
+        self._prev = (x, y)
+        return wp, solved
+
+
+@dataclass
+class RandomWalkDataset:
+    """A subsampled random walk (see the module docstring for every field)."""
+
+    observations: np.ndarray
+    actions: np.ndarray
+    waypoints: np.ndarray
+    goals: np.ndarray
+    wall_contact: np.ndarray
+    episode_starts: np.ndarray
+    leg_starts: np.ndarray
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.observations)
+        expected = {
+            "observations": (n, 4),
+            "actions": (n, 2),
+            "waypoints": (n, 2),
+            "goals": (n, 2),
+            "wall_contact": (n,),
+        }
+        for name, shape in expected.items():
+            if np.shape(getattr(self, name)) != shape:
+                raise ValueError(f"{name} must have shape {shape}, got {np.shape(getattr(self, name))}")
+        starts = np.asarray(self.episode_starts)
+        if n and (starts.ndim != 1 or len(starts) == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0)):
+            raise ValueError("episode_starts must be increasing indices starting at 0")
+        if len(starts) and starts[-1] >= max(n, 1):
+            raise ValueError(f"episode_starts must be < {n}")
+
+    def __len__(self) -> int:
+        return len(self.observations)
+
+    @property
+    def xy(self) -> np.ndarray:
+        """Positions ``(N, 2)`` (the ITPS policy state)."""
+        return self.observations[:, :2]
+
+    def episode_slices(self) -> list[slice]:
+        """One slice per continuous episode."""
+        ends = [*self.episode_starts[1:].tolist(), len(self)]
+        return [slice(int(a), int(b)) for a, b in zip(self.episode_starts.tolist(), ends, strict=True)]
+
+    def xy_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-coordinate min and max of all positions and actions (for min-max normalization)."""
+        pts = np.concatenate([self.xy, self.actions])
+        return pts.min(axis=0), pts.max(axis=0)
+
+
+def generate_random_walk(
+    maze: str = "large",
+    steps: int = 1_000_000,
+    seed: int = 0,
+    *,
+    subsample: int = 4,
+    max_leg_steps: int | None = None,
+    progress: bool = True,
+) -> RandomWalkDataset:
+    """Run the D4RL random walk for ``steps`` raw (0.01 s) steps and keep every ``subsample``-th state.
+
+    Deterministic from ``seed``. ``max_leg_steps`` (default: D4RL's timeout of
+    the maze) ends a leg whose goal was not reached.
+    """
+    for name, value in (("steps", steps), ("seed", seed), ("subsample", subsample)):
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+            raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if subsample < 1:
+        raise ValueError(f"subsample must be >= 1, got {subsample}")
+    if steps < subsample:
+        raise ValueError(f"steps must be >= subsample ({subsample}), got {steps}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    if maze not in MAX_LEG_STEPS:
+        raise ValueError(f"maze must be one of {sorted(MAX_LEG_STEPS)}, got {maze!r}")
+    leg_limit = MAX_LEG_STEPS[maze] if max_leg_steps is None else int(max_leg_steps)
+    if leg_limit < 1:
+        raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps}")
+
+    grid = MazeGrid(maze_map(maze))
+    physics = MazePhysics(grid, name=f"maze2d_{maze}")
+    rng = np.random.default_rng(seed)
+    controller = WaypointController(grid, rng)
+    free = grid.free_cells
+
+    def random_goal() -> np.ndarray:
+        return free[rng.integers(len(free))] + rng.uniform(-0.1, 0.1, size=2)
+
+    start = grid.project_free(free[rng.integers(len(free))] + rng.uniform(-0.1, 0.1, size=2))
+    physics.set_state(start, rng.normal(size=2) * 0.1)  # D4RL reset: noisy velocity
+    goal = random_goal()
+    controller.plan(start, goal)
+
+    n = int(steps) // int(subsample)
+    obs = np.empty((n + 1, 4))
+    wps = np.empty((n, 2))
+    goals = np.empty((n, 2))
+    contact = np.zeros(n, dtype=bool)
+    leg_starts = [0]
+    qpos, qvel = physics.data.qpos, physics.data.qvel
+    model, data = physics.model, physics.data
+    step = _mj_step()
+    leg_t, replan = 0, False
+    bar = _progress(n * subsample, progress)
+    try:
+        for k in range(n * subsample):
+            x, y = float(qpos[0]), float(qpos[1])
+            if replan:
+                controller.plan(np.array([x, y]), goal)
+                replan = False
+            wp, solved = controller.update(x, y)
+            done = solved or leg_t >= leg_limit
+            i, phase = divmod(k, subsample)
+            if phase == 0:
+                obs[i] = (x, y, qvel[0], qvel[1])
+                wps[i] = wp
+                goals[i] = goal
+            data.ctrl[0], data.ctrl[1] = wp
+            step(model, data)
+            if data.ncon and physics.in_contact():
+                contact[i] = True
+            leg_t += 1
+            if done:
+                goal, leg_t, replan = random_goal(), 0, True
+                first = -(-(k + 1) // subsample)  # first sample whose state belongs to the new leg
+                if first < n:
+                    leg_starts.append(first)
+            if bar is not None and k % 10_000 == 9_999:
+                bar.update(10_000)
+        obs[n] = (qpos[0], qpos[1], qvel[0], qvel[1])
+    finally:
+        if bar is not None:
+            bar.close()
+    meta = {
+        "format": FORMAT,
+        "maze": maze,
+        "seed": int(seed),
+        "raw_steps": n * int(subsample),
+        "subsample": int(subsample),
+        "raw_dt": TIMESTEP,
+        "dt": TIMESTEP * int(subsample),
+        "max_leg_steps": leg_limit,
+        "controller": {"q_iterations": 50, "gamma": 0.99, "jitter": 0.2, "solve_thresh": 0.1, "pd": [10.0, 1.0]},
+        "coordinates": "cell units, x = row, y = column",
+    }
+    return RandomWalkDataset(
+        observations=obs[:n].astype(np.float32),
+        actions=obs[1:, :2].astype(np.float32),
+        waypoints=wps.astype(np.float32),
+        goals=goals.astype(np.float32),
+        wall_contact=contact,
+        episode_starts=np.zeros(1, dtype=np.int64),
+        leg_starts=np.unique(np.asarray(leg_starts, dtype=np.int64)),
+        meta=meta,
+    )
+
+
+def _mj_step() -> Any:
+    import mujoco
+
+    return mujoco.mj_step
+
+
+def _progress(total: int, enabled: bool) -> Any:
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="step", unit_scale=True, desc="maze2d random walk")
+
+
+# ------------------------------------------------------------------ file I/O
+_ARRAYS = ("observations", "actions", "waypoints", "goals", "wall_contact", "episode_starts", "leg_starts")
+
+
+def save_random_walk(dataset: RandomWalkDataset, path: str | os.PathLike[str]) -> Path:
+    """Write ``dataset`` to ``path`` (``.npz``; temp file + ``os.replace``). Returns the path."""
+    if not isinstance(dataset, RandomWalkDataset):
+        raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
+    out = Path(path)
+    if out.suffix != ".npz":
+        raise ValueError(f"path must end with .npz, got {str(out)!r}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {name: np.asarray(getattr(dataset, name)) for name in _ARRAYS}
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez_compressed(fh, meta=np.array(json.dumps(dataset.meta)), **arrays)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return out
+
+
+def load_random_walk(path: str | os.PathLike[str]) -> RandomWalkDataset:
+    """Read a dataset written by :func:`save_random_walk` (validates format and shapes)."""
+    src = Path(path)
+    if not src.is_file():
+        raise ValueError(f"no dataset file at {str(src)!r}")
+    with np.load(src, allow_pickle=False) as npz:
+        missing = [k for k in (*_ARRAYS, "meta") if k not in npz.files]
+        if missing:
+            raise ValueError(f"{src} is not a maze2d random-walk dataset (missing {missing})")
+        meta = json.loads(str(npz["meta"]))
+        if meta.get("format") != FORMAT:
+            raise ValueError(f"{src} has format {meta.get('format')!r}, expected {FORMAT!r}")
+        return RandomWalkDataset(**{k: npz[k] for k in _ARRAYS}, meta=meta)
+
+
+def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(observations (N, 4), actions (N, 2), episode_starts (E,))`` of a saved dataset."""
+    ds = load_random_walk(path)
+    return ds.observations, ds.actions, ds.episode_starts
+
+
+# ----------------------------------------------------------------- windowing
+class PlanWindows:
+    """Training pairs ``(observation history, plan)`` for chunked policies (DP, ACT).
+
+    Sample ``i`` at step ``t``: ``obs = xy[t - n_obs + 1 .. t]`` ``(n_obs, 2)`` and
+    ``plan = actions[t + action_start .. t + action_start + horizon - 1]``
+    ``(horizon, 2)``, where ``actions[t] = xy[t + 1]``. The default
+    ``action_start = 0`` gives the next ``horizon`` waypoints; LeRobot's DP (used
+    by ITPS) takes ``action_start = 1 - n_obs`` and executes ``plan[n_obs - 1:]``.
+    Windows never cross an episode boundary. Indexable (a torch-style dataset).
+    """
+
+    def __init__(self, dataset: RandomWalkDataset, n_obs: int = 2, horizon: int = 64, action_start: int = 0) -> None:
+        if not isinstance(dataset, RandomWalkDataset):
+            raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
+        if not isinstance(n_obs, (int, np.integer)) or n_obs < 1:
+            raise ValueError(f"n_obs must be a positive int, got {n_obs!r}")
+        if not isinstance(horizon, (int, np.integer)) or horizon < 1:
+            raise ValueError(f"horizon must be a positive int, got {horizon!r}")
+        if not isinstance(action_start, (int, np.integer)) or action_start < 1 - n_obs:
+            raise ValueError(f"action_start must be an int >= 1 - n_obs = {1 - n_obs}, got {action_start!r}")
+        self.xy = np.ascontiguousarray(dataset.xy, dtype=np.float32)
+        self.actions = np.ascontiguousarray(dataset.actions, dtype=np.float32)
+        self.n_obs, self.horizon, self.action_start = int(n_obs), int(horizon), int(action_start)
+        steps = []
+        for sl in dataset.episode_slices():
+            first = sl.start + self.n_obs - 1
+            last = sl.stop - self.action_start - self.horizon  # last t with a full plan inside the episode
+            if last >= first:
+                steps.append(np.arange(first, last + 1))
+        self.steps = np.concatenate(steps) if steps else np.zeros(0, dtype=np.int64)
+        self._obs_offsets = np.arange(1 - self.n_obs, 1)
+        self._plan_offsets = self.action_start + np.arange(self.horizon)
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def __getitem__(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        if not -len(self) <= int(i) < len(self):
+            raise IndexError(f"window index {i} out of range for {len(self)} windows")
+        obs, plan = self.gather(np.array([int(i)]))
+        return obs[0], plan[0]
+
+    def gather(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Batched windows: ``obs (B, n_obs, 2)`` and ``plans (B, horizon, 2)`` float32."""
+        t = self.steps[np.asarray(indices, dtype=np.int64)]
+        return self.xy[t[:, None] + self._obs_offsets], self.actions[t[:, None] + self._plan_offsets]
+
+    def batches(
+        self, batch_size: int, rng: np.random.Generator | None = None
+    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """One epoch of batches (shuffled when ``rng`` is given)."""
+        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+        order = rng.permutation(len(self)) if rng is not None else np.arange(len(self))
+        for a in range(0, len(order), int(batch_size)):
+            yield self.gather(order[a : a + int(batch_size)])
+
+
+# -------------------------------------------------------------------- Minari
+def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None = None) -> Any:
+    """Store ``dataset`` as a local Minari dataset (one episode per continuous walk).
+
+    Needs a Minari storage backend (``pip install "minari[hdf5]"``); Minari
+    writes under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``) and
+    refuses to overwrite an existing id. Observations are ``(x, y, vx, vy)``
+    (the env made with ``observe_velocity=True``), actions the next xy, step
+    infos ``waypoint`` and ``goal``; ``env_id`` defaults to the maze's id.
+    """
+    if not isinstance(dataset, RandomWalkDataset):
+        raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
+    if importlib.util.find_spec("h5py") is None and importlib.util.find_spec("pyarrow") is None:
+        raise ImportError('to_minari needs a Minari storage backend: pip install "minari[hdf5]"')
+    import gymnasium as gym
+    import minari
+    from minari.data_collector import EpisodeBuffer
+
+    if env_id is None:
+        names = {"umaze": "Umaze", "medium": "Medium", "large": "Large"}
+        env_id = f"steer_envs/Maze2D-{names[dataset.meta.get('maze', 'large')]}-v0"
+    env = gym.make(env_id, observe_velocity=True)
+    buffers = []
+    for k, sl in enumerate(dataset.episode_slices()):
+        obs = dataset.observations[sl]
+        last = np.concatenate([dataset.actions[sl][-1], [0.0, 0.0]]).astype(np.float32)
+        n = len(obs)
+        buffers.append(
+            EpisodeBuffer(
+                id=k,
+                observations=list(np.concatenate([obs, last[None]])),
+                actions=list(dataset.actions[sl]),
+                rewards=list(np.zeros(n)),
+                terminations=list(np.zeros(n, dtype=bool)),
+                truncations=list(np.arange(n) == n - 1),
+                infos={"waypoint": dataset.waypoints[sl], "goal": dataset.goals[sl]},
+            )
+        )
+    try:
+        with warnings.catch_warnings():  # Minari recommends author/e-mail/permalink metadata; none applies here
+            warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
+            return minari.create_dataset_from_buffers(
+                dataset_id=dataset_id,
+                buffer=buffers,
+                env=env,
+                algorithm_name="D4RL maze2d waypoint controller (random walk)",
+                author="steer-envs (steer_envs.data.maze_random_walk)",
+                description=f"steer-envs maze2d random walk: {json.dumps(dataset.meta)}",
+            )
+    finally:
+        env.close()
+
+
+# ----------------------------------------------------------------------- CLI
+def main(argv: list[str] | None = None) -> int:
+    """``python -m steer_envs.data.maze_random_walk``: generate and save a random-walk dataset."""
+    parser = argparse.ArgumentParser(
+        prog="python -m steer_envs.data.maze_random_walk",
+        description="Generate the D4RL maze2d random walk (ITPS training data) as an .npz dataset.",
+    )
+    parser.add_argument("--out", required=True, help="output .npz file, or a directory for the default name")
+    parser.add_argument("--maze", default="large", choices=sorted(MAX_LEG_STEPS), help="maze map (default: large)")
+    parser.add_argument("--steps", type=int, default=1_000_000, help="raw 100 Hz steps (default: 1000000)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument("--subsample", type=int, default=4, help="keep every k-th raw step (default: 4)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--minari-id",
+        default=None,
+        help="also store a Minari dataset with this id (needs minari[hdf5]); MINARI_DATASETS_PATH defaults to "
+        "<out dir>/minari",
+    )
+    args = parser.parse_args(argv)
+
+    out = Path(args.out)
+    if out.suffix != ".npz":
+        out = out / f"maze2d-{args.maze}-randomwalk-seed{args.seed}.npz"
+    tic = time.perf_counter()
+    try:
+        ds = generate_random_walk(
+            args.maze, args.steps, args.seed, subsample=args.subsample, progress=not args.no_progress
+        )
+    except (TypeError, ValueError) as err:
+        parser.error(str(err))
+    elapsed = time.perf_counter() - tic
+    save_random_walk(ds, out)
+    grid = MazeGrid(maze_map(args.maze))
+    in_wall = float(grid.is_wall(ds.actions).mean())
+    raw = ds.meta["raw_steps"]
+    print(f"wrote {out}: {len(ds)} samples ({raw} raw steps, x{args.subsample}), {len(ds.leg_starts)} goals")
+    print(f"speed: {raw / elapsed:,.0f} raw steps/s ({elapsed:.1f} s)")
+    print(f"waypoints in wall cells: {in_wall:.4%}; samples touching a wall: {float(ds.wall_contact.mean()):.4%}")
+    if args.minari_id:
+        os.environ.setdefault("MINARI_DATASETS_PATH", str(out.parent / "minari"))
+        to_minari(ds, args.minari_id)
+        print(f"wrote Minari dataset {args.minari_id!r} under {os.environ['MINARI_DATASETS_PATH']}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

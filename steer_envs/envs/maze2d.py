@@ -1,0 +1,566 @@
+"""Maze2D: the D4RL point-mass maze in MuJoCo, in the ITPS coordinate convention.
+
+The maze maps are gymnasium-robotics' ``U_MAZE`` (5x5), ``MEDIUM_MAZE`` (8x8)
+and ``LARGE_MAZE`` (9x12, the ITPS maze). Coordinates are *cell units* with
+``x = row`` and ``y = column`` (ITPS / D4RL): cell ``(r, c)`` is the square
+``[r - 0.5, r + 0.5) x [c - 0.5, c + 0.5)`` centred on ``xy = (r, c)``.
+
+Physics (D4RL ``maze2d``, also gymnasium-robotics' ``assets/point/point.xml``):
+a sphere of radius 0.1 and density 1000 on two slide joints (damping 1),
+timestep 0.01 s, Euler, frictionless contacts, no gravity; walls are boxes of
+half-size 0.5. Unlike D4RL, the walls sit exactly on the cell grid: D4RL puts
+the particle body at (1.2, 1.2) and the walls at ``(r + 1, c + 1)``, so its
+``qpos`` cells are shifted by -0.2; here the ITPS collision rule (round to the
+nearest cell) and the physical walls agree exactly.
+
+Action = the next absolute xy *waypoint*. It is tracked by D4RL's PD law
+``u = clip(10 (wp - pos) - 1 vel, -1, 1)``, force ``100 u`` (the D4RL motor
+gear), implemented as a MuJoCo affine actuator so it is re-evaluated at every
+physics step. One env step is ``frame_skip`` physics steps (default 4:
+0.04 s, the ITPS data rate, which is D4RL's 100 Hz subsampled x4).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from steer_envs.core.task import TaskSpec
+from steer_envs.envs.kinematic import _check_action, _check_xy
+from steer_envs.envs.render import Canvas
+
+#: D4RL maze2d physics.
+TIMESTEP = 0.01
+AGENT_RADIUS = 0.1
+#: PD law ``u = clip(KP (wp - pos) - KD vel, -U_MAX, U_MAX)``, force = GEAR * u.
+KP, KD, U_MAX, GEAR = 10.0, 1.0, 1.0, 100.0
+
+MAZE_NAMES: tuple[str, ...] = ("umaze", "medium", "large")
+
+_WALL_RGB = (90, 90, 100)
+_FREE_RGB = (250, 250, 250)
+_GRID_RGB = (225, 225, 232)
+_GOAL_RGB = (170, 230, 170)
+
+
+def maze_map(name: str) -> list[list[int | str]]:
+    """The gymnasium-robotics map of ``name`` (``"umaze"``, ``"medium"`` or ``"large"``)."""
+    # imported lazily (the package registers ~100 envs); its import prints an unrelated Adroit-hand notice
+    # to stderr, which is silenced here
+    with contextlib.redirect_stderr(io.StringIO()):
+        from gymnasium_robotics.envs.maze import maps
+
+    table = {"umaze": maps.U_MAZE, "medium": maps.MEDIUM_MAZE, "large": maps.LARGE_MAZE}
+    if name not in table:
+        raise ValueError(f"maze must be one of {MAZE_NAMES} or a 2D map of 0/1 cells, got {name!r}")
+    return [list(row) for row in table[name]]
+
+
+class MazeGrid:
+    """Wall grid and the ITPS geometry helpers (pure numpy, no simulator).
+
+    ``walls[r, c]`` is True for wall cells. Points outside the grid are
+    clipped onto it before lookup, so everything beyond the border counts as
+    the border's cells (walls in every shipped map).
+    """
+
+    def __init__(self, layout: Sequence[Sequence[int | str]]) -> None:
+        try:
+            rows = [list(r) for r in layout]
+        except TypeError:
+            raise TypeError("maze layout must be a sequence of rows of cells") from None
+        if not rows or not rows[0] or any(len(r) != len(rows[0]) for r in rows):
+            raise ValueError("maze layout must be a non-empty rectangular list of rows")
+        # gymnasium-robotics maps mark wall cells with 1; 0, "r", "g" and "c" are free cells
+        walls = np.array([[cell == 1 for cell in r] for r in rows], dtype=bool)
+        if walls.all():
+            raise ValueError("maze layout has no free cell")
+        self.walls: np.ndarray = walls
+        self.walls.setflags(write=False)
+        self.shape: tuple[int, int] = (walls.shape[0], walls.shape[1])
+        self.free_cells: np.ndarray = np.argwhere(~walls).astype(np.int64)  # (K, 2), row-major order
+        self.free_cells.setflags(write=False)
+
+    @property
+    def extent(self) -> float:
+        """Length that normalizes distances: the maze height in cells (ITPS divides by it)."""
+        return float(self.shape[0])
+
+    @property
+    def low(self) -> np.ndarray:
+        """Lowest cell centre, ``(0, 0)``."""
+        return np.zeros(2)
+
+    @property
+    def high(self) -> np.ndarray:
+        """Highest cell centre, ``(rows - 1, cols - 1)``."""
+        return np.array([self.shape[0] - 1, self.shape[1] - 1], dtype=np.float64)
+
+    def cell_to_xy(self, cells: np.ndarray) -> np.ndarray:
+        """Centres ``(..., 2)`` float of integer cells ``(..., 2)`` (row, col)."""
+        arr = np.asarray(cells)
+        if arr.shape[-1:] != (2,):
+            raise ValueError(f"cells must have shape (..., 2), got {arr.shape}")
+        return arr.astype(np.float64)
+
+    def xy_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """The cell ``(..., 2)`` int64 holding each point: clip to the grid, round to nearest (half up)."""
+        arr = _points(xy, "xy")
+        return np.floor(np.clip(arr, self.low, self.high) + 0.5).astype(np.int64)
+
+    def is_wall(self, xy: np.ndarray) -> np.ndarray:
+        """Whether each point ``(..., 2)`` lies in a wall cell (the ITPS rule), bool ``(...)``."""
+        cells = self.xy_to_cell(xy)
+        return self.walls[cells[..., 0], cells[..., 1]]
+
+    def plan_collides(self, plans: np.ndarray) -> np.ndarray:
+        """ITPS collision check: a plan ``(..., H, 2)`` collides if any waypoint is in a wall; bool ``(...)``."""
+        arr = _points(plans, "plans")
+        if arr.ndim < 2:
+            raise ValueError(f"plans must have shape (..., H, 2), got {arr.shape}")
+        return self.is_wall(arr).any(axis=-1)
+
+    def clearance(self, xy: np.ndarray) -> np.ndarray:
+        """Distance ``(...)`` from each point to the nearest wall box (0 inside a wall)."""
+        arr = _points(xy, "xy")
+        centers = np.argwhere(self.walls).astype(np.float64)  # (W, 2)
+        if len(centers) == 0:
+            return np.full(arr.shape[:-1], np.inf)
+        gap = np.maximum(np.abs(arr[..., None, :] - centers) - 0.5, 0.0)
+        return np.sqrt((gap**2).sum(-1)).min(-1)
+
+    def project_free(self, xy: np.ndarray, radius: float = AGENT_RADIUS) -> np.ndarray:
+        """A position near ``xy`` (2,) where a disc of ``radius`` touches no wall (``xy`` itself if it is one).
+
+        Used to place the agent after a push or a teleport: a point in a wall
+        cell goes to the closest point of the nearest free cell, then it is
+        pushed off the walls of that cell's 8-neighbourhood.
+        """
+        p = np.clip(_check_xy(xy, "xy"), self.low - 0.5, self.high + 0.5)
+        r, c = self.xy_to_cell(p)
+        if self.walls[r, c]:
+            lo = self.free_cells - 0.5
+            nearest = np.clip(p, lo, self.free_cells + 0.5)
+            k = int(np.argmin(((nearest - p) ** 2).sum(-1)))
+            r, c = self.free_cells[k]
+            p = np.clip(nearest[k], self.free_cells[k] - 0.5 + 1e-9, self.free_cells[k] + 0.5 - 1e-9)
+        for axis, step in ((0, -1), (0, 1), (1, -1), (1, 1)):
+            nb = [r, c]
+            nb[axis] += step
+            if self._wall_at(*nb):
+                bound = (r, c)[axis] + step * (0.5 - radius)
+                p[axis] = max(p[axis], bound) if step < 0 else min(p[axis], bound)
+        for dr in (-1, 1):
+            for dc in (-1, 1):
+                if self._wall_at(r + dr, c + dc):
+                    corner = np.array([r + 0.5 * dr, c + 0.5 * dc])
+                    away = p - corner
+                    dist = float(np.hypot(*away))
+                    inside_quadrant = away[0] * dr <= 0 and away[1] * dc <= 0
+                    if inside_quadrant and dist < radius:
+                        direction = away / dist if dist > 1e-12 else -np.array([dr, dc]) / np.sqrt(2.0)
+                        p = corner + radius * direction
+        return p
+
+    def _wall_at(self, r: int, c: int) -> bool:
+        if not (0 <= r < self.shape[0] and 0 <= c < self.shape[1]):
+            return True
+        return bool(self.walls[r, c])
+
+
+def maze_mjcf(grid: MazeGrid, name: str = "maze2d") -> str:
+    """MJCF of the D4RL point mass in ``grid`` (walls as boxes, PD actuators on ``ctrl = waypoint``).
+
+    The affine actuator ``force = 1000 ctrl - 1000 qpos - 100 qvel`` clamped
+    to +-100 is exactly ``100 * clip(10 (wp - pos) - vel, -1, 1)``.
+    """
+    gain, kv = GEAR * KP, GEAR * KD
+    walls = "\n".join(
+        f'    <geom name="wall_{r}_{c}" type="box" pos="{r} {c} 0" size="0.5 0.5 0.2" rgba=".7 .5 .3 1"/>'
+        for r, c in np.argwhere(grid.walls)
+    )
+    actuators = "\n".join(
+        f'    <general name="pd_{axis}" joint="{axis}" gainprm="{gain}" biastype="affine" '
+        f'biasprm="0 {-gain} {-kv}" forcelimited="true" forcerange="{-GEAR * U_MAX} {GEAR * U_MAX}"/>'
+        for axis in ("x", "y")
+    )
+    return f"""<mujoco model="{name}">
+  <compiler inertiafromgeom="true" angle="radian"/>
+  <option timestep="{TIMESTEP}" gravity="0 0 0" iterations="20" integrator="Euler"/>
+  <default>
+    <joint damping="1" limited="false"/>
+    <geom friction=".5 .1 .1" density="1000" margin="0.002" condim="1" contype="2" conaffinity="1"/>
+  </default>
+  <worldbody>
+    <body name="agent" pos="0 0 0">
+      <geom name="agent" type="sphere" size="{AGENT_RADIUS}" contype="1" conaffinity="1" rgba="0.2 0.3 0.9 1"/>
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="y" type="slide" axis="0 1 0"/>
+    </body>
+{walls}
+  </worldbody>
+  <actuator>
+{actuators}
+  </actuator>
+</mujoco>
+"""
+
+
+class MazePhysics:
+    """The MuJoCo model and data of one maze; steps the PD-tracked point mass."""
+
+    def __init__(self, grid: MazeGrid, name: str = "maze2d") -> None:
+        self.grid = grid
+        self.model = mujoco.MjModel.from_xml_string(maze_mjcf(grid, name))
+        self.data = mujoco.MjData(self.model)
+        self.agent_geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, "agent")
+
+    @property
+    def pos(self) -> np.ndarray:
+        return self.data.qpos[:2].copy()
+
+    @property
+    def vel(self) -> np.ndarray:
+        return self.data.qvel[:2].copy()
+
+    def set_state(self, pos: np.ndarray, vel: np.ndarray | None = None) -> None:
+        """Place the agent (velocity zero unless given) and recompute derived quantities."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:2] = pos
+        self.data.qvel[:2] = 0.0 if vel is None else vel
+        mujoco.mj_forward(self.model, self.data)
+
+    def in_contact(self) -> bool:
+        """Whether the agent geom has a MuJoCo contact with a wall geom now."""
+        n = self.data.ncon
+        if n == 0:
+            return False
+        geoms = self.data.contact.geom[:n]
+        return bool(np.any(geoms == self.agent_geom))
+
+    def step(self, waypoint: np.ndarray, n: int = 1) -> bool:
+        """``n`` physics steps tracking ``waypoint``; True if the agent touched a wall in any of them."""
+        self.data.ctrl[:2] = waypoint
+        touched = False
+        for _ in range(n):
+            mujoco.mj_step(self.model, self.data)
+            touched = touched or self.in_contact()
+        return touched
+
+    def control(self) -> np.ndarray:
+        """The normalized control ``u`` (in [-1, 1]) applied in the last step."""
+        return self.data.actuator_force[:2] / GEAR
+
+
+class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
+    """MuJoCo point mass in a D4RL maze; the action is the next absolute xy waypoint.
+
+    Args:
+        maze: ``"umaze"``, ``"medium"``, ``"large"`` (gymnasium-robotics maps) or
+            a custom map (rows of 1 = wall, 0 / "r" / "g" / "c" = free).
+        frame_skip: physics steps (0.01 s each) per env step; 4 = the ITPS data rate.
+        observe_velocity: observation is ``(x, y, vx, vy)`` instead of ``(x, y)``.
+        sample_goal: draw a random goal cell at every reset (``info["success"]``
+            = agent in the goal cell, which ends the episode). With False,
+            there is no goal unless ``reset(options={"goal_cell": ...})`` sets one
+            (the ITPS setting: free navigation, never "successful").
+        render_mode: ``"rgb_array"`` or None.
+        cell_px: rendered pixels per cell.
+
+    Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity.
+    Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it).
+    Reward: 1 when the goal cell is reached, else 0 (D4RL sparse).
+    ``info``: ``mode`` (always 0, ``"navigate"``), ``sensors``
+    (``at_goal``, ``in_wall_contact``), ``success``, ``constraint_violation``
+    (the agent had a MuJoCo contact with a wall during the step), ``perturbed``.
+    Reset options: ``state`` (xy start; must not be in a wall cell, it is nudged
+    off walls closer than the agent's radius), ``goal_cell`` ((row, col) or None).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 25}
+    interaction_kinds: tuple[str, ...] = ("point", "sketch", "nudge")
+    _OPTION_KEYS = frozenset({"state", "goal_cell"})
+
+    def __init__(
+        self,
+        maze: str | Sequence[Sequence[int | str]] = "large",
+        *,
+        frame_skip: int = 4,
+        observe_velocity: bool = False,
+        sample_goal: bool = True,
+        render_mode: str | None = None,
+        cell_px: int = 32,
+    ) -> None:
+        if isinstance(maze, str):
+            self.maze_name = maze
+            layout = maze_map(maze)
+        else:
+            self.maze_name = "custom"
+            layout = maze
+        if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool) or frame_skip < 1:
+            raise ValueError(f"frame_skip must be a positive int, got {frame_skip!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if not isinstance(cell_px, (int, np.integer)) or cell_px < 4:
+            raise ValueError(f"cell_px must be an int >= 4, got {cell_px!r}")
+        self.grid = MazeGrid(layout)
+        self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
+        self.frame_skip = int(frame_skip)
+        self.dt = TIMESTEP * self.frame_skip
+        self.observe_velocity = bool(observe_velocity)
+        self.sample_goal = bool(sample_goal)
+        self.render_mode = render_mode
+        self.cell_px = int(cell_px)
+        self.task = TaskSpec(
+            name=f"maze2d-{self.maze_name}",
+            modes=("navigate",),
+            sensors=("at_goal", "in_wall_contact"),
+            sensor_modes={
+                frozenset(): "navigate",
+                frozenset({"at_goal"}): "navigate",
+                frozenset({"in_wall_contact"}): "navigate",
+                frozenset({"at_goal", "in_wall_contact"}): "navigate",
+            },
+        )
+        rows, cols = self.grid.shape
+        pos_lo, pos_hi = np.array([-0.5, -0.5]), np.array([rows - 0.5, cols - 0.5])
+        if self.observe_velocity:
+            # |force| <= GEAR and joint damping 1: from rest no speed component can exceed GEAR
+            lo = np.concatenate([pos_lo, [-GEAR, -GEAR]]).astype(np.float32)
+            hi = np.concatenate([pos_hi, [GEAR, GEAR]]).astype(np.float32)
+        else:
+            lo, hi = pos_lo.astype(np.float32), pos_hi.astype(np.float32)
+        self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
+        self.action_space = spaces.Box(
+            self.grid.low.astype(np.float32), self.grid.high.astype(np.float32), dtype=np.float32
+        )
+        self.goal_cell: tuple[int, int] | None = None
+        self._contact = False
+        self._trail: list[np.ndarray] = []
+        self._background: np.ndarray | None = None
+
+    # -------------------------------------------------------------- geometry
+    @property
+    def extent(self) -> float:
+        """Maze height in cells: distances are divided by it (ITPS Table 2.1)."""
+        return self.grid.extent
+
+    def cell_to_xy(self, cells: np.ndarray) -> np.ndarray:
+        """Cell centres of integer cells ``(..., 2)`` (row, col)."""
+        return self.grid.cell_to_xy(cells)
+
+    def xy_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """Cell of each point ``(..., 2)``: clipped to the grid, rounded to the nearest cell."""
+        return self.grid.xy_to_cell(xy)
+
+    def is_wall(self, xy: np.ndarray) -> np.ndarray:
+        """Whether each point ``(..., 2)`` lies in a wall cell."""
+        return self.grid.is_wall(xy)
+
+    def plan_collides(self, plans: np.ndarray) -> np.ndarray:
+        """ITPS rule: plans ``(..., H, 2)`` collide if any waypoint is in a wall cell."""
+        return self.grid.plan_collides(plans)
+
+    # ----------------------------------------------------------------- state
+    @property
+    def state(self) -> np.ndarray:
+        """The agent's xy (a copy, float64)."""
+        return self.physics.pos
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The agent's velocity in cells per second (a copy)."""
+        return self.physics.vel
+
+    @property
+    def goal_xy(self) -> np.ndarray | None:
+        """Centre of the goal cell, or None without a goal."""
+        return None if self.goal_cell is None else np.array(self.goal_cell, dtype=np.float64)
+
+    def _obs(self) -> np.ndarray:
+        d = self.physics.data
+        state = np.concatenate([d.qpos[:2], d.qvel[:2]]) if self.observe_velocity else d.qpos[:2]
+        return state.astype(np.float32)
+
+    def _at_goal(self) -> bool:
+        if self.goal_cell is None:
+            return False
+        return tuple(self.grid.xy_to_cell(self.physics.data.qpos[:2]).tolist()) == self.goal_cell
+
+    def _info(self, violation: bool, perturbed: bool = False) -> dict[str, Any]:
+        at_goal = self._at_goal()
+        return {
+            "mode": 0,
+            "mode_name": "navigate",
+            "sensors": {"at_goal": at_goal, "in_wall_contact": self.physics.in_contact()},
+            "success": at_goal,
+            "constraint_violation": bool(violation),
+            "perturbed": perturbed,
+        }
+
+    def _check_cell(self, value: Any, name: str) -> tuple[int, int]:
+        try:
+            cell = np.asarray(value)
+        except (TypeError, ValueError):
+            raise TypeError(f"{name} must be a (row, col) pair of ints, got {type(value).__name__}") from None
+        if cell.shape != (2,) or not np.issubdtype(cell.dtype, np.integer):
+            raise ValueError(f"{name} must be a (row, col) pair of ints, got {value!r}")
+        r, c = int(cell[0]), int(cell[1])
+        if not (0 <= r < self.grid.shape[0] and 0 <= c < self.grid.shape[1]):
+            raise ValueError(f"{name} {value!r} lies outside the {self.grid.shape} grid")
+        if self.grid.walls[r, c]:
+            raise ValueError(f"{name} {value!r} is a wall cell")
+        return r, c
+
+    # ------------------------------------------------------------------- API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode at a random free cell (+-U(0.1) noise, D4RL) at rest.
+
+        ``options``: ``state`` (xy start), ``goal_cell`` ((row, col), or None for no goal).
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - self._OPTION_KEYS
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {sorted(self._OPTION_KEYS)}")
+        rng = self.np_random
+        if options.get("state") is not None:
+            start = _check_xy(options["state"], "options['state']")
+            if bool(self.grid.is_wall(start)):
+                raise ValueError(f"options['state'] {start.tolist()} lies in a wall cell")
+            start = self.grid.project_free(start)
+        else:
+            cell = self.grid.free_cells[rng.integers(len(self.grid.free_cells))]
+            start = self.grid.project_free(cell + rng.uniform(-0.1, 0.1, size=2))
+        self.physics.set_state(start)
+        if "goal_cell" in options:
+            goal = options["goal_cell"]
+            self.goal_cell = None if goal is None else self._check_cell(goal, "options['goal_cell']")
+        elif self.sample_goal:
+            start_cell = tuple(self.grid.xy_to_cell(start).tolist())
+            choices = [tuple(c) for c in self.grid.free_cells.tolist() if tuple(c) != start_cell]
+            self.goal_cell = choices[int(rng.integers(len(choices)))] if choices else None
+        else:
+            self.goal_cell = None
+        self._trail = [self.state]
+        return self._obs(), self._info(False)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Track the waypoint ``action`` for ``frame_skip`` physics steps with the PD law."""
+        waypoint = np.clip(_check_action(action, self.action_space), self.grid.low, self.grid.high)
+        touched = self.physics.step(waypoint, self.frame_skip)
+        self._trail.append(self.state)
+        info = self._info(touched)
+        reward = 1.0 if info["success"] else 0.0
+        return self._obs(), reward, bool(info["success"]), False, info
+
+    def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
+        """Displace the agent by ``delta`` (or move it ``to`` a position): a push from outside.
+
+        The simulator state is moved and the velocity zeroed. A target in or
+        against a wall is projected to the closest position where the agent
+        touches no wall (the push stops at the wall). Returns the new ``info``.
+        """
+        if (delta is None) == (to is None):
+            raise ValueError("perturb: pass exactly one of `delta` (displacement) or `to` (target state)")
+        target = self.state + _check_xy(delta, "delta") if to is None else _check_xy(to, "to")
+        self.physics.set_state(self.grid.project_free(target))
+        self._trail.append(self.state)
+        return self._info(False, perturbed=True)
+
+    # ------------------------------------------------------------- rendering
+    def _canvas(self) -> Canvas:
+        rows, cols = self.grid.shape
+        # display coordinates: u = column (right), v = -row (up), so row 0 is drawn at the top
+        return Canvas(
+            np.array([-0.5, -(rows - 0.5)]), np.array([cols - 0.5, 0.5]), cols * self.cell_px, rows * self.cell_px
+        )
+
+    @staticmethod
+    def _display(xy: np.ndarray) -> np.ndarray:
+        arr = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return np.stack([arr[:, 1], -arr[:, 0]], axis=1)
+
+    def _scene(self) -> Canvas:
+        canvas = self._canvas()
+        if self._background is None:
+            px = self.cell_px
+            walls = np.repeat(np.repeat(self.grid.walls, px, axis=0), px, axis=1)
+            lines = np.zeros_like(walls)
+            lines[::px] = True
+            lines[:, ::px] = True
+            image = np.empty((*walls.shape, 3), dtype=np.uint8)
+            image[:] = _FREE_RGB
+            image[lines & ~walls] = _GRID_RGB
+            image[walls] = _WALL_RGB
+            self._background = image
+        canvas.image[:] = self._background
+        if self.goal_cell is not None:
+            r, c = self.goal_cell
+            px = self.cell_px
+            canvas.image[r * px + 1 : (r + 1) * px, c * px + 1 : (c + 1) * px] = _GOAL_RGB
+        if len(self._trail) > 1:
+            canvas.polyline(self._display(np.asarray(self._trail)), (40, 40, 200), thickness=2)
+        return canvas
+
+    def _draw_agent(self, canvas: Canvas) -> None:
+        radius = max(3, round(AGENT_RADIUS * self.cell_px * 1.5))
+        canvas.disc(self._display(self.state)[0], radius, (220, 30, 30))
+
+    def render(self) -> np.ndarray | None:
+        """Top-down RGB image: walls, goal cell (green), trail (blue), agent (red)."""
+        if self.render_mode != "rgb_array":
+            return None
+        canvas = self._scene()
+        self._draw_agent(canvas)
+        return canvas.image
+
+    def render_overlay(self, sketch: np.ndarray | None = None, plans: np.ndarray | None = None) -> np.ndarray:
+        """The scene with sampled ``plans`` ``(B, H, 2)`` and a user ``sketch`` ``(G, 2)`` drawn on top.
+
+        Plans in collision (ITPS rule) are drawn orange, the others teal; the
+        sketch is magenta with a dot at its start. Works in any ``render_mode``.
+        """
+        canvas = self._scene()
+        if plans is not None:
+            arr = _points(plans, "plans")
+            if arr.ndim == 2:
+                arr = arr[None]
+            if arr.ndim != 3:
+                raise ValueError(f"plans must have shape (B, H, 2) or (H, 2), got {arr.shape}")
+            collides = self.grid.plan_collides(arr)
+            for plan, hit in zip(arr, collides, strict=True):
+                canvas.polyline(self._display(plan), (240, 140, 30) if hit else (20, 160, 160), thickness=1)
+        if sketch is not None:
+            pts = _points(sketch, "sketch")
+            if pts.ndim != 2 or len(pts) == 0:
+                raise ValueError(f"sketch must have shape (G, 2) with G >= 1, got {pts.shape}")
+            canvas.polyline(self._display(pts), (200, 30, 200), thickness=3)
+            canvas.disc(self._display(pts[0])[0], max(2, self.cell_px // 8), (200, 30, 200))
+        self._draw_agent(canvas)
+        return canvas.image
+
+    def pixel_to_xy(self, u: float, v: float) -> np.ndarray:
+        """Maze xy of image pixel column ``u``, row ``v`` of :meth:`render` (e.g. a mouse sketch)."""
+        return np.array([v / self.cell_px - 0.5, u / self.cell_px - 0.5])
+
+
+def _points(value: Any, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a float array of shape (..., 2), got {type(value).__name__}") from None
+    if arr.ndim == 0 or arr.shape[-1] != 2:
+        raise ValueError(f"{name} must have shape (..., 2), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr

@@ -1,0 +1,202 @@
+"""D4RL maze2d random walk: controller, determinism, collision-free data, file round trip, windows, CLI."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from steer_envs.data.maze_random_walk import (
+    PlanWindows,
+    RandomWalkDataset,
+    WaypointController,
+    cell_path,
+    generate_random_walk,
+    load_random_walk,
+    load_transitions,
+    main,
+    q_iteration,
+    save_random_walk,
+    to_minari,
+)
+from steer_envs.envs.maze2d import AGENT_RADIUS, MazeGrid, maze_map
+
+LARGE = MazeGrid(maze_map("large"))
+
+
+@pytest.fixture(scope="module")
+def walk() -> RandomWalkDataset:
+    return generate_random_walk("large", 40_000, seed=3, progress=False)
+
+
+def test_q_iteration_paths_are_shortest_grid_paths() -> None:
+    graph = nx.grid_2d_graph(*LARGE.shape)
+    graph.remove_nodes_from([tuple(c) for c in np.argwhere(LARGE.walls).tolist()])
+    rng = np.random.default_rng(0)
+    free = [tuple(c) for c in LARGE.free_cells.tolist()]
+    for _ in range(25):
+        a, b = (free[i] for i in rng.choice(len(free), size=2, replace=False))
+        path = cell_path(LARGE, a, b)
+        assert path[-1] == b and len(path) == nx.shortest_path_length(graph, a, b)
+        steps = np.abs(np.diff(np.array([a, *path]), axis=0)).sum(axis=1)
+        assert np.all(steps == 1) and not LARGE.walls[tuple(np.array(path).T)].any()
+    q = q_iteration(LARGE.walls, (1, 1), iters=3)
+    assert q[(7, 10)].max() == 0.0  # beyond the sweep horizon nothing is known (D4RL's 50-sweep limit)
+    with pytest.raises(ValueError, match="target"):
+        q_iteration(LARGE.walls, (0, 0))
+
+
+def test_controller_jitters_every_waypoint_but_the_goal() -> None:
+    ctrl = WaypointController(LARGE, np.random.default_rng(0))
+    ctrl.plan(np.array([1.0, 1.0]), np.array([7.04, 9.97]))
+    wps = np.array(ctrl.waypoints)
+    offsets = np.round(wps[:-1]) - wps[:-1]
+    assert np.all((offsets >= 0) & (offsets <= 0.2)) and offsets.std() > 0
+    np.testing.assert_array_equal(wps[-1], [7.0, 10.0])
+    with pytest.raises(RuntimeError, match="plan"):
+        WaypointController(LARGE).update(1.0, 1.0)
+
+
+def test_same_seed_gives_identical_data(walk: RandomWalkDataset) -> None:
+    again = generate_random_walk("large", 40_000, seed=3, progress=False)
+    for name in ("observations", "actions", "waypoints", "goals", "wall_contact", "leg_starts"):
+        np.testing.assert_array_equal(getattr(walk, name), getattr(again, name))
+    other = generate_random_walk("large", 40_000, seed=4, progress=False)
+    assert not np.array_equal(walk.observations, other.observations)
+
+
+def test_walk_is_collision_free_continuous_and_covers_the_maze(walk: RandomWalkDataset) -> None:
+    assert len(walk) == 10_000 and walk.meta["raw_steps"] == 40_000 and walk.meta["dt"] == pytest.approx(0.04)
+    for points in (walk.xy, walk.actions, walk.waypoints):
+        assert LARGE.is_wall(points).mean() == 0.0  # the ITPS rule: no waypoint in a wall cell
+    assert LARGE.clearance(walk.xy).min() >= AGENT_RADIUS - 0.01  # the ball never penetrates a wall
+    np.testing.assert_array_equal(walk.actions[:-1], walk.xy[1:])  # action = next xy
+    speeds = np.linalg.norm(np.diff(walk.xy, axis=0), axis=1) / walk.meta["dt"]
+    assert speeds.max() < 12.0  # cells per second: no teleports
+    visited = {tuple(c) for c in LARGE.xy_to_cell(walk.xy).tolist()}
+    assert len(visited) >= 0.9 * len(LARGE.free_cells)
+    # the goal is constant within a leg and changes at leg starts (no reset: the walk just continues)
+    assert len(walk.leg_starts) > 20 and walk.leg_starts[0] == 0
+    for a, b in zip(walk.leg_starts[:-1], walk.leg_starts[1:], strict=True):
+        assert np.all(walk.goals[a:b] == walk.goals[a]) and np.any(walk.goals[b] != walk.goals[b - 1])
+    assert np.all(np.abs(walk.goals - np.round(walk.goals)) <= 0.1 + 1e-6)
+
+
+def test_save_load_round_trip(tmp_path: Path, walk: RandomWalkDataset) -> None:
+    path = save_random_walk(walk, tmp_path / "sub" / "walk.npz")
+    assert [p.name for p in path.parent.iterdir()] == ["walk.npz"]  # no temp file left behind
+    loaded = load_random_walk(path)
+    for name in ("observations", "actions", "waypoints", "goals", "wall_contact", "episode_starts", "leg_starts"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(walk, name))
+    assert loaded.meta == json.loads(json.dumps(walk.meta))
+    obs, actions, starts = load_transitions(path)
+    assert obs.shape == (10_000, 4) and actions.shape == (10_000, 2) and starts.tolist() == [0]
+    with pytest.raises(ValueError, match="npz"):
+        save_random_walk(walk, tmp_path / "walk.h5")
+    np.savez(tmp_path / "other.npz", x=np.zeros(3))
+    with pytest.raises(ValueError, match="missing"):
+        load_random_walk(tmp_path / "other.npz")
+    with pytest.raises(ValueError, match="no dataset"):
+        load_random_walk(tmp_path / "absent.npz")
+
+
+def _two_episodes(n: int = 30) -> RandomWalkDataset:
+    xy = np.stack([np.arange(n, dtype=np.float32), np.zeros(n, dtype=np.float32)], 1)
+    obs = np.concatenate([xy, np.zeros_like(xy)], 1)
+    actions = xy + np.array([1.0, 0.0], dtype=np.float32)  # each step moves one unit along x
+    return RandomWalkDataset(
+        observations=obs,
+        actions=actions,
+        waypoints=xy,
+        goals=xy,
+        wall_contact=np.zeros(n, dtype=bool),
+        episode_starts=np.array([0, 12]),
+        leg_starts=np.array([0]),
+    )
+
+
+def test_plan_windows_follow_the_itps_layout_and_respect_episodes() -> None:
+    ds = _two_episodes()
+    windows = PlanWindows(ds, n_obs=2, horizon=5)
+    # episode [0, 12): t in 1..7 (plan actions[t .. t+4] ends at 11); episode [12, 30): t in 13..25
+    assert windows.steps.tolist() == [*range(1, 8), *range(13, 26)]
+    obs, plan = windows[0]
+    np.testing.assert_array_equal(obs[:, 0], [0, 1])
+    np.testing.assert_array_equal(plan[:, 0], [2, 3, 4, 5, 6])  # the next 5 positions
+    lerobot = PlanWindows(ds, n_obs=2, horizon=5, action_start=-1)
+    obs, plan = lerobot[0]
+    np.testing.assert_array_equal(plan[:, 0], [1, 2, 3, 4, 5])  # starts at the current position
+    batch_obs, batch_plans = windows.gather(np.arange(len(windows)))
+    assert batch_obs.shape == (20, 2, 2) and batch_plans.shape == (20, 5, 2)
+    assert np.all(np.diff(batch_plans[..., 0], axis=1) == 1)  # never crosses the episode boundary
+    sizes = [len(p) for _, p in windows.batches(8, np.random.default_rng(0))]
+    assert sizes == [8, 8, 4]
+    with pytest.raises(IndexError):
+        windows[20]
+    with pytest.raises(ValueError, match="action_start"):
+        PlanWindows(ds, n_obs=2, action_start=-2)
+
+
+def test_itps_windows_on_generated_data(walk: RandomWalkDataset) -> None:
+    windows = PlanWindows(walk, n_obs=2, horizon=64)
+    assert len(windows) == len(walk) - 64 - (2 - 1) + 1
+    idx = np.arange(0, len(windows), 97)
+    obs, plans = windows.gather(idx)
+    t = windows.steps[idx]
+    np.testing.assert_array_equal(obs[:, 1], walk.xy[t])
+    np.testing.assert_array_equal(obs[:, 0], walk.xy[t - 1])
+    np.testing.assert_array_equal(plans[:, 0], walk.xy[t + 1])
+    assert not LARGE.plan_collides(plans).any()
+    lo, hi = walk.xy_bounds()
+    assert np.all(lo > 0.5) and np.all(hi < np.array([7.5, 10.5]))
+
+
+def test_generator_validates_arguments() -> None:
+    with pytest.raises(ValueError, match="maze"):
+        generate_random_walk("huge", 100, progress=False)
+    with pytest.raises(ValueError, match="steps"):
+        generate_random_walk("umaze", 2, subsample=4, progress=False)
+    with pytest.raises(TypeError, match="seed"):
+        generate_random_walk("umaze", 100, seed=1.5, progress=False)  # type: ignore[arg-type]
+
+
+def test_cli_writes_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--out", str(tmp_path), "--maze", "umaze", "--steps", "2000", "--seed", "1", "--no-progress"]) == 0
+    out = tmp_path / "maze2d-umaze-randomwalk-seed1.npz"
+    ds = load_random_walk(out)
+    assert len(ds) == 500 and ds.meta["maze"] == "umaze" and ds.meta["seed"] == 1
+    assert "raw steps/s" in capsys.readouterr().out
+    help_text = subprocess.run(
+        [sys.executable, "-m", "steer_envs.data.maze_random_walk", "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    assert "--out" in help_text and "--steps" in help_text and "--seed" in help_text
+
+
+def test_minari_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("h5py", reason="Minari needs its hdf5 backend (pip install 'minari[hdf5]')")
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    ds = generate_random_walk("umaze", 4000, seed=0, progress=False)
+    to_minari(ds, "steer_envs/maze2d-umaze/randomwalk-v0")
+    loaded = minari.load_dataset("steer_envs/maze2d-umaze/randomwalk-v0")
+    episode = next(loaded.iterate_episodes())
+    np.testing.assert_allclose(episode.observations[:-1], ds.observations)
+    np.testing.assert_allclose(episode.actions, ds.actions)
+    np.testing.assert_allclose(episode.infos["waypoint"], ds.waypoints)
+    assert os.path.isdir(tmp_path / "minari")
+
+
+@pytest.mark.slow
+def test_itps_scale_walk_is_collision_free() -> None:
+    """The ITPS data size: 1M raw steps subsampled x4 (about 40 s on one core)."""
+    ds = generate_random_walk("large", 1_000_000, seed=0, progress=False)
+    assert len(ds) == 250_000
+    assert LARGE.is_wall(ds.actions).sum() == 0 and LARGE.is_wall(ds.waypoints).sum() == 0
+    assert len({tuple(c) for c in LARGE.xy_to_cell(ds.xy).tolist()}) == len(LARGE.free_cells)
