@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import gymnasium as gym
@@ -21,6 +19,7 @@ from matplotlib.image import imsave
 
 import steer_envs
 from steer_envs.data.experts import make_expert
+from steer_envs.io import atomic_open
 
 
 def run_episode(env_id: str, seed: int, push_at: int = 30) -> tuple[np.ndarray, list[str], bool]:
@@ -55,10 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     for env_id in steer_envs.env_ids(kinematic_only=True):
         frame, modes, success = run_episode(env_id, args.seed)
         name = env_id.split("/")[1]
-        fd, tmp = tempfile.mkstemp(suffix=".png", dir=args.out)
-        os.close(fd)
-        imsave(tmp, frame)
-        os.replace(tmp, args.out / f"{name}.png")
+        with atomic_open(args.out / f"{name}.png") as fh:
+            imsave(fh, frame, format="png")
         print(f"{env_id:32s} success={success!s:5s} modes: {' -> '.join(modes)}")
     return 0
 

@@ -36,7 +36,6 @@ import importlib.util
 import json
 import math
 import os
-import tempfile
 import time
 import warnings
 from collections.abc import Iterator
@@ -47,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
+from steer_envs.io import atomic_open
 
 FORMAT = "steer_envs.maze2d_random_walk/1"
 #: D4RL maze2d timeouts (raw steps per goal) by maze.
@@ -349,17 +349,8 @@ def save_random_walk(dataset: RandomWalkDataset, path: str | os.PathLike[str]) -
         raise ValueError(f"path must end with .npz, got {str(out)!r}")
     out.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: np.asarray(getattr(dataset, name)) for name in _ARRAYS}
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, meta=np.array(json.dumps(dataset.meta)), **arrays)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_open(out, "wb") as fh:
+        np.savez_compressed(fh, meta=np.array(json.dumps(dataset.meta)), **arrays)
     return out
 
 

@@ -25,6 +25,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from steer_envs.data.experts.control import velocity_toward
 from steer_envs.envs.cooking import DARK, FOODS, SENSORS, WHITE, CookingEnv
 
 #: how far inside a region a waypoint sits (so the transition happens before it is reached).
@@ -78,7 +79,7 @@ class CookingExpert:
         if len(sensors) != len(pos):
             raise ValueError(f"info['sensors'] must have one row per observation ({len(pos)}), got {len(sensors)}")
         target = self._targets(pos, sensors)
-        action = self._toward(pos, target).astype(np.float32)
+        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
         return action[0] if single else action
 
     # ------------------------------------------------------------ planning
@@ -129,12 +130,6 @@ class CookingExpert:
                 exit_x = px0 - MARGIN if self._rects[name][0] < px0 else px1 + MARGIN
                 target[mine] = np.stack([np.full_like(x, exit_x), np.clip(y, py0 + MARGIN, None)], axis=1)[mine]
         return target
-
-    def _toward(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
-        delta = target - pos
-        dist = np.linalg.norm(delta, axis=1, keepdims=True)
-        speed = np.minimum(self.env.max_speed, dist / self.env.dt)
-        return np.where(dist > 1e-12, delta / np.maximum(dist, 1e-12) * speed, 0.0)
 
 
 __all__ = ["CookingExpert"]

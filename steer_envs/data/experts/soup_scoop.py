@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.data.experts.control import velocity_toward
 from steer_envs.envs.soup_scoop import MODE_A, MODE_B, MODE_C, SoupScoopEnv
 
 #: depth below the soup surface (``y = -4``) of the reach target.
@@ -65,7 +66,7 @@ class SoupScoopExpert:
         if len(mode) != len(pos):
             raise ValueError(f"info['mode'] must have one entry per observation ({len(pos)}), got {len(mode)}")
         target = self._targets(pos, mode)
-        action = self._toward(pos, target).astype(np.float32)
+        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
         return action[0] if single else action
 
     # ------------------------------------------------------------ planning
@@ -96,12 +97,6 @@ class SoupScoopExpert:
         up = carry & ~off_centre
         target[up] = self._transport_target
         return target
-
-    def _toward(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
-        delta = target - pos
-        dist = np.linalg.norm(delta, axis=1, keepdims=True)
-        speed = np.minimum(self.env.max_speed, dist / self.env.dt)
-        return np.where(dist > 1e-12, delta / np.maximum(dist, 1e-12) * speed, 0.0)
 
 
 __all__ = ["SoupScoopExpert"]
