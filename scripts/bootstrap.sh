@@ -31,8 +31,13 @@ stamp=.venv/.steer-envs-stamp
 want=$(cat setup.cfg pyproject.toml requirements/constraints.txt | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "[bootstrap] installing steer-envs and pinned dependencies (about 2 minutes the first time)"
-  .venv/bin/python -m pip install -q --upgrade "pip>=24" >/dev/null
+  log=.venv/bootstrap.log
   # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
-  .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray]"
+  if ! { .venv/bin/python -m pip install -q --upgrade "pip>=24" \
+         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray]"; } >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    echo "[bootstrap] pip install failed; full log in $log" >&2
+    exit 1
+  fi
   echo "$want" > "$stamp"
 fi
