@@ -1,1 +1,90 @@
-"""LTL: parser, automata, replanner, Spot backend."""
+"""LTL for task specifications: parse, simplify, evaluate, translate to Büchi automata, replan modes.
+
+Pipeline (thesis ch. 3): an LTL formula in Spot syntax is parsed
+(:func:`parse`) into an immutable :class:`Formula`, simplified to negation
+normal form (:func:`simplify`), and translated (:func:`translate`) into an
+explicit generalized Büchi :class:`Automaton` (native tableau translator, or
+Spot when installed: ``backend="spot"``), which exports to HOA. The exact
+lasso-word semantics (:func:`evaluate`) is the reference the translator is
+tested against. :class:`ModeReplanner` turns a GR(1)-style task specification
+(:class:`GR1Spec`) over a :class:`~steer_envs.core.task.TaskSpec` into a task
+automaton over modes that answers "which mode next?" from sensor readings.
+"""
+
+from steer_envs.ltl.automaton import Automaton, Edge
+from steer_envs.ltl.buchi import BACKENDS, TranslationTooLarge, translate, translate_native
+from steer_envs.ltl.gr1 import GR1Spec
+from steer_envs.ltl.hoa import from_hoa, to_hoa
+from steer_envs.ltl.parser import LTLParseError, parse
+from steer_envs.ltl.replanner import (
+    ModeReplanner,
+    TaskAutomaton,
+    UnknownSensorReading,
+    UnrealizableSpecError,
+)
+from steer_envs.ltl.semantics import LassoWord, evaluate, evaluate_positions
+from steer_envs.ltl.simplify import nnf, simplify
+from steer_envs.ltl.spot_backend import spot_available, translate_spot
+from steer_envs.ltl.syntax import (
+    FALSE,
+    TRUE,
+    And,
+    Atom,
+    Const,
+    Equiv,
+    Finally,
+    Formula,
+    Globally,
+    Implies,
+    Next,
+    Not,
+    Or,
+    Release,
+    StrongRelease,
+    Until,
+    WeakUntil,
+    Xor,
+)
+
+__all__ = [
+    "BACKENDS",
+    "FALSE",
+    "TRUE",
+    "And",
+    "Atom",
+    "Automaton",
+    "Const",
+    "Edge",
+    "Equiv",
+    "Finally",
+    "Formula",
+    "GR1Spec",
+    "Globally",
+    "Implies",
+    "LTLParseError",
+    "LassoWord",
+    "ModeReplanner",
+    "Next",
+    "Not",
+    "Or",
+    "Release",
+    "StrongRelease",
+    "TaskAutomaton",
+    "TranslationTooLarge",
+    "UnknownSensorReading",
+    "UnrealizableSpecError",
+    "Until",
+    "WeakUntil",
+    "Xor",
+    "evaluate",
+    "evaluate_positions",
+    "from_hoa",
+    "nnf",
+    "parse",
+    "simplify",
+    "spot_available",
+    "to_hoa",
+    "translate",
+    "translate_native",
+    "translate_spot",
+]

@@ -1,0 +1,324 @@
+"""HOA v1 (Hanoi Omega-Automata format) writer and reader.
+
+The writer emits what Spot's ``autfilt`` reads: explicit edge labels over AP
+indices, transition- or state-based marks and a generalized Büchi
+``Acceptance:`` line. The reader accepts the subset Spot's ``translate`` and
+``ltl2tgba`` produce for LTL: generalized Büchi acceptance (``t``, ``f``, or a
+conjunction of ``Inf(i)``), explicit labels (``[0&!1 | 2]``, aliases
+``@name``), state- or transition-based marks, one or several (non-alternating)
+start states. Anything else raises ``ValueError`` saying what is unsupported.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from steer_envs.ltl.automaton import Automaton, Edge
+from steer_envs.ltl.guards import ap_mask, cubes_to_str, full_mask, isop
+
+__all__ = ["from_hoa", "to_hoa"]
+
+
+def _hoa_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def to_hoa(aut: Automaton) -> str:
+    """Serialise ``aut`` in HOA v1."""
+    k = aut.num_sets
+    lines = ["HOA: v1"]
+    if aut.name:
+        lines.append(f"name: {_hoa_string(aut.name)}")
+    lines.append(f"States: {aut.num_states}")
+    lines.append(f"Start: {aut.initial}")
+    lines.append(f"AP: {len(aut.aps)}" + "".join(" " + _hoa_string(ap) for ap in aut.aps))
+    if k == 0:
+        lines.append("acc-name: all")
+        lines.append("Acceptance: 0 t")
+    else:
+        lines.append("acc-name: Buchi" if k == 1 else f"acc-name: generalized-Buchi {k}")
+        lines.append(f"Acceptance: {k} " + "&".join(f"Inf({i})" for i in range(k)))
+    lines.append("properties: trans-labels explicit-labels " + ("state-acc" if aut.state_based else "trans-acc"))
+    lines.append("--BODY--")
+    indices = [str(j) for j in range(len(aut.aps))]
+    by_state: dict[int, list[Edge]] = {q: [] for q in range(aut.num_states)}
+    for e in aut.edges:
+        by_state[e.src].append(e)
+    for q in range(aut.num_states):
+        head = f"State: {q}"
+        if aut.state_names:
+            head += " " + _hoa_string(aut.state_names[q])
+        marks_of_state: frozenset[int] = frozenset()
+        if aut.state_based and by_state[q]:
+            marks_of_state = by_state[q][0].acc
+            if any(e.acc != marks_of_state for e in by_state[q]):
+                raise ValueError(f"to_hoa: state-based automaton has different marks on the edges of state {q}")
+            if marks_of_state:
+                head += " {" + " ".join(str(i) for i in sorted(marks_of_state)) + "}"
+        lines.append(head)
+        for e in by_state[q]:
+            cubes = isop(e.guard, len(aut.aps))
+            label = "t" if cubes == [()] else cubes_to_str(cubes, indices, and_="&", or_=" | ")
+            line = f"[{label}] {e.dst}"
+            if not aut.state_based and e.acc:
+                line += " {" + " ".join(str(i) for i in sorted(e.acc)) + "}"
+            lines.append(line)
+    lines.append("--END--")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ reader
+_TOKEN = re.compile(
+    r"""
+    (?P<ws>\s+|/\*.*?\*/)
+  | (?P<string>"(?:[^"\\]|\\.)*")
+  | (?P<header>[A-Za-z@][A-Za-z0-9_-]*:)
+  | (?P<marker>--BODY--|--END--|--ABORT--)
+  | (?P<int>\d+)
+  | (?P<ident>@?[A-Za-z_][A-Za-z0-9_-]*)
+  | (?P<punct>[!&|()\[\]{}])
+    """,
+    re.VERBOSE | re.DOTALL,
+)
+
+
+@dataclass
+class _Tok:
+    kind: str
+    text: str
+    pos: int
+
+
+def _lex(text: str) -> list[_Tok]:
+    toks: list[_Tok] = []
+    i = 0
+    while i < len(text):
+        m = _TOKEN.match(text, i)
+        if m is None:
+            raise ValueError(f"from_hoa: unexpected character {text[i]!r} at offset {i}")
+        kind = m.lastgroup or ""
+        if kind != "ws":
+            toks.append(_Tok(kind, m.group(), i))
+        i = m.end()
+    return toks
+
+
+def _unquote(s: str) -> str:
+    return re.sub(r"\\(.)", r"\1", s[1:-1])
+
+
+class _LabelParser:
+    """Boolean label expressions over AP indices: ``t f int ! & | ( ) @alias``."""
+
+    def __init__(self, toks: list[_Tok], n: int, aliases: dict[str, list[_Tok]]) -> None:
+        self.toks, self.i, self.n, self.aliases = toks, 0, n, aliases
+
+    def peek(self) -> str:
+        return self.toks[self.i].text if self.i < len(self.toks) else ""
+
+    def parse(self) -> int:
+        value = self.disj()
+        if self.i != len(self.toks):
+            raise ValueError(f"from_hoa: unexpected {self.peek()!r} in a label")
+        return value
+
+    def disj(self) -> int:
+        v = self.conj()
+        while self.peek() == "|":
+            self.i += 1
+            v |= self.conj()
+        return v
+
+    def conj(self) -> int:
+        v = self.atom()
+        while self.peek() == "&":
+            self.i += 1
+            v &= self.atom()
+        return v
+
+    def atom(self) -> int:
+        if self.i >= len(self.toks):
+            raise ValueError("from_hoa: label ends unexpectedly")
+        tok = self.toks[self.i]
+        self.i += 1
+        full = full_mask(self.n)
+        if tok.text == "!":
+            return full & ~self.atom()
+        if tok.text == "(":
+            v = self.disj()
+            if self.peek() != ")":
+                raise ValueError("from_hoa: missing ')' in a label")
+            self.i += 1
+            return v
+        if tok.text == "t":
+            return full
+        if tok.text == "f":
+            return 0
+        if tok.kind == "int":
+            j = int(tok.text)
+            if j >= self.n:
+                raise ValueError(f"from_hoa: label uses AP {j} but only {self.n} APs are declared")
+            return ap_mask(j, self.n)
+        if tok.text.startswith("@"):
+            if tok.text not in self.aliases:
+                raise ValueError(f"from_hoa: undefined alias {tok.text}")
+            return _LabelParser(self.aliases[tok.text], self.n, self.aliases).parse()
+        raise ValueError(f"from_hoa: unexpected {tok.text!r} in a label")
+
+
+def _parse_acceptance(toks: list[_Tok]) -> list[int] | None:
+    """The ``Inf`` sets of a generalized Büchi condition (``None`` for ``f``)."""
+    if len(toks) < 2 or toks[0].kind != "int":
+        raise ValueError("from_hoa: malformed Acceptance: header")
+    body = [t.text for t in toks[1:]]
+    while body and body[0] == "(" and body[-1] == ")":
+        body = body[1:-1]
+    if body == ["t"]:
+        return []
+    if body == ["f"]:
+        return None
+    sets: list[int] = []
+    i = 0
+    while i < len(body):
+        if body[i : i + 2] != ["Inf", "("] or i + 3 >= len(body) or body[i + 3] != ")":
+            raise ValueError(
+                "from_hoa: only generalized Büchi acceptance (t, f, or Inf(i)&Inf(j)&...) is supported, got "
+                + " ".join(body)
+            )
+        sets.append(int(body[i + 2]))
+        i += 4
+        if i < len(body):
+            if body[i] != "&":
+                raise ValueError(
+                    "from_hoa: only generalized Büchi acceptance (conjunctions of Inf(i)) is supported, got "
+                    + " ".join(body)
+                )
+            i += 1
+    return sets
+
+
+def from_hoa(text: str) -> Automaton:
+    """Parse one HOA v1 automaton (see the module doc for the supported subset)."""
+    if not isinstance(text, str):
+        raise TypeError(f"from_hoa: `text` must be a str, got {type(text).__name__}")
+    toks = _lex(text)
+    if not toks or toks[0].text != "HOA:":
+        raise ValueError("from_hoa: input does not start with 'HOA:'")
+    try:
+        body_at = next(i for i, t in enumerate(toks) if t.text == "--BODY--")
+    except StopIteration:
+        raise ValueError("from_hoa: missing --BODY--") from None
+    headers: list[tuple[str, list[_Tok]]] = []
+    for tok in toks[:body_at]:
+        if tok.kind == "header":
+            headers.append((tok.text[:-1], []))
+        elif not headers:
+            raise ValueError(f"from_hoa: unexpected {tok.text!r} before the first header")
+        else:
+            headers[-1][1].append(tok)
+    num_states: int | None = None
+    starts: list[int] = []
+    aps: tuple[str, ...] = ()
+    sets: list[int] | None = []
+    name = ""
+    aliases: dict[str, list[_Tok]] = {}
+    for key, args in headers:
+        if key == "States":
+            num_states = int(args[0].text)
+        elif key == "Start":
+            if any(t.text == "&" for t in args):
+                raise ValueError("from_hoa: alternating automata (conjunctive Start) are not supported")
+            starts.append(int(args[0].text))
+        elif key == "AP":
+            count = int(args[0].text)
+            aps = tuple(_unquote(t.text) for t in args[1:])
+            if len(aps) != count:
+                raise ValueError(f"from_hoa: AP: declares {count} APs but lists {len(aps)}")
+        elif key == "Acceptance":
+            sets = _parse_acceptance(args)
+        elif key == "name":
+            name = _unquote(args[0].text) if args else ""
+        elif key == "Alias":
+            aliases[args[0].text] = args[1:]
+    if not starts:
+        raise ValueError("from_hoa: no Start: state")
+    n = len(aps)
+    remap = {} if sets is None else {s: i for i, s in enumerate(sets)}
+    num_sets = 1 if sets is None else len(sets)
+
+    def marks(tok_list: list[_Tok]) -> frozenset[int]:
+        return frozenset(remap[int(t.text)] for t in tok_list if t.kind == "int" and int(t.text) in remap)
+
+    body = toks[body_at + 1 :]
+    edges: list[Edge] = []
+    names: dict[int, str] = {}
+    state: int | None = None
+    state_marks: frozenset[int] = frozenset()
+    state_based = False
+    i = 0
+    while i < len(body):
+        tok = body[i]
+        if tok.text in ("--END--", "--ABORT--"):
+            if tok.text == "--ABORT--":
+                raise ValueError("from_hoa: the producer aborted the automaton (--ABORT--)")
+            break
+        if tok.text == "State:":
+            i += 1
+            if body[i].text == "[":
+                raise ValueError("from_hoa: state labels are not supported (use edge labels)")
+            state = int(body[i].text)
+            i += 1
+            if i < len(body) and body[i].kind == "string":
+                names[state] = _unquote(body[i].text)
+                i += 1
+            state_marks = frozenset()
+            if i < len(body) and body[i].text == "{":
+                j = next(k for k in range(i, len(body)) if body[k].text == "}")
+                state_marks = marks(body[i + 1 : j])
+                state_based = True
+                i = j + 1
+            continue
+        if state is None:
+            raise ValueError(f"from_hoa: edge before any State: ({tok.text!r})")
+        if tok.text != "[":
+            raise ValueError("from_hoa: implicit (unlabelled) edges are not supported")
+        j = next((k for k in range(i, len(body)) if body[k].text == "]"), None)
+        if j is None:
+            raise ValueError("from_hoa: unterminated edge label")
+        guard = _LabelParser(body[i + 1 : j], n, aliases).parse()
+        i = j + 1
+        dst = int(body[i].text)
+        i += 1
+        if i < len(body) and body[i].text == "&":
+            raise ValueError("from_hoa: alternating automata (conjunctive destinations) are not supported")
+        acc = state_marks
+        if i < len(body) and body[i].text == "{":
+            k = next(m for m in range(i, len(body)) if body[m].text == "}")
+            acc = acc | marks(body[i + 1 : k])
+            i = k + 1
+        if guard:
+            edges.append(Edge(state, dst, guard, acc))
+    total = (
+        num_states if num_states is not None else 1 + max([*starts, *(e.dst for e in edges), *(e.src for e in edges)])
+    )
+    state_names = tuple(names.get(q, "") for q in range(total)) if names else ()
+    if len(starts) > 1:  # a fresh initial state copying the edges of every start state
+        fresh = total
+        edges += [Edge(fresh, e.dst, e.guard, e.acc) for e in list(edges) if e.src in starts]
+        total += 1
+        if state_names:
+            state_names = (*state_names, "start")
+        initial = fresh
+    else:
+        initial = starts[0]
+    return Automaton(
+        aps=aps,
+        num_states=total,
+        initial=initial,
+        edges=tuple(edges),
+        num_sets=num_sets,
+        state_based=state_based,
+        state_names=state_names,
+        name=name,
+    )

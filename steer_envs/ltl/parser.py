@@ -1,0 +1,288 @@
+"""Parser for LTL formulas in Spot's syntax.
+
+Accepted (as in Spot's ``parsetl``):
+
+- constants ``true``/``false`` (any case), ``1``/``0``;
+- atomic propositions: identifiers ``[a-zA-Z_.][a-zA-Z0-9_.]*`` that do not
+  start with ``F``, ``G`` or ``X`` (unless a digit follows: ``X1`` is an AP, ``Xa``
+  is ``X a``), or any text in double quotes (``"my ap"``, ``\\"`` escapes);
+- unary ``!``/``~`` (not), ``X`` (next), ``F``/``<>`` (finally), ``G``/``[]``
+  (globally);
+- binary, from loosest to tightest: ``->``/``=>``/``-->`` and
+  ``<->``/``<=>``/``<-->`` (right-associative), ``|``/``||``/``\\/``/``+``,
+  ``xor``/``^``, ``&``/``&&``/``/\\``, and ``U R W M`` (``V`` = ``R``,
+  right-associative); unary operators bind tighter than every binary one.
+
+Like Spot, where an operand has just been read the letters ``U R V W M``
+start a binary operator, so ``a Ub`` is ``a U b`` (but ``aUb`` is one AP).
+PSL/SERE syntax (``{...}``, ``[*]``) is not supported.
+
+A syntax error raises :class:`LTLParseError` (a ``ValueError``) naming the
+1-based column and what was expected there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from steer_envs.ltl.syntax import (
+    FALSE,
+    TRUE,
+    And,
+    Atom,
+    Equiv,
+    Finally,
+    Formula,
+    Globally,
+    Implies,
+    Next,
+    Not,
+    Or,
+    Release,
+    StrongRelease,
+    Until,
+    WeakUntil,
+    Xor,
+)
+
+__all__ = ["LTLParseError", "parse"]
+
+_OPERAND = "a formula (atomic proposition, true/false, '(', or a unary operator ! X F G)"
+
+
+class LTLParseError(ValueError):
+    """A syntax error in an LTL formula.
+
+    Attributes:
+        text: the formula text.
+        column: 1-based column of the offending token.
+        expected: what the parser expected there.
+    """
+
+    def __init__(self, text: str, column: int, expected: str, found: str) -> None:
+        self.text = text
+        self.column = column
+        self.expected = expected
+        self.found = found
+        caret = " " * (column - 1) + "^"
+        super().__init__(f"LTL syntax error at column {column}: expected {expected}, got {found}\n  {text}\n  {caret}")
+
+
+@dataclass(frozen=True)
+class _Token:
+    kind: str  # ap const not unary binop and or xor implies equiv lparen rparen end
+    value: str
+    column: int  # 1-based
+
+    def describe(self) -> str:
+        if self.kind == "end":
+            return "end of input"
+        if self.kind == "ap":
+            return f"atomic proposition {self.value!r}"
+        return repr(self.value)
+
+
+_SYMBOLS: tuple[tuple[str, str, str], ...] = (
+    # (text, kind, canonical value) -- longest first
+    ("<-->", "equiv", "<->"),
+    ("-->", "implies", "->"),
+    ("<->", "equiv", "<->"),
+    ("<=>", "equiv", "<->"),
+    ("->", "implies", "->"),
+    ("=>", "implies", "->"),
+    ("&&", "and", "&"),
+    ("||", "or", "|"),
+    ("/\\", "and", "&"),
+    ("\\/", "or", "|"),
+    ("[]", "unary", "G"),
+    ("<>", "unary", "F"),
+    ("&", "and", "&"),
+    ("|", "or", "|"),
+    ("+", "or", "|"),
+    ("^", "xor", "xor"),
+    ("!", "not", "!"),
+    ("~", "not", "!"),
+    ("(", "lparen", "("),
+    (")", "rparen", ")"),
+)
+_WORD_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.")
+_BINOPS = {"U": "U", "R": "R", "V": "R", "W": "W", "M": "M"}
+
+
+def _tokenize(text: str) -> list[_Token]:
+    tokens: list[_Token] = []
+    i, n = 0, len(text)
+    expect_operand = True  # Spot's INITIAL vs not_prop scanner condition
+    while i < n:
+        ch = text[i]
+        col = i + 1
+        if ch.isspace():
+            i += 1
+            continue
+        if ch == '"':
+            j = i + 1
+            chars: list[str] = []
+            while j < n and text[j] != '"':
+                if text[j] == "\\" and j + 1 < n:
+                    j += 1
+                chars.append(text[j])
+                j += 1
+            if j >= n:
+                raise LTLParseError(text, col, "a closing '\"' for the quoted atomic proposition", "end of input")
+            if not chars:
+                raise LTLParseError(text, col, "a non-empty quoted atomic proposition", '""')
+            tokens.append(_Token("ap", "".join(chars), col))
+            i = j + 1
+            expect_operand = False
+            continue
+        for sym, kind, value in _SYMBOLS:
+            if text.startswith(sym, i):
+                tokens.append(_Token(kind, value, col))
+                i += len(sym)
+                expect_operand = kind != "rparen"
+                break
+        else:
+            if ch in _WORD_CHARS:
+                if ch in "FGX" and not (i + 1 < n and text[i + 1].isdigit()):
+                    tokens.append(_Token("unary", ch, col))
+                    i += 1
+                    expect_operand = True
+                    continue
+                if not expect_operand and ch in _BINOPS:
+                    tokens.append(_Token("binop", _BINOPS[ch], col))
+                    i += 1
+                    expect_operand = True
+                    continue
+                j = i
+                while j < n and text[j] in _WORD_CHARS:
+                    j += 1
+                word = text[i:j]
+                i = j
+                if word == "xor":
+                    tokens.append(_Token("xor", "xor", col))
+                    expect_operand = True
+                elif word in _BINOPS:
+                    tokens.append(_Token("binop", _BINOPS[word], col))
+                    expect_operand = True
+                elif word.lower() in ("true", "false") or word in ("1", "0"):
+                    tokens.append(_Token("const", "true" if word.lower() in ("true", "1") else "false", col))
+                    expect_operand = False
+                elif word[0].isdigit():
+                    raise LTLParseError(
+                        text, col, 'an atomic proposition not starting with a digit (quote it: "...")', repr(word)
+                    )
+                else:
+                    tokens.append(_Token("ap", word, col))
+                    expect_operand = False
+                continue
+            if ch in "{}[]*;:":
+                raise LTLParseError(text, col, "an LTL operator (PSL/SERE syntax is not supported)", repr(ch))
+            raise LTLParseError(text, col, _OPERAND if expect_operand else "a binary operator", repr(ch))
+    tokens.append(_Token("end", "", n + 1))
+    return tokens
+
+
+class _Parser:
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.tokens = _tokenize(text)
+        self.pos = 0
+
+    @property
+    def tok(self) -> _Token:
+        return self.tokens[self.pos]
+
+    def fail(self, expected: str) -> LTLParseError:
+        return LTLParseError(self.text, self.tok.column, expected, self.tok.describe())
+
+    def parse(self) -> Formula:
+        if self.tok.kind == "end":
+            raise self.fail(_OPERAND)
+        f = self.implication()
+        if self.tok.kind != "end":
+            if self.tok.kind == "rparen":
+                raise self.fail("a binary operator or end of input (unbalanced ')')")
+            raise self.fail("a binary operator or end of input")
+        return f
+
+    def implication(self) -> Formula:
+        left = self.disjunction()
+        tok = self.tok
+        if tok.kind in ("implies", "equiv"):
+            self.pos += 1
+            right = self.implication()
+            return Implies(left, right) if tok.kind == "implies" else Equiv(left, right)
+        return left
+
+    def disjunction(self) -> Formula:
+        args = [self.exclusive()]
+        while self.tok.kind == "or":
+            self.pos += 1
+            args.append(self.exclusive())
+        return Or(*args)
+
+    def exclusive(self) -> Formula:
+        left = self.conjunction()
+        while self.tok.kind == "xor":
+            self.pos += 1
+            left = Xor(left, self.conjunction())
+        return left
+
+    def conjunction(self) -> Formula:
+        args = [self.temporal()]
+        while self.tok.kind == "and":
+            self.pos += 1
+            args.append(self.temporal())
+        return And(*args)
+
+    def temporal(self) -> Formula:
+        left = self.unary()
+        tok = self.tok
+        if tok.kind == "binop":
+            self.pos += 1
+            right = self.temporal()
+            cls = {"U": Until, "R": Release, "W": WeakUntil, "M": StrongRelease}[tok.value]
+            return cls(left, right)
+        return left
+
+    def unary(self) -> Formula:
+        tok = self.tok
+        if tok.kind == "not":
+            self.pos += 1
+            return Not(self.unary())
+        if tok.kind == "unary":
+            self.pos += 1
+            cls = {"X": Next, "F": Finally, "G": Globally}[tok.value]
+            return cls(self.unary())
+        return self.primary()
+
+    def primary(self) -> Formula:
+        tok = self.tok
+        if tok.kind == "ap":
+            self.pos += 1
+            return Atom(tok.value)
+        if tok.kind == "const":
+            self.pos += 1
+            return TRUE if tok.value == "true" else FALSE
+        if tok.kind == "lparen":
+            self.pos += 1
+            if self.tok.kind == "rparen":
+                raise self.fail(_OPERAND + " inside '()'")
+            inner = self.implication()
+            if self.tok.kind != "rparen":
+                raise self.fail(f"')' to close the '(' at column {tok.column}")
+            self.pos += 1
+            return inner
+        raise self.fail(_OPERAND)
+
+
+def parse(text: str | Formula) -> Formula:
+    """Parse LTL ``text`` (Spot syntax) into an immutable :class:`Formula`.
+
+    A :class:`Formula` is returned unchanged, so APIs can accept either.
+    """
+    if isinstance(text, Formula):
+        return text
+    if not isinstance(text, str):
+        raise TypeError(f"parse: `text` must be a str (LTL in Spot syntax) or a Formula, got {type(text).__name__}")
+    return _Parser(text).parse()

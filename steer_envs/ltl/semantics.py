@@ -1,0 +1,175 @@
+"""Reference semantics: LTL on ultimately periodic words ``u v^omega``.
+
+An ultimately periodic (lasso) word has finitely many distinct suffixes, one
+per position of ``u v``; position ``len(u v) - 1`` is followed by position
+``len(u)``. Every LTL operator is then a finite computation over those
+positions: ``X`` reads the successor, ``U``/``M``/``F`` are *least* and
+``R``/``W``/``G`` *greatest* fixpoints of their one-step unfoldings
+(``a U b = b | (a & X(a U b))``), iterated to stability around the loop.
+
+This is exact and independent of any automaton, which is why the property
+tests use it as the oracle for the translator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+from steer_envs.ltl.parser import parse
+from steer_envs.ltl.syntax import (
+    And,
+    Atom,
+    Const,
+    Equiv,
+    Finally,
+    Formula,
+    Globally,
+    Implies,
+    Next,
+    Not,
+    Or,
+    Release,
+    StrongRelease,
+    Until,
+    WeakUntil,
+    Xor,
+)
+
+__all__ = ["LassoWord", "Letter", "evaluate", "evaluate_positions"]
+
+#: one letter: the set of true APs, a mapping AP -> bool, or (with ``aps``) an int bitmask
+Letter = frozenset[str] | set[str] | Mapping[str, bool] | int | Iterable[str]
+
+
+def _letter(letter: object, aps: Sequence[str] | None, what: str) -> frozenset[str]:
+    if isinstance(letter, bool):
+        raise TypeError(f"{what}: a letter must be a set of true APs, a mapping AP -> bool or an int, got bool")
+    if isinstance(letter, int):
+        if aps is None:
+            raise ValueError(f"{what}: int letters need `aps` (the AP order of the bits)")
+        if not 0 <= letter < (1 << len(aps)):
+            raise ValueError(f"{what}: int letter {letter} out of range for {len(aps)} APs")
+        return frozenset(ap for j, ap in enumerate(aps) if (letter >> j) & 1)
+    if isinstance(letter, Mapping):
+        return frozenset(str(k) for k, v in letter.items() if bool(v))
+    if isinstance(letter, str):
+        return frozenset((letter,))
+    try:
+        return frozenset(str(x) for x in letter)  # type: ignore[union-attr]
+    except TypeError:
+        raise TypeError(
+            f"{what}: a letter must be a set of true APs, a mapping AP -> bool or an int, got {type(letter).__name__}"
+        ) from None
+
+
+@dataclass(frozen=True)
+class LassoWord:
+    """The infinite word ``prefix loop loop loop ...`` (letters: sets of true APs)."""
+
+    prefix: tuple[frozenset[str], ...]
+    loop: tuple[frozenset[str], ...]
+
+    @classmethod
+    def of(cls, prefix: Iterable[Letter], loop: Iterable[Letter], aps: Sequence[str] | None = None) -> LassoWord:
+        """Build a word from letters in any accepted form (see :data:`Letter`)."""
+        p = tuple(_letter(x, aps, "prefix") for x in prefix)
+        v = tuple(_letter(x, aps, "loop") for x in loop)
+        if not v:
+            raise ValueError("loop: the periodic part of a lasso word must have at least one letter")
+        return cls(p, v)
+
+    def __len__(self) -> int:
+        return len(self.prefix) + len(self.loop)
+
+    def letters(self) -> tuple[frozenset[str], ...]:
+        """Letters of positions ``0 .. len - 1``."""
+        return self.prefix + self.loop
+
+    def successor(self, i: int) -> int:
+        """Position after ``i`` (the last position loops back to ``len(prefix)``)."""
+        return i + 1 if i + 1 < len(self) else len(self.prefix)
+
+
+def evaluate_positions(formula: str | Formula, word: LassoWord) -> tuple[bool, ...]:
+    """Truth value of ``formula`` at each position ``0 .. len(word) - 1`` of the lasso."""
+    f = parse(formula)
+    if not isinstance(word, LassoWord):
+        raise TypeError(f"word must be a LassoWord, got {type(word).__name__}")
+    letters = word.letters()
+    n = len(letters)
+    succ = [word.successor(i) for i in range(n)]
+    values: dict[Formula, list[bool]] = {}
+
+    def fixpoint(init: bool, step: object) -> list[bool]:
+        val = [init] * n
+        changed = True
+        while changed:
+            changed = False
+            for i in range(n - 1, -1, -1):
+                new = step(i, val[succ[i]])  # type: ignore[operator]
+                if new != val[i]:
+                    val[i] = new
+                    changed = True
+        return val
+
+    for g in f.subformulas():
+        a = values[g.args[0]] if g.args else []
+        b = values[g.args[1]] if len(g.args) > 1 else []
+        if isinstance(g, Const):
+            val = [g.value] * n
+        elif isinstance(g, Atom):
+            val = [g.name in letters[i] for i in range(n)]
+        elif isinstance(g, Not):
+            val = [not x for x in a]
+        elif isinstance(g, And):
+            val = [all(values[c][i] for c in g.args) for i in range(n)]
+        elif isinstance(g, Or):
+            val = [any(values[c][i] for c in g.args) for i in range(n)]
+        elif isinstance(g, Implies):
+            val = [(not x) or y for x, y in zip(a, b, strict=True)]
+        elif isinstance(g, Equiv):
+            val = [x == y for x, y in zip(a, b, strict=True)]
+        elif isinstance(g, Xor):
+            val = [x != y for x, y in zip(a, b, strict=True)]
+        elif isinstance(g, Next):
+            val = [a[succ[i]] for i in range(n)]
+        elif isinstance(g, Finally):
+            val = fixpoint(False, lambda i, nxt, a=a: a[i] or nxt)
+        elif isinstance(g, Globally):
+            val = fixpoint(True, lambda i, nxt, a=a: a[i] and nxt)
+        elif isinstance(g, Until):
+            val = fixpoint(False, lambda i, nxt, a=a, b=b: b[i] or (a[i] and nxt))
+        elif isinstance(g, WeakUntil):
+            val = fixpoint(True, lambda i, nxt, a=a, b=b: b[i] or (a[i] and nxt))
+        elif isinstance(g, Release):
+            val = fixpoint(True, lambda i, nxt, a=a, b=b: b[i] and (a[i] or nxt))
+        elif isinstance(g, StrongRelease):
+            val = fixpoint(False, lambda i, nxt, a=a, b=b: b[i] and (a[i] or nxt))
+        else:  # pragma: no cover - closed hierarchy
+            raise TypeError(f"unknown formula node {type(g).__name__}")
+        values[g] = val
+    return tuple(values[f])
+
+
+def evaluate(
+    formula: str | Formula,
+    prefix: Iterable[Letter] | LassoWord,
+    loop: Iterable[Letter] | None = None,
+    *,
+    aps: Sequence[str] | None = None,
+) -> bool:
+    """Does the word ``prefix loop^omega`` satisfy ``formula`` (at position 0)?
+
+    ``prefix`` may also be a ready :class:`LassoWord` (then omit ``loop``).
+    Letters are sets of true APs, mappings AP -> bool, or ints with ``aps``.
+    """
+    if isinstance(prefix, LassoWord):
+        if loop is not None:
+            raise ValueError("evaluate: pass either a LassoWord or `prefix` and `loop`, not both")
+        word = prefix
+    else:
+        if loop is None:
+            raise ValueError("evaluate: `loop` (the periodic part of the word) is required")
+        word = LassoWord.of(prefix, loop, aps)
+    return evaluate_positions(formula, word)[0]

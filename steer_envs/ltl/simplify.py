@@ -1,0 +1,290 @@
+"""Negation normal form and language-preserving rewrites of LTL formulas.
+
+:func:`nnf` pushes negations down to atoms using the dualities
+``!X a = X !a``, ``!(a U b) = !a R !b``, ``!(a W b) = !a M !b``, ``!F a = G !a``
+(and back), and removes ``->``, ``<->`` and ``xor``.
+
+:func:`simplify` returns an equivalent NNF formula after the usual bottom-up
+rewrites (Spot's "basic" rules, a subset): constant folding, idempotence and
+complementary literals in ``&``/``|``, sorted deduplicated operands, and
+temporal identities such as ``F F a = F a``, ``G(a R b) = G b``,
+``F(a U b) = F b``, ``false R b = G b``, ``true U b = F b``, ``G a & G b =
+G(a & b)``, ``F a | F b = F(a | b)``, ``X a & X b = X(a & b)``. Every rule is
+checked against the lasso-word semantics by the property tests.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from steer_envs.ltl.parser import parse
+from steer_envs.ltl.syntax import (
+    FALSE,
+    TRUE,
+    And,
+    Atom,
+    Const,
+    Equiv,
+    Finally,
+    Formula,
+    Globally,
+    Implies,
+    Next,
+    Not,
+    Or,
+    Release,
+    StrongRelease,
+    Until,
+    WeakUntil,
+    Xor,
+)
+
+__all__ = ["clear_caches", "conjunction", "disjunction", "nnf", "simplify"]
+
+
+# ---------------------------------------------------------------- NNF
+def nnf(formula: str | Formula) -> Formula:
+    """Negation normal form: ``!`` only on atoms; no ``->``, ``<->``, ``xor``."""
+    return _nnf(parse(formula), False)
+
+
+@lru_cache(maxsize=65536)
+def _nnf(f: Formula, neg: bool) -> Formula:
+    if isinstance(f, Const):
+        return Const(f.value != neg)
+    if isinstance(f, Atom):
+        return Not(f) if neg else f
+    if isinstance(f, Not):
+        return _nnf(f.arg, not neg)
+    if isinstance(f, And):
+        parts = [_nnf(a, neg) for a in f.args]
+        return Or(*parts) if neg else And(*parts)
+    if isinstance(f, Or):
+        parts = [_nnf(a, neg) for a in f.args]
+        return And(*parts) if neg else Or(*parts)
+    if isinstance(f, Implies):  # a -> b == !a | b
+        return _nnf(Or(Not(f.left), f.right), neg)
+    if isinstance(f, Equiv):  # (a & b) | (!a & !b)
+        a, b = f.left, f.right
+        if neg:  # a xor b
+            return Or(And(_nnf(a, False), _nnf(b, True)), And(_nnf(a, True), _nnf(b, False)))
+        return Or(And(_nnf(a, False), _nnf(b, False)), And(_nnf(a, True), _nnf(b, True)))
+    if isinstance(f, Xor):
+        return _nnf(Equiv(f.left, f.right), not neg)
+    if isinstance(f, Next):
+        return Next(_nnf(f.arg, neg))
+    if isinstance(f, Finally):
+        return Globally(_nnf(f.arg, True)) if neg else Finally(_nnf(f.arg, False))
+    if isinstance(f, Globally):
+        return Finally(_nnf(f.arg, True)) if neg else Globally(_nnf(f.arg, False))
+    dual = {Until: Release, Release: Until, WeakUntil: StrongRelease, StrongRelease: WeakUntil}
+    if type(f) in dual:
+        a, b = f.args
+        cls = dual[type(f)] if neg else type(f)
+        return cls(_nnf(a, neg), _nnf(b, neg))
+    raise TypeError(f"nnf: unknown formula node {type(f).__name__}")  # pragma: no cover
+
+
+def clear_caches() -> None:
+    """Forget memoised NNF/simplification results (for cold-start timings)."""
+    _nnf.cache_clear()
+    _simp.cache_clear()
+
+
+# ----------------------------------------------------------- smart builders
+def _negated_literal(f: Formula) -> Formula | None:
+    if isinstance(f, Atom):
+        return Not(f)
+    if isinstance(f, Not) and isinstance(f.arg, Atom):
+        return f.arg
+    return None
+
+
+def conjunction(*args: Formula) -> Formula:
+    """``a & b & ...`` flattened, deduplicated, sorted; ``false`` on ``p & !p``.
+
+    Only structural rules: it never rewrites an operand, so the translator can
+    use it to canonicalise automaton states without renaming eventualities.
+    """
+    return _junction(args, And, TRUE, FALSE)
+
+
+def disjunction(*args: Formula) -> Formula:
+    """``a | b | ...`` flattened, deduplicated, sorted; ``true`` on ``p | !p``."""
+    return _junction(args, Or, FALSE, TRUE)
+
+
+def _junction(args: tuple[Formula, ...], cls: type, unit: Const, zero: Const) -> Formula:
+    items: set[Formula] = set()
+    stack = list(args)
+    while stack:
+        a = stack.pop()
+        if type(a) is cls:
+            stack.extend(a.args)
+        elif a is zero:
+            return zero
+        elif a is not unit:
+            items.add(a)
+    for a in items:
+        neg = _negated_literal(a)
+        if neg is not None and neg in items:
+            return zero
+    if not items:
+        return unit
+    if len(items) == 1:
+        return next(iter(items))
+    return cls(*sorted(items, key=Formula.sort_key))
+
+
+# ----------------------------------------------------------- simplification
+def simplify(formula: str | Formula) -> Formula:
+    """An equivalent, usually smaller formula in negation normal form."""
+    f = nnf(formula)
+    while True:
+        g = _simp(f)
+        if g is f:
+            return f
+        f = g
+
+
+@lru_cache(maxsize=65536)
+def _simp(f: Formula) -> Formula:
+    if not f.args or isinstance(f, Not):  # constants, atoms and (NNF) literals
+        return f
+    args = [_simp(a) for a in f.args]
+    if isinstance(f, And):
+        return _mk_and(args)
+    if isinstance(f, Or):
+        return _mk_or(args)
+    if isinstance(f, Next):
+        return _mk_next(args[0])
+    if isinstance(f, Finally):
+        return _mk_finally(args[0])
+    if isinstance(f, Globally):
+        return _mk_globally(args[0])
+    a, b = args
+    if isinstance(f, Until):
+        return _mk_until(a, b)
+    if isinstance(f, Release):
+        return _mk_release(a, b)
+    if isinstance(f, WeakUntil):
+        return _mk_weak_until(a, b)
+    if isinstance(f, StrongRelease):
+        return _mk_strong_release(a, b)
+    raise TypeError(f"simplify: unexpected non-NNF node {type(f).__name__}")  # pragma: no cover
+
+
+def _merge(items: list[Formula], cls: type, combine: type) -> list[Formula]:
+    """Merge all operands of type ``cls`` (e.g. every ``G x``) into ``cls(combine(xs))``."""
+    group = [a for a in items if type(a) is cls]
+    if len(group) < 2:
+        return items
+    rest = [a for a in items if type(a) is not cls]
+    return [*rest, cls(combine(*(a.args[0] for a in group)))]
+
+
+def _mk_and(args: list[Formula]) -> Formula:
+    f = conjunction(*args)
+    if not isinstance(f, And):
+        return f
+    items = list(f.args)
+    items = _merge(items, Globally, _mk_and_flat)
+    items = _merge(items, Next, _mk_and_flat)
+    # absorption: a & (a | b) = a
+    present = set(items)
+    items = [a for a in items if not (isinstance(a, Or) and any(x in present for x in a.args))]
+    return conjunction(*items)
+
+
+def _mk_or(args: list[Formula]) -> Formula:
+    f = disjunction(*args)
+    if not isinstance(f, Or):
+        return f
+    items = list(f.args)
+    items = _merge(items, Finally, _mk_or_flat)
+    items = _merge(items, Next, _mk_or_flat)
+    present = set(items)
+    items = [a for a in items if not (isinstance(a, And) and any(x in present for x in a.args))]
+    return disjunction(*items)
+
+
+def _mk_and_flat(*args: Formula) -> Formula:
+    return _mk_and(list(args))
+
+
+def _mk_or_flat(*args: Formula) -> Formula:
+    return _mk_or(list(args))
+
+
+def _mk_next(a: Formula) -> Formula:
+    if isinstance(a, Const):
+        return a
+    return Next(a)
+
+
+def _is_gf(a: Formula) -> bool:
+    return isinstance(a, Globally) and isinstance(a.arg, Finally)
+
+
+def _is_fg(a: Formula) -> bool:
+    return isinstance(a, Finally) and isinstance(a.arg, Globally)
+
+
+def _mk_finally(a: Formula) -> Formula:
+    if isinstance(a, Const) or isinstance(a, Finally) or _is_gf(a):
+        return a  # F true, F false, F F x = F x, F G F x = G F x
+    if isinstance(a, Until):
+        return _mk_finally(a.right)  # F(x U y) = F y
+    if isinstance(a, StrongRelease):
+        return _mk_finally(_mk_and([a.left, a.right]))  # F(x M y) = F(x & y)
+    return Finally(a)
+
+
+def _mk_globally(a: Formula) -> Formula:
+    if isinstance(a, Const) or isinstance(a, Globally) or _is_fg(a):
+        return a  # G G x = G x, G F G x = F G x
+    if isinstance(a, Release):
+        return _mk_globally(a.right)  # G(x R y) = G y
+    if isinstance(a, WeakUntil):
+        return _mk_globally(_mk_or([a.left, a.right]))  # G(x W y) = G(x | y)
+    return Globally(a)
+
+
+def _mk_until(a: Formula, b: Formula) -> Formula:
+    if isinstance(b, Const) or a is FALSE or a is b:
+        return b  # x U true, x U false, false U y, y U y
+    if a is TRUE:
+        return _mk_finally(b)
+    if isinstance(b, Until) and b.left is a:
+        return b  # x U (x U y) = x U y
+    return Until(a, b)
+
+
+def _mk_release(a: Formula, b: Formula) -> Formula:
+    if isinstance(b, Const) or a is TRUE or a is b:
+        return b  # x R true, x R false, true R y, y R y
+    if a is FALSE:
+        return _mk_globally(b)
+    if isinstance(b, Release) and b.left is a:
+        return b  # x R (x R y) = x R y
+    return Release(a, b)
+
+
+def _mk_weak_until(a: Formula, b: Formula) -> Formula:
+    if b is TRUE or a is TRUE:
+        return TRUE
+    if a is FALSE or a is b:
+        return b
+    if b is FALSE:
+        return _mk_globally(a)
+    return WeakUntil(a, b)
+
+
+def _mk_strong_release(a: Formula, b: Formula) -> Formula:
+    if b is FALSE or a is FALSE:
+        return FALSE
+    if a is TRUE or a is b:
+        return b
+    if b is TRUE:
+        return _mk_finally(a)
+    return StrongRelease(a, b)

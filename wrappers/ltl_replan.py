@@ -1,0 +1,122 @@
+"""LTLReplanWrapper: automaton tracking and mode replanning from sensor readings (TLI, thesis ch. 3).
+
+Each step the wrapper reads ``info["sensors"]``, advances the task automaton
+of a GR(1) spec (:class:`steer_envs.ltl.replanner.ModeReplanner`) and adds the
+planned next mode to the observation, so any policy (a mode-conditioned BC
+policy, one DS per mode as in LTL-DS, an SB3 agent) can act on it:
+
+- observation: ``{"observation": <the env's observation>, "next_mode": int}``
+  (``next_mode`` indexes ``wrapper.modes``, the spec's mode APs);
+- ``info["plan"]``: the planned mode sequence (mode names) from the current mode;
+- ``info["ltl_mode"]``, ``info["next_mode_name"]``: current and next mode names;
+- ``info["ltl_unexpected"]``: the latest transition was not an automaton edge
+  (a perturbation); the plan was recomputed from where the system is;
+- ``info["ltl_unknown_reading"]``: the reading fits no mode of the spec (the
+  automaton keeps its state and plan);
+- ``info["ltl_stuck"]``: no mode sequence can meet the goals from here.
+"""
+
+from __future__ import annotations
+
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from steer_envs.core.task import TaskSpec
+from steer_envs.ltl.gr1 import GR1Spec
+from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
+
+__all__ = ["LTLReplanWrapper"]
+
+
+class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.RecordConstructorArgs):
+    """Adds the LTL-planned next mode to the observation and the plan to ``info``.
+
+    Args:
+        env: an env whose ``info`` carries ``"sensors"`` (AP -> bool), as every
+            steer-envs env does.
+        spec: a :class:`GR1Spec`, the name of a variant attached to the env
+            (``"phi_cc"`` for Cooking-v0, see :func:`steer_envs.ltl.specs.variants`),
+            or ``None`` for the env's default spec.
+        task: the :class:`TaskSpec` giving the sensor APs (default:
+            ``env.unwrapped.task``).
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], spec: GR1Spec | str | None = None, *, task: TaskSpec | None = None):
+        gym.utils.RecordConstructorArgs.__init__(self, spec=spec, task=task)
+        gym.Wrapper.__init__(self, env)
+        if task is None:
+            task = getattr(env.unwrapped, "task", None)
+            if not isinstance(task, TaskSpec):
+                raise TypeError(
+                    "LTLReplanWrapper: `task` is required when env.unwrapped has no TaskSpec attribute `task`"
+                )
+        elif not isinstance(task, TaskSpec):
+            raise TypeError(f"LTLReplanWrapper: `task` must be a TaskSpec, got {type(task).__name__}")
+        if spec is None or isinstance(spec, str):
+            from steer_envs.ltl.specs import for_env
+
+            spec = for_env(env, spec)
+        elif not isinstance(spec, GR1Spec):
+            raise TypeError(
+                f"LTLReplanWrapper: `spec` must be a GR1Spec, a variant name or None, got {type(spec).__name__}"
+            )
+        self.ltl_spec = spec
+        self.replanner = ModeReplanner(task, spec)
+        self.modes: tuple[str, ...] = self.replanner.modes
+        self.observation_space = spaces.Dict(
+            {"observation": env.observation_space, "next_mode": spaces.Discrete(len(self.modes))}
+        )
+        self._plan: list[str] = []
+
+    def _sensors(self, info: dict[str, Any]) -> Any:
+        if "sensors" not in info:
+            raise KeyError("LTLReplanWrapper needs info['sensors'] (AP -> bool) from the wrapped env")
+        return info["sensors"]
+
+    def _augment(self, obs: Any, info: dict[str, Any], unknown: bool) -> tuple[dict[str, Any], dict[str, Any]]:
+        rp = self.replanner
+        if not unknown or not self._plan:
+            self._plan = rp.plan()
+        nxt = self._plan[1] if len(self._plan) > 1 else self._plan[0]
+        info = dict(info)
+        info["plan"] = list(self._plan)
+        info["ltl_mode"] = rp.current_mode
+        info["next_mode_name"] = nxt
+        info["ltl_unexpected"] = rp.last_unexpected and not unknown
+        info["ltl_unknown_reading"] = unknown
+        info["ltl_stuck"] = rp.stuck
+        return {"observation": obs, "next_mode": np.int64(self.modes.index(nxt))}, info
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._plan = []
+        self.replanner.reset(self._sensors(info))
+        return self._augment(obs, info, unknown=False)
+
+    def step(self, action: Any) -> tuple[dict[str, Any], SupportsFloat, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        unknown = False
+        try:
+            self.replanner.update(self._sensors(info))
+        except UnknownSensorReading:
+            unknown = True
+        obs_out, info = self._augment(obs, info, unknown)
+        return obs_out, reward, terminated, truncated, info
+
+    def sync(self, info: dict[str, Any]) -> dict[str, Any]:
+        """Feed an out-of-band reading, e.g. the ``info`` that ``env.unwrapped.perturb(...)`` returns.
+
+        ``step`` would catch the jump at the next step anyway; this updates the
+        plan at once. Returns ``{"next_mode": int}`` plus the LTL keys of ``info``.
+        """
+        unknown = False
+        try:
+            self.replanner.update(self._sensors(info))
+        except UnknownSensorReading:
+            unknown = True
+        obs, out = self._augment(None, info, unknown)
+        keys = ("plan", "ltl_mode", "next_mode_name", "ltl_unexpected", "ltl_unknown_reading", "ltl_stuck")
+        return {"next_mode": obs["next_mode"], **{k: out[k] for k in keys}}
