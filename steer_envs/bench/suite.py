@@ -30,6 +30,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites_selftest",
     "steer_envs.bench.suites_smoke",
     "steer_envs.bench.suites_quick",
+    "steer_envs.bench.suites_itps",
     "steer_envs.bench.suites_ltl",
 )
 #: environment variable with extra comma-separated suite modules to import

@@ -31,8 +31,10 @@ def test_help_everywhere(argv, capsys):
 def test_list_shows_suites_and_envs(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
-    for name in ("selftest:", "smoke:", "quick:", "tour of: smoke", "envs:", "steer_envs/SoupScoop-v0"):
+    for name in ("selftest:", "smoke:", "quick:", "tour of: ", "envs:", "steer_envs/SoupScoop-v0"):
         assert name in out
+    tour = next(line for line in out.splitlines() if "tour of: " in line)
+    assert "smoke" in tour.split("tour of: ", 1)[1].split(", ")  # other domains' suites join the tour too
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,164 @@
+"""``itps-maze2d``: skipped until the checkpoints exist; Table 2.1 metrics and plots with an exact test policy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+diffusers = pytest.importorskip("diffusers")
+
+from steer_envs.bench import suites_itps  # noqa: E402
+from steer_envs.bench.executors import execute_trial  # noqa: E402
+from steer_envs.bench.runner import build_request, plan_trials  # noqa: E402
+from steer_envs.bench.suite import Trial, get_suite  # noqa: E402
+
+LOADER = f"{__name__}:load_test_policy"
+FAST = {"dp_loader": LOADER, "act_loader": LOADER, "batch": 8, "plot_seeds": 1}
+
+
+class CorridorDiffusion:
+    """Exact diffusion policy: straight plans from the agent along the four grid directions."""
+
+    horizon = 16
+    action_dim = 2
+    num_inference_steps = 10
+    n_obs_steps = 2
+    exec_start = 1
+    device = torch.device("cpu")
+    dtype = torch.float64
+
+    def __init__(self) -> None:
+        self.scheduler = diffusers.DDIMScheduler(
+            num_train_timesteps=100, beta_schedule="squaredcos_cap_v2", clip_sample=True
+        )
+        self.dirs = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+        self.low, self.high = np.array([0.0, 0.0]), np.array([8.0, 11.0])
+
+    def encode_obs(self, obs: Any) -> torch.Tensor:
+        xy = np.asarray(obs, dtype=np.float64).reshape(-1, np.shape(obs)[-1])[-1, :2]
+        steps = np.linspace(0.0, 4.0, self.horizon)[None, :, None]
+        return torch.as_tensor(self.normalize(xy[None, None] + steps * self.dirs[:, None, :]))
+
+    def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
+        abar = self.scheduler.alphas_cumprod[int(t)].to(torch.float64)
+        var = abar * 1e-4 + 1 - abar
+        diff = x_t.to(torch.float64)[:, None] - abar.sqrt() * cond[None]
+        logw = -(diff**2).sum((-1, -2)) / (2 * var)
+        weights = (logw - logw.logsumexp(dim=1, keepdim=True)).exp()[:, :, None, None]
+        return (1 - abar).sqrt() * (weights * diff).sum(1) / var
+
+    def normalize(self, traj: Any) -> Any:
+        return 2 * (traj - self.low) / (self.high - self.low) - 1
+
+    def unnormalize(self, traj: Any) -> Any:
+        lo, hi = (
+            (torch.as_tensor(self.low), torch.as_tensor(self.high)) if torch.is_tensor(traj) else (self.low, self.high)
+        )
+        return (traj + 1) / 2 * (hi - lo) + lo
+
+    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
+        rng = generator if generator is not None else np.random.default_rng()
+        cond = self.encode_obs(obs)
+        x = torch.as_tensor(rng.standard_normal((n, self.horizon, self.action_dim)))
+        self.scheduler.set_timesteps(self.num_inference_steps)
+        for t in self.scheduler.timesteps:
+            x = self.scheduler.step(self.predict_noise(x, t, cond), t, x).prev_sample
+        return self.unnormalize(x).numpy()
+
+
+class SamplerOnly:
+    """An ACT-like policy: only ``sample`` (no denoiser to steer)."""
+
+    def __init__(self, inner: CorridorDiffusion) -> None:
+        self.inner = inner
+        self.horizon, self.action_dim, self.exec_start = inner.horizon, inner.action_dim, 0
+
+    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
+        return self.inner.sample(obs, n, generator=generator)
+
+
+def load_test_policy(kind: str) -> Any:
+    return CorridorDiffusion() if kind == "dp" else SamplerOnly(CorridorDiffusion())
+
+
+def load_sampler_only(kind: str) -> Any:
+    return SamplerOnly(CorridorDiffusion())
+
+
+def missing_checkpoint(kind: str) -> Any:
+    raise FileNotFoundError(f"no {kind} checkpoint")
+
+
+@pytest.fixture
+def suite() -> Any:
+    return get_suite("itps-maze2d")
+
+
+def test_methods_are_skipped_with_a_note_while_policies_are_missing(suite: Any) -> None:
+    params = {"dp_loader": "steer_envs.no_such_module:load_pretrained", "act_loader": f"{__name__}:missing_checkpoint"}
+    plan = plan_trials(suite, build_request(suite, seeds=2, params=params))
+    assert plan.trials == ()
+    assert any("DP methods" in n and "ModuleNotFoundError" in n for n in plan.notes)
+    assert any("ACT methods" in n and "no act checkpoint" in n for n in plan.notes)
+    only_act = plan_trials(suite, build_request(suite, methods=["ACT-PR"], seeds=1, params={"act_loader": LOADER}))
+    assert [t.method for t in only_act.trials] == ["ACT-PR"]
+
+
+def test_a_dp_without_a_denoiser_runs_only_rs_pr_op(suite: Any) -> None:
+    params = {"dp_loader": f"{__name__}:load_sampler_only", "act_loader": LOADER}
+    plan = plan_trials(suite, build_request(suite, seeds=1, params=params))
+    assert {t.method for t in plan.trials} == {"DP-RS", "DP-PR", "DP-OP", "ACT-RS", "ACT-PR", "ACT-OP"}
+    assert sum("does not expose its denoiser" in n for n in plan.notes) == 3
+
+
+def test_trials_report_table_2_1_metrics_on_shared_scenes(suite: Any, tmp_path: Path) -> None:
+    plan = plan_trials(suite, build_request(suite, seeds=2, params=FAST))
+    assert len(plan.trials) == 2 * len(suites_itps.METHODS)
+    records = []
+    for trial in plan.trials:
+        outcome = execute_trial(trial)
+        assert outcome.ok, outcome.error
+        records.append(outcome.record)
+    by = {(r["config"]["method"], r["seed"]): r for r in records}
+    for seed in (0, 1):
+        rs, pr = by["DP-RS", seed]["metrics"], by["DP-PR", seed]["metrics"]
+        assert rs["avg_l2"] == pr["avg_l2"] and pr["min_l2"] <= rs["min_l2"]  # same batch, PR picks its best
+        assert (
+            by["DP-SS", seed]["metrics"]["network_evals"] == 40 and by["DP-GD", seed]["metrics"]["network_evals"] == 10
+        )
+        assert by["DP-BI", seed]["metrics"]["network_evals"] == 6
+        assert by["DP-SS", seed]["metrics"]["ss_gd_latency"] > 1.0
+        assert by["DP-RS", seed]["metrics"]["network_evals"] is None
+        starts = {tuple(by[m, seed]["extra"]["start"]) for m in suites_itps.METHODS}
+        assert len(starts) == 1  # every method steers from the same start with the same sketch
+        for m in suites_itps.METHODS:
+            metrics = by[m, seed]["metrics"]
+            if not m.endswith("RS"):  # every other sampler picks the batch's closest plan
+                assert 0.0 <= metrics["min_l2"] <= metrics["avg_l2"] + 1e-12
+            assert 0.0 <= metrics["collision"] <= 1.0 and metrics["latency_ms"] > 0
+    seed0 = [by[m, 0]["extra"] for m in suites_itps.METHODS]
+    assert all(e["sketch"] == seed0[0]["sketch"] for e in seed0)
+    assert np.asarray(seed0[0]["plans"]).shape == (8, 15, 2)  # executed waypoints (exec_start = 1)
+    assert "plans" not in by["DP-RS", 1]["extra"]  # only the first plot_seeds trials keep their plans
+    assert by["DP-OP", 0]["extra"]["perturbed_state"] is not None
+
+    written = suites_itps.plot_itps(suite, records, str(tmp_path))
+    assert sorted(Path(p).name for p in written) == ["itps-maze2d_qualitative.png", "itps-maze2d_tradeoff.png"]
+    assert all(Path(p).stat().st_size > 10_000 for p in written)
+
+
+def test_references_and_quick_settings(suite: Any) -> None:
+    refs = suite.references_for(suites_itps.ENV_ID, "DP-SS")
+    assert {k: v.value for k, v in refs.items()} == {"min_l2": 0.10, "avg_l2": 0.12, "collision": 0.01}
+    assert suite.references_for(suites_itps.ENV_ID, "ACT-OP")["collision"].value == 0.35
+    assert suite.quick is not None and suite.default_seeds == 100 and suite.params["batch"] == 32
+    with pytest.raises(ValueError, match="unknown method"):
+        suites_itps.split_method("DP-XX")
+    with pytest.raises(ValueError, match="batch"):
+        plan_trials(suite, build_request(suite, params={**FAST, "batch": 0}))
+    trial = Trial(suite.name, suites_itps.ENV_ID, "ACT-OP", 0, {**suite.params, **FAST}, suite.fn)
+    assert execute_trial(trial).record["metrics"]["collision"] >= 0.0  # type: ignore[index]

@@ -1,0 +1,286 @@
+"""``SteeringWrapper``: the env's action becomes the user's interaction; a frozen policy plans, a sampler steers.
+
+ITPS (thesis ch. 2) keeps the policy frozen and lets a user steer it at
+inference time. Wrapped this way, an env is driven by *interactions*: each
+:meth:`SteeringWrapper.step` takes a :class:`~steer_envs.core.interaction.Point`,
+``Sketch`` or ``Nudge`` (or ``None``: no steering), samples a batch of plans from
+the policy with the sampler (:mod:`steer_envs.wrappers.samplers`) and executes
+the chosen plan's waypoints (its action chunk) in the wrapped env, one inner
+step per waypoint. A simulated user, a person or an RL agent can drive it.
+
+Spaces:
+
+* ``observation_space`` is the wrapped env's (the state after the chunk).
+* ``action_space`` is an :class:`InteractionSpace` (``None`` or an interaction
+  of the env's action dimension) by default. With ``sketch_points=G`` it is a
+  ``Box`` of ``G * d`` numbers in the env's action bounds, read as a sketch
+  ``(G, d)``: the flattened fixed-length sketch stable-baselines3 agents need.
+
+``info`` (besides the last inner step's keys): ``plans`` ``(n, H, d)``,
+``costs`` ``(n,)``, ``chosen``, ``plan_collides`` ``(n,)`` (when the env has
+``plan_collides``), ``executed`` (the waypoints sent), ``sampler``,
+``latency_ms``, ``perturbed_state`` (OP moved the agent there with
+``env.unwrapped.perturb``) and ``constraint_violation`` (any inner step violated).
+Reward is the sum of the inner rewards; the episode ends when an inner step
+terminates or truncates. A policy with ``exec_start = k`` (LeRobot's DP: 1,
+its ``plan[0]`` restates the current position) has ``plan[k:]`` executed.
+
+Observation histories: a policy with ``n_obs_steps > 1`` (LeRobot's DP: 2)
+receives the last ``n_obs_steps`` observations stacked ``(n_obs_steps, obs_dim)``
+(the first one repeated after a reset), others the current observation; see
+:func:`policy_observation`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
+from steer_envs.core.policy import TrajectoryPolicy
+
+from .samplers import OutputPerturbation, RandomSampling, Sampler, place_observation
+
+__all__ = ["InteractionSpace", "SteeringWrapper", "policy_observation"]
+
+_KIND_CLASSES: dict[str, type] = {"point": Point, "sketch": Sketch, "nudge": Nudge}
+
+
+def policy_observation(policy: Any, history: Sequence[Any]) -> Any:
+    """What ``policy.sample`` gets from an observation history (oldest first, current last).
+
+    ``policy.n_obs_steps > 1``: the last ``n_obs_steps`` observations stacked
+    ``(n_obs_steps, obs_dim)``, padded at the front with the oldest one (a
+    freshly reset agent has been at rest). Otherwise the current observation.
+    """
+    if len(history) == 0:
+        raise ValueError("`history` must hold at least the current observation")
+    steps = getattr(policy, "n_obs_steps", 1)
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"policy.n_obs_steps must be a positive int, got {steps!r}")
+    if steps == 1:
+        return history[-1]
+    recent = list(history[-steps:])
+    recent = [recent[0]] * (steps - len(recent)) + recent
+    return np.stack([np.asarray(o, dtype=np.float32) for o in recent])
+
+
+class InteractionSpace(spaces.Space[Any]):
+    """``None`` or a Point/Sketch/Nudge of dimension ``d`` (the kinds the env supports).
+
+    :meth:`sample` draws a straight sketch (or a point / one-state nudge when
+    sketches are not allowed) between uniform points of ``[low, high]``.
+    """
+
+    def __init__(
+        self,
+        low: Any,
+        high: Any,
+        kinds: Sequence[str] = ("point", "sketch", "nudge"),
+        *,
+        sketch_points: int = 16,
+        seed: int | None = None,
+    ) -> None:
+        lo, hi = np.asarray(low, dtype=np.float64).reshape(-1), np.asarray(high, dtype=np.float64).reshape(-1)
+        if lo.shape != hi.shape or lo.size < 1 or not np.all(np.isfinite(lo)) or not np.all(hi >= lo):
+            raise ValueError(f"`low`/`high` must be finite vectors of one shape with low <= high, got {lo}, {hi}")
+        unknown = set(kinds) - set(_KIND_CLASSES)
+        if not kinds or unknown:
+            raise ValueError(f"`kinds` must be a non-empty subset of {sorted(_KIND_CLASSES)}, got {kinds!r}")
+        self.low, self.high = lo, hi
+        self.kinds = tuple(kinds)
+        self.sketch_points = int(sketch_points)
+        super().__init__(shape=None, dtype=None, seed=seed)
+
+    @property
+    def dim(self) -> int:
+        """State dimension ``d`` of the interactions."""
+        return int(self.low.size)
+
+    @property
+    def is_np_flattenable(self) -> bool:
+        return False
+
+    def contains(self, x: Any) -> bool:
+        if x is None:
+            return True
+        return isinstance(x, Point | Sketch | Nudge) and x.kind in self.kinds and x.dim == self.dim
+
+    def sample(self, mask: Any = None, probability: Any = None) -> Interaction:
+        if mask is not None or probability is not None:
+            raise ValueError("InteractionSpace.sample does not support `mask` or `probability`")
+        a, b = self.np_random.uniform(self.low, self.high, size=(2, self.dim))
+        if "sketch" in self.kinds:
+            return Sketch(a + np.linspace(0.0, 1.0, self.sketch_points)[:, None] * (b - a))
+        if "point" in self.kinds:
+            return Point(b)
+        return Nudge(b[None])
+
+    def __repr__(self) -> str:
+        return f"InteractionSpace(dim={self.dim}, kinds={self.kinds})"
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, InteractionSpace)
+            and self.kinds == other.kinds
+            and np.array_equal(self.low, other.low)
+            and np.array_equal(self.high, other.high)
+        )
+
+
+class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
+    """Drive ``env`` with user interactions; ``policy`` plans, ``sampler`` steers (see the module docstring).
+
+    Args:
+        env: an env whose action is the next state/waypoint the policy plans
+            (e.g. ``steer_envs/Maze2D-Large-v0``).
+        policy: a :class:`~steer_envs.core.policy.TrajectoryPolicy` (a
+            ``DiffusionPolicyLike`` for BI/GD/SS) planning in the env's action space.
+        sampler: the steering strategy used for non-``None`` actions.
+        batch: plans sampled per step (ITPS: 32).
+        execute: waypoints of the chosen plan executed per step (default: all).
+        sketch_points: use a ``Box`` action of ``sketch_points * d`` numbers (a flattened sketch).
+        unsteered: sampler for ``None`` actions (default :class:`RandomSampling`).
+
+    An :class:`OutputPerturbation` without a collision check gets the env's
+    ``is_wall`` (when it has one), so the agent stops before the sketch's first wall.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env[Any, Any],
+        policy: TrajectoryPolicy,
+        sampler: Sampler,
+        *,
+        batch: int = 32,
+        execute: int | None = None,
+        sketch_points: int | None = None,
+        unsteered: Sampler | None = None,
+    ) -> None:
+        super().__init__(env)
+        if not isinstance(policy, TrajectoryPolicy):
+            raise TypeError(f"`policy` must be a TrajectoryPolicy (horizon, action_dim, sample), got {policy!r}")
+        if not isinstance(sampler, Sampler):
+            raise TypeError(f"`sampler` must be a Sampler (RS, PR, OP, BI, GD, SS), got {type(sampler).__name__}")
+        if unsteered is not None and not isinstance(unsteered, Sampler):
+            raise TypeError(f"`unsteered` must be a Sampler or None, got {type(unsteered).__name__}")
+        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+            raise ValueError(f"`batch` must be a positive integer, got {batch!r}")
+        if execute is not None and (isinstance(execute, bool) or not isinstance(execute, (int, np.integer))):
+            raise TypeError(f"`execute` must be a positive int or None, got {execute!r}")
+        if execute is not None and execute < 1:
+            raise ValueError(f"`execute` must be >= 1, got {execute!r}")
+        inner = env.action_space
+        if not isinstance(inner, spaces.Box) or inner.shape != (int(policy.action_dim),):
+            raise ValueError(
+                f"`env.action_space` must be a Box of shape ({policy.action_dim},) matching policy.action_dim, "
+                f"got {inner}"
+            )
+        base = env.unwrapped
+        if (
+            isinstance(sampler, OutputPerturbation)
+            and sampler.collides is None
+            and callable(getattr(base, "is_wall", None))
+        ):
+            sampler = OutputPerturbation(sampler.index, collides=base.is_wall, obs_at=sampler.obs_at)
+        self.policy = policy
+        self.sampler = sampler
+        self.unsteered = unsteered if unsteered is not None else RandomSampling()
+        self.batch = int(batch)
+        self.execute = None if execute is None else int(execute)
+        self.sketch_points = None if sketch_points is None else int(sketch_points)
+        d = int(policy.action_dim)
+        if self.sketch_points is not None:
+            if self.sketch_points < 2:
+                raise ValueError(f"`sketch_points` must be an integer >= 2 or None, got {sketch_points!r}")
+            self.action_space = spaces.Box(
+                np.tile(inner.low, self.sketch_points), np.tile(inner.high, self.sketch_points), dtype=np.float32
+            )
+        else:
+            kinds = tuple(k for k in getattr(base, "interaction_kinds", tuple(_KIND_CLASSES)) if k in _KIND_CLASSES)
+            self.action_space = InteractionSpace(inner.low, inner.high, kinds or tuple(_KIND_CLASSES))
+        start = getattr(policy, "exec_start", 0)
+        if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < int(policy.horizon):
+            raise ValueError(f"policy.exec_start must be an int in [0, horizon), got {start!r}")
+        self._exec_start = int(start)
+        self._history: list[Any] = []
+        self._rng = np.random.default_rng()
+        self._dim = d
+
+    # ------------------------------------------------------------------- API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset the env; ``seed`` also seeds the wrapper's sampling generator (reproducible steering)."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        if seed is not None:
+            self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x17B5]))
+            self.action_space.seed(int(seed))
+        self._history = [obs]
+        return obs, info
+
+    def interaction(self, action: Any) -> Interaction | None:
+        """The interaction an action stands for (``None``: unsteered); ``TypeError``/``ValueError`` otherwise."""
+        if self.sketch_points is not None and action is not None and not isinstance(action, Point | Sketch | Nudge):
+            arr = np.asarray(action, dtype=np.float64)
+            if arr.shape != self.action_space.shape:
+                raise ValueError(
+                    f"`action` must have shape {self.action_space.shape} (a flattened sketch), got {arr.shape}"
+                )
+            box = self.action_space
+            assert isinstance(box, spaces.Box)
+            return Sketch(np.clip(arr, box.low, box.high).reshape(self.sketch_points, self._dim))
+        if action is None:
+            return None
+        if not isinstance(action, Point | Sketch | Nudge):
+            raise TypeError(f"`action` must be a Point, Sketch, Nudge or None, got {type(action).__name__}")
+        return action.validate(self._dim)
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Steer one plan with ``action`` and execute its waypoints (see the module docstring)."""
+        if not self._history:
+            raise gym.error.ResetNeeded("SteeringWrapper.step called before reset()")
+        interaction = self.interaction(action)
+        sampler = self.sampler if interaction is not None else self.unsteered
+        obs_in = policy_observation(self.policy, self._history)
+        result = sampler(self.policy, obs_in, interaction, self.batch, generator=self._rng)
+        base = self.env.unwrapped
+        if result.perturbed_state is not None:
+            if not callable(getattr(base, "perturb", None)):
+                raise TypeError(f"{result.sampler} moves the agent but the env has no perturb(to=...) method")
+            base.perturb(to=result.perturbed_state)
+            where = getattr(base, "state", result.perturbed_state)
+            self._history.append(place_observation(self._history[-1], where))
+        plan = result.plan[self._exec_start :]
+        waypoints = plan if self.execute is None else plan[: self.execute]
+        box = self.env.action_space
+        total, violated = 0.0, False
+        terminated = truncated = False
+        info: dict[str, Any] = {}
+        executed = []
+        for wp in waypoints:
+            a = np.clip(wp, box.low, box.high).astype(box.dtype)
+            obs, reward, terminated, truncated, info = self.env.step(a)
+            executed.append(a)
+            self._history.append(obs)
+            total += float(reward)
+            violated |= bool(info.get("constraint_violation", False))
+            if terminated or truncated:
+                break
+        self._history = self._history[-max(2, int(getattr(self.policy, "n_obs_steps", 1))) :]
+        collides = getattr(base, "plan_collides", None)
+        info = dict(info)
+        info.update(
+            plans=result.plans,
+            costs=result.costs,
+            chosen=result.chosen,
+            plan_collides=np.asarray(collides(result.plans)) if callable(collides) else None,
+            executed=np.asarray(executed),
+            sampler=result.sampler,
+            latency_ms=float(result.timings.get("total_ms", float("nan"))),
+            perturbed_state=result.perturbed_state,
+            constraint_violation=violated,
+        )
+        return self._history[-1], total, bool(terminated), bool(truncated), info
