@@ -42,11 +42,11 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
 from steer_envs.baselines.bc import BCPolicy
 from steer_envs.baselines.ds import LPVDS
-from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
-
 from steer_envs.core.policy import VelocityPolicy
+from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
 
 __all__ = ["POLICY_KINDS", "THESIS_SUCCESS", "convex_mode_demos", "rollout", "sample_starts", "single_mode_trial"]
 

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from steer_envs.wrappers import SteeringWrapper, make_sampler
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.bench.suites_itps import load_policy
 from steer_envs.io import atomic_open
+from steer_envs.wrappers import SteeringWrapper, make_sampler
 
 #: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
 DEFAULT_LOADER = "steer_envs.baselines.pretrained:load_pretrained"

@@ -18,14 +18,14 @@ import sys
 from pathlib import Path
 
 import gymnasium as gym
-from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler
-from steer_envs.wrappers.samplers import SAMPLERS
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.bench.plots import new_figure, save_figure
 from steer_envs.bench.suites_itps import load_policy
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.users.sketcher import SketchUser
+from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler
+from steer_envs.wrappers.samplers import SAMPLERS
 
 #: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
 DEFAULT_LOADER = "steer_envs.baselines.pretrained:load_pretrained"

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.baselines.ds import LPVDS
 from steer_envs.baselines.tli_protocol import (
     THESIS_SUCCESS,
@@ -15,6 +17,8 @@ from steer_envs.baselines.tli_protocol import (
     sample_starts,
     single_mode_trial,
 )
+from steer_envs.core.policy import VelocityPolicy
+from steer_envs.data.experts import make_expert
 from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, ModulatedPolicy
 from steer_envs.wrappers.ds_modulation import (
     Cut,
@@ -26,10 +30,6 @@ from steer_envs.wrappers.ds_modulation import (
     resolve_cuts,
     solve_cut,
 )
-
-import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.core.policy import VelocityPolicy
-from steer_envs.data.experts import make_expert
 
 DT, MAX_SPEED = 0.01, 20.0
 ANGLES = np.linspace(0.0, 2.0 * np.pi, 100_000, endpoint=False)

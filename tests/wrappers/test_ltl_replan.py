@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
-from steer_envs.wrappers import LTLReplanWrapper
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.core.task import TaskSpec
 from steer_envs.envs.cooking import TRANSITION_ATTRACTORS
 from steer_envs.ltl import specs
+from steer_envs.wrappers import LTLReplanWrapper
 
 
 def _towards(env: gym.Env, target: np.ndarray | tuple[float, float]) -> np.ndarray:

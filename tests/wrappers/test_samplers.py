@@ -10,6 +10,9 @@ import pytest
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
+from steer_envs.core.interaction import Nudge, Point, Sketch  # noqa: E402
+from steer_envs.core.objectives import alignment_cost_np  # noqa: E402
+from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy  # noqa: E402
 from steer_envs.wrappers.samplers import (  # noqa: E402
     SAMPLERS,
     BiasedInitialization,
@@ -23,10 +26,6 @@ from steer_envs.wrappers.samplers import (  # noqa: E402
     output_perturbation_point,
     place_observation,
 )
-
-from steer_envs.core.interaction import Nudge, Point, Sketch  # noqa: E402
-from steer_envs.core.objectives import alignment_cost_np  # noqa: E402
-from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy  # noqa: E402
 
 
 class MixturePolicy:

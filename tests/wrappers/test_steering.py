@@ -11,6 +11,8 @@ import pytest
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
+from steer_envs.core.interaction import Nudge, Point, Sketch  # noqa: E402
+from steer_envs.envs.maze2d import Maze2DEnv  # noqa: E402
 from steer_envs.wrappers import SteeringWrapper  # noqa: E402
 from steer_envs.wrappers.samplers import (  # noqa: E402
     OutputPerturbation,
@@ -19,9 +21,6 @@ from steer_envs.wrappers.samplers import (  # noqa: E402
     StochasticSampling,
 )
 from steer_envs.wrappers.steering import InteractionSpace, policy_observation  # noqa: E402
-
-from steer_envs.core.interaction import Nudge, Point, Sketch  # noqa: E402
-from steer_envs.envs.maze2d import Maze2DEnv  # noqa: E402
 
 START = np.array([3.0, 1.0])  # LARGE_MAZE row 3 is free from column 1 to 6
 
