@@ -306,6 +306,24 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._needs_reset = terminated | truncated
         return self._pos.astype(np.float32), rewards, terminated, truncated, infos
 
+    def perturb(self, to: np.ndarray, mask: np.ndarray) -> dict[str, Any]:
+        """Move the agents selected by ``mask`` (``(num_envs,)`` bool) to ``to[mask]``: a push from outside.
+
+        The batched counterpart of :meth:`Kinematic2DEnv.perturb` (``to=``): the
+        task memory follows ``model.teleport`` and no violation is reported.
+        Returns the new ``infos``.
+        """
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"mask must have shape ({self.num_envs},), got {mask.shape}")
+        target = np.asarray(to, dtype=np.float64)
+        if target.shape != (self.num_envs, 2) or not np.all(np.isfinite(target[mask])):
+            raise ValueError(f"to must be a finite array of shape ({self.num_envs}, 2), got {target.shape}")
+        prev = self._pos.copy()
+        self._pos = np.where(mask[:, None], np.clip(target, self.model.low, self.model.high), self._pos)
+        self._memory = np.where(mask[:, None], self.model.teleport(self._memory, prev, self._pos), self._memory)
+        return self._infos(np.zeros(self.num_envs, dtype=bool))
+
 
 def _check_xy(value: Any, name: str) -> np.ndarray:
     try:

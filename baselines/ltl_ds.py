@@ -1,0 +1,490 @@
+"""LTL-DS: one LPV-DS per mode, sequenced by the LTL task automaton and bounded by learned cuts (thesis ch. 3).
+
+The thesis's policy (Eq. "LTL-DS") is ``pi(x, alpha) = M_m(x) f_m(x)``: the
+sensors ``alpha`` tell the task automaton which mode ``m`` the system is in
+(:class:`~steer_envs.ltl.replanner.ModeReplanner`), the mode's dynamical
+system ``f_m`` (an :class:`~steer_envs.baselines.ds.LPVDS`, stable at the
+mode's attractor) drives the state toward the guard of the next planned mode,
+and the modulation ``M_m`` (:func:`~steer_envs.wrappers.ds_modulation.modulate`)
+keeps the flow behind the cuts learned from the mode's invariance failures.
+
+**Fitting** (:func:`fit_mode_dynamics`): demonstrations are segmented by their
+sensor-derived modes (:func:`~steer_envs.data.segmentation.segment_demonstrations`);
+each mode's segments train its LPV-DS. The attractor rule is a choice:
+
+* ``"guard"`` (default): the mean of the *first states after* each segment
+  (the transition states, just inside the next mode). The flow then crosses
+  the guard in finite time and the next sensor fires.
+* ``"last"``: the thesis appendix's mean of the *last in-mode* states. A DS
+  only approaches its attractor asymptotically, so the transition then fires
+  only where the environment counts points near an attractor as in the next
+  region (the public TLI code's 0.4 rule, which SoupScoop-v0 applies to the
+  public demonstrations' fixed attractors, not to learned ones).
+
+A mode with too little data (the goal mode ``d`` of soup scooping is one
+final state) reuses the DS and attractor of the mode the demonstrations
+entered it from (the public code: "the done mode reuses the transport DS").
+
+**Acting** (:class:`LTLDSPolicy`): ``act(obs, info)`` reads ``info["sensors"]``,
+updates the automaton and returns the (modulated) velocity of the current
+mode. A mode change that is not the plan's next mode and was not caused by a
+push is an *invariance failure*: with ``modulation=True`` it adds a cut
+through the last in-mode state and re-solves all cuts of that mode
+(:func:`~steer_envs.wrappers.ds_modulation.resolve_cuts`); the mode's entry
+state, the other last-in-mode states and the attractor stay inside. Pushes are
+recognised by ``info["perturbed"]`` (the ``info`` that
+``env.unwrapped.perturb`` returns; pass it to ``act``) or, with ``dt`` given,
+by a state jump larger than the last command can explain. Cuts persist across
+episodes (that is the learning); :meth:`LTLDSPolicy.clear_cuts` forgets them.
+One extension of the thesis: a state that re-enters a mode *beyond* one of its
+cuts gets no further outward motion (:func:`hold_beyond_cuts`), because a
+guard can lie on a cut and re-entries there would otherwise loop.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from collections import Counter
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from steer_envs.baselines.ds import LPVDS, MIN_POINTS_PER_DIM
+from steer_envs.core.policy import VelocityPolicy
+from steer_envs.core.task import TaskSpec
+from steer_envs.data.segmentation import segment_demonstrations
+from steer_envs.ltl.gr1 import GR1Spec
+from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
+from steer_envs.wrappers.ds_modulation import ATTRACTOR_MARGIN, CutSet, FailureRecord, modulate, resolve_cuts
+
+__all__ = ["AttractorRule", "LTLDSPolicy", "ModeDynamics", "ModeEvent", "fit_mode_dynamics", "hold_beyond_cuts"]
+
+AttractorRule = Literal["guard", "last"]
+#: slack of the push detection by state jumps (relative to the commanded step, plus an absolute floor).
+JUMP_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class ModeDynamics:
+    """The motion policy of one mode.
+
+    Attributes:
+        mode: the mode name.
+        policy: a batched velocity policy ``(N, d) -> (N, d)`` (an :class:`LPVDS` when fitted here).
+        attractor: ``(d,)`` where ``policy`` converges (the modulation's reference point).
+        source: the mode whose data trained ``policy`` (``mode`` itself unless it reuses another's).
+        entry_states, last_states: ``(n, d)`` first and last in-mode states of the demonstration segments.
+    """
+
+    mode: str
+    policy: VelocityPolicy
+    attractor: np.ndarray
+    source: str
+    entry_states: np.ndarray
+    last_states: np.ndarray
+
+
+@dataclass(frozen=True)
+class ModeEvent:
+    """A mode change seen by :class:`LTLDSPolicy`.
+
+    ``kind`` is ``"planned"`` (the plan's next mode), ``"push"`` (caused by a
+    perturbation) or ``"failure"`` (an invariance failure of ``source``);
+    ``before`` is the last state in ``source``, ``after`` the first in ``target``.
+    """
+
+    step: int
+    source: str
+    target: str
+    kind: str
+    before: np.ndarray
+    after: np.ndarray
+    cut_added: bool = False
+
+
+def _as_demo(demo: Any, i: int) -> tuple[np.ndarray, list[Hashable], np.ndarray]:
+    """``(states (T, d), labels (T,), velocities (T - 1, d))`` from a Demonstration or a 3-tuple."""
+    if hasattr(demo, "states") and hasattr(demo, "modes") and hasattr(demo, "actions"):
+        states, labels, vel = demo.states, demo.modes, demo.actions
+    elif isinstance(demo, tuple | list) and len(demo) == 3:
+        states, labels, vel = demo
+    else:
+        raise TypeError(
+            f"demos[{i}] must be a Demonstration or a (states, modes, velocities) tuple, got {type(demo).__name__}"
+        )
+    x = np.asarray(states, dtype=np.float64)
+    v = np.asarray(vel, dtype=np.float64)
+    if x.ndim != 2 or len(x) < 2:
+        raise ValueError(f"demos[{i}]: states must have shape (T >= 2, d), got {x.shape}")
+    if v.shape != (len(x) - 1, x.shape[1]):
+        raise ValueError(
+            f"demos[{i}]: velocities must have shape {(len(x) - 1, x.shape[1])} (one per step), got {v.shape}"
+        )
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+        raise ValueError(f"demos[{i}]: states and velocities must be finite")
+    lab = list(np.asarray(labels).tolist()) if isinstance(labels, np.ndarray) else list(labels)
+    if len(lab) != len(x):
+        raise ValueError(f"demos[{i}]: need one mode label per state ({len(x)}), got {len(lab)}")
+    return x, lab, v
+
+
+def fit_mode_dynamics(
+    demos: Sequence[Any],
+    task: TaskSpec,
+    *,
+    attractor_rule: AttractorRule = "guard",
+    overshoot: float = 0.0,
+    random_state: int = 0,
+    ds_options: Mapping[str, Any] | None = None,
+) -> dict[str, ModeDynamics]:
+    """Segment ``demos`` by mode and fit one LPV-DS per mode (see the module docstring).
+
+    Args:
+        demos: :class:`~steer_envs.data.demos.Demonstration` objects or
+            ``(states (T, d), modes (T,), velocities (T - 1, d))`` tuples; modes
+            are indices or names of ``task.modes``.
+        task: the task (mode names).
+        attractor_rule: ``"guard"`` (mean transition state) or ``"last"`` (mean last in-mode state).
+        overshoot: with ``"guard"``, move the attractor this far along the mean direction
+            of the crossing steps (last in-mode -> first next-mode state): the mean of
+            scattered crossing points of a curved guard may fall short of the guard.
+        random_state: seed of the GMM fits.
+        ds_options: extra keyword arguments of :class:`LPVDS`.
+
+    Returns:
+        ``mode name -> ModeDynamics`` for every mode of ``task``. Raises
+        ``ValueError`` when a mode never occurs in the demonstrations (thesis
+        Asm. 3: the demonstrations cover every mode).
+    """
+    if not isinstance(task, TaskSpec):
+        raise TypeError(f"task must be a TaskSpec, got {type(task).__name__}")
+    if attractor_rule not in ("guard", "last"):
+        raise ValueError(f"attractor_rule must be 'guard' or 'last', got {attractor_rule!r}")
+    if not isinstance(demos, Sequence) or len(demos) == 0:
+        raise ValueError("demos must be a non-empty sequence of demonstrations")
+    if not (np.isfinite(overshoot) and overshoot >= 0):
+        raise ValueError(f"overshoot must be a finite float >= 0, got {overshoot!r}")
+    parsed = [_as_demo(d, i) for i, d in enumerate(demos)]
+    # the last state has no velocity: it only serves as the transition state of the final segment
+    seg = segment_demonstrations([(x[:-1], lab[:-1], v) for x, lab, v in parsed], task=task)
+    d = parsed[0][0].shape[1]
+    entered_from: dict[str, Counter[str]] = {}  # mode -> the modes the demonstrations entered it from
+    for _, lab, _ in parsed:
+        names = [task.modes[task.mode_index(m)] for m in lab]
+        for a, b in itertools.pairwise(names):
+            if a != b:
+                entered_from.setdefault(b, Counter())[a] += 1
+    out: dict[str, ModeDynamics] = {}
+    for key, data in seg.modes.items():
+        mode = str(key)
+        if sum(len(s) for s in data.segments) < MIN_POINTS_PER_DIM * d:
+            continue  # too little data: reuses its predecessor's DS below
+        if attractor_rule == "guard":  # the first state after each segment (the demo's last state at its end)
+            after = np.stack([parsed[s.demo][0][s.stop] for s in data.segments])
+            attractor = after.mean(axis=0)
+            steps = after - data.last_states
+            steps = steps / np.maximum(np.linalg.norm(steps, axis=1, keepdims=True), 1e-12)
+            direction = steps.mean(axis=0)
+            if overshoot > 0 and np.linalg.norm(direction) > 1e-9:
+                attractor = attractor + overshoot * direction / np.linalg.norm(direction)
+        else:
+            attractor = data.attractor
+        ds = LPVDS(random_state=random_state, **dict(ds_options or {}))
+        ds.fit(data.states, data.velocities, attractor=attractor)
+        out[mode] = ModeDynamics(mode, ds, attractor, mode, data.entry_states, data.last_states)
+    missing = []
+    for mode in task.modes:
+        if mode in out:
+            continue
+        sources = [m for m, _ in entered_from.get(mode, Counter()).most_common() if m in out]
+        if not sources:
+            missing.append(mode)
+            continue
+        src = out[sources[0]]
+        segs = [s for k, md in seg.modes.items() if str(k) == mode for s in md.segments]
+        entry = np.stack([s.entry for s in segs]) if segs else np.zeros((0, d))
+        last = np.stack([s.last for s in segs]) if segs else np.zeros((0, d))
+        out[mode] = ModeDynamics(mode, src.policy, src.attractor, src.source, entry, last)
+    if missing:
+        raise ValueError(
+            f"the demonstrations never visit mode(s) {missing} of task {task.name!r} (with enough data, or as the "
+            "target of a demonstrated transition); LTL-DS needs demonstrations covering every mode (thesis Asm. 3)"
+        )
+    return {m: out[m] for m in task.modes}
+
+
+def _clip(v: np.ndarray, max_speed: float) -> np.ndarray:
+    speed = np.linalg.norm(v, axis=1, keepdims=True)
+    return v * np.minimum(1.0, max_speed / np.maximum(speed, 1e-300))
+
+
+def hold_beyond_cuts(x: ArrayLike, velocity: ArrayLike, cuts: CutSet) -> np.ndarray:
+    """For states beyond a cut (``Gamma_k > 1``), stop the motion further out; other rows unchanged.
+
+    The thesis leaves the nominal flow outside the cuts, which is harmless when
+    a mode is entered inside them. LTL-DS re-enters a mode through its guards,
+    and a guard can lie on a cut: the b -> c guard of soup scooping (soup -> pink
+    column) is the same line as the c -> b spill boundary, so re-entries land a
+    hair beyond the cut through the previous spill and exit again (a discrete
+    loop that more cuts do not end). This applies the modulation's
+    ``lambda_r = max(0, 1 - Gamma_k) = 0`` there: for each cut ``k`` the row is
+    beyond and moves away from (``n_k^T v > 0``), ``v <- v - (n_k^T v)
+    (x - r) / (n_k^T (x - r))``, which zeroes ``n_k^T v`` and, like the
+    modulation, only lowers ``dV/dt`` (``n_k^T (x - r) > 0``). Cuts are taken
+    in decreasing ``Gamma_k``; each step only lowers the approach to the other
+    cuts beyond which the row lies, so none is left approached (a residual from
+    rounding is zeroed).
+    """
+    xb = np.asarray(x, dtype=np.float64)
+    v = np.array(velocity, dtype=np.float64)
+    if len(cuts) == 0:
+        return v
+    _, nrm, h = cuts.arrays()
+    rel = xb - cuts.reference
+    gam = (rel @ nrm.T) / h  # (N, K)
+    rows = np.nonzero(np.any(gam > 1.0, axis=1))[0]
+    for i in rows:
+        for k in np.argsort(-gam[i]):
+            if gam[i, k] <= 1.0:
+                break
+            approach = float(nrm[k] @ v[i])
+            if approach > 0:
+                v[i] = v[i] - approach * rel[i] / (gam[i, k] * h[k])
+        if np.any((nrm @ v[i] > 1e-12) & (gam[i] > 1.0)):
+            v[i] = 0.0  # rounding only (see the docstring)
+    return v
+
+
+class LTLDSPolicy:
+    """The LTL-DS policy: automaton mode from sensors, that mode's DS, modulated by learned cuts.
+
+    Args:
+        task: the task (sensor APs, modes).
+        spec: the GR(1) specification (e.g. :func:`steer_envs.ltl.specs.for_env`).
+        dynamics: ``mode -> ModeDynamics`` for every mode of ``spec`` (see :func:`fit_mode_dynamics`).
+        modulation: learn cuts from invariance failures and modulate by them (``False``: plain DS + automaton).
+        max_speed: the env's speed limit (clipped before and after modulation; the
+            discrete-time no-crossing guarantee needs it).
+        margin: radius around each attractor that every cut keeps inside.
+        dt: the env's time step; enables push detection by state jumps.
+        hold_outside: for states beyond a cut, remove the velocity component that moves
+            further out (:func:`hold_beyond_cuts`); ``False`` keeps the thesis's nominal
+            flow there.
+
+    Attributes:
+        cut_sets: ``mode -> CutSet`` of the learned cuts.
+        failures: ``mode -> [FailureRecord]`` (recorded with and without modulation).
+        events: the mode changes since the last :meth:`reset`.
+    """
+
+    def __init__(
+        self,
+        task: TaskSpec,
+        spec: GR1Spec,
+        dynamics: Mapping[str, ModeDynamics],
+        *,
+        modulation: bool = True,
+        max_speed: float | None = None,
+        margin: float = ATTRACTOR_MARGIN,
+        dt: float | None = None,
+        hold_outside: bool = True,
+    ) -> None:
+        if not isinstance(task, TaskSpec):
+            raise TypeError(f"task must be a TaskSpec, got {type(task).__name__}")
+        if not isinstance(spec, GR1Spec):
+            raise TypeError(f"spec must be a GR1Spec, got {type(spec).__name__}")
+        self.replanner = ModeReplanner(task, spec)
+        self.modes: tuple[str, ...] = self.replanner.modes
+        if not isinstance(dynamics, Mapping):
+            raise TypeError(f"dynamics must be a mapping mode -> ModeDynamics, got {type(dynamics).__name__}")
+        missing = [m for m in self.modes if m not in dynamics]
+        if missing:
+            raise ValueError(f"dynamics lacks mode(s) {missing}; every mode of the spec {self.modes} needs a policy")
+        for m in self.modes:
+            if not isinstance(dynamics[m], ModeDynamics):
+                raise TypeError(f"dynamics[{m!r}] must be a ModeDynamics, got {type(dynamics[m]).__name__}")
+        if max_speed is not None and not (np.isfinite(max_speed) and max_speed > 0):
+            raise ValueError(f"max_speed must be None or a positive float, got {max_speed!r}")
+        if not (np.isfinite(margin) and margin >= 0):
+            raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
+        if dt is not None and not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be None or a positive float, got {dt!r}")
+        self.task = task
+        self.spec = spec
+        self.dynamics = {m: dynamics[m] for m in self.modes}
+        self.modulation = bool(modulation)
+        self.max_speed = None if max_speed is None else float(max_speed)
+        self.margin = float(margin)
+        self.dt = None if dt is None else float(dt)
+        self.hold_outside = bool(hold_outside)
+        self.dim = len(self.dynamics[self.modes[0]].attractor)
+        self.cut_sets: dict[str, CutSet] = {m: CutSet(self.dynamics[m].attractor) for m in self.modes}
+        self.failures: dict[str, list[FailureRecord]] = {m: [] for m in self.modes}
+        self.events: list[ModeEvent] = []
+        self._mode: str | None = None
+        self._next: str | None = None
+        self._x: np.ndarray | None = None
+        self._v: np.ndarray | None = None
+        self._entry: np.ndarray | None = None
+        self._step = 0
+
+    @classmethod
+    def fit(
+        cls,
+        demos: Sequence[Any],
+        task: TaskSpec,
+        spec: GR1Spec,
+        *,
+        attractor_rule: AttractorRule = "guard",
+        overshoot: float = 0.0,
+        random_state: int = 0,
+        ds_options: Mapping[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> LTLDSPolicy:
+        """Fit the per-mode DSs from demonstrations (:func:`fit_mode_dynamics`); ``kwargs`` go to the constructor."""
+        dyn = fit_mode_dynamics(
+            demos,
+            task,
+            attractor_rule=attractor_rule,
+            overshoot=overshoot,
+            random_state=random_state,
+            ds_options=ds_options,
+        )
+        return cls(task, spec, dyn, **kwargs)
+
+    # ------------------------------------------------------------ queries
+    @property
+    def mode(self) -> str:
+        """The current automaton mode (after :meth:`reset`)."""
+        if self._mode is None:
+            raise RuntimeError("LTLDSPolicy: call reset(obs, info) first")
+        return self._mode
+
+    @property
+    def plan(self) -> list[str]:
+        """The planned mode sequence from the current mode."""
+        return self.replanner.plan()
+
+    @property
+    def num_cuts(self) -> int:
+        """Cuts over all modes."""
+        return sum(len(c) for c in self.cut_sets.values())
+
+    @property
+    def num_failures(self) -> int:
+        """Invariance failures recorded since construction (or :meth:`clear_cuts`)."""
+        return sum(len(f) for f in self.failures.values())
+
+    def clear_cuts(self) -> None:
+        """Forget every learned cut and failure."""
+        for m in self.modes:
+            self.cut_sets[m].set_cuts([])
+            self.failures[m] = []
+
+    def flow(self, x: ArrayLike, mode: str) -> np.ndarray:
+        """Velocities of ``mode``'s policy at states ``(N, d)``, modulated by its cuts when ``modulation`` is on."""
+        if mode not in self.dynamics:
+            raise ValueError(f"mode must be one of {self.modes}, got {mode!r}")
+        xb = np.asarray(x, dtype=np.float64)
+        if xb.ndim != 2 or xb.shape[1] != self.dim or not np.all(np.isfinite(xb)):
+            raise ValueError(f"x must be a finite array of shape (N, {self.dim}), got {xb.shape}")
+        v = np.asarray(self.dynamics[mode].policy(xb), dtype=np.float64)
+        if v.shape != xb.shape:
+            raise ValueError(f"the policy of mode {mode!r} returned shape {v.shape} for states {xb.shape}")
+        cuts = self.cut_sets[mode]
+        if self.max_speed is not None:
+            v = _clip(v, self.max_speed)
+        if not (self.modulation and len(cuts)):
+            return v
+        out = modulate(xb, v, cuts, self.max_speed)
+        if self.hold_outside:
+            out = hold_beyond_cuts(xb, out, cuts)
+        return out
+
+    # ----------------------------------------------------------- acting
+    def _state(self, obs: Any) -> np.ndarray:
+        x = np.asarray(obs["observation"] if isinstance(obs, Mapping) else obs, dtype=np.float64).reshape(-1)
+        if x.shape != (self.dim,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"obs must be a finite state of shape ({self.dim},), got {x.shape}")
+        return x
+
+    @staticmethod
+    def _sensors(info: Mapping[str, Any]) -> Any:
+        if not isinstance(info, Mapping) or "sensors" not in info:
+            raise KeyError("LTLDSPolicy needs info['sensors'] (AP -> bool) from the env")
+        return info["sensors"]
+
+    def reset(self, obs: Any, info: Mapping[str, Any]) -> None:
+        """Start an episode: locate the automaton from the first reading (cuts are kept)."""
+        x = self._state(obs)
+        self._mode = self.replanner.reset(self._sensors(info))
+        self._next = self.replanner.next_mode()
+        self._x, self._v, self._entry = x, None, x.copy()
+        self.events = []
+        self._step = 0
+
+    def _jumped(self, x: np.ndarray) -> bool:
+        if self.dt is None or self._x is None or self._v is None:
+            return False
+        step = self.dt * float(np.linalg.norm(self._v))
+        return float(np.linalg.norm(x - self._x)) > step * (1 + 1e-3) + JUMP_TOL
+
+    def observe(self, obs: Any, info: Mapping[str, Any]) -> str:
+        """Track a reading without acting (e.g. the final one of an episode); returns the current mode.
+
+        A mode change since the last call is classified as planned, push or
+        invariance failure (which, with modulation, adds a cut).
+        """
+        if self._mode is None:
+            self.reset(obs, info)
+        x = self._state(obs)
+        pushed = bool(info.get("perturbed", False)) or self._jumped(x)
+        prev_mode, prev_next, prev_x = self._mode, self._next, self._x
+        try:
+            mode = self.replanner.update(self._sensors(info))
+        except UnknownSensorReading:
+            mode = prev_mode  # a reading no mode explains: keep acting in the tracked mode
+        assert mode is not None and prev_mode is not None and prev_x is not None
+        if mode != prev_mode:
+            kind = "push" if pushed else ("planned" if mode == prev_next else "failure")
+            added = False
+            if kind == "failure":
+                added = self._learn(prev_mode, prev_x, x)
+            self.events.append(ModeEvent(self._step, prev_mode, mode, kind, prev_x.copy(), x.copy(), added))
+            self._entry = x.copy()
+        self._mode = mode
+        self._next = self.replanner.next_mode()
+        self._x = x
+        return mode
+
+    def act(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
+        """The velocity command (float32 ``(d,)``) for the current state; learns a cut on an invariance failure."""
+        mode = self.observe(obs, info)
+        assert self._x is not None
+        v = self.flow(self._x[None], mode)[0]
+        self._v = v
+        self._step += 1
+        return v.astype(np.float32)
+
+    def _learn(self, mode: str, last_in: np.ndarray, failure: np.ndarray) -> bool:
+        """Record an invariance failure of ``mode``; with modulation, re-solve that mode's cuts."""
+        assert self._entry is not None
+        record = FailureRecord(last_in.copy(), failure.copy(), self._entry.copy())
+        records = [*self.failures[mode], record]
+        self.failures[mode] = records
+        if not self.modulation:
+            return False
+        try:
+            cuts = resolve_cuts(records, self.dynamics[mode].attractor, self.margin)
+        except ValueError as err:
+            records.pop()
+            warnings.warn(
+                f"LTLDSPolicy: no cut for this failure of mode {mode!r} ({err})", RuntimeWarning, stacklevel=3
+            )
+            return False
+        self.cut_sets[mode].set_cuts(cuts)
+        return True

@@ -1,0 +1,301 @@
+"""TLI / LTL-DS suites (thesis ch. 3): single-mode invariance, soup scooping under pushes, LPV-DS fit time.
+
+* ``tli-single-mode`` (thesis Fig. 3.5 table): one trial = one random convex
+  mode (the seed is ConvexMode-v0's ``layout_seed``; the thesis: 50 modes) x
+  one policy (BC, BC+mod, DS, DS+mod), run at the three start-noise levels
+  (sigma 0 / 1 / 5 workspace units = the thesis's 0 / 5 / 30 %) with
+  ``n_starts`` starts each, through
+  :func:`~steer_envs.baselines.tli_protocol.single_mode_trial`. Success is
+  reported in %, with the thesis's numbers beside; ``cuts_30`` is the number of
+  cuts the cut loop added at the large noise (thesis: DS reaches 100 % within
+  four). The first ``plot_seeds`` layouts keep rollouts for the Fig. 3.4-style
+  plot (:func:`~steer_envs.baselines.tli_plots.plot_single_mode`).
+* ``tli-scoop`` (thesis §3.7.2): one trial = one experiment (the thesis ran
+  10) of LTL-DS soup scooping under random pushes, without (``ltl-ds``) and with
+  (``ltl-ds+mod``) modulation, through
+  :func:`~steer_envs.baselines.tli_robustness.scoop_trial`: eventual success
+  (%), invariance failures (= discrete loop iterations), cuts, steps.
+* ``tli-ds-fit``: wall time of an LPV-DS fit of 3 demos x 200 points in 2D
+  (issue target < 5 s, :func:`~steer_envs.baselines.ds.benchmark_fit_time`).
+
+Trials run with one BLAS and one torch thread (the fits and rollouts are tiny;
+extra threads only add contention on a shared machine).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+from steer_envs.bench.suite import Metric, Reference, Suite, Trial, TrialResult, register_suite
+
+CONVEX_ENV = "steer_envs/ConvexMode-v0"
+SCOOP_ENV = "steer_envs/SoupScoop-v0"
+SINGLE_MODE_METHODS: tuple[str, ...] = ("bc", "bc+mod", "ds", "ds+mod")
+SCOOP_METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
+#: metric suffix -> start-noise sigma (workspace units; tli.md: 0 / 1 / 5 of a 16-wide workspace).
+NOISE_LEVELS: Mapping[str, float] = {"0": 0.0, "5": 1.0, "30": 5.0}
+#: thesis Fig. 3.5 table (success %, noise 0 / 5 / 30 %); the same numbers as tli_protocol.THESIS_SUCCESS.
+THESIS_SINGLE_MODE: Mapping[str, tuple[float, float, float]] = {
+    "bc": (88.9, 72.4, 58.6),
+    "bc+mod": (91.9, 83.6, 76.0),
+    "ds": (100.0, 97.0, 86.9),
+    "ds+mod": (100.0, 100.0, 100.0),
+}
+
+
+@contextlib.contextmanager
+def single_threaded() -> Iterator[None]:
+    """One BLAS thread and one torch intra-op thread inside the block (restored after)."""
+    from threadpoolctl import threadpool_limits
+
+    torch_threads = None
+    try:
+        import torch
+
+        torch_threads = torch.get_num_threads()
+        torch.set_num_threads(1)
+    except ImportError:  # pragma: no cover - torch is a core dependency
+        torch = None  # type: ignore[assignment]
+    try:
+        with threadpool_limits(limits=1):
+            yield
+    finally:
+        if torch is not None and torch_threads is not None:
+            torch.set_num_threads(torch_threads)
+
+
+# ------------------------------------------------------------ tli-single-mode
+def _check_single_params(params: Mapping[str, Any]) -> None:
+    for name in ("n_starts", "bc_epochs"):
+        if int(params[name]) < 1:
+            raise ValueError(f"tli-single-mode: {name} must be >= 1, got {params[name]}")
+    if int(params["max_cuts"]) < 0 or int(params["plot_seeds"]) < 0:
+        raise ValueError(f"tli-single-mode: max_cuts and plot_seeds must be >= 0, got {dict(params)}")
+    if params["demos"] not in ("drawn", "expert"):
+        raise ValueError(f"tli-single-mode: demos must be 'drawn' or 'expert', got {params['demos']!r}")
+
+
+def run_single_mode_trial(trial: Trial) -> TrialResult:
+    """One layout x one policy at the three noise levels (see the module docstring)."""
+    from steer_envs.baselines.tli_protocol import POLICY_KINDS, single_mode_trial
+
+    if trial.method not in POLICY_KINDS:
+        raise ValueError(f"tli-single-mode: unknown method {trial.method!r}; expected one of {POLICY_KINDS}")
+    params = trial.params
+    _check_single_params(params)
+    kind = str(trial.method)
+    cut_sigma = params.get("cut_sigma")
+    metrics: dict[str, float | None] = {}
+    per_noise: dict[str, Any] = {}
+    figures: dict[str, Any] = {}
+    with single_threaded():
+        for label, sigma in NOISE_LEVELS.items():
+            res = single_mode_trial(
+                trial.seed,
+                sigma,
+                kind,
+                n_starts=int(params["n_starts"]),
+                seed=trial.seed,
+                bc_epochs=int(params["bc_epochs"]),
+                max_cuts=int(params["max_cuts"]),
+                cut_sigma=None if cut_sigma is None else float(cut_sigma),
+                demos=str(params["demos"]),
+            )
+            metrics[f"success_{label}"] = 100.0 * res["success_rate"]
+            per_noise[label] = {
+                k: res[k]
+                for k in ("invariance_failure_rate", "reachability_failure_rate", "num_cuts", "cuts_until_invariant")
+            }
+            per_noise[label]["cut_round_success"] = res["cut_round_success"]
+            if trial.seed < int(params["plot_seeds"]) and cut_sigma is None:
+                from steer_envs.baselines.tli_plots import single_mode_figure_data
+
+                figures[str(sigma)] = single_mode_figure_data(
+                    trial.seed,
+                    sigma,
+                    kind,
+                    res["n_demos"],
+                    n_starts=int(params["n_starts"]),
+                    seed=trial.seed,
+                    bc_epochs=int(params["bc_epochs"]),
+                    max_cuts=int(params["max_cuts"]),
+                    demos=str(params["demos"]),
+                )
+    mod = kind.endswith("+mod")
+    metrics["cuts_5"] = float(per_noise["5"]["num_cuts"]) if mod else None
+    metrics["cuts_30"] = float(per_noise["30"]["num_cuts"]) if mod else None
+    metrics["inv_fail_30"] = 100.0 * per_noise["30"]["invariance_failure_rate"]
+    metrics["reach_fail_30"] = 100.0 * per_noise["30"]["reachability_failure_rate"]
+    extra: dict[str, Any] = {"n_demos": res["n_demos"], "per_noise": per_noise}
+    if figures:
+        extra["figure"] = figures
+    return TrialResult(metrics, extra)
+
+
+def _single_mode_references() -> tuple[Reference, ...]:
+    refs = []
+    for method, values in THESIS_SINGLE_MODE.items():
+        for label, value in zip(NOISE_LEVELS, values, strict=True):
+            refs.append(Reference(f"success_{label}", value, env=CONVEX_ENV, method=method, source="thesis Fig. 3.5"))
+    refs.append(Reference("cuts_30", 4.0, env=CONVEX_ENV, method="ds+mod", source="thesis Fig. 3.5 (cuts to 100 %)"))
+    return tuple(refs)
+
+
+def _plot_single_mode(suite: Suite, records: Any, out_dir: str) -> list[str]:
+    from steer_envs.baselines.tli_plots import plot_single_mode
+
+    return plot_single_mode(suite, records, out_dir)
+
+
+TLI_SINGLE_MODE = register_suite(
+    Suite(
+        name="tli-single-mode",
+        description=(
+            "TLI single-mode study (thesis Fig. 3.5): success (%) of BC, BC+mod, DS, DS+mod on random convex modes "
+            "at start noise 0/5/30 % of the workspace; seeds are layouts."
+        ),
+        metrics=(
+            Metric("success_0", "success (%), starts on the demonstrations", fmt=".1f"),
+            Metric("success_5", "success (%), start noise sigma 1 (5 % of the workspace)", fmt=".1f"),
+            Metric("success_30", "success (%), start noise sigma 5 (30 % of the workspace)", fmt=".1f"),
+            Metric("cuts_5", "cuts learned at 5 % noise (+mod only)", higher_is_better=False, fmt=".2f"),
+            Metric("cuts_30", "cuts learned at 30 % noise (+mod only)", higher_is_better=False, fmt=".2f"),
+            Metric("inv_fail_30", "starts that left the mode (%), 30 % noise", higher_is_better=False, fmt=".1f"),
+            Metric(
+                "reach_fail_30",
+                "starts that stayed but missed the attractor (%), 30 % noise",
+                higher_is_better=False,
+                fmt=".1f",
+            ),
+        ),
+        run_trial=run_single_mode_trial,
+        envs=(CONVEX_ENV,),
+        methods=SINGLE_MODE_METHODS,
+        params={
+            "n_starts": 100,
+            "max_cuts": 4,
+            "bc_epochs": 4000,
+            "demos": "drawn",
+            "cut_sigma": None,
+            "plot_seeds": 1,
+        },
+        trials_param="n_starts",
+        default_seeds=50,
+        references=_single_mode_references(),
+        quick={"n_starts": 30, "bc_epochs": 500, "plot_seeds": 1},
+        quick_seeds=2,
+        plot=_plot_single_mode,
+    )
+)
+
+
+# ------------------------------------------------------------------ tli-scoop
+def run_scoop_trial(trial: Trial) -> TrialResult:
+    """One soup-scooping experiment under pushes, without or with modulation."""
+    from steer_envs.baselines.tli_robustness import scoop_trial
+
+    if trial.method not in SCOOP_METHODS:
+        raise ValueError(f"tli-scoop: unknown method {trial.method!r}; expected one of {SCOOP_METHODS}")
+    params = trial.params
+    record = trial.seed < int(params["plot_seeds"])
+    with single_threaded():
+        res = scoop_trial(
+            trial.seed,
+            trial.method == "ltl-ds+mod",
+            int(params["n_perturbations"]),
+            max_steps=int(params["max_steps"]),
+            push_window=int(params["push_window"]),
+            magnitude=float(params["magnitude"]),
+            demos=str(params["demos"]),
+            ds_eps=float(params["ds_eps"]),
+            record=record,
+        )
+    metrics = {
+        "success": 100.0 * res["success"],
+        "loops": float(res["invariance_failures"]),
+        "mode_reentries": float(res["mode_reentries"]),
+        "num_cuts": float(res["num_cuts"]),
+        "pushes": float(res["pushes"]),
+        "steps": float(res["steps"]),
+    }
+    extra: dict[str, Any] = {"n_demos": res["n_demos"], "fit_seconds": res["fit_seconds"]}
+    if record:
+        from steer_envs.baselines.tli_plots import scoop_figure_data
+
+        extra["figure"] = scoop_figure_data(res)
+    return TrialResult(metrics, extra)
+
+
+def _plot_scoop(suite: Suite, records: Any, out_dir: str) -> list[str]:
+    from steer_envs.baselines.tli_plots import plot_scoop
+
+    return plot_scoop(suite, records, out_dir)
+
+
+TLI_SCOOP = register_suite(
+    Suite(
+        name="tli-scoop",
+        description=(
+            "TLI soup scooping (thesis 3.7.2): LTL-DS under random pushes (uniform direction, up to the workspace "
+            "size), without / with modulation: eventual success and discrete loops; seeds are experiments."
+        ),
+        metrics=(
+            Metric("success", "eventual success (%) within max_steps", fmt=".0f"),
+            Metric("loops", "invariance failures = discrete mode-loop iterations", higher_is_better=False, fmt=".1f"),
+            Metric("mode_reentries", "entries into an already visited mode", higher_is_better=False, fmt=".1f"),
+            Metric("num_cuts", "cuts learned in the episode", higher_is_better=False, fmt=".1f"),
+            Metric("pushes", "pushes applied before the task was done", fmt=".1f"),
+            Metric("steps", "episode steps (dt = 0.01)", higher_is_better=False, fmt=".0f"),
+        ),
+        run_trial=run_scoop_trial,
+        envs=(SCOOP_ENV,),
+        methods=SCOOP_METHODS,
+        params={
+            "n_perturbations": 5,
+            "push_window": 800,
+            "max_steps": 5000,
+            "magnitude": 16.0,
+            "demos": "drawn",
+            "ds_eps": 1.0,
+            "plot_seeds": 2,
+        },
+        trials_param="n_perturbations",
+        default_seeds=10,
+        references=(Reference("success", 100.0, env=SCOOP_ENV, method="ltl-ds+mod", source="thesis 3.7.2 (10/10)"),),
+        quick={"max_steps": 3000, "plot_seeds": 1},
+        quick_seeds=2,
+        plot=_plot_scoop,
+    )
+)
+
+
+# ----------------------------------------------------------------- tli-ds-fit
+def run_ds_fit_trial(trial: Trial) -> dict[str, float]:
+    """Wall time of one LPV-DS fit of ``n_demos`` x ``n_points`` curved 2D demonstrations."""
+    from steer_envs.baselines.ds import benchmark_fit_time
+
+    with single_threaded():
+        out = benchmark_fit_time(int(trial.params["n_demos"]), int(trial.params["n_points"]), seed=trial.seed)
+    return {k: float(out[k]) for k in ("fit_seconds", "n_components", "worst_margin")}
+
+
+TLI_DS_FIT = register_suite(
+    Suite(
+        name="tli-ds-fit",
+        description="LPV-DS fit time of 3 demos x 200 points in 2D (issue target < 5 s) and its stability margin.",
+        metrics=(
+            Metric(
+                "fit_seconds", "LPV-DS fit wall time (s)", kind="timing", higher_is_better=False, fmt=".2f", goal=5.0
+            ),
+            Metric("n_components", "GMM components chosen by BIC", fmt=".0f"),
+            Metric("worst_margin", "max eig of A_k^T P + P A_k (must be < 0)", higher_is_better=False, fmt=".2g"),
+        ),
+        run_trial=run_ds_fit_trial,
+        params={"n_demos": 3, "n_points": 200},
+        default_seeds=3,
+        quick={"n_points": 200},
+        quick_seeds=1,
+    )
+)
