@@ -1,0 +1,446 @@
+"""GLiDE on PolygonNav as pure trial functions (for the ``glide-polygon*`` steer-bench suites).
+
+* :func:`grounding_trial` -- learn the modes of one PolygonNav layout with one
+  variant (the full loss, or an ablation: no counterfactuals, a wrong
+  feasibility matrix, no prediction loss, k-means++) and measure the overlap
+  of the learned modes with the ground truth on a 200 x 200 grid.
+* :func:`policy_trial` -- success rate of BC, GLiDE+BC or GLiDE+Planning over
+  ``n_rollouts`` episodes, with or without the evaluation perturbations
+  (glide.md: after the first mode change, with probability 0.03 per step, at
+  least 100 steps apart and at most 3 times per episode, the agent is
+  teleported to a uniform free-space point).
+
+Both return plain JSON-able dicts and are deterministic given their
+arguments. Trained classifiers and data sets can be cached in ``cache_dir``
+(safetensors / npz, written atomically) so the perturbed and unperturbed
+columns of a table reuse one classifier.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import steer_envs  # noqa: F401  (registers the envs)
+from steer_envs.baselines.glide import (
+    GlideLossWeights,
+    GlideTrainConfig,
+    ModeClassifier,
+    ModePredictor,
+    mode_iou,
+    mode_overlap,
+    train_mode_classifier,
+    workspace_grid,
+)
+from steer_envs.baselines.mode_policies import BCConfig, BCPolicy, GlideBCPolicy, GlidePlanningPolicy, PlannerConfig
+from steer_envs.baselines.segmentation_kmeans import KMeansSegmentation
+from steer_envs.data.counterfactual_dataset import CounterfactualDataset, build_counterfactual_dataset
+from steer_envs.data.demos import Demonstration, collect_demonstrations
+
+VARIANTS: tuple[str, ...] = ("full", "no_counterfactuals", "wrong_feasibility", "no_prediction_loss", "kmeans")
+METHODS: tuple[str, ...] = ("bc", "glide_bc", "glide_planning")
+ENV_IDS: tuple[str, ...] = tuple(f"steer_envs/PolygonNav-{k}Mode-v0" for k in (3, 4, 5))
+
+#: thesis Table 4.1 (success rates; "+perturb" in brackets there).
+THESIS_TABLE_4_1: dict[str, dict[int, tuple[float, float]]] = {
+    "bc": {3: (0.967, 0.908), 4: (0.814, 0.614), 5: (0.810, 0.596)},
+    "glide_bc": {3: (0.963, 0.887), 4: (0.892, 0.753), 5: (0.893, 0.753)},
+    "glide_planning": {3: (0.996, 0.996), 4: (0.987, 0.966), 5: (0.991, 0.974)},
+}
+
+
+@dataclass(frozen=True)
+class GlideSetup:
+    """Everything a trial depends on besides (env, layout, variant/method, seed)."""
+
+    n_demos: int = 7
+    n_success: int = 500
+    n_failure: int = 500
+    kind: str = "segment"
+    execution: str = "jump"
+    feasibility_convention: str = "shortest_path"
+    weights: GlideLossWeights = field(default_factory=GlideLossWeights)
+    train: GlideTrainConfig = field(default_factory=GlideTrainConfig)
+    bc: BCConfig = field(default_factory=BCConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    grid_resolution: int = 200
+
+    def key(self, *parts: Any) -> str:
+        """A short hash of this setup and ``parts`` (cache file names)."""
+        fields = asdict(self)
+        for name in ("num_threads", "progress"):  # how it runs, not what it computes
+            fields["train"].pop(name, None)
+            fields["bc"].pop(name, None)
+        blob = json.dumps([fields, [str(p) for p in parts]], sort_keys=True, default=str)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class PerturbationSchedule:
+    """Evaluation perturbations (glide.md): teleports to uniform free-space points."""
+
+    probability: float = 0.03
+    min_gap: int = 100
+    max_count: int = 3
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.probability <= 1:
+            raise ValueError(f"probability must be in [0, 1], got {self.probability!r}")
+        if self.min_gap < 0 or self.max_count < 0:
+            raise ValueError("min_gap and max_count must be >= 0")
+
+
+# ------------------------------------------------------------------------------ helpers
+def _check_env_id(env_id: str) -> int:
+    if env_id not in ENV_IDS:
+        raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
+    return int(env_id.split("-")[1][0])
+
+
+def _check_int(name: str, value: Any, low: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+    return int(value)
+
+
+def demonstrations(env_id: str, layout_seed: int, n: int, seed: int) -> list[Demonstration]:
+    """``n`` expert demos of one layout; demo start states are drawn from ``seed``."""
+    return collect_demonstrations(env_id, n, seed=1000 * int(seed), layout_seed=int(layout_seed))
+
+
+def counterfactual_data(
+    env_id: str,
+    layout_seed: int,
+    seed: int,
+    setup: GlideSetup,
+    demos: Sequence[Demonstration],
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> CounterfactualDataset:
+    """The balanced perturbation data set of one (env, layout, seed), cached when ``cache_dir`` is set."""
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"glide-data-{setup.key(env_id, layout_seed, seed, 'data')}.npz"
+        if path.exists():
+            return CounterfactualDataset.load(path)
+    data = build_counterfactual_dataset(
+        env_id,
+        [d.states for d in demos],
+        n_success=setup.n_success,
+        n_failure=setup.n_failure,
+        kind=setup.kind,
+        execution=setup.execution,
+        seed=int(seed),
+        layout_seed=int(layout_seed),
+    )
+    if path is not None:
+        data.save(path)
+    return data
+
+
+def feasibility_for(env_id: str, layout_seed: int, variant: str, convention: str) -> np.ndarray:
+    """The feasibility matrix a variant trains with (``wrong_feasibility``: a plan one mode short)."""
+    env = gym.make(env_id, layout_seed=int(layout_seed))
+    try:
+        feas = env.unwrapped.task.feasibility_matrix(convention)  # type: ignore[attr-defined]
+    finally:
+        env.close()
+    return feas[:-1, :-1] if variant == "wrong_feasibility" else feas
+
+
+@dataclass
+class Grounding:
+    """A learned grounding (classifier or baseline) and how it was made."""
+
+    predictor: ModePredictor
+    demos: list[Demonstration]
+    info: dict[str, Any]
+
+
+def learn_grounding(
+    env_id: str,
+    layout_seed: int,
+    variant: str,
+    seed: int,
+    *,
+    setup: GlideSetup | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> Grounding:
+    """Demos -> (perturbation data) -> classifier for one variant (cached in ``cache_dir``)."""
+    k = _check_env_id(env_id)
+    if variant not in VARIANTS:
+        raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
+    layout_seed, seed = _check_int("layout_seed", layout_seed), _check_int("seed", seed)
+    setup = setup or GlideSetup()
+    demos = demonstrations(env_id, layout_seed, setup.n_demos, seed)
+    info: dict[str, Any] = {"n_demos": len(demos), "data_seconds": 0.0, "train_seconds": 0.0}
+    if variant == "kmeans":
+        start = time.perf_counter()
+        km = KMeansSegmentation(k, seed=seed).fit([d.states for d in demos])
+        info["train_seconds"] = time.perf_counter() - start
+        return Grounding(km, demos, info)
+    weights = setup.weights.without("succ", "fail") if variant == "no_prediction_loss" else setup.weights
+    feas = feasibility_for(env_id, layout_seed, variant, setup.feasibility_convention)
+    train_config = GlideTrainConfig(**{**asdict(setup.train), "seed": seed})
+    cache = None
+    if cache_dir is not None:
+        cache = Path(cache_dir) / f"glide-clf-{setup.key(env_id, layout_seed, seed, variant)}.safetensors"
+        if cache.exists():
+            clf = ModeClassifier.load(cache)
+            meta = clf_meta(cache)
+            return Grounding(clf, demos, {**info, **meta, "cached": True})
+    if variant == "no_counterfactuals":
+        trajectories = [d.states for d in demos]
+        labels = np.ones(len(demos), dtype=bool)
+    else:
+        start = time.perf_counter()
+        data = counterfactual_data(env_id, layout_seed, seed, setup, demos, cache_dir)
+        info["data_seconds"] = time.perf_counter() - start
+        info["raw_success_rate"] = data.meta.get("raw_success_rate")
+        trajectories, labels = data.trajectories(), data.success
+    load = os.getloadavg()[0]
+    result = train_mode_classifier(trajectories, labels, feas, weights=weights, config=train_config)
+    info.update(
+        train_seconds=result.seconds,
+        load_avg=[load, os.getloadavg()[0]],
+        head_losses=result.head_losses,
+        best_head=result.classifier.head,
+        n_trajectories=len(trajectories),
+        num_modes_trained=int(feas.shape[0]),
+    )
+    if cache is not None:
+        result.classifier.save(cache, extra=info)
+    return Grounding(result.classifier, demos, info)
+
+
+def clf_meta(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The training info stored with a cached classifier."""
+    from safetensors import safe_open
+
+    with safe_open(str(path), framework="pt") as fh:
+        meta = json.loads((fh.metadata() or {})["glide_classifier"])
+    return dict(meta.get("extra", {}))
+
+
+# ------------------------------------------------------------------------------- trials
+def grounding_trial(
+    env_id: str,
+    layout_seed: int,
+    variant: str,
+    seed: int,
+    *,
+    setup: GlideSetup | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> dict[str, Any]:
+    """Overlap of one variant's learned modes with the ground truth (200 x 200 grid).
+
+    Also reports the per-mode IoU (free space dominates the grid, so overlap
+    alone is lenient: ``all_free_overlap`` is what labelling everything free
+    scores), training time and the CPU load average around training.
+    """
+    setup = setup or GlideSetup()
+    k = _check_env_id(env_id)
+    grounding = learn_grounding(env_id, layout_seed, variant, seed, setup=setup, cache_dir=cache_dir)
+    env = gym.make(env_id, layout_seed=int(layout_seed))
+    model = env.unwrapped.model  # type: ignore[attr-defined]
+    env.close()
+    grid = workspace_grid(model.low, model.high, setup.grid_resolution)
+    truth = model.mode_of(grid)
+    pred = np.asarray(grounding.predictor.predict(grid))
+    iou = mode_iou(pred, truth, k)
+    return {
+        "env_id": env_id,
+        "num_modes": k,
+        "layout_seed": int(layout_seed),
+        "variant": variant,
+        "seed": int(seed),
+        "overlap": mode_overlap(pred, truth),
+        "mean_iou": float(iou.mean()),
+        "iou": [float(v) for v in iou],
+        "all_free_overlap": mode_overlap(np.zeros_like(truth), truth),
+        **grounding.info,
+    }
+
+
+def make_policy(
+    method: str,
+    env_id: str,
+    layout_seed: int,
+    seed: int,
+    *,
+    setup: GlideSetup | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> tuple[Any, dict[str, Any]]:
+    """A trained policy (BC, GLiDE+BC or GLiDE+Planning) and its training info."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    setup = setup or GlideSetup()
+    k = _check_env_id(env_id)
+    env = gym.make(env_id, layout_seed=int(layout_seed))
+    base = env.unwrapped
+    max_speed, low, high = float(base.max_speed * base.dt), base.model.low, base.model.high  # type: ignore[attr-defined]
+    env.close()
+    if method == "bc":
+        demos = demonstrations(env_id, layout_seed, setup.n_demos, seed)
+        states = np.concatenate([d.states[:-1] for d in demos])
+        actions = np.concatenate([d.actions for d in demos])
+        start = time.perf_counter()
+        policy = BCPolicy(states, actions, max_speed=max_speed, seed=seed, config=setup.bc)
+        return policy, {"train_seconds": time.perf_counter() - start}
+    grounding = learn_grounding(env_id, layout_seed, "full", seed, setup=setup, cache_dir=cache_dir)
+    demos = grounding.demos
+    info = dict(grounding.info)
+    if method == "glide_bc":
+        policy = GlideBCPolicy(
+            grounding.predictor,
+            [d.states for d in demos],
+            [d.actions for d in demos],
+            k,
+            max_speed=max_speed,
+            seed=seed,
+            config=setup.bc,
+        )
+    else:
+        policy = GlidePlanningPolicy(
+            grounding.predictor,
+            [d.states for d in demos],
+            k,
+            low=low,
+            high=high,
+            max_speed=max_speed,
+            seed=seed,
+            config=setup.planner,
+        )
+    return policy, info
+
+
+def evaluate_policy(
+    policy: Any,
+    env_id: str,
+    layout_seed: int,
+    *,
+    n_rollouts: int,
+    perturbed: bool,
+    seed: int,
+    schedule: PerturbationSchedule | None = None,
+) -> dict[str, Any]:
+    """Run ``n_rollouts`` episodes at once in the vector env; success = the env's success flag."""
+    n = _check_int("n_rollouts", n_rollouts, 1)
+    schedule = schedule or PerturbationSchedule()
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", layout_seed=int(layout_seed))
+    try:
+        model = venv.unwrapped.model  # type: ignore[attr-defined]
+        horizon = int(venv.unwrapped.max_episode_steps)  # type: ignore[attr-defined]
+        obs, info = venv.reset(seed=int(seed))
+        rng = np.random.default_rng([int(seed), 7])
+        policy.reset()
+        done = np.zeros(n, dtype=bool)
+        success = np.zeros(n, dtype=bool)
+        violation = np.zeros(n, dtype=bool)
+        left_start = np.zeros(n, dtype=bool)
+        start_mode = np.asarray(info["mode"]).copy()
+        last_push = np.full(n, -(10**9))
+        pushes = np.zeros(n, dtype=np.int64)
+        steps = np.zeros(n, dtype=np.int64)
+        for t in range(horizon):
+            action = np.asarray(policy.act(np.asarray(obs, dtype=np.float64)), dtype=np.float32)
+            action[done] = 0.0
+            obs, _, terminated, truncated, info = venv.step(action)
+            live = ~done
+            violation |= live & np.asarray(info["constraint_violation"], dtype=bool)
+            ended = live & (np.asarray(terminated) | np.asarray(truncated))
+            success |= ended & np.asarray(info["success"], dtype=bool)
+            steps[live] += 1
+            done |= ended
+            if done.all():
+                break
+            left_start |= ~done & (np.asarray(info["mode"]) != start_mode)
+            if perturbed:
+                push = (
+                    ~done
+                    & left_start
+                    & (t - last_push >= schedule.min_gap)
+                    & (pushes < schedule.max_count)
+                    & (rng.random(n) < schedule.probability)
+                )
+                if push.any():
+                    targets = model.sample_start(rng, n)
+                    venv.unwrapped.perturb(targets, push)  # type: ignore[attr-defined]
+                    obs = np.where(push[:, None], targets.astype(np.float32), obs)
+                    last_push[push] = t
+                    pushes[push] += 1
+    finally:
+        venv.close()
+    return {
+        "success_rate": float(success.mean()),
+        "n_success": int(success.sum()),
+        "violation_rate": float(violation.mean()),
+        "perturbations": int(pushes.sum()),
+        "perturbed_episodes": int((pushes > 0).sum()),
+        "mean_steps": float(steps.mean()),
+    }
+
+
+def policy_trial(
+    env_id: str,
+    layout_seed: int,
+    method: str,
+    perturbed: bool,
+    n_rollouts: int,
+    seed: int,
+    *,
+    setup: GlideSetup | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> dict[str, Any]:
+    """Success rate of one method on one layout (thesis Table 4.1 cell; ``seed`` seeds training and rollouts)."""
+    k = _check_env_id(env_id)
+    if not isinstance(perturbed, (bool, np.bool_)):
+        raise TypeError(f"perturbed must be a bool, got {type(perturbed).__name__}")
+    seed = _check_int("seed", seed)
+    policy, info = make_policy(method, env_id, layout_seed, seed, setup=setup, cache_dir=cache_dir)
+    start = time.perf_counter()
+    result = evaluate_policy(policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=bool(perturbed), seed=seed)
+    thesis = THESIS_TABLE_4_1[method][k][1 if perturbed else 0]
+    out = {
+        "env_id": env_id,
+        "num_modes": k,
+        "layout_seed": int(layout_seed),
+        "method": method,
+        "perturbed": bool(perturbed),
+        "n_rollouts": int(n_rollouts),
+        "seed": seed,
+        **result,
+        "thesis_success_rate": thesis,
+        "eval_seconds": time.perf_counter() - start,
+        "train_seconds": info.get("train_seconds", 0.0),
+    }
+    if isinstance(policy, GlidePlanningPolicy):
+        out["planner_calls"] = dict(policy.stats)
+    return out
+
+
+__all__ = [
+    "ENV_IDS",
+    "METHODS",
+    "THESIS_TABLE_4_1",
+    "VARIANTS",
+    "GlideSetup",
+    "Grounding",
+    "PerturbationSchedule",
+    "counterfactual_data",
+    "demonstrations",
+    "evaluate_policy",
+    "feasibility_for",
+    "grounding_trial",
+    "learn_grounding",
+    "make_policy",
+    "policy_trial",
+]

@@ -1,0 +1,545 @@
+"""Policies for GLiDE's 2D navigation study (thesis §4.2 "Mode-based motion generation", Table 4.1).
+
+All policies are batched: ``act(states (N, 2)) -> velocities (N, 2)`` for the
+``N`` agents of a vector env, and ``reset(mask)`` forgets the per-agent plan of
+the agents whose episodes restart.
+
+* :class:`BCPolicy` -- mode-agnostic behaviour cloning: one MLP ``pi(a | s)``
+  fitted to every (state, action) pair of the successful demonstrations.
+* :class:`GlideBCPolicy` -- GLiDE+BC: the mode classifier segments the demos,
+  one BC MLP per mode, sequenced by the classifier's current mode, plus a
+  pseudo-attractor (the mean state where the demos enter the next mode) that
+  pulls the agent back toward the demonstrations when it is farther from the
+  attractor than the demos ever were.
+* :class:`GlidePlanningPolicy` -- GLiDE+Planning: a waypoint per mode (mean
+  first-entry state of the mode in the segmented demos); from mode ``k`` the
+  agent moves to the waypoint of mode ``k + 1`` staying inside the learned
+  modes ``{k, k + 1}`` (the only transition it then makes is the allowed
+  ``k -> k + 1``): a straight line where the learned modes allow it (always,
+  inside a convex polygon that borders the next one), otherwise an RRT path
+  in the non-convex learned region (free space), and an attractive/repulsive
+  potential field when the RRT finds nothing. Collision checks read the
+  classifier's labels on a fine grid, computed once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import ndimage
+from torch import nn
+
+from steer_envs.baselines.glide import ModePredictor
+
+
+# --------------------------------------------------------------------------------- BC
+class _MLP(nn.Module):
+    def __init__(self, dim_in: int, dim_out: int, hidden: Sequence[int]) -> None:
+        super().__init__()
+        layers: list[nn.Module] = []
+        last = dim_in
+        for h in hidden:
+            layers += [nn.Linear(last, h), nn.ReLU()]
+            last = h
+        layers.append(nn.Linear(last, dim_out))
+        self.net = nn.Sequential(*layers)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
+def _check_pairs(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    s = np.asarray(states, dtype=np.float32)
+    a = np.asarray(actions, dtype=np.float32)
+    if s.ndim != 2 or a.ndim != 2 or len(s) != len(a) or len(s) == 0:
+        raise ValueError(f"states and actions must be (N, d) and (N, a) with N >= 1, got {s.shape} and {a.shape}")
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(a))):
+        raise ValueError("states and actions must be finite")
+    return s, a
+
+
+@dataclass(frozen=True)
+class BCConfig:
+    """Training settings of the BC MLPs (Adam, MSE on actions scaled by ``max_speed``)."""
+
+    hidden: tuple[int, ...] = (128, 128)
+    steps: int = 1500
+    batch_size: int = 256
+    lr: float = 1e-3
+    num_threads: int = 1
+
+    def __post_init__(self) -> None:
+        if self.num_threads < 1:
+            raise ValueError(f"num_threads must be a positive int, got {self.num_threads!r}")
+        if self.steps < 1 or self.batch_size < 1 or not self.hidden or min(self.hidden) < 1:
+            raise ValueError("steps, batch_size and hidden sizes must be positive")
+        if not (np.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be a positive float, got {self.lr!r}")
+
+
+class BCPolicy:
+    """Behaviour cloning: an MLP from state to velocity, clipped to ``max_speed``.
+
+    Args:
+        states, actions: demonstration pairs ``(N, d)``, ``(N, 2)``.
+        max_speed: the env's speed limit (actions are learned in units of it).
+        seed: seeds the initial weights and the minibatches.
+        config: training settings.
+    """
+
+    def __init__(
+        self,
+        states: np.ndarray,
+        actions: np.ndarray,
+        *,
+        max_speed: float,
+        seed: int = 0,
+        config: BCConfig | None = None,
+    ) -> None:
+        s, a = _check_pairs(states, actions)
+        if not (np.isfinite(max_speed) and max_speed > 0):
+            raise ValueError(f"max_speed must be a positive float, got {max_speed!r}")
+        self.config = config or BCConfig()
+        self.max_speed = float(max_speed)
+        self.mean = s.mean(0)
+        self.scale = np.maximum(s.std(0), 1e-6)
+        gen = torch.Generator().manual_seed(int(seed))
+        torch_state = torch.random.get_rng_state()
+        torch.manual_seed(int(seed))
+        self.net = _MLP(s.shape[1], a.shape[1], self.config.hidden)
+        torch.random.set_rng_state(torch_state)
+        x = torch.from_numpy((s - self.mean) / self.scale)
+        y = torch.from_numpy(a / self.max_speed)
+        opt = torch.optim.Adam(self.net.parameters(), lr=self.config.lr)
+        threads = torch.get_num_threads()
+        torch.set_num_threads(self.config.num_threads)  # tiny nets: extra threads only spin
+        try:
+            for _ in range(self.config.steps):
+                idx = torch.randint(0, len(x), (min(self.config.batch_size, len(x)),), generator=gen)
+                loss = ((self.net(x[idx]) - y[idx]) ** 2).mean()
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+        finally:
+            torch.set_num_threads(threads)
+        self.net.eval()
+
+    @torch.no_grad()
+    def act(self, states: np.ndarray) -> np.ndarray:
+        """Velocities ``(N, 2)`` for states ``(N, d)`` (speed clipped to ``max_speed``)."""
+        x = torch.from_numpy((np.asarray(states, dtype=np.float32) - self.mean) / self.scale)
+        v = self.net(x).numpy().astype(np.float64) * self.max_speed
+        return _clip_speed(v, self.max_speed)
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Stateless: nothing to forget."""
+
+
+def _clip_speed(v: np.ndarray, max_speed: float) -> np.ndarray:
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v * np.minimum(1.0, max_speed / np.maximum(norm, 1e-12))
+
+
+# --------------------------------------------------------------------- segmentation
+def segment_demonstrations(classifier: ModePredictor, demos: Sequence[np.ndarray], num_modes: int) -> list[np.ndarray]:
+    """The classifier's mode of every state of every demo (``(T_i,)`` int arrays)."""
+    if len(demos) == 0:
+        raise ValueError("demos must not be empty")
+    out = []
+    for i, d in enumerate(demos):
+        arr = np.asarray(d, dtype=np.float64)
+        if arr.ndim != 2:
+            raise ValueError(f"demos[{i}] must be (T, d), got {arr.shape}")
+        modes = np.asarray(classifier.predict(arr), dtype=np.int64)
+        if np.any((modes < 0) | (modes >= num_modes)):
+            raise ValueError(f"classifier returned modes outside [0, {num_modes})")
+        out.append(modes)
+    return out
+
+
+def mode_entry_points(demos: Sequence[np.ndarray], modes: Sequence[np.ndarray], num_modes: int) -> np.ndarray:
+    """Mean first-entry state of each mode ``(K, d)`` over the demos (NaN where never entered).
+
+    Row ``k`` is the mean of the first state of each demo that is in mode ``k``
+    right after a state in another mode (GLiDE+Planning's waypoints; the
+    pseudo-attractors of GLiDE+BC).
+    """
+    dim = np.asarray(demos[0]).shape[1]
+    sums, counts = np.zeros((num_modes, dim)), np.zeros(num_modes)
+    for d, m in zip(demos, modes, strict=True):
+        d = np.asarray(d, dtype=np.float64)
+        seen: set[int] = set()
+        for t in range(1, len(m)):
+            k = int(m[t])
+            if m[t] != m[t - 1] and k not in seen:
+                seen.add(k)
+                sums[k] += d[t]
+                counts[k] += 1
+    out = np.full((num_modes, dim), np.nan)
+    ok = counts > 0
+    out[ok] = sums[ok] / counts[ok, None]
+    return out
+
+
+# --------------------------------------------------------------------------- GLiDE+BC
+class GlideBCPolicy:
+    """GLiDE+BC: per-mode BC policies chosen by the classifier, with pseudo-attractors.
+
+    Args:
+        classifier: the learned mode classifier.
+        demos: demo states ``(T_i, d)``; actions: demo actions ``(T_i - 1, 2)``.
+        num_modes: ``K``.
+        max_speed: the env's speed limit.
+        attractor_weight: ``w`` in ``(1 - w) pi_k(s) + w * (step toward the attractor)``.
+        attractor_quantile: the attractor acts only beyond this quantile of the
+            distances from mode ``k``'s demo states to its attractor.
+        seed, config: BC training.
+    """
+
+    def __init__(
+        self,
+        classifier: ModePredictor,
+        demos: Sequence[np.ndarray],
+        actions: Sequence[np.ndarray],
+        num_modes: int,
+        *,
+        max_speed: float,
+        attractor_weight: float = 0.5,
+        attractor_quantile: float = 0.9,
+        seed: int = 0,
+        config: BCConfig | None = None,
+    ) -> None:
+        if len(demos) != len(actions) or not demos:
+            raise ValueError("demos and actions must be non-empty and of equal length")
+        if not 0 <= attractor_weight <= 1:
+            raise ValueError(f"attractor_weight must be in [0, 1], got {attractor_weight!r}")
+        if not 0 < attractor_quantile <= 1:
+            raise ValueError(f"attractor_quantile must be in (0, 1], got {attractor_quantile!r}")
+        self.classifier = classifier
+        self.num_modes = int(num_modes)
+        self.max_speed = float(max_speed)
+        self.attractor_weight = float(attractor_weight)
+        modes = segment_demonstrations(classifier, demos, self.num_modes)
+        entries = mode_entry_points(demos, modes, self.num_modes)
+        states = np.concatenate([np.asarray(d, dtype=np.float64)[:-1] for d in demos])
+        acts = np.concatenate([np.asarray(a, dtype=np.float64) for a in actions])
+        state_modes = np.concatenate([m[:-1] for m in modes])
+        if len(states) != len(acts):
+            raise ValueError("every demo needs T - 1 actions for its T states")
+        self.policies: list[BCPolicy | None] = []
+        self.attractors = np.full((self.num_modes, states.shape[1]), np.nan)
+        self.thresholds = np.full(self.num_modes, np.inf)
+        for k in range(self.num_modes):
+            sel = state_modes == k
+            self.policies.append(
+                BCPolicy(states[sel], acts[sel], max_speed=max_speed, seed=seed + k, config=config)
+                if sel.sum() >= 2
+                else None
+            )
+            if k + 1 < self.num_modes and np.all(np.isfinite(entries[k + 1])):
+                self.attractors[k] = entries[k + 1]
+                if sel.any():
+                    dist = np.linalg.norm(states[sel] - entries[k + 1], axis=1)
+                    self.thresholds[k] = float(np.quantile(dist, attractor_quantile))
+
+    def act(self, states: np.ndarray) -> np.ndarray:
+        x = np.asarray(states, dtype=np.float64)
+        mode = np.asarray(self.classifier.predict(x), dtype=np.int64)
+        out = np.zeros_like(x)
+        for k in np.unique(mode):
+            sel = mode == k
+            policy = self.policies[k]
+            v = policy.act(x[sel]) if policy is not None else np.zeros((int(sel.sum()), x.shape[1]))
+            attractor = self.attractors[k]
+            if np.all(np.isfinite(attractor)):
+                delta = attractor - x[sel]
+                dist = np.linalg.norm(delta, axis=1, keepdims=True)
+                pull = delta / np.maximum(dist, 1e-12) * self.max_speed
+                far = dist[:, 0] > self.thresholds[k]
+                w = self.attractor_weight
+                v[far] = (1 - w) * v[far] + w * pull[far]
+                if policy is None:  # no demo states in this mode: the attractor alone
+                    v = pull
+            out[sel] = v
+        return _clip_speed(out, self.max_speed)
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Stateless: the mode is read from the classifier at every step."""
+
+
+# ---------------------------------------------------------------------- GLiDE+Planning
+@dataclass(frozen=True)
+class PlannerConfig:
+    """GLiDE+Planning settings (glide.md: RRT 1000 iterations, 5% goal bias; fields k_att 1, k_rep 10, d0 0.8).
+
+    ``rrt_step`` is 0.5 rather than the public 0.1: with 1000 iterations a
+    0.1-step tree does not cross a 16 x 16 workspace; the path is still
+    executed in env steps of at most ``max_speed``.
+    """
+
+    grid_resolution: float = 0.05
+    rrt_iterations: int = 1000
+    rrt_goal_bias: float = 0.05
+    rrt_step: float = 0.5
+    rrt_tolerance: float = 0.1
+    rrt_restarts: int = 3
+    k_att: float = 1.0
+    k_rep: float = 10.0
+    d0: float = 0.8
+    check_spacing: float = 0.02
+    waypoint_tolerance: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for name in ("grid_resolution", "rrt_step", "rrt_tolerance", "k_att", "d0", "check_spacing"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive float, got {v!r}")
+        if self.rrt_iterations < 1 or self.rrt_restarts < 1:
+            raise ValueError("rrt_iterations and rrt_restarts must be positive")
+        if not 0 <= self.rrt_goal_bias <= 1:
+            raise ValueError(f"rrt_goal_bias must be in [0, 1], got {self.rrt_goal_bias!r}")
+
+
+class LearnedModeMap:
+    """The classifier's mode labels on a fine grid: O(1) mode look-ups and distance fields."""
+
+    def __init__(self, classifier: ModePredictor, low: np.ndarray, high: np.ndarray, resolution: float) -> None:
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self.resolution = float(resolution)
+        self.shape = tuple(
+            int(np.ceil((h - lo) / self.resolution)) + 1 for lo, h in zip(self.low, self.high, strict=True)
+        )
+        xs = [self.low[i] + self.resolution * np.arange(self.shape[i]) for i in range(2)]
+        gx, gy = np.meshgrid(xs[0], xs[1], indexing="ij")
+        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        self.labels = np.asarray(classifier.predict(pts), dtype=np.int64).reshape(self.shape)
+        self._fields: dict[frozenset[int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ij = np.rint((np.asarray(points, dtype=np.float64) - self.low) / self.resolution).astype(np.int64)
+        ij = np.clip(ij, 0, np.array(self.shape) - 1)
+        return ij[..., 0], ij[..., 1]
+
+    def mode(self, points: np.ndarray) -> np.ndarray:
+        i, j = self.index(points)
+        return self.labels[i, j]
+
+    def inside(self, points: np.ndarray, allowed: frozenset[int]) -> np.ndarray:
+        return np.isin(self.mode(points), list(allowed))
+
+    def segment_ok(self, a: np.ndarray, b: np.ndarray, allowed: frozenset[int], spacing: float) -> bool:
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / spacing)) + 1)
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        return bool(np.all(self.inside(a + t * (b - a), allowed)))
+
+    def distance_field(self, allowed: frozenset[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance to the nearest cell outside ``allowed`` and its gradient (cached)."""
+        if allowed not in self._fields:
+            inside = np.isin(self.labels, list(allowed))
+            dist = ndimage.distance_transform_edt(inside) * self.resolution
+            gi, gj = np.gradient(dist, self.resolution)
+            self._fields[allowed] = (dist, gi, gj)
+        return self._fields[allowed]
+
+
+def rrt(
+    start: np.ndarray,
+    goal: np.ndarray,
+    valid_point: callable,  # type: ignore[valid-type]
+    valid_segment: callable,  # type: ignore[valid-type]
+    low: np.ndarray,
+    high: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    iterations: int = 1000,
+    goal_bias: float = 0.05,
+    step: float = 0.5,
+    tolerance: float = 0.1,
+) -> list[np.ndarray] | None:
+    """Rapidly-exploring random tree from ``start`` to within ``tolerance`` of ``goal`` (None if not found).
+
+    Returns the path ``[start, ..., goal]`` after greedy shortcutting.
+    """
+    nodes = [np.asarray(start, dtype=np.float64)]
+    parents = [-1]
+    pts = np.empty((iterations + 1, len(start)))
+    pts[0] = nodes[0]
+    goal = np.asarray(goal, dtype=np.float64)
+    found = -1
+    if valid_segment(nodes[0], goal):
+        return [nodes[0], goal]
+    for _ in range(iterations):
+        target = goal if rng.random() < goal_bias else rng.uniform(low, high)
+        near = int(np.argmin(np.sum((pts[: len(nodes)] - target) ** 2, axis=1)))
+        delta = target - nodes[near]
+        dist = float(np.linalg.norm(delta))
+        if dist < 1e-9:
+            continue
+        new = nodes[near] + delta * min(1.0, step / dist)
+        if not (valid_point(new) and valid_segment(nodes[near], new)):
+            continue
+        pts[len(nodes)] = new
+        nodes.append(new)
+        parents.append(near)
+        if np.linalg.norm(new - goal) <= tolerance or valid_segment(new, goal):
+            found = len(nodes) - 1
+            break
+    if found < 0:
+        return None
+    path = [goal]
+    k = found
+    while k >= 0:
+        path.append(nodes[k])
+        k = parents[k]
+    path.reverse()
+    # greedy shortcut: from each point jump to the farthest directly reachable one
+    short = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not valid_segment(path[i], path[j]):
+            j -= 1
+        short.append(path[j])
+        i = j
+    return short
+
+
+class GlidePlanningPolicy:
+    """GLiDE+Planning over the learned modes (see the module docstring).
+
+    Args:
+        classifier: the learned mode classifier.
+        demos: demo states (segmented by the classifier for the waypoints).
+        num_modes: ``K``.
+        low, high: workspace corners.
+        max_speed: the env's speed limit (one env step moves at most this far).
+        seed: seeds the RRT.
+        config: planner settings.
+    """
+
+    def __init__(
+        self,
+        classifier: ModePredictor,
+        demos: Sequence[np.ndarray],
+        num_modes: int,
+        *,
+        low: np.ndarray,
+        high: np.ndarray,
+        max_speed: float,
+        seed: int = 0,
+        config: PlannerConfig | None = None,
+    ) -> None:
+        self.config = config or PlannerConfig()
+        self.num_modes = int(num_modes)
+        self.max_speed = float(max_speed)
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self.map = LearnedModeMap(classifier, self.low, self.high, self.config.grid_resolution)
+        modes = segment_demonstrations(classifier, demos, self.num_modes)
+        self.waypoints = mode_entry_points(demos, modes, self.num_modes)
+        # a mode the demos never entered (a wrong plan, a poor classifier): aim at the demos' end
+        ends = np.mean([np.asarray(d, dtype=np.float64)[-1] for d in demos], axis=0)
+        for k in range(1, self.num_modes):
+            if not np.all(np.isfinite(self.waypoints[k])):
+                self.waypoints[k] = ends
+        self.rng = np.random.default_rng(seed)
+        self._plans: list[list[np.ndarray]] = []
+        self._plan_mode: np.ndarray = np.zeros(0, dtype=np.int64)
+        self._expected: np.ndarray = np.zeros((0, 2))
+        self.stats = {"straight": 0, "rrt": 0, "field": 0}
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Forget the plans of the agents in ``mask`` (all when None)."""
+        if mask is None:
+            self._plans = []
+            return
+        for i in np.flatnonzero(np.asarray(mask, dtype=bool)):
+            if i < len(self._plans):
+                self._plans[i] = []
+                self._plan_mode[i] = -1
+
+    def _plan(self, x: np.ndarray, mode: int) -> list[np.ndarray]:
+        goal = self.waypoints[min(mode + 1, self.num_modes - 1)]
+        allowed = frozenset({mode, min(mode + 1, self.num_modes - 1)})
+        cfg = self.config
+
+        def seg(a: np.ndarray, b: np.ndarray) -> bool:
+            return self.map.segment_ok(a, b, allowed, cfg.check_spacing)
+
+        if seg(x, goal):
+            self.stats["straight"] += 1
+            return [goal]
+        for _ in range(cfg.rrt_restarts):
+            path = rrt(
+                x,
+                goal,
+                lambda p: bool(self.map.inside(p[None, :], allowed)[0]),
+                seg,
+                self.low,
+                self.high,
+                self.rng,
+                iterations=cfg.rrt_iterations,
+                goal_bias=cfg.rrt_goal_bias,
+                step=cfg.rrt_step,
+                tolerance=cfg.rrt_tolerance,
+            )
+            if path is not None:
+                self.stats["rrt"] += 1
+                return path[1:]
+        self.stats["field"] += 1
+        return []  # potential field
+
+    def _field_step(self, x: np.ndarray, mode: int) -> np.ndarray:
+        goal = self.waypoints[min(mode + 1, self.num_modes - 1)]
+        allowed = frozenset({mode, min(mode + 1, self.num_modes - 1)})
+        dist, gi, gj = self.map.distance_field(allowed)
+        i, j = self.map.index(x[None, :])
+        d = float(dist[i[0], j[0]])
+        grad = np.array([gi[i[0], j[0]], gj[i[0], j[0]]])
+        force = self.config.k_att * (goal - x)
+        cfg = self.config
+        if 0 < d < cfg.d0:
+            force += cfg.k_rep * (1.0 / d - 1.0 / cfg.d0) / d**2 * grad
+        return force
+
+    def act(self, states: np.ndarray) -> np.ndarray:
+        x = np.asarray(states, dtype=np.float64)
+        n = len(x)
+        if len(self._plans) != n:
+            self._plans = [[] for _ in range(n)]
+            self._plan_mode = np.full(n, -1, dtype=np.int64)
+            self._expected = x.copy()
+        modes = self.map.mode(x)
+        out = np.zeros_like(x)
+        jumped = np.linalg.norm(x - self._expected, axis=1) > self.max_speed + 1e-6
+        for i in range(n):
+            m = int(modes[i])
+            if m == self.num_modes - 1:
+                continue
+            if self._plan_mode[i] != m or jumped[i]:  # new mode, or pushed: plan again
+                self._plans[i] = self._plan(x[i], m)
+                self._plan_mode[i] = m
+            plan = self._plans[i]
+            while plan and np.linalg.norm(plan[0] - x[i]) <= self.config.waypoint_tolerance:
+                plan.pop(0)
+            out[i] = plan[0] - x[i] if plan else self._field_step(x[i], m)
+        out = _clip_speed(out, self.max_speed)
+        self._expected = x + out
+        return out
+
+
+__all__ = [
+    "BCConfig",
+    "BCPolicy",
+    "GlideBCPolicy",
+    "GlidePlanningPolicy",
+    "LearnedModeMap",
+    "PlannerConfig",
+    "mode_entry_points",
+    "rrt",
+    "segment_demonstrations",
+]

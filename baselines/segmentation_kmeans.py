@@ -1,0 +1,70 @@
+"""Trajectory-segmentation baseline for GLiDE: k-means++ on demonstration states.
+
+Thesis §4.3 (Fig. 4.4e, Table 4.2 "Traj. Seg. Baseline"): cluster the states
+seen in the demonstrations into ``K`` groups with k-means++ and label any state
+by its nearest cluster centre. Clusters carry no mode index of their own, so
+they are ordered by *when* the demonstrations visit them (mean normalised
+time of their member states): the earliest cluster is mode 0, the latest mode
+``K - 1``. The baseline uses only statistical similarity, no success labels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from sklearn.cluster import KMeans
+
+
+class KMeansSegmentation:
+    """k-means++ clusters of demonstration states, numbered in temporal order.
+
+    Args:
+        num_modes: number of clusters ``K`` (the plan's number of modes).
+        seed: seeds k-means++.
+        n_init: k-means restarts (best inertia kept).
+    """
+
+    def __init__(self, num_modes: int, *, seed: int = 0, n_init: int = 10) -> None:
+        if isinstance(num_modes, bool) or not isinstance(num_modes, (int, np.integer)) or num_modes < 2:
+            raise ValueError(f"num_modes must be an int >= 2, got {num_modes!r}")
+        if isinstance(n_init, bool) or not isinstance(n_init, (int, np.integer)) or n_init < 1:
+            raise ValueError(f"n_init must be a positive int, got {n_init!r}")
+        self.num_modes = int(num_modes)
+        self.seed = int(seed)
+        self.n_init = int(n_init)
+        self.centers: np.ndarray | None = None  # (K, d), row m is mode m's centre
+
+    def fit(self, demonstrations: Sequence[np.ndarray]) -> KMeansSegmentation:
+        """Cluster the states of ``demonstrations`` (each ``(T_i, d)``) and order the clusters in time."""
+        if len(demonstrations) == 0:
+            raise ValueError("demonstrations must not be empty")
+        states, phase = [], []
+        for i, demo in enumerate(demonstrations):
+            arr = np.asarray(demo, dtype=np.float64)
+            if arr.ndim != 2 or len(arr) < 1:
+                raise ValueError(f"demonstrations[{i}] must have shape (T >= 1, d), got {arr.shape}")
+            states.append(arr)
+            phase.append(np.linspace(0.0, 1.0, len(arr)))
+        x = np.concatenate(states)
+        if len(x) < self.num_modes:
+            raise ValueError(f"need at least num_modes={self.num_modes} states, got {len(x)}")
+        t = np.concatenate(phase)
+        km = KMeans(n_clusters=self.num_modes, init="k-means++", n_init=self.n_init, random_state=self.seed)
+        labels = km.fit_predict(x)
+        mean_phase = np.array([t[labels == c].mean() if np.any(labels == c) else np.inf for c in range(self.num_modes)])
+        self.centers = km.cluster_centers_[np.argsort(mean_phase)]
+        return self
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        """Mode of each state ``(N, d) -> (N,)``: the temporal rank of its nearest centre."""
+        if self.centers is None:
+            raise RuntimeError("KMeansSegmentation.predict called before fit")
+        x = np.asarray(states, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != self.centers.shape[1]:
+            raise ValueError(f"states must have shape (N, {self.centers.shape[1]}), got {x.shape}")
+        d2 = ((x[:, None, :] - self.centers[None, :, :]) ** 2).sum(-1)
+        return d2.argmin(axis=1).astype(np.int64)
+
+
+__all__ = ["KMeansSegmentation"]

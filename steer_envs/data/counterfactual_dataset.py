@@ -1,0 +1,278 @@
+"""GLiDE training data: demonstrations plus perturbed replays labelled by task success.
+
+Layout (one ``.npz`` file, written atomically). The unit of this data set is a
+*labelled trajectory* (thesis: ``<tau_i, succ_i>``), of variable length, with a
+few per-trajectory fields; there are no actions or rewards to learn from. So it
+is stored ragged, as flat arrays plus offsets:
+
+========================  ==============  ==================================================
+key                       shape / dtype   meaning
+========================  ==============  ==================================================
+``states``                (S, d) float32  every trajectory's states, concatenated
+``modes``                 (S,) int16      the env's ground-truth mode of each state
+                                          (evaluation only; never used for training)
+``offsets``               (n + 1,) int64  trajectory ``i`` is ``states[offsets[i]:offsets[i+1]]``
+``success``               (n,) bool       the env's success check (the training label)
+``kind``                  (n,) int8       index into ``KINDS``: demo, segment, kernel, gripper
+``source``                (n,) int32      index of the demonstration it perturbs
+``window``                (n, 2) int32    X, Y (segment) / s, e (kernel) indices in the demo
+``target``                (n, d) float32  the random target Z (NaN for demos)
+``violation_step``        (n,) int32      first invalid transition (-1 if none)
+``meta``                  () str          JSON: env id, layout seed, seed, kinds, counts, version
+========================  ==============  ==================================================
+
+Why not Minari: Minari stores RL *episodes* (observations, actions, rewards,
+terminations) of an env it can re-create from its spec, as HDF5 files that it
+appends to in place under a data-set root. GLiDE's records are trajectories
+with a single success label and perturbation metadata, a few MB in all; one
+``np.load``-able file is simpler to ship, to cache per (env, layout, seed) and
+to write atomically (temp file + ``os.replace``), so a killed benchmark never
+leaves a half-written data set behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm.auto import tqdm
+
+if TYPE_CHECKING:  # the builder imports the wrapper lazily: data sits below wrappers in the layering
+    from steer_envs.wrappers.counterfactual import Replay
+
+KINDS: tuple[str, ...] = ("demo", "segment", "kernel", "gripper")
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class CounterfactualDataset:
+    """Ragged labelled trajectories (see the module docstring for the layout)."""
+
+    states: np.ndarray
+    modes: np.ndarray
+    offsets: np.ndarray
+    success: np.ndarray
+    kind: np.ndarray
+    source: np.ndarray
+    window: np.ndarray
+    target: np.ndarray
+    violation_step: np.ndarray
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.success)
+        if self.states.ndim != 2:
+            raise ValueError(f"states must be (S, d), got {self.states.shape}")
+        if self.offsets.shape != (n + 1,) or self.offsets[0] != 0 or self.offsets[-1] != len(self.states):
+            raise ValueError("offsets must have n + 1 entries from 0 to len(states)")
+        if np.any(np.diff(self.offsets) < 1):
+            raise ValueError("every trajectory must have at least one state")
+        if self.modes.shape != (len(self.states),):
+            raise ValueError(f"modes must have shape ({len(self.states)},), got {self.modes.shape}")
+        for name in ("kind", "source", "violation_step"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"{name} must have shape ({n},), got {getattr(self, name).shape}")
+        if self.window.shape != (n, 2) or self.target.shape != (n, self.states.shape[1]):
+            raise ValueError("window must be (n, 2) and target (n, d)")
+
+    # ------------------------------------------------------------- access
+    def __len__(self) -> int:
+        return len(self.success)
+
+    @property
+    def state_dim(self) -> int:
+        return int(self.states.shape[1])
+
+    def trajectory(self, i: int) -> np.ndarray:
+        """States ``(T_i, d)`` of trajectory ``i``."""
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"trajectory index {i} out of range for {len(self)} trajectories")
+        i %= len(self)
+        return self.states[self.offsets[i] : self.offsets[i + 1]]
+
+    def trajectory_modes(self, i: int) -> np.ndarray:
+        """Ground-truth modes ``(T_i,)`` of trajectory ``i`` (evaluation only)."""
+        i %= len(self)
+        return self.modes[self.offsets[i] : self.offsets[i + 1]]
+
+    def trajectories(self) -> list[np.ndarray]:
+        """All trajectories as a list of ``(T_i, d)`` arrays."""
+        return [self.trajectory(i) for i in range(len(self))]
+
+    @property
+    def is_demo(self) -> np.ndarray:
+        return self.kind == KINDS.index("demo")
+
+    def subset(self, mask: np.ndarray) -> CounterfactualDataset:
+        """The trajectories selected by a boolean mask or index array."""
+        idx = np.arange(len(self))[np.asarray(mask)]
+        parts = [np.arange(self.offsets[i], self.offsets[i + 1]) for i in idx]
+        rows = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+        lengths = np.diff(self.offsets)[idx]
+        return CounterfactualDataset(
+            states=self.states[rows],
+            modes=self.modes[rows],
+            offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+            success=self.success[idx],
+            kind=self.kind[idx],
+            source=self.source[idx],
+            window=self.window[idx],
+            target=self.target[idx],
+            violation_step=self.violation_step[idx],
+            meta=dict(self.meta),
+        )
+
+    # ---------------------------------------------------------- building
+    @classmethod
+    def from_replays(cls, replays: Sequence[Replay], meta: Mapping[str, Any] | None = None) -> CounterfactualDataset:
+        """Pack replays (demos and perturbations) into the flat layout."""
+        if len(replays) == 0:
+            raise ValueError("replays must not be empty")
+        states = np.concatenate([r.states for r in replays]).astype(np.float32)
+        lengths = np.array([len(r.states) for r in replays])
+        return cls(
+            states=states,
+            modes=np.concatenate([r.modes for r in replays]).astype(np.int16),
+            offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+            success=np.array([r.success for r in replays], dtype=bool),
+            kind=np.array([KINDS.index(r.reference.kind) for r in replays], dtype=np.int8),
+            source=np.array([r.reference.source for r in replays], dtype=np.int32),
+            window=np.array([r.reference.window for r in replays], dtype=np.int32).reshape(-1, 2),
+            target=np.array([r.reference.target for r in replays], dtype=np.float32).reshape(len(replays), -1),
+            violation_step=np.array([r.violation_step for r in replays], dtype=np.int32),
+            meta=dict(meta or {}),
+        )
+
+    # -------------------------------------------------------------- files
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the data set to ``path`` (``.npz``) atomically (temp file + ``os.replace``)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            raise ValueError(f"path must end in .npz, got {str(path)!r}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {**dict(self.meta), "format_version": FORMAT_VERSION, "kinds": list(KINDS)}
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(
+                    fh,
+                    states=self.states,
+                    modes=self.modes,
+                    offsets=self.offsets,
+                    success=self.success,
+                    kind=self.kind,
+                    source=self.source,
+                    window=self.window,
+                    target=self.target,
+                    violation_step=self.violation_step,
+                    meta=np.array(json.dumps(meta, sort_keys=True)),
+                )
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> CounterfactualDataset:
+        """Read a data set written by :meth:`save` (no pickle)."""
+        with np.load(Path(path), allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta.get("format_version") != FORMAT_VERSION:
+                raise ValueError(f"{path}: unsupported format_version {meta.get('format_version')!r}")
+            arrays = {k: data[k] for k in data.files if k != "meta"}
+        return cls(**arrays, meta=meta)
+
+
+def build_counterfactual_dataset(
+    env_id: str,
+    demos: Sequence[np.ndarray],
+    *,
+    n_success: int = 500,
+    n_failure: int = 500,
+    kind: str | Sequence[str] | Mapping[str, float] = "segment",
+    execution: str = "jump",
+    seed: int = 0,
+    batch_size: int = 512,
+    max_replays: int = 50_000,
+    max_episode_steps: int = 5000,
+    progress: bool = False,
+    **make_kwargs: Any,
+) -> CounterfactualDataset:
+    """Demos plus a balanced set of perturbed replays (``n_success`` + ``n_failure``).
+
+    The env is made with ``terminate_on_violation=False`` so failed replays run
+    to the end of the perturbed demo, like the thesis's trajectories (whose
+    first and last states are the demo's), and with a step limit long enough
+    for every detour. Replays are drawn in seeded batches until both quotas are
+    filled (surplus of the more frequent outcome is dropped in draw order).
+    The demos are replayed too (kind ``"demo"``) and must all succeed.
+    """
+    for name, v in (("n_success", n_success), ("n_failure", n_failure)):
+        if not isinstance(v, (int, np.integer)) or v < 0:
+            raise ValueError(f"{name} must be an int >= 0, got {v!r}")
+    if not isinstance(max_replays, (int, np.integer)) or max_replays < 1:
+        raise ValueError(f"max_replays must be a positive int, got {max_replays!r}")
+    if len(demos) == 0:
+        raise ValueError("demos must hold at least one demonstration")
+    from steer_envs.wrappers.counterfactual import CounterfactualPerturbationWrapper
+
+    env = gym.make(env_id, terminate_on_violation=False, max_episode_steps=max_episode_steps, **make_kwargs)
+    wrapper = CounterfactualPerturbationWrapper(env, kind, execution=execution)  # type: ignore[arg-type]
+    try:
+        demo_replays = wrapper.replay_batch([wrapper.unperturbed(d, source=i) for i, d in enumerate(demos)])
+        failed = [i for i, r in enumerate(demo_replays) if not r.success]
+        if failed:
+            raise ValueError(f"demos {failed} do not succeed when replayed in {env_id}")
+        paths = [r.states for r in demo_replays]
+        rng = np.random.default_rng(seed)
+        succ: list[Replay] = []
+        fail: list[Replay] = []
+        drawn = raw_success = raw_total = 0
+        with tqdm(total=n_success + n_failure, desc=f"counterfactuals {env_id}", disable=not progress) as bar:
+            while len(succ) < n_success or len(fail) < n_failure:
+                if drawn >= max_replays:
+                    raise RuntimeError(
+                        f"only {len(succ)} successes / {len(fail)} failures after {drawn} replays "
+                        f"(wanted {n_success} / {n_failure})"
+                    )
+                sources = rng.integers(0, len(paths), size=batch_size)
+                refs = [wrapper.sample(paths[s], rng, source=int(s)) for s in sources]
+                drawn += len(refs)
+                before = len(succ) + len(fail)
+                for r in wrapper.replay_batch(refs):
+                    if r.truncated:
+                        continue
+                    raw_total += 1
+                    raw_success += int(r.success)
+                    if r.success and len(succ) < n_success:
+                        succ.append(r)
+                    elif not r.success and len(fail) < n_failure:
+                        fail.append(r)
+                bar.update(len(succ) + len(fail) - before)
+    finally:
+        env.close()
+    meta = {
+        "env_id": env_id,
+        "make_kwargs": {k: v for k, v in make_kwargs.items() if isinstance(v, (int, float, str, bool))},
+        "seed": int(seed),
+        "kind": wrapper.kind_weights,
+        "execution": execution,
+        "n_demos": len(demo_replays),
+        "n_success": len(succ),
+        "n_failure": len(fail),
+        "replays_drawn": drawn,
+        "raw_success_rate": raw_success / max(raw_total, 1),
+    }
+    return CounterfactualDataset.from_replays([*demo_replays, *succ, *fail], meta)
+
+
+__all__ = ["KINDS", "CounterfactualDataset", "build_counterfactual_dataset"]

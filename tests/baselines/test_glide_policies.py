@@ -1,0 +1,163 @@
+"""GLiDE mode-based policies, the evaluation protocol and the boundary plots."""
+
+from __future__ import annotations
+
+import itertools
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import steer_envs  # noqa: F401
+from steer_envs.baselines.glide_plots import plot_groundings
+from steer_envs.baselines.glide_protocol import (
+    GlideSetup,
+    PerturbationSchedule,
+    demonstrations,
+    evaluate_policy,
+    grounding_trial,
+)
+from steer_envs.baselines.mode_policies import (
+    BCConfig,
+    BCPolicy,
+    GlideBCPolicy,
+    GlidePlanningPolicy,
+    LearnedModeMap,
+    mode_entry_points,
+    rrt,
+    segment_demonstrations,
+)
+
+ENV_ID = "steer_envs/PolygonNav-4Mode-v0"
+
+
+class _Oracle:
+    """The ground-truth modes as a 'classifier' (isolates the policies from learning)."""
+
+    def __init__(self, model: object) -> None:
+        self.model = model
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        return self.model.mode_of(np.asarray(states, dtype=np.float64))  # type: ignore[attr-defined]
+
+
+@pytest.fixture(scope="module")
+def setting() -> tuple[object, list]:
+    env = gym.make(ENV_ID, layout_seed=0)
+    model = env.unwrapped.model
+    env.close()
+    return model, demonstrations(ENV_ID, 0, 5, 0)
+
+
+def test_bc_fits_a_velocity_field() -> None:
+    rng = np.random.default_rng(0)
+    states = rng.uniform(-1, 1, (400, 2))
+    actions = -0.1 * states / np.maximum(np.linalg.norm(states, axis=1, keepdims=True), 1.0)
+    policy = BCPolicy(states, actions, max_speed=0.1, seed=0, config=BCConfig(steps=600))
+    pred = policy.act(states)
+    assert np.mean(np.linalg.norm(pred - actions, axis=1)) < 0.02
+    assert np.all(np.linalg.norm(policy.act(rng.uniform(-9, 9, (50, 2))), axis=1) <= 0.1 + 1e-9)
+    with pytest.raises(ValueError, match="states and actions"):
+        BCPolicy(states, actions[:-1], max_speed=0.1)
+
+
+def test_segmentation_and_entry_points(setting: tuple) -> None:
+    model, demos = setting
+    modes = segment_demonstrations(_Oracle(model), [d.states for d in demos], 4)
+    agree = np.mean(np.concatenate([m == d.modes for d, m in zip(demos, modes, strict=True)]))
+    assert agree > 0.99  # float32 observations vs float64 env state at the boundaries
+    entries = mode_entry_points([d.states for d in demos], modes, 4)
+    assert np.all(np.isnan(entries[0]))  # the demos start in free space: never *entered*
+    np.testing.assert_array_equal(model.mode_of(entries[1:]), [1, 2, 3])
+
+
+def test_rrt_goes_around_an_obstacle() -> None:
+    def free(p: np.ndarray) -> bool:
+        return not (abs(p[0]) < 1 and p[1] > -3)  # a wall at x in (-1, 1) open below y = -3
+
+    def seg(a: np.ndarray, b: np.ndarray) -> bool:
+        return all(free(a + t * (b - a)) for t in np.linspace(0, 1, 60))
+
+    path = rrt(
+        np.array([-3.0, 2.0]), np.array([3.0, 2.0]), free, seg, np.full(2, -5.0), np.full(2, 5.0),
+        np.random.default_rng(0), iterations=3000, step=0.5,
+    )  # fmt: skip
+    assert path is not None
+    np.testing.assert_array_equal(path[-1], [3.0, 2.0])
+    assert all(seg(a, b) for a, b in itertools.pairwise(path))
+    assert min(p[1] for p in path) < -3  # it went under the wall
+
+
+def test_learned_mode_map_reads_the_classifier_on_a_grid(setting: tuple) -> None:
+    model, _ = setting
+    grid_map = LearnedModeMap(_Oracle(model), model.low, model.high, 0.1)
+    pts = np.random.default_rng(0).uniform(-8, 8, (500, 2))
+    agree = np.mean(grid_map.mode(pts) == model.mode_of(pts))
+    assert agree > 0.97  # up to the grid resolution at the boundaries
+    dist, _, _ = grid_map.distance_field(frozenset({0}))
+    assert dist.shape == grid_map.shape and dist.max() > 1.0
+
+
+def test_planning_on_the_true_modes_solves_the_task_and_resists_pushes(setting: tuple) -> None:
+    model, demos = setting
+    policy = GlidePlanningPolicy(
+        _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
+    )
+    clean = evaluate_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=False, seed=1)
+    assert clean["success_rate"] >= 0.95 and clean["violation_rate"] == 0.0
+    pushed = evaluate_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=True, seed=1)
+    assert pushed["perturbed_episodes"] > 10
+    assert pushed["perturbations"] <= 3 * 40
+    assert pushed["violation_rate"] == 0.0  # pushes are not the agent's transitions; the planner makes none
+    assert pushed["success_rate"] >= 0.8
+
+
+def test_glide_bc_runs_one_policy_per_mode(setting: tuple) -> None:
+    model, demos = setting
+    policy = GlideBCPolicy(
+        _Oracle(model),
+        [d.states for d in demos],
+        [d.actions for d in demos],
+        4,
+        max_speed=0.1,
+        seed=0,
+        config=BCConfig(steps=200),
+    )
+    assert sum(p is not None for p in policy.policies) >= 3
+    assert np.all(np.isfinite(policy.attractors[:3]))
+    v = policy.act(np.random.default_rng(0).uniform(-8, 8, (30, 2)))
+    assert v.shape == (30, 2) and np.all(np.linalg.norm(v, axis=1) <= 0.1 + 1e-9)
+
+
+def test_perturbation_schedule_validates() -> None:
+    with pytest.raises(ValueError, match="probability"):
+        PerturbationSchedule(probability=2.0)
+
+
+def test_grounding_trial_reports_overlap_for_cheap_variants(tmp_path: object) -> None:
+    setup = GlideSetup(n_demos=4)
+    km = grounding_trial("steer_envs/PolygonNav-3Mode-v0", 0, "kmeans", 0, setup=setup)
+    assert km["variant"] == "kmeans" and 0 <= km["overlap"] <= 1 and len(km["iou"]) == 3
+    assert km["overlap"] < km["all_free_overlap"]  # the thesis's point: clustering is not grounding
+    with pytest.raises(ValueError, match="variant"):
+        grounding_trial("steer_envs/PolygonNav-3Mode-v0", 0, "oracle", 0)
+    with pytest.raises(ValueError, match="env_id"):
+        grounding_trial("steer_envs/PolygonNav-9Mode-v0", 0, "kmeans", 0)
+
+
+def test_plot_writes_a_png_atomically(setting: tuple, tmp_path: object) -> None:
+    model, demos = setting
+    path = plot_groundings(
+        model,
+        {"oracle": _Oracle(model)},
+        tmp_path / "modes.png",  # type: ignore[operator]
+        resolution=40,
+        trajectories=[d.states for d in demos],
+        title="PolygonNav-4Mode",
+    )
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [p.name for p in path.parent.iterdir()] == ["modes.png"]
+    with pytest.raises(ValueError, match=r"\.png"):
+        plot_groundings(model, {}, tmp_path / "modes.jpg")  # type: ignore[operator]
+    with pytest.raises(TypeError, match="predict"):
+        plot_groundings(model, {"x": object()}, tmp_path / "m.png")  # type: ignore[operator,dict-item]
