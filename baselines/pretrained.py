@@ -1,0 +1,51 @@
+"""The Maze2D policies shipped with the package (``baselines/checkpoints``), loaded without pickle.
+
+``scripts/train_maze_checkpoints.sh`` holds the exact commands that produced
+them (random-walk data from a fixed seed, then :mod:`.train_maze`); each
+checkpoint's ``.json`` record beside it has the loss curve and wall time.
+"""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from .act import ACTPolicy
+from .diffusion import DiffusionPolicy
+
+__all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_pretrained"]
+
+#: kind -> file name in ``steer_envs.baselines/checkpoints``.
+CHECKPOINTS: dict[str, str] = {
+    "dp": "maze2d_large_dp.safetensors",
+    "act": "maze2d_large_act.safetensors",
+}
+
+
+def checkpoint_path(kind: str) -> Path:
+    """Filesystem path of the shipped checkpoint of ``kind`` (``"dp"`` or ``"act"``)."""
+    if kind not in CHECKPOINTS:
+        raise ValueError(f"kind must be one of {sorted(CHECKPOINTS)}, got {kind!r}")
+    ref = resources.files("steer_envs.baselines") / "checkpoints" / CHECKPOINTS[kind]
+    path = Path(str(ref))
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"checkpoint {CHECKPOINTS[kind]} is missing from the installed package; "
+            "regenerate it with scripts/train_maze_checkpoints.sh"
+        )
+    return path
+
+
+def checkpoint_record(kind: str) -> dict[str, Any]:
+    """The training record (config, settings, losses, wall time) written beside the checkpoint."""
+    return json.loads(checkpoint_path(kind).with_suffix(".json").read_text(encoding="utf-8"))
+
+
+def load_pretrained(kind: str, device: str | torch.device = "cpu") -> DiffusionPolicy | ACTPolicy:
+    """The shipped Maze2D-Large policy: ``"dp"`` (:class:`DiffusionPolicy`) or ``"act"`` (:class:`ACTPolicy`)."""
+    path = checkpoint_path(kind)
+    return DiffusionPolicy.load(path, device) if kind == "dp" else ACTPolicy.load(path, device)
