@@ -16,6 +16,6 @@ OUT=baselines/checkpoints
 
 "$PY" -m steer_envs.data.maze_random_walk --maze large --steps 1000000 --seed 0 --out "$DATA"
 "$PY" -m steer_envs.baselines.train_maze dp --data "$DATA" --out "$OUT/maze2d_large_dp.safetensors" \
-    --steps 10000 --seed 0 --threads 1
+    --steps 30000 --seed 0 --threads 1
 "$PY" -m steer_envs.baselines.train_maze act --data "$DATA" --out "$OUT/maze2d_large_act.safetensors" \
     --steps 3000 --seed 0 --threads 1

@@ -256,8 +256,8 @@ def test_load_rejects_foreign_files(tmp_path) -> None:
 def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
     """The shipped DP: plans start at the agent, move at the data's speed and spread over several modes.
 
-    Its collision rate from rest (0.62 on 100 starts x 32, ITPS's DP: 0.01) is far from the thesis's:
-    the CPU budget is ~1/200 of ITPS's training; the bound below only guards against regressions.
+    Its collision rate from rest (0.32 on 100 starts x 32, ITPS's DP: 0.01) is far from the thesis's:
+    a 20x smaller net saw 1/13 of ITPS's training samples; the bound below only guards against regressions.
     """
     policy = load_pretrained("dp")
     assert isinstance(policy, DiffusionPolicy) and policy.horizon == 64 and policy.n_obs_steps == 2
@@ -277,4 +277,4 @@ def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
     assert np.median(first) < 0.1  # plan[0] re-states the current position (LeRobot layout)
     assert 0.11 < np.mean(steps) < 0.18  # the data moves 0.144 cells per step
     assert np.median(spread) > 1.0  # cells: several modes per start, unlike ACT
-    assert np.mean(collided) < 0.75
+    assert np.mean(collided) < 0.45  # 0.21 for these 10 starts
