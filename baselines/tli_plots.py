@@ -87,44 +87,28 @@ def single_mode_figure_data(
     path), ``cuts`` (``point``, ``normal``), ``cut_points`` (last in-mode states
     of the cut failures), ``success_rate`` (over all starts), ``num_cuts``.
     """
-    from steer_envs.baselines.bc import BCPolicy
-    from steer_envs.baselines.ds import LPVDS
-    from steer_envs.baselines.tli_protocol import N_STEPS, POLICY_KINDS, convex_mode_demos, rollout, sample_starts
-    from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
+    from steer_envs.baselines.tli_protocol import (
+        N_STEPS,
+        POLICY_KINDS,
+        convex_mode_demos,
+        cut_loop,
+        fitted_policy,
+        rollout,
+        sample_starts,
+    )
 
     if policy_kind not in POLICY_KINDS:
         raise ValueError(f"policy_kind must be one of {POLICY_KINDS}, got {policy_kind!r}")
-    xs, vs, model = convex_mode_demos(int(layout_seed), int(n_demos), demos=demos)
-    if policy_kind.startswith("ds"):
-        policy: Any = LPVDS(random_state=seed).fit(xs, vs, attractor=model.attractor)
-    else:
-        policy = BCPolicy(2, seed=seed)
-        policy.fit(np.concatenate(xs), np.concatenate(vs), epochs=bc_epochs)
-    demo_points = np.concatenate(xs)
+    policy, model, flat = fitted_policy(
+        int(layout_seed), int(n_demos), policy_kind.split("+")[0], int(bc_epochs), int(seed), demos
+    )
+    demo_points = np.asarray(flat).reshape(-1, 2)
+    xs = convex_mode_demos(int(layout_seed), int(n_demos), demos=demos)[0]  # per demo, for the plot
     rng = np.random.default_rng([int(seed), int(layout_seed), 1])
     starts = sample_starts(model, demo_points, float(noise_sigma), n_starts, rng)
-    cuts = CutSet(model.attractor)
-    acting: Any = policy
-    failures: list[FailureRecord] = []
-    if policy_kind.endswith("+mod"):  # the cut loop of single_mode_trial (cut_sigma=None)
-        acting = ModulatedPolicy(policy, cuts, max_speed=20.0)
-        while True:
-            res = rollout(acting, model, starts, N_STEPS)
-            if not res["left"].any() or len(cuts) >= max_cuts:
-                break
-            known = np.array([fr.last_in_mode for fr in failures]).reshape(-1, 2)
-            fresh = [
-                i
-                for i in np.nonzero(res["left"])[0]
-                if not np.any(np.linalg.norm(known - res["last_in"][i], axis=1) < 1e-9)
-            ]
-            if not fresh:
-                break
-            first = int(fresh[0])
-            failures.append(FailureRecord(res["last_in"][first], res["first_out"][first], starts[first]))
-            cuts.set_cuts(resolve_cuts(failures, model.attractor))
-    else:
-        res = rollout(acting, model, starts, N_STEPS)
+    loop = cut_loop(policy, model, starts, max_cuts=max_cuts if policy_kind.endswith("+mod") else None)
+    acting, cuts, failures = loop.policy, loop.cuts, loop.failures
+    res = loop.last_rollout if loop.last_rollout is not None else rollout(acting, model, starts, N_STEPS)
     keep = slice(0, min(n_paths, n_starts))
     paths = _trace(acting, model, starts[keep], N_STEPS, every)
     failed = res["left"][keep]

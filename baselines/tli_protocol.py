@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -63,6 +65,10 @@ MAX_SPEED = 20.0
 N_STEPS = 1000
 DEMO_STEPS = 200
 SUCCESS_RADIUS = 0.4
+#: LPV-DS stability margin of the single-mode study. The library default (1e-3) lets the LMI fit return
+#: nearly marginal A_k on some layouts (measured: 3 of 50 layouts stall short of the attractor within
+#: N_STEPS); eps = 1.0 makes every flow contract at a rate the rollout length can resolve.
+DS_EPS = 1.0
 
 
 def _make_env(layout_seed: int) -> gym.Env:
@@ -138,13 +144,13 @@ def _drawn_demos(layout_seed: int, n_demos: int, steps: int) -> tuple[list[np.nd
 
 
 @functools.lru_cache(maxsize=8)
-def _fitted(
-    layout_seed: int, n_demos: int, kind: str, bc_epochs: int, seed: int, demos: str
+def fitted_policy(
+    layout_seed: int, n_demos: int, kind: str, bc_epochs: int, seed: int, demos: str, ds_eps: float = DS_EPS
 ) -> tuple[Any, Any, tuple[float, ...]]:
-    """(policy, model, demo points) for a layout; cached so a suite's noise levels share one fit."""
+    """(policy, model, flat demo points) of a layout's single-mode study; cached so noise levels share one fit."""
     xs, vs, model = convex_mode_demos(layout_seed, n_demos, demos=demos)
     if kind == "ds":
-        policy: Any = LPVDS(random_state=seed).fit(xs, vs, attractor=model.attractor)
+        policy: Any = LPVDS(eps=ds_eps, random_state=seed).fit(xs, vs, attractor=model.attractor)
     else:
         policy = BCPolicy(2, seed=seed)
         policy.fit(np.concatenate(xs), np.concatenate(vs), epochs=bc_epochs)
@@ -201,6 +207,58 @@ def rollout(policy: VelocityPolicy, model: Any, starts: np.ndarray, n_steps: int
     }
 
 
+@dataclass
+class CutLoopResult:
+    """What :func:`cut_loop` learned: the acting policy, its cuts and the rounds it took."""
+
+    policy: VelocityPolicy
+    cuts: CutSet
+    failures: list[FailureRecord]
+    round_success: list[float]
+    cuts_until_invariant: int | None
+    last_rollout: dict[str, np.ndarray] | None
+
+
+def cut_loop(
+    policy: VelocityPolicy,
+    model: Any,
+    starts: np.ndarray,
+    *,
+    max_cuts: int | None,
+    batch_fn: Callable[[], np.ndarray] | None = None,
+    n_steps: int = N_STEPS,
+) -> CutLoopResult:
+    """The thesis cut loop: roll out, cut the batch's first new invariance failure, repeat.
+
+    ``max_cuts=None`` means no modulation (the policy acts as is, nothing is
+    rolled out). Each round rolls out ``starts`` (or a fresh ``batch_fn()``) and
+    stops when no start leaves the mode, after ``max_cuts`` cuts, or when every
+    failure repeats a known one (a further cut would add nothing).
+    """
+    cuts = CutSet(model.attractor)
+    if max_cuts is None:
+        return CutLoopResult(policy, cuts, [], [], None, None)
+    acting = ModulatedPolicy(policy, cuts, max_speed=MAX_SPEED)
+    failures: list[FailureRecord] = []
+    round_success: list[float] = []
+    while True:
+        batch = starts if batch_fn is None else batch_fn()
+        res = rollout(acting, model, batch, n_steps)
+        round_success.append(float(res["success"].mean()))
+        if not res["left"].any():
+            return CutLoopResult(acting, cuts, failures, round_success, len(cuts), res if batch_fn is None else None)
+        # a failure is new unless an earlier one had the same last in-mode *and* failure state (a start on
+        # its own cut can slide along it out of the mode: that exit gets a second cut through the same point)
+        known = np.array([np.concatenate([fr.last_in_mode, fr.failure]) for fr in failures]).reshape(-1, 4)
+        pairs = np.concatenate([res["last_in"], res["first_out"]], axis=1)
+        fresh = [i for i in np.nonzero(res["left"])[0] if not np.any(np.linalg.norm(known - pairs[i], axis=1) < 1e-9)]
+        if len(cuts) >= max_cuts or not fresh:
+            return CutLoopResult(acting, cuts, failures, round_success, None, res if batch_fn is None else None)
+        first = int(fresh[0])  # the batch's first failing start (in draw order)
+        failures.append(FailureRecord(res["last_in"][first], res["first_out"][first], batch[first]))
+        cuts.set_cuts(resolve_cuts(failures, model.attractor))
+
+
 def single_mode_trial(
     layout_seed: int,
     noise_sigma: float,
@@ -214,6 +272,7 @@ def single_mode_trial(
     cut_sigma: float | None = None,
     n_steps: int = N_STEPS,
     demos: str = "drawn",
+    ds_eps: float = DS_EPS,
 ) -> dict[str, Any]:
     """One trial of the single-mode study; returns a JSON-able dict of metrics.
 
@@ -230,6 +289,7 @@ def single_mode_trial(
             separate batches with this noise (held-out evaluation).
         n_steps: rollout length.
         demos: ``"drawn"`` (simulated hand-drawn curves, default) or ``"expert"``.
+        ds_eps: LPV-DS stability margin (``A_k^T P + P A_k <= -eps I``); see :data:`DS_EPS`.
 
     Keys: ``success_rate``, ``invariance_failure_rate`` (left the mode),
     ``reachability_failure_rate`` (stayed but missed the attractor), ``num_cuts``,
@@ -245,45 +305,33 @@ def single_mode_trial(
         raise ValueError(f"n_starts must be a positive int, got {n_starts!r}")
     if not isinstance(max_cuts, int) or max_cuts < 0:
         raise ValueError(f"max_cuts must be an int >= 0, got {max_cuts!r}")
+    if not (np.isfinite(ds_eps) and ds_eps > 0):
+        raise ValueError(f"ds_eps must be a finite float > 0, got {ds_eps!r}")
     t0 = time.perf_counter()
     if n_demos is None:
         n_demos = int(np.random.default_rng([layout_seed, 31]).integers(1, 4))
     base_kind = policy_kind.split("+")[0]
     t_fit = time.perf_counter()
-    policy, model, flat = _fitted(int(layout_seed), int(n_demos), base_kind, int(bc_epochs), int(seed), demos)
+    policy, model, flat = fitted_policy(
+        int(layout_seed), int(n_demos), base_kind, int(bc_epochs), int(seed), demos, float(ds_eps)
+    )
     fit_seconds = time.perf_counter() - t_fit
     demo_points = np.asarray(flat).reshape(-1, 2)
     rng = np.random.default_rng([int(seed), int(layout_seed), 1])
 
     starts = sample_starts(model, demo_points, float(noise_sigma), n_starts, rng)
-    cuts = CutSet(model.attractor)
-    acting: VelocityPolicy = policy
-    round_success: list[float] = []
-    cuts_until_invariant: int | None = None
-    if policy_kind.endswith("+mod"):
-        acting = ModulatedPolicy(policy, cuts, max_speed=MAX_SPEED)
-        failures: list[FailureRecord] = []
-        while True:
-            batch = starts if cut_sigma is None else sample_starts(model, demo_points, cut_sigma, n_starts, rng)
-            res = rollout(acting, model, batch, n_steps)
-            round_success.append(float(res["success"].mean()))
-            if not res["left"].any():
-                cuts_until_invariant = len(cuts)
-                break
-            if len(cuts) >= max_cuts:
-                break
-            known = np.array([fr.last_in_mode for fr in failures]).reshape(-1, 2)
-            fresh = [
-                i
-                for i in np.nonzero(res["left"])[0]
-                if not np.any(np.linalg.norm(known - res["last_in"][i], axis=1) < 1e-9)
-            ]
-            if not fresh:
-                break  # every failure repeats a known one: a further cut would add nothing
-            first = int(fresh[0])  # the batch's first failing start (in draw order)
-            failures.append(FailureRecord(res["last_in"][first], res["first_out"][first], batch[first]))
-            cuts.set_cuts(resolve_cuts(failures, model.attractor))
-    if cut_sigma is not None or not round_success:  # else the last cut round already rolled out `starts`
+    batch_fn = None if cut_sigma is None else (lambda: sample_starts(model, demo_points, cut_sigma, n_starts, rng))
+    loop = cut_loop(
+        policy,
+        model,
+        starts,
+        max_cuts=max_cuts if policy_kind.endswith("+mod") else None,
+        batch_fn=batch_fn,
+        n_steps=n_steps,
+    )
+    acting, cuts, res = loop.policy, loop.cuts, loop.last_rollout
+    round_success, cuts_until_invariant = loop.round_success, loop.cuts_until_invariant
+    if cut_sigma is not None or res is None:  # else the last cut round already rolled out `starts`
         res = rollout(acting, model, starts, n_steps)
     left, success = res["left"], res["success"]
     return {
