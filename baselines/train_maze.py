@@ -2,6 +2,10 @@
 
 ``python -m steer_envs.baselines.train_maze {dp,act} --data walk.npz --out dp.safetensors --steps N --seed S``
 
+``... {dp,act} --data walk.npz --check dp.json --check-steps 200`` re-runs the
+first steps of a recorded run and compares the logged losses (a cheap check
+that the committed command reproduces a shipped checkpoint's training).
+
 Training is deterministic for a given seed, thread count and device: batches
 are drawn by a ``numpy`` generator, diffusion noise / timesteps and the VAE's
 reparameterization noise by a ``torch.Generator``, dropout by torch's global
@@ -40,7 +44,7 @@ from steer_envs.io import atomic_write_text
 from .act import ACTConfig, ACTPolicy
 from .diffusion import DiffusionConfig, DiffusionPolicy
 
-__all__ = ["KINDS", "TrainSettings", "build_policy", "main", "train_policy"]
+__all__ = ["KINDS", "TrainSettings", "build_policy", "check_record", "main", "train_policy"]
 
 KINDS = ("dp", "act")
 
@@ -116,15 +120,24 @@ def train_policy(
     settings: TrainSettings,
     *,
     progress: bool = True,
+    stop_after: int | None = None,
 ) -> dict[str, Any]:
     """Train ``policy`` in place on windows of ``dataset``; returns the training record (losses, wall time).
 
     The record's ``losses`` are ``[step, mean loss over the last log_every steps]`` pairs.
+    ``stop_after`` ends training after that many steps of the *same* run (the
+    learning-rate schedule still spans ``settings.steps``): the prefix of a
+    long run, to check a recorded loss curve without paying for all of it.
     """
     if not isinstance(policy, (DiffusionPolicy, ACTPolicy)):
         raise TypeError(f"policy must be a DiffusionPolicy or ACTPolicy, got {type(policy).__name__}")
     if not isinstance(settings, TrainSettings):
         raise TypeError(f"settings must be TrainSettings, got {type(settings).__name__}")
+    if stop_after is not None and not (isinstance(stop_after, int) and 1 <= stop_after <= settings.steps):
+        raise ValueError(
+            f"stop_after must be None or an int in [1, settings.steps={settings.steps}], got {stop_after!r}"
+        )
+    last = settings.steps if stop_after is None else stop_after
     windows = PlanWindows(dataset, **policy.window_layout)
     if len(windows) == 0:
         raise ValueError(f"dataset of {len(dataset)} samples is too short for {policy.window_layout}")
@@ -133,7 +146,7 @@ def train_policy(
     model = policy.model
     rng = np.random.default_rng(settings.seed)
     gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
-    bar = _progress(settings.steps, progress)
+    bar = _progress(last, progress)
     losses: list[list[float]] = []
     tic = time.perf_counter()
     with torch.random.fork_rng(devices=[]):
@@ -145,7 +158,7 @@ def train_policy(
         model.train()
         try:
             running = 0.0
-            for step in range(1, settings.steps + 1):
+            for step in range(1, last + 1):
                 obs, plans = windows.gather(rng.integers(len(windows), size=settings.batch_size))
                 if settings.static_history_prob > 0 and obs.shape[1] > 1:
                     still = rng.random(len(obs)) < settings.static_history_prob
@@ -159,7 +172,7 @@ def train_policy(
                 opt.step()
                 sched.step()
                 running += loss.item()
-                if step % settings.log_every == 0 or step == settings.steps:
+                if step % settings.log_every == 0 or step == last:
                     n = step - (losses[-1][0] if losses else 0)
                     losses.append([step, running / n])
                     running = 0.0
@@ -184,6 +197,51 @@ def train_policy(
     }
 
 
+def check_record(
+    record_path: str | os.PathLike[str], data: str | os.PathLike[str], steps: int = 200, *, progress: bool = False
+) -> dict[str, Any]:
+    """Re-run the first ``steps`` steps of a recorded training run and compare its logged losses.
+
+    ``record_path`` is a checkpoint's JSON record (:func:`sidecar_path`); the
+    model config, settings, seed and thread count come from it. Returns
+    ``{"compared": [[step, recorded, rerun], ...], "max_rel_diff": float}``.
+    Bit-identical on the same torch version, thread count and CPU kind;
+    another CPU's kernels give rounding-level differences that grow slowly.
+    """
+    summary = json.loads(Path(record_path).read_text())
+    try:
+        kind, config, record = summary["kind"], summary["model"], summary["training"]
+        raw = dict(record["settings"])
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"{record_path} is not a train_maze record (missing {err})") from None
+    raw["betas"] = tuple(raw["betas"])
+    settings = TrainSettings(**raw)
+    if not isinstance(steps, int) or not 1 <= steps <= settings.steps:
+        raise ValueError(f"steps must be an int in [1, {settings.steps}], got {steps!r}")
+    dataset = load_random_walk(data)
+    for key in ("maze", "seed", "raw_steps", "subsample"):
+        if dataset.meta.get(key) != record["data"].get(key):
+            raise ValueError(
+                f"data {data} has {key}={dataset.meta.get(key)!r}; the record was trained on "
+                f"{record['data'].get(key)!r}"
+                " (regenerate it with python -m steer_envs.data.maze_random_walk)"
+            )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(int(record.get("threads", threads)))
+    try:
+        config = {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
+        policy = build_policy(kind, dataset, seed=settings.seed, **config)
+        rerun = train_policy(policy, dataset, settings, progress=progress, stop_after=steps)
+    finally:
+        torch.set_num_threads(threads)
+    recorded = {int(s): float(v) for s, v in record["losses"]}
+    compared = [[s, recorded[s], v] for s, v in rerun["losses"] if s in recorded]
+    if not compared:
+        raise ValueError(f"no logged step <= {steps} to compare (the record logs every {settings.log_every})")
+    rel = max(abs(b - a) / max(abs(a), 1e-12) for _, a, b in compared)
+    return {"kind": kind, "compared": compared, "max_rel_diff": rel, "wall_s": rerun["wall_s"]}
+
+
 def _progress(total: int, enabled: bool) -> Any:
     if not enabled:
         return None
@@ -197,6 +255,19 @@ def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
     return Path(checkpoint).with_suffix(".json")
 
 
+def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    try:
+        res = check_record(args.check, args.data, args.check_steps, progress=not args.no_progress)
+    except (OSError, TypeError, ValueError) as err:
+        parser.error(str(err))
+    for step, recorded, rerun in res["compared"]:
+        print(f"step {step:6d}: recorded {recorded:.6f}  re-run {rerun:.6f}")
+    ok = res["max_rel_diff"] <= args.check_rtol
+    verdict = "reproduced" if ok else "DIFFERENT"
+    print(f"{res['kind']}: {verdict}: max relative difference {res['max_rel_diff']:.2e} (rtol {args.check_rtol:g})")
+    return 0 if ok else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see the module docstring)."""
     parser = argparse.ArgumentParser(
@@ -205,8 +276,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("kind", choices=KINDS)
     parser.add_argument("--data", required=True, help="dataset written by python -m steer_envs.data.maze_random_walk")
-    parser.add_argument("--out", required=True, help="checkpoint path (.safetensors); a .json record goes beside it")
-    parser.add_argument("--steps", type=int, required=True, help="optimizer steps")
+    parser.add_argument("--out", help="checkpoint path (.safetensors); a .json record goes beside it")
+    parser.add_argument("--steps", type=int, help="optimizer steps")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batches and noise (default 0)")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     parser.add_argument("--batch-size", type=int, default=None, help="default 64")
@@ -214,7 +285,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--warmup-steps", type=int, default=None, help="linear warm-up steps (default 200)")
     parser.add_argument("--device", default="cpu", help="torch device, e.g. cuda (default cpu)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--check",
+        metavar="RECORD",
+        help="instead of training: re-run the first --check-steps steps of the run recorded in RECORD "
+        "(a checkpoint's .json) on --data and compare the logged losses; exit 1 if they differ",
+    )
+    parser.add_argument("--check-steps", type=int, default=200, help="steps --check re-runs (default 200)")
+    parser.add_argument(
+        "--check-rtol", type=float, default=1e-3, help="largest relative loss difference --check accepts (default 1e-3)"
+    )
     args = parser.parse_args(argv)
+    if args.check is not None:
+        return _check_main(parser, args)
+    if args.out is None or args.steps is None:
+        parser.error("--out and --steps are required (unless --check)")
 
     out = Path(args.out)
     if out.suffix != ".safetensors":

@@ -207,6 +207,45 @@ def test_training_cli_writes_checkpoint_and_record(tmp_path, walk) -> None:
         main(["dp", "--data", str(data), "--out", str(out), "--steps", "0"])
 
 
+def test_check_reruns_a_recorded_run_and_flags_a_difference(tmp_path, walk) -> None:
+    """--check re-runs the start of a recorded run: same losses -> exit 0; a tampered record -> exit 1."""
+    data = save_random_walk(walk, tmp_path / "walk.npz")
+    out = tmp_path / "dp.safetensors"
+    argv = ["dp", "--data", str(data), "--out", str(out), "--steps", "3", "--batch-size", "4", "--threads", "1"]
+    assert main([*argv, "--no-progress"]) == 0
+    record = out.with_suffix(".json")
+    check = ["dp", "--data", str(data), "--check", str(record), "--check-steps", "3", "--no-progress"]
+    assert main(check) == 0
+    summary = json.loads(record.read_text())
+    summary["training"]["losses"][-1][1] *= 1.01
+    record.write_text(json.dumps(summary))
+    assert main(check) == 1
+    with pytest.raises(SystemExit):  # no logged step within the first 2
+        main([*check[:-2], "--check-steps", "2", "--no-progress"])
+    with pytest.raises(SystemExit):  # neither --check nor --out/--steps
+        main(["dp", "--data", str(data)])
+
+
+@pytest.mark.slow
+def test_shipped_checkpoints_reproduce_with_the_committed_commands(tmp_path) -> None:
+    """Issue 7: scripts/train_maze_checkpoints.sh --check (data + the first steps of both runs), ~3 minutes."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHON": sys.executable}
+    proc = subprocess.run(
+        ["bash", str(root / "scripts" / "train_maze_checkpoints.sh"), "--check", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count("reproduced") == 2, proc.stdout
+
+
 def test_bad_input_raises() -> None:
     with pytest.raises(ValueError, match="horizon"):
         DiffusionConfig(horizon=30, down_dims=(8, 16, 32))
