@@ -1,23 +1,35 @@
 """Plots of learned mode boundaries on PolygonNav (thesis Fig. 4.4 / appendix figures).
 
-:func:`plot_groundings` draws one panel per labelling (ground truth first,
-then any learned classifiers or baselines) as a colour map over the
-workspace, with the polygons' outlines, optional trajectories on top and the
-overlap with the ground truth in each panel's title. Written with
-matplotlib's Agg backend to a PNG, atomically (temp file + ``os.replace``).
+* :func:`plot_mode_maps` draws rows of panels; each panel is a mode labelling
+  of the workspace grid (ground truth first, then learned classifiers or
+  baselines) as a colour map, with the polygons' outlines, optional
+  trajectories on top and the overlap with the ground truth in its title.
+  One row per env reproduces the layout of thesis Fig. 4.4 ((a) ground truth
+  with the demos, (b) GLiDE, (c) no counterfactuals, (d) wrong feasibility
+  matrix, (e) k-means++).
+* :func:`plot_groundings` is the one-row version that labels the grid with
+  predictor objects.
+* :func:`encode_labels` / :func:`decode_labels` store a labelling compactly
+  in a JSON record (one digit per grid point), so benchmark records can be
+  plotted later without the classifiers.
+
+PNGs are drawn on matplotlib's Agg canvas and written atomically
+(:func:`steer_envs.io.atomic_write_bytes`).
 """
 
 from __future__ import annotations
 
+import io
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from steer_envs.baselines.glide import ModePredictor, mode_overlap, workspace_grid
+from steer_envs.io import atomic_write_bytes
 
 #: mode colours (free space first), as in the thesis figures: light free space, saturated polygons.
 MODE_COLORS: tuple[str, ...] = (
@@ -31,6 +43,135 @@ MODE_COLORS: tuple[str, ...] = (
     "#f781bf",
     "#999999",
 )
+
+
+def encode_labels(labels: np.ndarray) -> str:
+    """A labelling ``(N,)`` with modes in ``[0, 9]`` as a string of digits (JSON-friendly)."""
+    arr = np.asarray(labels)
+    if arr.ndim != 1 or (arr.size and (arr.min() < 0 or arr.max() > 9)):
+        raise ValueError(f"labels must be a 1-D array of modes in [0, 9], got shape {arr.shape}")
+    return (arr.astype(np.uint8) + ord("0")).tobytes().decode("ascii")
+
+
+def decode_labels(text: str, resolution: int | None = None) -> np.ndarray:
+    """Inverse of :func:`encode_labels`; checks the length against ``resolution ** 2`` when given."""
+    if not isinstance(text, str) or not text.isdigit():
+        raise ValueError("text must be a non-empty string of digits (see encode_labels)")
+    out = np.frombuffer(text.encode("ascii"), dtype=np.uint8).astype(np.int64) - ord("0")
+    if resolution is not None and len(out) != resolution * resolution:
+        raise ValueError(f"text has {len(out)} labels, expected resolution**2 = {resolution * resolution}")
+    return out
+
+
+@dataclass
+class ModeMapRow:
+    """One row of :func:`plot_mode_maps`: one layout and its labellings.
+
+    Attributes:
+        model: the env's task model (``env.unwrapped.model``) with ``low``,
+            ``high``, ``num_modes``, ``vertices`` and ``mode_of``.
+        panels: panel title -> labels ``(resolution**2,)`` on
+            :func:`~steer_envs.baselines.glide.workspace_grid`'s grid; a ground-truth
+            panel is added in front.
+        title: row title (shown on the ground-truth panel).
+        trajectories: ``(T_i, 2)`` paths drawn on the ground-truth panel (or every panel).
+        trajectory_success: colours those paths blue (success) / red (failure).
+    """
+
+    model: Any
+    panels: Mapping[str, np.ndarray]
+    title: str = ""
+    trajectories: Sequence[np.ndarray] = ()
+    trajectory_success: Sequence[bool] | None = None
+    notes: Mapping[str, str] = field(default_factory=dict)
+
+
+def _figure(width: float, height: float) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=100)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_mode_maps(
+    rows: Sequence[ModeMapRow],
+    path: str | os.PathLike[str],
+    *,
+    resolution: int = 200,
+    title: str | None = None,
+    panel_size: float = 2.6,
+    trajectories_on_every_panel: bool = False,
+) -> Path:
+    """Write a PNG with one row per :class:`ModeMapRow`: ground truth, then each labelling.
+
+    Each learned panel's title carries its overlap with the ground truth
+    (plus the row's ``notes`` for that panel, e.g. "mean over 5 layouts 0.97").
+    Rows may have different panel names; columns follow the first row's
+    order, then any new names.
+    """
+    path = Path(path)
+    if path.suffix != ".png":
+        raise ValueError(f"path must end in .png, got {str(path)!r}")
+    if not rows:
+        raise ValueError("rows must not be empty")
+    for r in rows:
+        if not isinstance(r, ModeMapRow):
+            raise TypeError(f"rows must be ModeMapRow objects, got {type(r).__name__}")
+        if r.trajectory_success is not None and len(r.trajectory_success) != len(r.trajectories):
+            raise ValueError("trajectory_success must have one flag per trajectory")
+    names: list[str] = []
+    for r in rows:
+        names += [n for n in r.panels if n not in names]
+    from matplotlib.colors import ListedColormap
+
+    n_cols = 1 + len(names)
+    fig = _figure(panel_size * n_cols, (panel_size + 0.45) * len(rows) + (0.4 if title else 0.0))
+    axes = fig.subplots(len(rows), n_cols, squeeze=False)
+    for row_axes, row in zip(axes, rows, strict=True):
+        model = row.model
+        k = int(model.num_modes)
+        grid = workspace_grid(model.low, model.high, resolution)
+        truth = np.asarray(model.mode_of(grid))
+        cmap = ListedColormap(list(MODE_COLORS[: max(k, 2)]))
+        extent = (model.low[0], model.high[0], model.low[1], model.high[1])
+        for col, ax in enumerate(row_axes):
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if col == 0:
+                labels, name, overlap = truth, row.title or "ground truth", None
+            else:
+                name = names[col - 1]
+                if name not in row.panels:
+                    ax.set_axis_off()
+                    continue
+                labels = np.asarray(row.panels[name])
+                if labels.shape != truth.shape:
+                    raise ValueError(f"panel {name!r} has {labels.shape} labels, expected {truth.shape}")
+                overlap = mode_overlap(labels, truth)
+            img = np.clip(labels, 0, k - 1).reshape(resolution, resolution)
+            ax.imshow(img, origin="lower", extent=extent, cmap=cmap, vmin=-0.5, vmax=k - 0.5, interpolation="nearest")
+            for v in model.vertices:
+                loop = np.vstack([v, v[:1]])
+                ax.plot(loop[:, 0], loop[:, 1], color="k", lw=0.6)
+            if col == 0 or trajectories_on_every_panel:
+                for i, tr in enumerate(row.trajectories):
+                    tr = np.asarray(tr)
+                    ok = True if row.trajectory_success is None else bool(row.trajectory_success[i])
+                    ax.plot(tr[:, 0], tr[:, 1], color="#1f3fbf" if ok else "#bf1f1f", lw=0.7, alpha=0.8)
+            text = name if overlap is None else f"{name}\noverlap {overlap:.3f}"
+            if col > 0 and row.notes.get(name):
+                text += f" ({row.notes[name]})"
+            ax.set_title(text, fontsize=8)
+            ax.set_aspect("equal")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    atomic_write_bytes(path, buf.getvalue())
+    return path
 
 
 def plot_groundings(
@@ -47,8 +188,7 @@ def plot_groundings(
     """Write a PNG: ground truth + one panel per predictor, each with its grid overlap.
 
     Args:
-        model: the env's task model (``env.unwrapped.model``) with ``low``,
-            ``high``, ``num_modes``, ``vertices`` and ``mode_of``.
+        model: the env's task model (``env.unwrapped.model``).
         predictors: panel title -> object with ``predict(states) -> modes``.
         path: output ``.png`` path.
         resolution: grid side (the overlap metric uses 200).
@@ -56,62 +196,19 @@ def plot_groundings(
         trajectory_success: colours those paths blue (success) / red (failure).
         title: figure title.
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-
-    path = Path(path)
-    if path.suffix != ".png":
+    if Path(path).suffix != ".png":
         raise ValueError(f"path must end in .png, got {str(path)!r}")
     if not isinstance(predictors, Mapping):
         raise TypeError(f"predictors must be a mapping name -> predictor, got {type(predictors).__name__}")
     for name, p in predictors.items():
         if not hasattr(p, "predict"):
             raise TypeError(f"predictor {name!r} has no predict(states) method")
-    if trajectory_success is not None and len(trajectory_success) != len(trajectories):
-        raise ValueError("trajectory_success must have one flag per trajectory")
-    k = int(model.num_modes)
     grid = workspace_grid(model.low, model.high, resolution)
-    truth = model.mode_of(grid)
-    panels = [("ground truth", truth, None)]
-    for name, p in predictors.items():
-        pred = np.asarray(p.predict(grid))
-        panels.append((name, pred, mode_overlap(pred, truth)))
-    cmap = ListedColormap(list(MODE_COLORS[: max(k, 2)]))
-    extent = (model.low[0], model.high[0], model.low[1], model.high[1])
-    fig, axes = plt.subplots(1, len(panels), figsize=(panel_size * len(panels), panel_size + 0.4), squeeze=False)
-    for ax, (name, labels, overlap) in zip(axes[0], panels, strict=True):
-        img = np.clip(labels, 0, k - 1).reshape(resolution, resolution)
-        ax.imshow(img, origin="lower", extent=extent, cmap=cmap, vmin=-0.5, vmax=k - 0.5, interpolation="nearest")
-        for v in model.vertices:
-            loop = np.vstack([v, v[:1]])
-            ax.plot(loop[:, 0], loop[:, 1], color="k", lw=0.6)
-        for i, tr in enumerate(trajectories):
-            tr = np.asarray(tr)
-            ok = True if trajectory_success is None else bool(trajectory_success[i])
-            ax.plot(tr[:, 0], tr[:, 1], color="#1f3fbf" if ok else "#bf1f1f", lw=0.7, alpha=0.8)
-        ax.set_title(name if overlap is None else f"{name}\noverlap {overlap:.3f}", fontsize=9)
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.set_aspect("equal")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=100)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    finally:
-        plt.close(fig)
-    return path
+    panels = {name: np.asarray(p.predict(grid)) for name, p in predictors.items()}
+    row = ModeMapRow(model, panels, "ground truth", trajectories, trajectory_success)
+    return plot_mode_maps(
+        [row], path, resolution=resolution, title=title, panel_size=panel_size, trajectories_on_every_panel=True
+    )
 
 
-__all__ = ["MODE_COLORS", "plot_groundings"]
+__all__ = ["MODE_COLORS", "ModeMapRow", "decode_labels", "encode_labels", "plot_groundings", "plot_mode_maps"]

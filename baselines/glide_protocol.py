@@ -25,7 +25,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -68,19 +68,32 @@ class GlideSetup:
     kind: str = "segment"
     execution: str = "jump"
     feasibility_convention: str = "shortest_path"
-    weights: GlideLossWeights = field(default_factory=GlideLossWeights)
+    #: L_fail x 10 instead of the public x 1: with x 1 the classifier settles, on our layouts, where the
+    #: first polygon swallows free space (free <-> p1 moves are free, so only failures can push back).
+    weights: GlideLossWeights = field(default_factory=lambda: GlideLossWeights(fail=10.0))
     train: GlideTrainConfig = field(default_factory=GlideTrainConfig)
     bc: BCConfig = field(default_factory=BCConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     grid_resolution: int = 200
 
-    def key(self, *parts: Any) -> str:
-        """A short hash of this setup and ``parts`` (cache file names)."""
-        fields = asdict(self)
-        for name in ("num_threads", "progress"):  # how it runs, not what it computes
-            fields["train"].pop(name, None)
-            fields["bc"].pop(name, None)
-        blob = json.dumps([fields, [str(p) for p in parts]], sort_keys=True, default=str)
+    #: the fields the perturbation data set depends on (its cache key)
+    DATA_FIELDS: ClassVar[tuple[str, ...]] = ("n_demos", "n_success", "n_failure", "kind", "execution")
+    #: the fields a trained classifier depends on (its cache key)
+    CLASSIFIER_FIELDS: ClassVar[tuple[str, ...]] = (*DATA_FIELDS, "feasibility_convention", "weights", "train")
+
+    def key(self, *parts: Any, fields: Sequence[str] | None = None) -> str:
+        """A short hash of ``fields`` of this setup (default: all) and ``parts`` (cache file names).
+
+        How training runs (threads, progress bar) is left out: it does not change the result.
+        """
+        everything = asdict(self)
+        chosen = {name: everything[name] for name in (fields if fields is not None else everything)}
+        if isinstance(chosen.get("train"), dict):
+            for name in ("num_threads", "progress"):
+                chosen["train"].pop(name, None)
+        if isinstance(chosen.get("bc"), dict):
+            chosen["bc"].pop("num_threads", None)
+        blob = json.dumps([chosen, [str(p) for p in parts]], sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -117,6 +130,16 @@ def demonstrations(env_id: str, layout_seed: int, n: int, seed: int) -> list[Dem
     return collect_demonstrations(env_id, n, seed=1000 * int(seed), layout_seed=int(layout_seed))
 
 
+def data_cache_path(
+    env_id: str, layout_seed: int, seed: int, setup: GlideSetup, cache_dir: str | os.PathLike[str] | None
+) -> Path | None:
+    """Where :func:`counterfactual_data` caches the data set of one (env, layout, seed) (None: no cache)."""
+    if cache_dir is None:
+        return None
+    key = setup.key(env_id, layout_seed, seed, "data", fields=GlideSetup.DATA_FIELDS)
+    return Path(cache_dir) / f"glide-data-{key}.npz"
+
+
 def counterfactual_data(
     env_id: str,
     layout_seed: int,
@@ -126,11 +149,9 @@ def counterfactual_data(
     cache_dir: str | os.PathLike[str] | None = None,
 ) -> CounterfactualDataset:
     """The balanced perturbation data set of one (env, layout, seed), cached when ``cache_dir`` is set."""
-    path = None
-    if cache_dir is not None:
-        path = Path(cache_dir) / f"glide-data-{setup.key(env_id, layout_seed, seed, 'data')}.npz"
-        if path.exists():
-            return CounterfactualDataset.load(path)
+    path = data_cache_path(env_id, layout_seed, seed, setup, cache_dir)
+    if path is not None and path.exists():
+        return CounterfactualDataset.load(path)
     data = build_counterfactual_dataset(
         env_id,
         [d.states for d in demos],
@@ -192,7 +213,8 @@ def learn_grounding(
     train_config = GlideTrainConfig(**{**asdict(setup.train), "seed": seed})
     cache = None
     if cache_dir is not None:
-        cache = Path(cache_dir) / f"glide-clf-{setup.key(env_id, layout_seed, seed, variant)}.safetensors"
+        key = setup.key(env_id, layout_seed, seed, variant, fields=GlideSetup.CLASSIFIER_FIELDS)
+        cache = Path(cache_dir) / f"glide-clf-{key}.safetensors"
         if cache.exists():
             clf = ModeClassifier.load(cache)
             meta = clf_meta(cache)
@@ -201,6 +223,8 @@ def learn_grounding(
         trajectories = [d.states for d in demos]
         labels = np.ones(len(demos), dtype=bool)
     else:
+        cached_data = data_cache_path(env_id, layout_seed, seed, setup, cache_dir)
+        info["data_cached"] = cached_data is not None and cached_data.exists()
         start = time.perf_counter()
         data = counterfactual_data(env_id, layout_seed, seed, setup, demos, cache_dir)
         info["data_seconds"] = time.perf_counter() - start
@@ -239,12 +263,16 @@ def grounding_trial(
     *,
     setup: GlideSetup | None = None,
     cache_dir: str | os.PathLike[str] | None = None,
+    keep_labels: bool = False,
 ) -> dict[str, Any]:
     """Overlap of one variant's learned modes with the ground truth (200 x 200 grid).
 
     Also reports the per-mode IoU (free space dominates the grid, so overlap
     alone is lenient: ``all_free_overlap`` is what labelling everything free
     scores), training time and the CPU load average around training.
+    ``keep_labels`` adds the predicted grid labels (``"labels"``, an int array
+    on :func:`~steer_envs.baselines.glide.workspace_grid`'s grid) and the demos'
+    states (``"demo_states"``) for plots.
     """
     setup = setup or GlideSetup()
     k = _check_env_id(env_id)
@@ -256,6 +284,9 @@ def grounding_trial(
     truth = model.mode_of(grid)
     pred = np.asarray(grounding.predictor.predict(grid))
     iou = mode_iou(pred, truth, k)
+    extra: dict[str, Any] = {}
+    if keep_labels:
+        extra = {"labels": pred.astype(np.int64), "demo_states": [d.states for d in grounding.demos]}
     return {
         "env_id": env_id,
         "num_modes": k,
@@ -267,6 +298,7 @@ def grounding_trial(
         "iou": [float(v) for v in iou],
         "all_free_overlap": mode_overlap(np.zeros_like(truth), truth),
         **grounding.info,
+        **extra,
     }
 
 
@@ -427,6 +459,57 @@ def policy_trial(
     return out
 
 
+def policy_table_trial(
+    env_id: str,
+    layout_seed: int,
+    method: str,
+    n_rollouts: int,
+    seed: int,
+    *,
+    setup: GlideSetup | None = None,
+    cache_dir: str | os.PathLike[str] | None = None,
+    schedule: PerturbationSchedule | None = None,
+) -> dict[str, Any]:
+    """Both columns of one thesis Table 4.1 cell: one trained policy, ``n_rollouts`` episodes each
+    without and with the evaluation perturbations (the same start states in both).
+
+    Returns ``success`` / ``success_perturbed`` (and the other :func:`evaluate_policy`
+    numbers under ``"unperturbed"`` / ``"perturbed"``), the thesis's numbers,
+    ``train_seconds`` (the classifier's training for the GLiDE methods, the MLP's
+    for BC; a cached classifier reports its original training time) and
+    ``eval_seconds`` (both evaluations).
+    """
+    k = _check_env_id(env_id)
+    seed = _check_int("seed", seed)
+    layout_seed = _check_int("layout_seed", layout_seed)
+    policy, info = make_policy(method, env_id, layout_seed, seed, setup=setup, cache_dir=cache_dir)
+    out: dict[str, Any] = {
+        "env_id": env_id,
+        "num_modes": k,
+        "layout_seed": layout_seed,
+        "method": method,
+        "n_rollouts": int(n_rollouts),
+        "seed": seed,
+        "train_seconds": float(info.get("train_seconds", 0.0)),
+        "classifier_cached": bool(info.get("cached", False)),
+    }
+    start = time.perf_counter()
+    for perturbed, name in ((False, "unperturbed"), (True, "perturbed")):
+        policy.reset()
+        res = evaluate_policy(
+            policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=perturbed, seed=seed, schedule=schedule
+        )
+        out[name] = res
+        if isinstance(policy, GlidePlanningPolicy):
+            res["planner_calls"] = dict(policy.stats)
+            policy.stats = dict.fromkeys(policy.stats, 0)
+    out["eval_seconds"] = time.perf_counter() - start
+    out["success"] = out["unperturbed"]["success_rate"]
+    out["success_perturbed"] = out["perturbed"]["success_rate"]
+    out["thesis_success"], out["thesis_success_perturbed"] = THESIS_TABLE_4_1[method][k]
+    return out
+
+
 __all__ = [
     "ENV_IDS",
     "METHODS",
@@ -436,11 +519,13 @@ __all__ = [
     "Grounding",
     "PerturbationSchedule",
     "counterfactual_data",
+    "data_cache_path",
     "demonstrations",
     "evaluate_policy",
     "feasibility_for",
     "grounding_trial",
     "learn_grounding",
     "make_policy",
+    "policy_table_trial",
     "policy_trial",
 ]

@@ -8,9 +8,10 @@ the agents whose episodes restart.
   fitted to every (state, action) pair of the successful demonstrations.
 * :class:`GlideBCPolicy` -- GLiDE+BC: the mode classifier segments the demos,
   one BC MLP per mode, sequenced by the classifier's current mode, plus a
-  pseudo-attractor (the mean state where the demos enter the next mode) that
-  pulls the agent back toward the demonstrations when it is farther from the
-  attractor than the demos ever were.
+  pseudo-attractor (the mean state where the demos enter the next mode; in
+  the final mode, the mean state where they end) that pulls the agent back
+  toward the demonstrations when it is farther from the attractor than most
+  demo states of its mode.
 * :class:`GlidePlanningPolicy` -- GLiDE+Planning: a waypoint per mode (mean
   first-entry state of the mode in the segmented demos); from mode ``k`` the
   agent moves to the waypoint of mode ``k + 1`` staying inside the learned
@@ -18,8 +19,10 @@ the agents whose episodes restart.
   ``k -> k + 1``): a straight line where the learned modes allow it (always,
   inside a convex polygon that borders the next one), otherwise an RRT path
   in the non-convex learned region (free space), and an attractive/repulsive
-  potential field when the RRT finds nothing. Collision checks read the
-  classifier's labels on a fine grid, computed once.
+  potential field when the RRT finds nothing. In the final mode it heads for
+  the demos' goal (their mean last state) inside that mode, so a learned
+  boundary short of the true one does not stop the agent early. Collision
+  checks read the classifier's labels on a fine grid, computed once.
 """
 
 from __future__ import annotations
@@ -224,6 +227,7 @@ class GlideBCPolicy:
         self.attractor_weight = float(attractor_weight)
         modes = segment_demonstrations(classifier, demos, self.num_modes)
         entries = mode_entry_points(demos, modes, self.num_modes)
+        goal = np.mean([np.asarray(d, dtype=np.float64)[-1] for d in demos], axis=0)
         states = np.concatenate([np.asarray(d, dtype=np.float64)[:-1] for d in demos])
         acts = np.concatenate([np.asarray(a, dtype=np.float64) for a in actions])
         state_modes = np.concatenate([m[:-1] for m in modes])
@@ -239,10 +243,12 @@ class GlideBCPolicy:
                 if sel.sum() >= 2
                 else None
             )
-            if k + 1 < self.num_modes and np.all(np.isfinite(entries[k + 1])):
-                self.attractors[k] = entries[k + 1]
+            # mode k's attractor: where the demos enter mode k + 1; in the final mode, where they end
+            target = entries[k + 1] if k + 1 < self.num_modes else goal
+            if np.all(np.isfinite(target)):
+                self.attractors[k] = target
                 if sel.any():
-                    dist = np.linalg.norm(states[sel] - entries[k + 1], axis=1)
+                    dist = np.linalg.norm(states[sel] - target, axis=1)
                     self.thresholds[k] = float(np.quantile(dist, attractor_quantile))
 
     def act(self, states: np.ndarray) -> np.ndarray:
@@ -278,6 +284,13 @@ class PlannerConfig:
     ``rrt_step`` is 0.5 rather than the public 0.1: with 1000 iterations a
     0.1-step tree does not cross a 16 x 16 workspace; the path is still
     executed in env steps of at most ``max_speed``.
+
+    ``clearance``: straight paths and RRT nodes keep this distance from the
+    learned regions of the modes the agent may not enter (relaxed to the
+    start's and the goal's own clearance when those are closer), the
+    planning counterpart of the potential field's repulsion radius ``d0``:
+    a learned boundary is only as sharp as the classifier, and a path that
+    grazes it can clip a polygon corner labelled as free space.
     """
 
     grid_resolution: float = 0.05
@@ -291,6 +304,7 @@ class PlannerConfig:
     d0: float = 0.8
     check_spacing: float = 0.02
     waypoint_tolerance: float = 1e-6
+    clearance: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("grid_resolution", "rrt_step", "rrt_tolerance", "k_att", "d0", "check_spacing"):
@@ -301,6 +315,8 @@ class PlannerConfig:
             raise ValueError("rrt_iterations and rrt_restarts must be positive")
         if not 0 <= self.rrt_goal_bias <= 1:
             raise ValueError(f"rrt_goal_bias must be in [0, 1], got {self.rrt_goal_bias!r}")
+        if not (np.isfinite(self.clearance) and self.clearance >= 0):
+            raise ValueError(f"clearance must be a float >= 0, got {self.clearance!r}")
 
 
 class LearnedModeMap:
@@ -331,10 +347,34 @@ class LearnedModeMap:
     def inside(self, points: np.ndarray, allowed: frozenset[int]) -> np.ndarray:
         return np.isin(self.mode(points), list(allowed))
 
-    def segment_ok(self, a: np.ndarray, b: np.ndarray, allowed: frozenset[int], spacing: float) -> bool:
+    def clearance(self, points: np.ndarray, allowed: frozenset[int]) -> np.ndarray:
+        """Distance of each point to the nearest grid cell outside ``allowed`` (0 outside)."""
+        dist = self.distance_field(allowed)[0]
+        i, j = self.index(points)
+        return dist[i, j]
+
+    def segment_ok(
+        self, a: np.ndarray, b: np.ndarray, allowed: frozenset[int], spacing: float, min_clearance: float = 0.0
+    ) -> bool:
+        """Whether the segment ``a -> b`` stays in ``allowed`` at least ``min_clearance`` from its outside."""
         n = max(2, int(np.ceil(np.linalg.norm(b - a) / spacing)) + 1)
         t = np.linspace(0.0, 1.0, n)[:, None]
-        return bool(np.all(self.inside(a + t * (b - a), allowed)))
+        pts = a + t * (b - a)
+        if min_clearance <= 0:
+            return bool(np.all(self.inside(pts, allowed)))
+        return bool(np.all(self.clearance(pts, allowed) >= min_clearance))
+
+    def nearest_in(self, point: np.ndarray, mode: int) -> np.ndarray:
+        """``point`` if the map labels it ``mode``, else the nearest grid point labelled ``mode``
+        (``point`` itself when no cell has that label)."""
+        p = np.asarray(point, dtype=np.float64)
+        if self.mode(p[None])[0] == mode:
+            return p
+        cells = np.argwhere(self.labels == mode)
+        if len(cells) == 0:
+            return p
+        pts = self.low + self.resolution * cells
+        return pts[int(np.argmin(np.sum((pts - p) ** 2, axis=1)))]
 
     def distance_field(self, allowed: frozenset[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Distance to the nearest cell outside ``allowed`` and its gradient (cached)."""
@@ -446,6 +486,13 @@ class GlidePlanningPolicy:
         for k in range(1, self.num_modes):
             if not np.all(np.isfinite(self.waypoints[k])):
                 self.waypoints[k] = ends
+            # the mean of entry points can fall outside a curved learned region: an agent would reach it
+            # still in mode k - 1 and stop there; aim at the nearest point the classifier labels k instead
+            self.waypoints[k] = self.map.nearest_in(self.waypoints[k], k)
+        #: where the demos end (the mean of their last states): the target inside the final mode, so an
+        #: agent that the classifier already places in the final mode still walks into the demos' goal
+        #: region instead of stopping on a learned boundary that lies short of the true one
+        self.goal = ends
         self.rng = np.random.default_rng(seed)
         self._plans: list[list[np.ndarray]] = []
         self._plan_mode: np.ndarray = np.zeros(0, dtype=np.int64)
@@ -462,13 +509,23 @@ class GlidePlanningPolicy:
                 self._plans[i] = []
                 self._plan_mode[i] = -1
 
+    def _target(self, mode: int) -> tuple[np.ndarray, frozenset[int]]:
+        """The point an agent in ``mode`` heads for and the learned modes it may cross on the way."""
+        if mode >= self.num_modes - 1:
+            return self.goal, frozenset({self.num_modes - 1})
+        return self.waypoints[mode + 1], frozenset({mode, mode + 1})
+
     def _plan(self, x: np.ndarray, mode: int) -> list[np.ndarray]:
-        goal = self.waypoints[min(mode + 1, self.num_modes - 1)]
-        allowed = frozenset({mode, min(mode + 1, self.num_modes - 1)})
+        goal, allowed = self._target(mode)
         cfg = self.config
+        # the clearance the path keeps: the configured one, or less where the start or the goal is closer
+        # (a cell inside ``allowed`` is at least one cell from its outside: below that, only stay inside)
+        margin = min(cfg.clearance, float(self.map.clearance(np.stack([x, goal]), allowed).min()))
+        if margin <= self.map.resolution:
+            margin = 0.0
 
         def seg(a: np.ndarray, b: np.ndarray) -> bool:
-            return self.map.segment_ok(a, b, allowed, cfg.check_spacing)
+            return self.map.segment_ok(a, b, allowed, cfg.check_spacing, margin)
 
         if seg(x, goal):
             self.stats["straight"] += 1
@@ -477,7 +534,7 @@ class GlidePlanningPolicy:
             path = rrt(
                 x,
                 goal,
-                lambda p: bool(self.map.inside(p[None, :], allowed)[0]),
+                lambda p: bool(self.map.clearance(p[None, :], allowed)[0] >= max(margin, 1e-9)),
                 seg,
                 self.low,
                 self.high,
@@ -494,8 +551,7 @@ class GlidePlanningPolicy:
         return []  # potential field
 
     def _field_step(self, x: np.ndarray, mode: int) -> np.ndarray:
-        goal = self.waypoints[min(mode + 1, self.num_modes - 1)]
-        allowed = frozenset({mode, min(mode + 1, self.num_modes - 1)})
+        goal, allowed = self._target(mode)
         dist, gi, gj = self.map.distance_field(allowed)
         i, j = self.map.index(x[None, :])
         d = float(dist[i[0], j[0]])
@@ -518,8 +574,6 @@ class GlidePlanningPolicy:
         jumped = np.linalg.norm(x - self._expected, axis=1) > self.max_speed + 1e-6
         for i in range(n):
             m = int(modes[i])
-            if m == self.num_modes - 1:
-                continue
             if self._plan_mode[i] != m or jumped[i]:  # new mode, or pushed: plan again
                 self._plans[i] = self._plan(x[i], m)
                 self._plan_mode[i] = m

@@ -33,6 +33,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites_itps",
     "steer_envs.bench.suites_ltl",
     "steer_envs.bench.suites_tli",
+    "steer_envs.bench.suites_glide",
 )
 #: environment variable with extra comma-separated suite modules to import
 PLUGINS_ENV_VAR = "STEER_BENCH_PLUGINS"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -149,9 +151,31 @@ def test_training_recovers_the_band_modes_from_success_labels_only() -> None:
     assert overlap > 0.85, overlap  # chance (one label everywhere) is at most 0.4 here
     assert len(result.head_losses) == 2 and result.classifier.head == int(np.argmin(result.head_losses))
     assert result.history["total"][-1] < result.history["total"][0]
+    heads = np.array(result.history["heads"])  # every head's full-weight total, every 50 steps and at the end
+    assert heads.shape == (len(range(0, 300, 50)) + 1, 2)
+    np.testing.assert_allclose(heads[-1], result.head_losses, rtol=1e-4, atol=1e-4)
     # same seed, same classifier
     again = train_mode_classifier(trajs, labels, F3, weights=GlideLossWeights(fail=10.0), config=config)
     np.testing.assert_array_equal(again.classifier.predict(grid), result.classifier.predict(grid))
+
+
+def test_pruning_keeps_the_heads_with_the_lowest_training_loss() -> None:
+    trajs, labels = _toy_band_data(np.random.default_rng(3), 200)
+    config = GlideTrainConfig(epochs=120, n_heads=4, prune_at=0.5, prune_to=2, seed=1)
+    result = train_mode_classifier(trajs, labels, F3, weights=GlideLossWeights(fail=10.0), config=config)
+    rows = [len(r) for r in result.history["heads"]]  # logged at steps 0, 50, 100 and 119
+    assert rows == [4, 4, 2, 2] and result.classifier.n_heads == 2 and len(result.head_losses) == 2
+    assert result.classifier.w1.shape[0] == 2 and result.classifier.predict(np.zeros((3, 2))).shape == (3,)
+    # the same run without pruning: pruning keeps the two best heads of step 60 (with their Adam
+    # moments), so its best head is at least as good as the second best of the unpruned run
+    no_pruning = dataclasses.replace(config, prune_to=4)
+    full = train_mode_classifier(trajs, labels, F3, weights=GlideLossWeights(fail=10.0), config=no_pruning)
+    assert full.classifier.n_heads == 4
+    assert min(result.head_losses) <= sorted(full.head_losses)[1] + 1e-3
+    with pytest.raises(ValueError, match="prune_to"):
+        GlideTrainConfig(prune_to=0)
+    with pytest.raises(ValueError, match="prune_at"):
+        GlideTrainConfig(prune_at=1.5)
 
 
 def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:

@@ -98,6 +98,22 @@ def test_learned_mode_map_reads_the_classifier_on_a_grid(setting: tuple) -> None
     assert dist.shape == grid_map.shape and dist.max() > 1.0
 
 
+def test_waypoints_lie_in_their_learned_modes(setting: tuple) -> None:
+    """A waypoint outside its mode would leave the agent standing in the previous mode."""
+    model, demos = setting
+    grid_map = LearnedModeMap(_Oracle(model), model.low, model.high, 0.05)
+    centre = np.asarray(model.polygons[1].centroid.coords[0])
+    far = centre + np.array([20.0, 0.0])  # outside the workspace, in no polygon
+    moved = grid_map.nearest_in(far, 2)
+    assert grid_map.mode(moved[None])[0] == 2
+    np.testing.assert_array_equal(grid_map.nearest_in(centre, 2), centre)  # already inside: unchanged
+    shifted = _LateFinalMode(model, 1.5)  # entries into the final mode spread along a bent learned boundary
+    policy = GlidePlanningPolicy(
+        shifted, [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
+    )
+    assert [int(policy.map.mode(policy.waypoints[k][None])[0]) for k in (1, 2, 3)] == [1, 2, 3]
+
+
 def test_planning_on_the_true_modes_solves_the_task_and_resists_pushes(setting: tuple) -> None:
     model, demos = setting
     policy = GlidePlanningPolicy(
@@ -110,6 +126,63 @@ def test_planning_on_the_true_modes_solves_the_task_and_resists_pushes(setting: 
     assert pushed["perturbations"] <= 3 * 40
     assert pushed["violation_rate"] == 0.0  # pushes are not the agent's transitions; the planner makes none
     assert pushed["success_rate"] >= 0.8
+
+
+class _LateFinalMode(_Oracle):
+    """True modes, except the final mode also claims the previous polygon up to ``reach`` from its edge."""
+
+    def __init__(self, model: object, reach: float) -> None:
+        super().__init__(model)
+        self.reach = reach
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        import shapely
+
+        x = np.asarray(states, dtype=np.float64)
+        modes = super().predict(x)
+        last = self.model.num_modes - 1  # type: ignore[attr-defined]
+        near = shapely.distance(shapely.points(x), self.model.polygons[-1]) <= self.reach  # type: ignore[attr-defined]
+        return np.where((modes == last - 1) & near, last, modes)
+
+
+def test_planning_walks_into_the_final_mode_past_a_learned_boundary_that_is_short(setting: tuple) -> None:
+    """A classifier whose final mode starts 0.5 early: the agent must not stop on the learned boundary."""
+    model, demos = setting
+    clf = _LateFinalMode(model, 0.5)
+    policy = GlidePlanningPolicy(
+        clf, [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
+    )
+    assert model.mode_of(policy.goal[None])[0] == 3  # the demos' mean end lies in the last (convex) polygon
+    res = evaluate_policy(policy, ENV_ID, 0, n_rollouts=30, perturbed=False, seed=2)
+    assert res["success_rate"] >= 0.95, res
+
+
+def test_paths_keep_clear_of_forbidden_learned_modes(setting: tuple) -> None:
+    import shapely
+
+    model, _ = setting
+    grid_map = LearnedModeMap(_Oracle(model), model.low, model.high, 0.05)
+    allowed = frozenset({0, 1})
+    poly = model.polygons[1]  # mode 2: forbidden from free space
+    inner = poly.representative_point()
+    assert grid_map.clearance(np.array([[inner.x, inner.y]]), allowed)[0] == 0.0
+    # a segment along one of its outer edges, 0.15 outside: inside the allowed modes, but not 0.3 clear
+    coords = np.asarray(poly.exterior.coords)
+    for e0, e1 in itertools.pairwise(coords):
+        mid, d = (e0 + e1) / 2, (e1 - e0) / np.linalg.norm(e1 - e0)
+        normal = np.array([-d[1], d[0]])
+        normal = normal if not poly.contains(shapely.Point(*(mid + 0.05 * normal))) else -normal
+        a, b = mid + 0.15 * normal - 0.2 * d, mid + 0.15 * normal + 0.2 * d
+        if (
+            set(model.mode_of(np.linspace(a, b, 50)).tolist()) == {0}
+            and model.mode_of((mid + 0.5 * normal)[None])[0] == 0
+        ):
+            break
+    else:
+        pytest.fail("no free outer edge on polygon 2 of this layout")
+    assert grid_map.segment_ok(a, b, allowed, 0.02)
+    assert not grid_map.segment_ok(a, b, allowed, 0.02, min_clearance=0.3)
+    assert grid_map.segment_ok(a, b, allowed, 0.02, min_clearance=0.05)
 
 
 def test_glide_bc_runs_one_policy_per_mode(setting: tuple) -> None:

@@ -1,0 +1,134 @@
+"""The GLiDE suites: declarations, tiny end-to-end runs through the runner, report and figure."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from steer_envs.bench.report import render_markdown, summarize
+from steer_envs.bench.runner import build_request, plan_trials, run_suite
+from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
+from steer_envs.bench.suites_glide import ENV_IDS, METHODS, THESIS_TABLE_4_1, VARIANTS, run_grounding_trial
+
+PNG = b"\x89PNG\r\n\x1a\n"
+ENV3 = "steer_envs/PolygonNav-3Mode-v0"
+#: a tiny GLiDE setup: a few demos and replays, a few epochs
+TINY = {"n_demos": 3, "n_success": 8, "n_failure": 8, "epochs": 5, "n_heads": 1}
+
+
+def test_suites_are_declared_with_the_thesis_numbers() -> None:
+    from steer_envs.baselines import glide_protocol
+
+    assert "steer_envs.bench.suites_glide" in BUILTIN_SUITE_MODULES
+    grounding = get_suite("glide-polygon-grounding")
+    assert grounding.env_list() == list(ENV_IDS) == list(glide_protocol.ENV_IDS)
+    assert grounding.method_list() == list(VARIANTS) == list(glide_protocol.VARIANTS)
+    assert grounding.default_seeds == 5  # issue 6: mean over 5 layouts
+    assert plan_trials(grounding, build_request(grounding)).trials.__len__() == 3 * 5 * 5
+    assert grounding.references_for(ENV3, "full")["overlap"].value == 0.95
+    assert "overlap" not in grounding.references_for(ENV3, "kmeans")
+    assert grounding.metric("train_seconds").goal == 120.0
+
+    table = get_suite("glide-polygon")
+    assert {m: dict(v) for m, v in THESIS_TABLE_4_1.items()} == glide_protocol.THESIS_TABLE_4_1
+    refs = table.references_for("steer_envs/PolygonNav-4Mode-v0", "glide_planning")
+    assert (refs["success"].value, refs["success_perturbed"].value) == (0.987, 0.966)
+    assert table.references_for("steer_envs/PolygonNav-5Mode-v0", "bc")["success_perturbed"].value == 0.596
+    plan = plan_trials(table, build_request(table))
+    per_method = {m: sum(t.method == m for t in plan.trials) for m in METHODS}
+    assert per_method == {"bc": 3 * 10, "glide_bc": 3, "glide_planning": 3}  # BC over 10 seeds, as in the thesis
+    assert {t.params["n_rollouts"] for t in plan.trials} == {1000}
+    explicit = plan_trials(table, build_request(table, methods=["bc", "glide_planning"], seeds=[3, 4], trials=7))
+    assert sorted((t.method, t.seed) for t in explicit.trials if t.env == ENV3) == [
+        ("bc", 3),
+        ("bc", 4),
+        ("glide_planning", 3),
+        ("glide_planning", 4),
+    ]
+    with pytest.raises(ValueError, match="bc_seeds"):
+        plan_trials(table, build_request(table, params={"bc_seeds": 0}))
+    with pytest.raises(ValueError, match="n_success"):
+        plan_trials(table, build_request(table, params={"n_success": 0}))
+
+
+def test_grounding_suite_runs_tiny_through_the_runner_with_report_and_figure(tmp_path: Path) -> None:
+    params = {**TINY, "grid_resolution": 24, "cache_dir": str(tmp_path / "cache"), "plot_seeds": 1}
+    summary = run_suite(
+        "glide-polygon-grounding", tmp_path / "run", envs=[ENV3], seeds=[0], params=params, workers=1, progress=False
+    )
+    assert summary.ok, [f.error for f in summary.failures]
+    assert summary.completed == len(VARIANTS)
+    by = {r["config"]["method"]: r for r in summary.records}
+    for variant, rec in by.items():
+        m = rec["metrics"]
+        assert 0.0 <= m["overlap"] <= 1.0 and 0.0 <= m["mean_iou"] <= 1.0, variant
+        assert m["free_only_overlap"] > 0.5 and m["train_seconds"] >= 0.0
+        assert len(rec["extra"]["iou"]) == 3
+        assert len(rec["extra"]["figure"]["labels"]) == 24 * 24
+    # the data set is built once (full runs first) and reused by the other variants that need it
+    assert by["full"]["metrics"]["data_seconds"] > 0.0
+    assert all(by[v]["metrics"]["data_seconds"] is None for v in VARIANTS if v != "full")
+    assert (
+        by["full"]["extra"]["n_trajectories"]
+        > TINY["n_demos"]
+        > by["no_counterfactuals"]["extra"]["n_trajectories"] - 1
+    )
+
+    text = render_markdown(summarize(summary.records))
+    assert "glide-polygon-grounding" in text and "overlap (ref)" in text and "issue 6 target" in text
+    suite = get_suite("glide-polygon-grounding")
+    assert suite.plot is not None
+    (figure,) = suite.plot(suite, summary.records, str(tmp_path / "plots"))
+    assert figure.endswith("glide-polygon-grounding_layout0.png")
+    assert Path(figure).read_bytes()[:8] == PNG
+
+    # the classifiers are cached: a second run elsewhere retrains nothing and measures the same overlaps
+    again = run_suite(
+        "glide-polygon-grounding",
+        tmp_path / "run2",
+        envs=[ENV3],
+        methods=["full", "wrong_feasibility"],
+        seeds=[0],
+        params={**params, "plot_seeds": 0},
+        workers=1,
+        progress=False,
+    )
+    assert again.ok
+    for rec in again.records:
+        assert rec["extra"]["cached"] is True and "figure" not in rec["extra"]
+        assert rec["metrics"]["overlap"] == by[rec["config"]["method"]]["metrics"]["overlap"]
+        assert rec["metrics"]["train_seconds"] == by[rec["config"]["method"]]["metrics"]["train_seconds"]
+
+
+def test_policy_suite_runs_tiny_through_the_runner(tmp_path: Path) -> None:
+    params = {**TINY, "bc_seeds": 2, "bc_steps": 5, "cache_dir": str(tmp_path / "cache")}
+    summary = run_suite("glide-polygon", tmp_path, envs=[ENV3], trials=3, params=params, workers=1, progress=False)
+    assert summary.ok, [f.error for f in summary.failures]
+    assert sorted((r["config"]["method"], r["seed"]) for r in summary.records) == [
+        ("bc", 0),
+        ("bc", 1),
+        ("glide_bc", 0),
+        ("glide_planning", 0),
+    ]
+    for rec in summary.records:
+        m = rec["metrics"]
+        for name in ("success", "success_perturbed", "violation", "violation_perturbed"):
+            assert m[name] in {0.0, 1 / 3, 2 / 3, 1.0}, (name, m)
+        assert m["train_seconds"] > 0.0 and m["eval_seconds"] > 0.0
+        assert rec["extra"]["unperturbed"]["perturbations"] == 0
+    glide = [r for r in summary.records if r["config"]["method"] != "bc"]
+    assert [r["extra"]["classifier_cached"] for r in glide] == [False, True]  # GLiDE+BC and +Planning share it
+    text = render_markdown(summarize(summary.records))
+    assert "success_perturbed (ref)" in text and "0.908" in text and "thesis Table 4.1" in text
+
+
+def test_trials_reject_unknown_variants_and_envs() -> None:
+    suite = get_suite("glide-polygon-grounding")
+    params = suite.resolve_params(TINY)
+    with pytest.raises(ValueError, match="unknown variant"):
+        run_grounding_trial(Trial(suite.name, ENV3, "oracle", 0, params, suite.fn))
+    with pytest.raises(ValueError, match="unknown env"):
+        run_grounding_trial(Trial(suite.name, "steer_envs/PolygonNav-9Mode-v0", "full", 0, params, suite.fn))
+    with pytest.raises(ValueError, match="grid_resolution"):
+        run_grounding_trial(Trial(suite.name, ENV3, "full", 0, {**params, "grid_resolution": 1}, suite.fn))
