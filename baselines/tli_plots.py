@@ -90,7 +90,6 @@ def single_mode_figure_data(
     from steer_envs.baselines.tli_protocol import (
         N_STEPS,
         POLICY_KINDS,
-        convex_mode_demos,
         cut_loop,
         fitted_policy,
         rollout,
@@ -99,11 +98,10 @@ def single_mode_figure_data(
 
     if policy_kind not in POLICY_KINDS:
         raise ValueError(f"policy_kind must be one of {POLICY_KINDS}, got {policy_kind!r}")
-    policy, model, flat = fitted_policy(
+    policy, model, xs = fitted_policy(
         int(layout_seed), int(n_demos), policy_kind.split("+")[0], int(bc_epochs), int(seed), demos
     )
-    demo_points = np.asarray(flat).reshape(-1, 2)
-    xs = convex_mode_demos(int(layout_seed), int(n_demos), demos=demos)[0]  # per demo, for the plot
+    demo_points = np.concatenate(xs)
     rng = np.random.default_rng([int(seed), int(layout_seed), 1])
     starts = sample_starts(model, demo_points, float(noise_sigma), n_starts, rng)
     loop = cut_loop(policy, model, starts, max_cuts=max_cuts if policy_kind.endswith("+mod") else None)

@@ -146,15 +146,18 @@ def _drawn_demos(layout_seed: int, n_demos: int, steps: int) -> tuple[list[np.nd
 @functools.lru_cache(maxsize=8)
 def fitted_policy(
     layout_seed: int, n_demos: int, kind: str, bc_epochs: int, seed: int, demos: str, ds_eps: float = DS_EPS
-) -> tuple[Any, Any, tuple[float, ...]]:
-    """(policy, model, flat demo points) of a layout's single-mode study; cached so noise levels share one fit."""
+) -> tuple[Any, Any, tuple[np.ndarray, ...]]:
+    """(policy, model, demos) of a layout's single-mode study; cached so noise levels share one fit.
+
+    ``demos`` is a tuple of ``(T, 2)`` arrays, one per demonstration (shared by the cache: do not modify).
+    """
     xs, vs, model = convex_mode_demos(layout_seed, n_demos, demos=demos)
     if kind == "ds":
         policy: Any = LPVDS(eps=ds_eps, random_state=seed).fit(xs, vs, attractor=model.attractor)
     else:
         policy = BCPolicy(2, seed=seed)
         policy.fit(np.concatenate(xs), np.concatenate(vs), epochs=bc_epochs)
-    return policy, model, tuple(np.concatenate(xs).ravel())
+    return policy, model, tuple(xs)
 
 
 def sample_starts(model: Any, demo_points: np.ndarray, sigma: float, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -312,11 +315,11 @@ def single_mode_trial(
         n_demos = int(np.random.default_rng([layout_seed, 31]).integers(1, 4))
     base_kind = policy_kind.split("+")[0]
     t_fit = time.perf_counter()
-    policy, model, flat = fitted_policy(
+    policy, model, xs = fitted_policy(
         int(layout_seed), int(n_demos), base_kind, int(bc_epochs), int(seed), demos, float(ds_eps)
     )
     fit_seconds = time.perf_counter() - t_fit
-    demo_points = np.asarray(flat).reshape(-1, 2)
+    demo_points = np.concatenate(xs)
     rng = np.random.default_rng([int(seed), int(layout_seed), 1])
 
     starts = sample_starts(model, demo_points, float(noise_sigma), n_starts, rng)

@@ -135,6 +135,7 @@ def solve_cut(
     attractor: ArrayLike,
     visited: ArrayLike | None = None,
     *,
+    also_keep: ArrayLike | None = None,
     margin: float = ATTRACTOR_MARGIN,
     restarts: int = 64,
     seed: int = 0,
@@ -147,6 +148,8 @@ def solve_cut(
         entry: ``x^0`` ``(d,)``, where the mode was entered (kept inside).
         attractor: ``x*`` ``(d,)``; the ball of radius ``margin`` around it is kept inside.
         visited: ``(m, d)`` last-in-mode states of earlier failures (kept inside), or None.
+        also_keep: ``(m', d)`` further states kept inside as long as that is feasible: the first
+            constraints the relaxation drops (without recording it), before ``visited``.
         margin: radius of that ball (the distance of the plane to ``x*`` is at least this).
         restarts, seed: multistart of the ``d > 2`` solver (unused in 2D).
     """
@@ -156,8 +159,9 @@ def solve_cut(
     x0 = _vec(entry, "entry", d)
     att = _vec(attractor, "attractor", d)
     vis = np.zeros((0, d)) if visited is None else np.asarray(visited, dtype=np.float64).reshape(-1, d)
-    if not np.all(np.isfinite(vis)):
-        raise ValueError("visited must be finite")
+    extra = np.zeros((0, d)) if also_keep is None else np.asarray(also_keep, dtype=np.float64).reshape(-1, d)
+    if not (np.all(np.isfinite(vis)) and np.all(np.isfinite(extra))):
+        raise ValueError("visited and also_keep must be finite")
     if not (np.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
     if np.linalg.norm(fail - f) == 0:
@@ -169,9 +173,14 @@ def solve_cut(
     rho = min(float(margin), 0.9 * dist)
     relaxed: list[str] = [] if rho == margin else ["margin"]
     vis = vis[np.linalg.norm(vis - f, axis=1) > 1e-12]
+    extra = extra[np.linalg.norm(extra - f, axis=1) > 1e-12]
     keep_x0 = bool(np.linalg.norm(x0 - f) > 1e-12)
-    # relaxation ladder: as posed; without earlier last-in-mode states; without the entry; smaller margins
-    attempts: list[tuple[np.ndarray, bool, float, tuple[str, ...]]] = [(vis, keep_x0, rho, ())]
+    # relaxation ladder: as posed; without also_keep; without earlier last-in-mode states; without the entry;
+    # smaller margins
+    attempts: list[tuple[np.ndarray, bool, float, tuple[str, ...]]] = []
+    if len(extra):
+        attempts.append((np.concatenate([vis, extra]), keep_x0, rho, ()))
+    attempts.append((vis, keep_x0, rho, ()))
     if len(vis):
         attempts.append((vis[:0], keep_x0, rho, ("visited",)))
     if keep_x0:
@@ -448,17 +457,8 @@ def resolve_cuts(
     cuts = []
     for i, fr in enumerate(failures):
         others = np.delete(lims, i, axis=0)
-        cut = solve_cut(
-            fr.last_in_mode,
-            fr.failure,
-            fr.entry,
-            attractor,
-            np.concatenate([others, np.delete(entries, i, axis=0)]),
-            margin=margin,
-        )
-        if "visited" in cut.relaxed and len(others):  # keep at least the other last-in-mode states if possible
-            cut = solve_cut(fr.last_in_mode, fr.failure, fr.entry, attractor, others, margin=margin)
-        cuts.append(cut)
+        also = np.delete(entries, i, axis=0)
+        cuts.append(solve_cut(fr.last_in_mode, fr.failure, fr.entry, attractor, others, also_keep=also, margin=margin))
     return cuts
 
 
