@@ -8,6 +8,7 @@ checkpoint's ``.json`` record beside it has the loss curve and wall time.
 from __future__ import annotations
 
 import json
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ import torch
 from .act import ACTPolicy
 from .diffusion import DiffusionPolicy
 
-__all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_pretrained"]
+__all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_checkpoint", "load_pretrained"]
 
 #: kind -> file name in ``steer_envs.baselines/checkpoints``.
 CHECKPOINTS: dict[str, str] = {
@@ -48,4 +49,16 @@ def checkpoint_record(kind: str) -> dict[str, Any]:
 def load_pretrained(kind: str, device: str | torch.device = "cpu") -> DiffusionPolicy | ACTPolicy:
     """The shipped Maze2D-Large policy: ``"dp"`` (:class:`DiffusionPolicy`) or ``"act"`` (:class:`ACTPolicy`)."""
     path = checkpoint_path(kind)
+    return DiffusionPolicy.load(path, device) if kind == "dp" else ACTPolicy.load(path, device)
+
+
+def load_checkpoint(
+    kind: str, path: str | os.PathLike[str], device: str | torch.device = "cpu"
+) -> DiffusionPolicy | ACTPolicy:
+    """A Maze2D policy of ``kind`` (``"dp"`` or ``"act"``) from a file written by ``train_maze`` (e.g. a GPU run).
+
+    ``ValueError`` when the file is missing or holds the other kind of policy.
+    """
+    if kind not in CHECKPOINTS:
+        raise ValueError(f"kind must be one of {sorted(CHECKPOINTS)}, got {kind!r}")
     return DiffusionPolicy.load(path, device) if kind == "dp" else ACTPolicy.load(path, device)

@@ -2,6 +2,11 @@
 
 ``python -m steer_envs.baselines.train_maze {dp,act} --data walk.npz --out dp.safetensors --steps N --seed S``
 
+``... dp --preset itps --device cuda --data walk.npz --out dp.safetensors`` trains
+ITPS's full-size network and optimizer settings (a GPU job: ~16M parameters,
+100k steps at batch 256); ``--model KEY=VALUE`` overrides one architecture
+field (``--model down_dims=[32,64,128]``), ``--steps`` etc. the preset's training.
+
 ``... {dp,act} --data walk.npz --check dp.json --check-steps 200`` re-runs the
 first steps of a recorded run and compares the logged losses (a cheap check
 that the committed command reproduces a shipped checkpoint's training).
@@ -44,9 +49,52 @@ from steer_envs.io import atomic_write_text
 from .act import ACTConfig, ACTPolicy
 from .diffusion import DiffusionConfig, DiffusionPolicy
 
-__all__ = ["KINDS", "TrainSettings", "build_policy", "check_record", "main", "train_policy"]
+__all__ = [
+    "KINDS",
+    "PRESETS",
+    "TrainSettings",
+    "build_policy",
+    "check_record",
+    "main",
+    "parse_model_overrides",
+    "train_policy",
+]
 
 KINDS = ("dp", "act")
+
+#: named (architecture, training) settings per policy kind. ``cpu``: the shipped checkpoints (the
+#: config defaults); ``itps``: the public ITPS maze configs (shared/reference/itps.md), sized for a GPU.
+#: ``static_history_prob`` stays 0.2 for DP: our suites start the agent at rest.
+PRESETS: dict[str, dict[str, dict[str, dict[str, Any]]]] = {
+    "cpu": {
+        "dp": {"model": {}, "train": {"steps": 30_000}},
+        "act": {"model": {}, "train": {"steps": 3_000}},
+    },
+    "itps": {
+        "dp": {
+            "model": {
+                "down_dims": (128, 256, 512),
+                "step_embed_dim": 128,
+                "prediction": "epsilon",
+                "relative": False,
+                "time_channel": False,
+                "obs_embed_dim": 0,
+            },
+            "train": {"steps": 100_000, "batch_size": 256, "lr": 1e-4, "warmup_steps": 500},
+        },
+        "act": {
+            "model": {
+                "d_model": 512,
+                "n_heads": 8,
+                "dim_feedforward": 3200,
+                "n_encoder_layers": 4,
+                "n_decoder_layers": 1,
+                "n_vae_encoder_layers": 4,
+            },
+            "train": {"steps": 100_000, "batch_size": 256, "lr": 1e-5},
+        },
+    },
+}
 
 
 @dataclass(frozen=True)
@@ -255,6 +303,29 @@ def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
     return Path(checkpoint).with_suffix(".json")
 
 
+def parse_model_overrides(kind: str, items: list[str] | None) -> dict[str, Any]:
+    """``["key=value", ...]`` -> config overrides for ``kind``'s config; values are JSON (else strings).
+
+    Raises ``ValueError`` naming the item when it is not ``key=value`` or the key is not a config field.
+    """
+    _check_kind(kind)
+    fields = set((DiffusionConfig if kind == "dp" else ACTConfig).__dataclass_fields__)
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--model expects KEY=VALUE, got {item!r}")
+        if key not in fields:
+            raise ValueError(f"--model {key}: not a {kind} config field (one of {', '.join(sorted(fields))})")
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        out[key] = tuple(value) if isinstance(value, list) else value
+    return out
+
+
 def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     try:
         res = check_record(args.check, args.data, args.check_steps, progress=not args.no_progress)
@@ -277,7 +348,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("kind", choices=KINDS)
     parser.add_argument("--data", required=True, help="dataset written by python -m steer_envs.data.maze_random_walk")
     parser.add_argument("--out", help="checkpoint path (.safetensors); a .json record goes beside it")
-    parser.add_argument("--steps", type=int, help="optimizer steps")
+    parser.add_argument(
+        "--preset",
+        choices=sorted(PRESETS),
+        default="cpu",
+        help="architecture + training: cpu (the shipped checkpoints, default) or itps (ITPS's full size; a GPU job)",
+    )
+    parser.add_argument(
+        "--model",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override one architecture field of the preset, VALUE as JSON (repeatable), e.g. down_dims=[32,64,128]",
+    )
+    parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batches and noise (default 0)")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     parser.add_argument("--batch-size", type=int, default=None, help="default 64")
@@ -298,8 +381,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.check is not None:
         return _check_main(parser, args)
-    if args.out is None or args.steps is None:
-        parser.error("--out and --steps are required (unless --check)")
+    if args.out is None:
+        parser.error("--out is required (unless --check)")
 
     out = Path(args.out)
     if out.suffix != ".safetensors":
@@ -309,21 +392,20 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--threads must be >= 1, got {args.threads}")
         torch.set_num_threads(args.threads)
     try:
+        preset = PRESETS[args.preset][args.kind]
+        model_config = {**preset["model"], **parse_model_overrides(args.kind, args.model)}
         dataset = load_random_walk(args.data)
+        cli = {"steps": args.steps, "batch_size": args.batch_size, "lr": args.lr, "warmup_steps": args.warmup_steps}
         settings = TrainSettings.defaults(
-            args.kind,
-            steps=args.steps,
-            seed=args.seed,
-            batch_size=args.batch_size,
-            lr=args.lr,
-            warmup_steps=args.warmup_steps,
+            args.kind, **{**preset["train"], **{k: v for k, v in cli.items() if v is not None}}, seed=args.seed
         )
-        policy = build_policy(args.kind, dataset, seed=args.seed, device=args.device)
+        policy = build_policy(args.kind, dataset, seed=args.seed, device=args.device, **model_config)
     except (TypeError, ValueError) as err:
         parser.error(str(err))
     print(f"{args.kind}: {policy.num_parameters():,} parameters, {len(dataset):,} samples, {settings.steps} steps")
     record = train_policy(policy, dataset, settings, progress=not args.no_progress)
     record["data"]["file"] = Path(args.data).name
+    record["preset"] = args.preset
     record["command"] = "python -m steer_envs.baselines.train_maze " + " ".join(
         argv if argv is not None else sys.argv[1:]
     )

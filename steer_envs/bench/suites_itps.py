@@ -31,7 +31,9 @@ machine two spinning OpenMP threads per process made a forward pass ~8x slower
 and distorted the SS/GD ratio; 0 keeps torch's default).
 
 Policies come from :func:`steer_envs.baselines.pretrained.load_pretrained`
-(``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the ``dp_loader`` /
+(``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the ``dp_checkpoint``
+/ ``act_checkpoint`` parameters take another ``train_maze`` checkpoint file
+(e.g. ``--preset itps`` trained on a GPU), and the ``dp_loader`` /
 ``act_loader`` parameters hold ``module:function`` paths, so other policies
 plug in. While a loader's module, the function or its checkpoint does not
 exist, the methods of that policy are skipped with a note. The ``plot`` hook draws the
@@ -93,13 +95,18 @@ def split_method(method: str) -> tuple[str, str]:
 
 
 @functools.lru_cache(maxsize=4)
-def load_policy(loader: str, kind: str) -> Any:
-    """The frozen policy ``kind`` from the ``"module:function"`` loader (cached per process).
+def load_policy(loader: str, kind: str, checkpoint: str = "") -> Any:
+    """The frozen policy ``kind`` from a checkpoint file or the ``"module:function"`` loader (cached per process).
 
-    The loader is called as ``loader(kind)`` when it takes an argument, else
-    ``loader()``. Raises ImportError/AttributeError/FileNotFoundError while the
-    policy is not available.
+    A non-empty ``checkpoint`` (a ``train_maze`` output, e.g. a GPU run) wins;
+    else the loader is called as ``loader(kind)`` when it takes an argument,
+    else ``loader()``. Raises ImportError/AttributeError/FileNotFoundError while
+    the policy is not available.
     """
+    if checkpoint:
+        from steer_envs.baselines.pretrained import load_checkpoint
+
+        return load_checkpoint(kind, checkpoint)  # a wrong path is a ValueError, not a skipped policy
     fn = resolve_function(loader)
     try:
         takes_arg = bool(inspect.signature(fn).parameters)
@@ -113,8 +120,8 @@ def load_policy(loader: str, kind: str) -> Any:
     return policy
 
 
-def _loader(params: Mapping[str, Any], kind: str) -> str:
-    return str(params[f"{kind}_loader"])
+def _policy(params: Mapping[str, Any], kind: str) -> Any:
+    return load_policy(str(params[f"{kind}_loader"]), kind, str(params[f"{kind}_checkpoint"]))
 
 
 def _check_params(params: Mapping[str, Any]) -> None:
@@ -143,7 +150,7 @@ def _plan_itps(suite: Suite, request: TrialRequest) -> TrialPlan:
         if not any(m is not None and split_method(m)[0] == kind for m in request.methods):
             continue
         try:
-            available[kind] = load_policy(_loader(params, kind), kind)
+            available[kind] = _policy(params, kind)
         except _UNAVAILABLE as exc:
             notes.append(
                 f"skipped {kind.upper()} methods: policy not available ({type(exc).__name__}: {exc}); "
@@ -190,7 +197,7 @@ def run_itps_trial(trial: Trial) -> TrialResult:
 
         torch.set_num_threads(int(params["torch_threads"]))
     kind, name = split_method(str(trial.method))
-    policy = load_policy(_loader(params, kind), kind)
+    policy = _policy(params, kind)
     env = gym.make(str(trial.env), sample_goal=False).unwrapped
     try:
         obs, _ = env.reset(seed=trial.seed)
@@ -386,6 +393,8 @@ ITPS_MAZE2D = register_suite(
             "latency_repeats": 1,
             "dp_loader": "steer_envs.baselines.pretrained:load_pretrained",
             "act_loader": "steer_envs.baselines.pretrained:load_pretrained",
+            "dp_checkpoint": "",
+            "act_checkpoint": "",
         },
         default_seeds=100,
         generate=_plan_itps,

@@ -11,7 +11,14 @@ import torch
 from steer_envs.baselines.act import ACTPolicy
 from steer_envs.baselines.diffusion import ConditionalUnet1D, DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.pretrained import checkpoint_record, load_pretrained
-from steer_envs.baselines.train_maze import TrainSettings, build_policy, main, train_policy
+from steer_envs.baselines.train_maze import (
+    PRESETS,
+    TrainSettings,
+    build_policy,
+    main,
+    parse_model_overrides,
+    train_policy,
+)
 from steer_envs.core import DiffusionPolicyLike, NoiseSchedulerLike, TrajectoryPolicy
 from steer_envs.data.maze_random_walk import generate_random_walk, save_random_walk
 from steer_envs.envs.maze2d import MazeGrid, maze_map
@@ -205,6 +212,34 @@ def test_training_cli_writes_checkpoint_and_record(tmp_path, walk) -> None:
         main(["dp", "--data", str(tmp_path / "missing.npz"), "--out", str(out), "--steps", "1"])
     with pytest.raises(SystemExit):
         main(["dp", "--data", str(data), "--out", str(out), "--steps", "0"])
+
+
+def test_presets_and_model_overrides(tmp_path, walk) -> None:
+    """--preset itps builds ITPS's full-size networks; --model KEY=VALUE overrides one field; bad keys are rejected."""
+    dp = build_policy("dp", walk, **PRESETS["itps"]["dp"]["model"])
+    assert dp.config.down_dims == (128, 256, 512) and dp.config.prediction == "epsilon" and not dp.config.relative
+    assert 15e6 < dp.num_parameters() < 18e6  # ITPS: about 16M
+    act = build_policy("act", walk, **PRESETS["itps"]["act"]["model"])
+    assert act.config.d_model == 512 and act.config.n_vae_encoder_layers == 4
+    assert PRESETS["itps"]["dp"]["train"]["batch_size"] == 256 and PRESETS["cpu"]["dp"]["train"]["steps"] == 30_000
+    assert parse_model_overrides("dp", ["down_dims=[8,16]", "prediction=epsilon", "relative=false"]) == {
+        "down_dims": (8, 16),
+        "prediction": "epsilon",
+        "relative": False,
+    }
+    with pytest.raises(ValueError, match="not a dp config field"):
+        parse_model_overrides("dp", ["d_model=8"])
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        parse_model_overrides("act", ["d_model"])
+    data = save_random_walk(walk, tmp_path / "walk.npz")
+    out = tmp_path / "dp.safetensors"
+    argv = ["dp", "--data", str(data), "--out", str(out), "--steps", "2", "--batch-size", "4", "--no-progress"]
+    assert main([*argv, "--model", "down_dims=[8,16]", "--model", "step_embed_dim=16"]) == 0
+    record = json.loads(out.with_suffix(".json").read_text())
+    assert record["model"]["down_dims"] == [8, 16] and record["training"]["preset"] == "cpu"
+    for bad in (["--model", "nope=1"], ["--model", "down_dims=[7]"], ["--preset", "gpu"]):
+        with pytest.raises(SystemExit):
+            main([*argv, *bad])
 
 
 def test_check_reruns_a_recorded_run_and_flags_a_difference(tmp_path, walk) -> None:

@@ -162,3 +162,18 @@ def test_references_and_quick_settings(suite: Any) -> None:
         plan_trials(suite, build_request(suite, params={**FAST, "batch": 0}))
     trial = Trial(suite.name, suites_itps.ENV_ID, "ACT-OP", 0, {**suite.params, **FAST}, suite.fn)
     assert execute_trial(trial).record["metrics"]["collision"] >= 0.0  # type: ignore[index]
+
+
+def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Path) -> None:
+    """--param dp_checkpoint=FILE runs the suite on another train_maze checkpoint (e.g. a GPU run)."""
+    from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
+
+    tiny = DiffusionConfig(horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16)
+    path = DiffusionPolicy(tiny, (0.5, 0.5), (7.5, 10.5)).save(tmp_path / "dp.safetensors")
+    params = {**FAST, "dp_loader": "steer_envs.no_such_module:f", "dp_checkpoint": str(path)}
+    plan = plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params=params))
+    outcome = execute_trial(plan.trials[0])
+    assert outcome.ok, outcome.error
+    assert np.asarray(outcome.record["extra"]["plans"]).shape == (8, 15, 2)  # the tiny net's horizon, not 64
+    with pytest.raises(ValueError, match="no checkpoint file"):
+        plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params={**params, "dp_checkpoint": "x"}))
