@@ -35,6 +35,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
     )
+    parser.add_argument(
+        "--checkpoint", default="", help="a train_maze checkpoint file of --policy (default: the shipped one)"
+    )
     parser.add_argument("--sampler", choices=("RS", "PR", "OP", "BI", "GD", "SS"), default="PR", help="default: PR")
     parser.add_argument("--batch", type=int, default=8, help="plans per steering call (default: 8)")
     parser.add_argument("--steps", type=int, default=16, help="PPO training steps (default: 16)")
@@ -51,8 +54,8 @@ def main(argv: list[str] | None = None) -> int:
         print("--steps and --batch must be >= 1", file=sys.stderr)
         return 2
     try:
-        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy)
-    except (ImportError, AttributeError, FileNotFoundError) as exc:
+        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy, args.checkpoint)
+    except (ImportError, AttributeError, FileNotFoundError, ValueError) as exc:
         print(f"the {args.policy} policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
     env = SteeringWrapper(

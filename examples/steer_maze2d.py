@@ -37,6 +37,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
     )
+    parser.add_argument(
+        "--checkpoint", default="", help="a train_maze checkpoint file of --policy (default: the shipped one)"
+    )
     parser.add_argument("--sampler", choices=sorted(SAMPLERS), default="SS", help="steering sampler (default: SS)")
     parser.add_argument("--batch", type=int, default=32, help="plans sampled per call (default: 32)")
     parser.add_argument("--seed", type=int, default=0, help="start location, sketch and noise seed (default: 0)")
@@ -48,8 +51,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
-        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy)
-    except (ImportError, AttributeError, FileNotFoundError) as exc:
+        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy, args.checkpoint)
+    except (ImportError, AttributeError, FileNotFoundError, ValueError) as exc:
         print(f"the {args.policy} policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
     env = gym.make("steer_envs/Maze2D-Large-v0", sample_goal=False)
