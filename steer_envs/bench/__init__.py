@@ -18,6 +18,7 @@ from steer_envs.bench.report import render, summarize
 from steer_envs.bench.runner import RunSummary, build_request, plan_trials, run_suite
 from steer_envs.bench.store import ResultStore, load_results, read_jsonl
 from steer_envs.bench.suite import (
+    Finding,
     Metric,
     Reference,
     Suite,
@@ -33,6 +34,7 @@ from steer_envs.bench.suite import (
 
 __all__ = [
     "Executor",
+    "Finding",
     "Metric",
     "Outcome",
     "Reference",

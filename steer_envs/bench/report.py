@@ -5,7 +5,8 @@ gets mean, standard deviation (ddof=1), min, max and count over the cell's
 seeds. Where the suite declares a :class:`~steer_envs.bench.suite.Reference`
 (the thesis's number), the table shows it beside the measured mean together
 with the difference ``measured - reference``; metrics with a ``goal`` get a
-pass/fail line under the table.
+pass/fail line under the table; a suite's ``findings`` hook adds its
+qualitative claims (orderings, "within x of") with a verdict each.
 """
 
 from __future__ import annotations
@@ -16,10 +17,10 @@ import json
 import math
 import statistics
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from steer_envs.bench.suite import Metric, Reference, Suite, get_suite
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, get_suite
 
 FORMATS: tuple[str, ...] = ("md", "csv", "json")
 
@@ -77,10 +78,42 @@ class Table:
     metrics: list[Metric]
     rows: list[Row] = field(default_factory=list)
     varying_params: list[str] = field(default_factory=list)
+    findings: list[Finding] = field(default_factory=list)
 
     def referenced_metrics(self) -> list[Metric]:
         """Metrics that have a reference in at least one row."""
         return [m for m in self.metrics if any(m.name in r.references for r in self.rows)]
+
+    def mean(self, metric: str, method: str | None = None, env: str | None = None, **params: Any) -> float | None:
+        """Mean of ``metric`` in the one row matching ``method`` / ``env`` / ``params`` (``None`` = any value).
+
+        ``None`` when no row matches or the metric was not measured there;
+        ``ValueError`` when several rows match (name more to pick one).
+        """
+        rows = [
+            r
+            for r in self.rows
+            if (method is None or r.method == method)
+            and (env is None or r.env == env)
+            and all(r.params.get(k) == v for k, v in params.items())
+        ]
+        if len(rows) > 1:
+            raise ValueError(f"{self.suite}: {len(rows)} rows match method={method!r} env={env!r} {params}")
+        stat = rows[0].stats.get(metric) if rows else None
+        return stat.mean if stat is not None else None
+
+    def means(self, metric: str, methods: Sequence[str]) -> dict[str, float] | None:
+        """``{method: mean of metric}`` for findings; ``None`` unless each method has exactly one measured row."""
+        out: dict[str, float] = {}
+        for method in methods:
+            try:
+                value = self.mean(metric, method)
+            except ValueError:
+                return None
+            if value is None:
+                return None
+            out[method] = value
+        return out
 
 
 def _short_env(env: str | None) -> str | None:
@@ -132,7 +165,10 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
         all_keys = sorted({k for r in rows for k in r.params})
         varying = [k for k in all_keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1]
         description = suite.description if suite is not None else "(suite not registered in this process)"
-        tables.append(Table(suite_name, description, metrics, rows, varying))
+        table = Table(suite_name, description, metrics, rows, varying)
+        if suite is not None and suite.findings is not None:
+            table.findings = list(suite.findings(table))
+        tables.append(table)
     return tables
 
 
@@ -187,6 +223,12 @@ def goal_lines(table: Table) -> list[str]:
     return lines
 
 
+def finding_lines(table: Table) -> list[str]:
+    """``finding holds|FAILS|not checked: claim (detail)`` lines."""
+    verdict = {True: "holds", False: "FAILS", None: "not checked"}
+    return [f"finding {verdict[f.holds]}: {f.claim}" + (f" ({f.detail})" if f.detail else "") for f in table.findings]
+
+
 def render_markdown(tables: Sequence[Table], *, title: str | None = None, notes: Sequence[str] = ()) -> str:
     """Markdown: one table per suite; thesis numbers and differences beside measured means."""
     out: list[str] = []
@@ -216,7 +258,7 @@ def render_markdown(tables: Sequence[Table], *, title: str | None = None, notes:
             rows.append(cells)
         out.append(_md_table(header, rows))
         sources = sorted({ref.source for r in table.rows for ref in r.references.values() if ref.source})
-        notes = [*goal_lines(table)]
+        notes = [*goal_lines(table), *finding_lines(table)]
         if sources:
             notes.append("references: " + "; ".join(sources))
         described = [f"`{m.name}`: {m.description}" for m in table.metrics if m.description]
@@ -289,8 +331,9 @@ def render_csv(tables: Sequence[Table]) -> str:
 
 
 def render_json(tables: Sequence[Table]) -> str:
-    """JSON: ``{"rows": [...]}`` in the same long format as the CSV."""
-    return json.dumps({"rows": _long_rows(tables)}, indent=2, sort_keys=True) + "\n"
+    """JSON: ``{"rows": [...], "findings": [...]}``; rows in the same long format as the CSV."""
+    findings = [{"suite": t.suite, **asdict(f)} for t in tables for f in t.findings]
+    return json.dumps({"rows": _long_rows(tables), "findings": findings}, indent=2, sort_keys=True) + "\n"
 
 
 def render(tables: Sequence[Table], fmt: str = "md", *, title: str | None = None, notes: Sequence[str] = ()) -> str:

@@ -173,8 +173,23 @@ class TrialPlan:
     notes: tuple[str, ...] = ()
 
 
+@dataclass(frozen=True)
+class Finding:
+    """One qualitative claim of the thesis, checked on a run's summary table.
+
+    ``holds`` is ``None`` when the run lacks the cells the claim needs (e.g. a
+    ``--method`` subset); ``detail`` gives the measured numbers behind the verdict.
+    """
+
+    claim: str
+    holds: bool | None
+    detail: str = ""
+
+
 TrialGenerator = Callable[["Suite", TrialRequest], "TrialPlan | Iterable[Trial]"]
 PlotHook = Callable[["Suite", Sequence[Mapping[str, Any]], str], Sequence[str]]
+#: ``report.Table -> findings`` (typed ``Any`` here: report.py imports this module)
+FindingsHook = Callable[[Any], Sequence[Finding]]
 
 
 @dataclass(frozen=True)
@@ -201,6 +216,9 @@ class Suite:
             tour (``None``: not part of it); ``quick_seeds`` seeds there.
         plot: optional hook ``(suite, records, out_dir) -> written paths`` for
             suite-specific figures (``steer-bench report --plots``).
+        findings: optional hook ``report.Table -> [Finding]``: the thesis's
+            qualitative claims (orderings, "within x of"), checked on the
+            summary and listed under the table.
     """
 
     name: str
@@ -217,6 +235,7 @@ class Suite:
     quick: Mapping[str, Any] | None = None
     quick_seeds: int = 1
     plot: PlotHook | None = None
+    findings: FindingsHook | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or any(c.isspace() for c in self.name):

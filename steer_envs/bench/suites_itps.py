@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.bench.suite import (
+    Finding,
     Metric,
     Reference,
     Suite,
@@ -355,6 +356,40 @@ def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) 
     return written
 
 
+def itps_findings(table: Any) -> list[Finding]:
+    """Table 2.1's qualitative findings (issue 7's Done-when), checked on a run's summary table."""
+    dp = [f"DP-{s}" for s in DP_SAMPLERS]
+    min_l2, avg_l2, coll = (table.means(m, dp) for m in ("min_l2", "avg_l2", "collision"))
+
+    def fmt(values: Mapping[str, float] | None, *methods: str) -> str:
+        return ", ".join(f"{m[3:]} {values[m]:.3f}" for m in methods) if values else ""
+
+    findings = []
+    claim = "SS has the best Min L2 and Avg L2 among the DP samplers"
+    if min_l2 is None or avg_l2 is None:
+        findings.append(Finding(claim, None))
+    else:
+        others = [m for m in dp if m != "DP-SS"]
+        best_min, best_avg = min(others, key=min_l2.__getitem__), min(others, key=avg_l2.__getitem__)
+        holds = min_l2["DP-SS"] < min_l2[best_min] and avg_l2["DP-SS"] < avg_l2[best_avg]
+        detail = f"Min L2 {fmt(min_l2, 'DP-SS', best_min)}; Avg L2 {fmt(avg_l2, 'DP-SS', best_avg)}"
+        findings.append(Finding(claim, holds, detail))
+    claim = "SS's collision rate is within 0.02 of RS's"
+    holds = None if coll is None else abs(coll["DP-SS"] - coll["DP-RS"]) <= 0.02
+    findings.append(Finding(claim, holds, fmt(coll, "DP-SS", "DP-RS")))
+    claim = "GD and BI collide more than SS"
+    holds = None if coll is None else coll["DP-GD"] > coll["DP-SS"] and coll["DP-BI"] > coll["DP-SS"]
+    findings.append(Finding(claim, holds, fmt(coll, "DP-GD", "DP-BI", "DP-SS")))
+    claim = "PR improves Min L2 over RS but not Avg L2"
+    if min_l2 is None or avg_l2 is None:
+        findings.append(Finding(claim, None))
+    else:
+        holds = min_l2["DP-PR"] < min_l2["DP-RS"] and avg_l2["DP-PR"] >= avg_l2["DP-RS"] - 0.005
+        detail = f"Min L2 {fmt(min_l2, 'DP-PR', 'DP-RS')}; Avg L2 {fmt(avg_l2, 'DP-PR', 'DP-RS')}"
+        findings.append(Finding(claim, holds, detail))
+    return findings
+
+
 def _references() -> tuple[Reference, ...]:
     refs = []
     for method, (mn, avg, coll) in TABLE_2_1.items():
@@ -402,5 +437,6 @@ ITPS_MAZE2D = register_suite(
         quick={"plot_seeds": 2},
         quick_seeds=4,
         plot=plot_itps,
+        findings=itps_findings,
     )
 )

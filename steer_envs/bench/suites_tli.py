@@ -28,7 +28,7 @@ import contextlib
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-from steer_envs.bench.suite import Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
 
 CONVEX_ENV = "steer_envs/ConvexMode-v0"
 SCOOP_ENV = "steer_envs/SoupScoop-v0"
@@ -134,6 +134,31 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
     return TrialResult(metrics, extra)
 
 
+def single_mode_findings(table: Any) -> list[Finding]:
+    """Fig. 3.5's claims: modulation helps BC and never hurts DS; DS+mod succeeds from every start."""
+    levels = list(NOISE_LEVELS)
+    means = {lvl: table.means(f"success_{lvl}", SINGLE_MODE_METHODS) for lvl in levels}
+    ready = all(v is not None for v in means.values())
+
+    def row(method: str) -> str:
+        return f"{method} " + "/".join(f"{means[lvl][method]:.1f}" for lvl in levels)  # type: ignore[index]
+
+    claims = (  # (claim, test on one level's means, levels, methods shown)
+        ("BC+mod succeeds more often than BC at 5 % and 30 % noise", lambda v: v["bc+mod"] > v["bc"], ("5", "30"),
+         ("bc", "bc+mod")),
+        ("DS+mod succeeds at least as often as DS at every noise level", lambda v: v["ds+mod"] >= v["ds"], levels,
+         ("ds", "ds+mod")),
+        ("DS+mod succeeds from every start at every noise level", lambda v: v["ds+mod"] >= 100.0 - 1e-9, levels,
+         ("ds+mod",)),
+    )  # fmt: skip
+    return [
+        Finding(claim, all(test(means[lvl]) for lvl in at), "; ".join(map(row, shown)))
+        if ready
+        else Finding(claim, None)
+        for claim, test, at, shown in claims
+    ]
+
+
 def _single_mode_references() -> tuple[Reference, ...]:
     refs = []
     for method, values in THESIS_SINGLE_MODE.items():
@@ -187,6 +212,7 @@ TLI_SINGLE_MODE = register_suite(
         quick={"n_starts": 30, "bc_epochs": 500, "plot_seeds": 1},
         quick_seeds=2,
         plot=_plot_single_mode,
+        findings=single_mode_findings,
     )
 )
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -177,3 +178,41 @@ def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Pat
     assert np.asarray(outcome.record["extra"]["plans"]).shape == (8, 15, 2)  # the tiny net's horizon, not 64
     with pytest.raises(ValueError, match="no checkpoint file"):
         plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params={**params, "dp_checkpoint": "x"}))
+
+
+def _summary_record(method: str, seed: int, min_l2: float, avg_l2: float, collision: float) -> dict[str, Any]:
+    metrics = {"min_l2": min_l2, "avg_l2": avg_l2, "collision": collision}
+    config = {"suite": "itps-maze2d", "env": suites_itps.ENV_ID, "method": method, "params": {}}
+    return {"config": config, "seed": seed, "metrics": metrics, "key": f"{method}-{seed}"}
+
+
+def test_findings_check_table_2_1_claims() -> None:
+    """The report checks the Done-when claims: thesis-like numbers pass, last session's measured numbers fail two."""
+    from steer_envs.bench.report import render, render_markdown, summarize
+
+    def verdicts(table_2_1: dict[str, tuple[float, float, float]]) -> list[bool | None]:
+        records = [_summary_record(m, s, *v) for m, v in table_2_1.items() for s in (0, 1)]
+        (table,) = summarize(records)
+        return [f.holds for f in table.findings]
+
+    thesis = {m: suites_itps.TABLE_2_1[m] for m in suites_itps.METHODS if m.startswith("DP")}
+    assert verdicts(thesis) == [True, True, True, True]
+    measured = {  # itps-maze2d, 2026-11-29 (README): BI collides less than SS; SS 0.025 above RS
+        "DP-RS": (0.247, 0.234, 0.295),
+        "DP-PR": (0.095, 0.234, 0.295),
+        "DP-OP": (0.128, 0.282, 0.375),
+        "DP-BI": (0.061, 0.085, 0.235),
+        "DP-GD": (0.054, 0.126, 0.452),
+        "DP-SS": (0.048, 0.059, 0.320),
+    }
+    assert verdicts(measured) == [True, False, False, True]
+    partial = [_summary_record("DP-SS", 0, 0.1, 0.1, 0.0)]
+    (table,) = summarize(partial)
+    assert [f.holds for f in table.findings] == [None] * 4
+    assert "finding not checked: SS has the best" in render_markdown([table])
+    (table,) = summarize([_summary_record(m, 0, *v) for m, v in measured.items()])
+    md = render_markdown([table])
+    assert "finding FAILS: GD and BI collide more than SS (GD 0.452, BI 0.235, SS 0.320)" in md
+    assert "finding holds: PR improves Min L2 over RS but not Avg L2" in md
+    findings = json.loads(render([table], "json"))["findings"]
+    assert [f["holds"] for f in findings] == [True, False, False, True] and findings[0]["suite"] == "itps-maze2d"

@@ -118,3 +118,29 @@ def test_single_mode_reproduction_ordering() -> None:
     assert mean["ds"]["success_30"] < mean["ds+mod"]["success_30"]
     assert mean["ds"]["success_0"] == 100.0 and mean["ds+mod"]["success_0"] == 100.0
     assert mean["ds+mod"]["success_30"] >= 97.0
+
+
+def test_single_mode_findings_check_fig_3_5_claims() -> None:
+    from steer_envs.bench.report import Table, render_markdown, summarize
+    from steer_envs.bench.suites_tli import CONVEX_ENV
+
+    def table(success: dict[str, tuple[float, float, float]]) -> Table:
+        records = [
+            {
+                "config": {"suite": "tli-single-mode", "env": CONVEX_ENV, "method": m, "params": {}},
+                "seed": 0,
+                "metrics": {"success_0": v[0], "success_5": v[1], "success_30": v[2]},
+                "key": m,
+            }
+            for m, v in success.items()
+        ]
+        (out,) = summarize(records)
+        return out
+
+    assert [f.holds for f in table(dict(THESIS_SINGLE_MODE)).findings] == [True, True, True]
+    worse = {**THESIS_SINGLE_MODE, "ds+mod": (100.0, 96.0, 99.8)}
+    assert [f.holds for f in table(worse).findings] == [True, False, False]
+    md = render_markdown([table(worse)])
+    assert "finding FAILS: DS+mod succeeds from every start at every noise level (ds+mod 100.0/96.0/99.8)" in md
+    partial = {"bc": THESIS_SINGLE_MODE["bc"]}
+    assert [f.holds for f in table(partial).findings] == [None, None, None]
