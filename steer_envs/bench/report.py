@@ -102,12 +102,12 @@ class Table:
         stat = rows[0].stats.get(metric) if rows else None
         return stat.mean if stat is not None else None
 
-    def means(self, metric: str, methods: Sequence[str]) -> dict[str, float] | None:
+    def means(self, metric: str, methods: Sequence[str], env: str | None = None) -> dict[str, float] | None:
         """``{method: mean of metric}`` for findings; ``None`` unless each method has exactly one measured row."""
         out: dict[str, float] = {}
         for method in methods:
             try:
-                value = self.mean(metric, method)
+                value = self.mean(metric, method, env)
             except ValueError:
                 return None
             if value is None:
