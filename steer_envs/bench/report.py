@@ -79,6 +79,8 @@ class Table:
     rows: list[Row] = field(default_factory=list)
     varying_params: list[str] = field(default_factory=list)
     findings: list[Finding] = field(default_factory=list)
+    #: the suite's default seed count (the size its findings are meant for); None when unregistered
+    default_seeds: int | None = None
 
     def referenced_metrics(self) -> list[Metric]:
         """Metrics that have a reference in at least one row."""
@@ -166,6 +168,7 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
         varying = [k for k in all_keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1]
         description = suite.description if suite is not None else "(suite not registered in this process)"
         table = Table(suite_name, description, metrics, rows, varying)
+        table.default_seeds = suite.default_seeds if suite is not None else None
         if suite is not None and suite.findings is not None:
             table.findings = list(suite.findings(table))
         tables.append(table)
@@ -224,9 +227,15 @@ def goal_lines(table: Table) -> list[str]:
 
 
 def finding_lines(table: Table) -> list[str]:
-    """``finding holds|FAILS|not checked: claim (detail)`` lines."""
+    """``finding holds|FAILS|not checked: claim (detail)`` lines; a run on fewer seeds than the suite's says so."""
     verdict = {True: "holds", False: "FAILS", None: "not checked"}
-    return [f"finding {verdict[f.holds]}: {f.claim}" + (f" ({f.detail})" if f.detail else "") for f in table.findings]
+    lines = [f"finding {verdict[f.holds]}: {f.claim}" + (f" ({f.detail})" if f.detail else "") for f in table.findings]
+    seeds = max((len(r.seeds) for r in table.rows), default=0)
+    if lines and table.default_seeds is not None and seeds < table.default_seeds:
+        lines.append(
+            f"findings above come from {seeds} seed(s); the claims are about the full run's {table.default_seeds}"
+        )
+    return lines
 
 
 def render_markdown(tables: Sequence[Table], *, title: str | None = None, notes: Sequence[str] = ()) -> str:

@@ -210,6 +210,7 @@ def test_findings_check_table_2_1_claims() -> None:
     (table,) = summarize(partial)
     assert [f.holds for f in table.findings] == [None] * 4
     assert "finding not checked: SS has the best" in render_markdown([table])
+    assert "findings above come from 1 seed(s); the claims are about the full run's 100" in render_markdown([table])
     (table,) = summarize([_summary_record(m, 0, *v) for m, v in measured.items()])
     md = render_markdown([table])
     assert "finding FAILS: GD and BI collide more than SS (GD 0.452, BI 0.235, SS 0.320)" in md
