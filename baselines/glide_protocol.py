@@ -10,6 +10,12 @@
   least 100 steps apart and at most 3 times per episode, the agent is
   teleported to a uniform free-space point).
 
+The demonstrations of every method go on into the goal polygon for up to
+``GlideSetup.demo_goal_steps`` steps (the expert walks to its centroid): the
+env ends an episode on entering the goal, and a demo that stops there shows
+the classifier nothing of the goal polygon but a point behind its entry edge
+(the perturbed replays start and end where their demo does).
+
 Both return plain JSON-able dicts and are deterministic given their
 arguments. Trained classifiers and data sets can be cached in ``cache_dir``
 (safetensors / npz, written atomically) so the perturbed and unperturbed
@@ -63,6 +69,10 @@ class GlideSetup:
     """Everything a trial depends on besides (env, layout, variant/method, seed)."""
 
     n_demos: int = 7
+    #: the demos go on into the goal polygon for up to this many steps (the expert walks to its
+    #: centroid; 0: they end on entering it, where the env ends the episode). Every replay ends
+    #: where its demo ends, so this is what shows the classifier the goal polygon's interior.
+    demo_goal_steps: int = 30
     n_success: int = 500
     n_failure: int = 500
     kind: str = "segment"
@@ -77,7 +87,14 @@ class GlideSetup:
     grid_resolution: int = 200
 
     #: the fields the perturbation data set depends on (its cache key)
-    DATA_FIELDS: ClassVar[tuple[str, ...]] = ("n_demos", "n_success", "n_failure", "kind", "execution")
+    DATA_FIELDS: ClassVar[tuple[str, ...]] = (
+        "n_demos",
+        "demo_goal_steps",
+        "n_success",
+        "n_failure",
+        "kind",
+        "execution",
+    )
     #: the fields a trained classifier depends on (its cache key)
     CLASSIFIER_FIELDS: ClassVar[tuple[str, ...]] = (*DATA_FIELDS, "feasibility_convention", "weights", "train")
 
@@ -125,9 +142,21 @@ def _check_int(name: str, value: Any, low: int = 0) -> int:
     return int(value)
 
 
-def demonstrations(env_id: str, layout_seed: int, n: int, seed: int) -> list[Demonstration]:
-    """``n`` expert demos of one layout; demo start states are drawn from ``seed``."""
-    return collect_demonstrations(env_id, n, seed=1000 * int(seed), layout_seed=int(layout_seed))
+def demonstrations(env_id: str, layout_seed: int, n: int, seed: int, *, goal_steps: int = 0) -> list[Demonstration]:
+    """``n`` expert demos of one layout; demo start states are drawn from ``seed``.
+
+    ``goal_steps > 0``: each demo goes on for up to that many steps after entering the goal
+    polygon, the expert walking to the polygon's centroid (see ``GlideSetup.demo_goal_steps``).
+    """
+    goal_steps = _check_int("goal_steps", goal_steps)
+    return collect_demonstrations(
+        env_id,
+        n,
+        seed=1000 * int(seed),
+        steps_after_success=goal_steps,
+        expert_kwargs={"final_target": "centroid"} if goal_steps else None,
+        layout_seed=int(layout_seed),
+    )
 
 
 def data_cache_path(
@@ -201,7 +230,7 @@ def learn_grounding(
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     layout_seed, seed = _check_int("layout_seed", layout_seed), _check_int("seed", seed)
     setup = setup or GlideSetup()
-    demos = demonstrations(env_id, layout_seed, setup.n_demos, seed)
+    demos = demonstrations(env_id, layout_seed, setup.n_demos, seed, goal_steps=setup.demo_goal_steps)
     info: dict[str, Any] = {"n_demos": len(demos), "data_seconds": 0.0, "train_seconds": 0.0}
     if variant == "kmeans":
         start = time.perf_counter()
@@ -321,7 +350,7 @@ def make_policy(
     max_speed, low, high = float(base.max_speed * base.dt), base.model.low, base.model.high  # type: ignore[attr-defined]
     env.close()
     if method == "bc":
-        demos = demonstrations(env_id, layout_seed, setup.n_demos, seed)
+        demos = demonstrations(env_id, layout_seed, setup.n_demos, seed, goal_steps=setup.demo_goal_steps)
         states = np.concatenate([d.states[:-1] for d in demos])
         actions = np.concatenate([d.actions for d in demos])
         start = time.perf_counter()

@@ -25,9 +25,10 @@
   set how many training seeds each method gets unless ``--seeds`` is given.
 
 Both suites take the data/training sizes as parameters (a tiny configuration
-runs in seconds) and a ``cache_dir`` where data sets and classifiers are kept
-(safetensors / npz), so the grounding suite, the policy suite and a resumed
-run train each classifier once. Trials run with one BLAS and one torch
+runs in seconds; ``demo_goal_steps`` is how far the demos go on into the goal
+polygon, 0 for demos that end on entering it) and a ``cache_dir`` where data
+sets and classifiers are kept (safetensors / npz), so the grounding suite, the
+policy suite and a resumed run train each classifier once. Trials run with one BLAS and one torch
 thread.
 """
 
@@ -70,6 +71,7 @@ TRAIN_SECONDS_GOAL = 120.0
 #: parameters shared by both suites: what the GLiDE setup is built from
 _SETUP_PARAMS: dict[str, Any] = {
     "n_demos": 7,
+    "demo_goal_steps": 30,
     "n_success": 500,
     "n_failure": 500,
     "epochs": 2000,
@@ -97,11 +99,13 @@ def setup_from_params(suite: str, params: Mapping[str, Any], **extra: Any) -> An
 
     for name, low in (("n_demos", 1), ("n_success", 1), ("n_failure", 1), ("epochs", 1), ("n_heads", 1)):
         _check_int_param(suite, params, name, low)
+    goal_steps = _check_int_param(suite, params, "demo_goal_steps", 0) if "demo_goal_steps" in params else None
     base = GlideSetup()
     train = replace(base.train, epochs=int(params["epochs"]), n_heads=int(params["n_heads"]))
     return replace(
         base,
         n_demos=int(params["n_demos"]),
+        demo_goal_steps=base.demo_goal_steps if goal_steps is None else goal_steps,
         n_success=int(params["n_success"]),
         n_failure=int(params["n_failure"]),
         train=train,

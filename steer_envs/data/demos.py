@@ -7,6 +7,7 @@ fewer than 10.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,28 +33,54 @@ class Demonstration:
         return len(self.states)
 
 
-def rollout_expert(env: gym.Env, seed: int, max_steps: int | None = None) -> Demonstration:
-    """Run the scripted expert of ``env`` for one episode from ``reset(seed=seed)``."""
+def rollout_expert(
+    env: gym.Env,
+    seed: int,
+    max_steps: int | None = None,
+    *,
+    steps_after_success: int = 0,
+    expert_kwargs: Mapping[str, Any] | None = None,
+) -> Demonstration:
+    """Run the scripted expert of ``env`` for one episode from ``reset(seed=seed)``.
+
+    By default the demo ends at the first successful state (where the envs end
+    the episode). ``steps_after_success > 0`` (opt-in) keeps following the
+    expert for at most that many steps after it, stopping early when the expert
+    stands still or the episode is truncated: with an expert that walks on
+    into the goal region (e.g. ``expert_kwargs={"final_target": "centroid"}``
+    for PolygonNav) the demo then shows the goal's interior, which GLiDE's
+    classifier cannot otherwise see. ``success`` still reports whether the goal
+    was reached; ``max_steps`` bounds the steps before success.
+    """
     if not isinstance(seed, (int, np.integer)):
         raise TypeError(f"seed must be an int, got {type(seed).__name__}")
-    expert = make_expert(env)
+    if isinstance(steps_after_success, bool) or not isinstance(steps_after_success, (int, np.integer)):
+        raise TypeError(f"steps_after_success must be an int, got {type(steps_after_success).__name__}")
+    if steps_after_success < 0:
+        raise ValueError(f"steps_after_success must be >= 0, got {steps_after_success}")
+    expert = make_expert(env, **dict(expert_kwargs or {}))
     task = env.unwrapped.task
     obs, info = env.reset(seed=int(seed))
     expert.reset(obs, info)
     states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
     limit = max_steps if max_steps is not None else (env.spec.max_episode_steps if env.spec else None) or 10_000
     success = bool(info["success"])
-    for _ in range(limit):
-        if success:
-            break
+    steps, extra = 0, int(steps_after_success)  # steps before success, steps left after it
+    while (not success and steps < limit) or (success and extra > 0):
         action = np.asarray(expert.act(obs, info))
+        if success and not np.any(action):  # the expert stands still in the goal: nothing more to show
+            break
         obs, _, terminated, truncated, info = env.step(action)
         states.append(np.asarray(obs, dtype=np.float64))
         actions.append(action.astype(np.float64))
         modes.append(info["mode"])
         sensors.append(_sensor_row(task, info))
-        success = bool(info["success"])
-        if terminated or truncated:
+        if success:
+            extra -= 1
+        else:
+            steps += 1
+            success = bool(info["success"])
+        if truncated or (terminated and not success):
             break
     return Demonstration(
         env_id=env.spec.id if env.spec else type(env.unwrapped).__name__,
@@ -67,12 +94,21 @@ def rollout_expert(env: gym.Env, seed: int, max_steps: int | None = None) -> Dem
 
 
 def collect_demonstrations(
-    env_id: str, n: int, seed: int = 0, *, only_successful: bool = True, **make_kwargs: Any
+    env_id: str,
+    n: int,
+    seed: int = 0,
+    *,
+    only_successful: bool = True,
+    steps_after_success: int = 0,
+    expert_kwargs: Mapping[str, Any] | None = None,
+    **make_kwargs: Any,
 ) -> list[Demonstration]:
     """``n`` expert demonstrations of ``env_id`` from seeds ``seed, seed + 1, ...``.
 
     With ``only_successful`` (default), failed episodes are skipped and more
     seeds are tried (at most ``10 * n``) until ``n`` successes are found.
+    ``steps_after_success`` and ``expert_kwargs`` go to :func:`rollout_expert`
+    (defaults: demos end on success, the expert's default settings).
     """
     if not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive int, got {n!r}")
@@ -80,7 +116,7 @@ def collect_demonstrations(
     demos: list[Demonstration] = []
     try:
         for s in range(int(seed), int(seed) + 10 * int(n)):
-            demo = rollout_expert(env, s)
+            demo = rollout_expert(env, s, steps_after_success=steps_after_success, expert_kwargs=expert_kwargs)
             if demo.success or not only_successful:
                 demos.append(demo)
             if len(demos) == n:

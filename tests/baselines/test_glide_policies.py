@@ -234,3 +234,20 @@ def test_plot_writes_a_png_atomically(setting: tuple, tmp_path: object) -> None:
         plot_groundings(model, {}, tmp_path / "modes.jpg")  # type: ignore[operator]
     with pytest.raises(TypeError, match="predict"):
         plot_groundings(model, {"x": object()}, tmp_path / "m.png")  # type: ignore[operator,dict-item]
+
+
+def test_demos_into_the_goal_change_the_data_cache_key() -> None:
+    """GLiDE's demos go on to the goal polygon's centroid; the data and classifier keys must say so."""
+    from dataclasses import replace
+
+    setup = GlideSetup()
+    short = replace(setup, demo_goal_steps=0)
+    assert setup.demo_goal_steps > 0
+    assert setup.key(fields=GlideSetup.DATA_FIELDS) != short.key(fields=GlideSetup.DATA_FIELDS)
+    assert setup.key(fields=GlideSetup.CLASSIFIER_FIELDS) != short.key(fields=GlideSetup.CLASSIFIER_FIELDS)
+    plain = demonstrations(ENV_ID, 0, 2, 0)
+    longer = demonstrations(ENV_ID, 0, 2, 0, goal_steps=setup.demo_goal_steps)
+    for p, q in zip(plain, longer, strict=True):
+        assert len(q) > len(p) and np.all(q.modes[len(p) - 1 :] == 3)
+    with pytest.raises(ValueError, match="goal_steps"):
+        demonstrations(ENV_ID, 0, 2, 0, goal_steps=-1)

@@ -28,17 +28,25 @@ def test_small_run_learns_the_polygon_chain_better_than_the_baselines(tmp_path: 
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_full_loss_overlap_reaches_095_and_ablations_are_worse(env_id: str, tmp_path: object) -> None:
-    """Issue 6 'done when': mean overlap over 5 layouts >= 0.95; every ablation measurably worse."""
-    results: dict[str, list[float]] = {}
+    """Issue 6 'done when': mean overlap over 5 layouts >= 0.95; every ablation measurably worse.
+
+    "Worse" is read on both grid metrics: a lower mean overlap, and a mean IoU at least 0.05 lower.
+    The IoU is what can show a missed mode: the one-mode-short plan (``wrong_feasibility``) can lose
+    at most the goal polygon's share of the grid in overlap (under 1 % on the 5-mode layouts).
+    """
+    results: dict[str, list[dict]] = {}
     for variant in ("full", "no_counterfactuals", "wrong_feasibility", "no_prediction_loss", "kmeans"):
-        results[variant] = [
-            grounding_trial(env_id, layout, variant, 0, cache_dir=tmp_path)["overlap"] for layout in range(5)
-        ]
-    full = float(np.mean(results["full"]))
-    assert full >= 0.95, results
-    for variant, overlaps in results.items():
+        results[variant] = [grounding_trial(env_id, layout, variant, 0, cache_dir=tmp_path) for layout in range(5)]
+
+    def mean(variant: str, metric: str) -> float:
+        return float(np.mean([r[metric] for r in results[variant]]))
+
+    summary = {v: (mean(v, "overlap"), mean(v, "mean_iou")) for v in results}
+    assert mean("full", "overlap") >= 0.95, summary
+    for variant in results:
         if variant != "full":
-            assert float(np.mean(overlaps)) < full - 0.01, (variant, results)
+            assert mean(variant, "overlap") < mean("full", "overlap"), (variant, summary)
+            assert mean(variant, "mean_iou") < mean("full", "mean_iou") - 0.05, (variant, summary)
 
 
 @pytest.mark.slow

@@ -8,11 +8,17 @@ to a point just before the midpoint of the edge shared with polygon ``j+1``
 and crosses it perpendicularly, until it reaches the last polygon. Every
 transition it makes is allowed. It re-plans from the true state whenever the
 state is not where its last action should have put it (``perturb``).
+
+By default it stops on entering the last polygon (where the env ends the
+episode). With ``final_target="centroid"`` it then walks on, straight (the
+polygon is convex), to the last polygon's centroid and stays there: demos that
+go on past the goal (see ``rollout_expert(steps_after_success=...)``) then
+show the goal polygon's interior, not only a point behind its entry edge.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import networkx as nx
 import numpy as np
@@ -29,6 +35,8 @@ _GOAL = "goal"
 _REPLAN_TOL = 1e-6
 #: a waypoint closer than this counts as reached.
 _REACHED_TOL = 1e-7
+#: where the expert goes once it is in the last polygon (see the module docstring).
+FINAL_TARGETS: tuple[str, ...] = ("entry", "centroid")
 
 
 class PolygonNavExpert:
@@ -38,19 +46,36 @@ class PolygonNavExpert:
         env: the unwrapped :class:`PolygonNavEnv` (ground-truth geometry is read from it).
         clearance: distance kept from the polygons while moving in free space.
         crossing_depth: how far before/after a polygon edge a crossing starts/ends.
+        final_target: ``"entry"`` (stop just inside the last polygon) or ``"centroid"``
+            (then walk on to its centroid).
     """
 
-    def __init__(self, env: PolygonNavEnv, clearance: float = 0.15, crossing_depth: float = 0.15) -> None:
+    def __init__(
+        self,
+        env: PolygonNavEnv,
+        clearance: float = 0.15,
+        crossing_depth: float = 0.15,
+        final_target: Literal["entry", "centroid"] = "entry",
+    ) -> None:
         if not isinstance(env, PolygonNavEnv):
             raise TypeError(f"env must be an unwrapped PolygonNavEnv, got {type(env).__name__}")
         if not (np.isfinite(clearance) and 0 < clearance < env.model.min_gap / 2):
             raise ValueError(f"clearance must be in (0, min_gap / 2 = {env.model.min_gap / 2}), got {clearance!r}")
         if not (np.isfinite(crossing_depth) and 0 < crossing_depth <= 1):
             raise ValueError(f"crossing_depth must be in (0, 1], got {crossing_depth!r}")
+        if final_target not in FINAL_TARGETS:
+            raise ValueError(f"final_target must be one of {FINAL_TARGETS}, got {final_target!r}")
         self.env = env
         self.model = env.model
         self.clearance = float(clearance)
         self.crossing_depth = float(crossing_depth)
+        self.final_target = final_target
+        #: the point the expert walks to inside the last polygon (none: it stops on entry)
+        self._goal_tail: list[np.ndarray] = (
+            [np.asarray(self.model.polygons[-1].centroid.coords[0], dtype=np.float64)]
+            if final_target == "centroid"
+            else []
+        )
         self._chain = self._chain_crossings()
         self._build_roadmap()
         self._plan: list[np.ndarray] = []
@@ -148,9 +173,9 @@ class PolygonNavExpert:
     def _plan_from(self, x: np.ndarray) -> list[np.ndarray]:
         mode = int(self.model.mode_of(x[None, :])[0])
         if mode == self.model.num_modes - 1:
-            return []
+            return list(self._goal_tail)
         if mode >= 1:
-            return [p for crossing in self._chain[mode - 1 :] for p in crossing]
+            return [p for crossing in self._chain[mode - 1 :] for p in crossing] + self._goal_tail
         # free space: visible roadmap node minimising distance + cost-to-go
         dist = float(self.model.union.distance(Point(x)))
         guard = self.model.union.buffer(min(self.clearance, 0.5 * dist), quad_segs=4) if dist > 0 else None
@@ -169,7 +194,7 @@ class PolygonNavExpert:
         waypoints = [self._nodes[k] for k in path if k != _GOAL]
         entry_index = path[-2] - self._n_corner
         waypoints.append(self._entries[entry_index][1])
-        return waypoints + [p for crossing in self._chain for p in crossing]
+        return waypoints + [p for crossing in self._chain for p in crossing] + self._goal_tail
 
     def _escape(self, x: np.ndarray) -> np.ndarray:
         """A step away from the nearest polygon (when no roadmap node is visible)."""
