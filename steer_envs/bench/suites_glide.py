@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from steer_envs.bench.suite import (
+    Finding,
     Metric,
     Reference,
     Suite,
@@ -174,6 +175,73 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
     return TrialResult(metrics, extra)
 
 
+# ------------------------------------------------------------------ findings
+#: "measurably worse" (issue 6): a lower mean overlap and a mean IoU lower by at least this. Overlap alone
+#: cannot show a missed goal polygon: it covers under 1 % of the grid on the 5-mode layouts.
+ABLATION_IOU_MARGIN = 0.05
+
+
+def _modes_label(env: str) -> str:
+    return f"{_num_modes(env)} modes"
+
+
+def grounding_findings(table: Any) -> list[Finding]:
+    """Issue 6 / thesis Fig. 4.4: the full loss finds the modes on every env and every ablation does worse."""
+    claims = (
+        "the full loss labels >= 95 % of the grid with the true mode on every env",
+        f"every ablation is worse than the full loss on every env (lower overlap, mean IoU >= {ABLATION_IOU_MARGIN} "
+        "lower)",
+    )
+    overlap = {env: table.means("overlap", VARIANTS, env) for env in ENV_IDS}
+    iou = {env: table.means("mean_iou", VARIANTS, env) for env in ENV_IDS}
+    if any(v is None for v in (*overlap.values(), *iou.values())):
+        return [Finding(c, None) for c in claims]
+    full = {env: overlap[env]["full"] for env in ENV_IDS}  # type: ignore[index]
+    detail = ", ".join(f"{_modes_label(e)} {x:.3f}" for e, x in full.items())
+    findings = [Finding(claims[0], min(full.values()) >= OVERLAP_TARGET, detail)]
+    gaps = [
+        (iou[env]["full"] - iou[env][v], overlap[env]["full"] - overlap[env][v], env, v)  # type: ignore[index]
+        for env in ENV_IDS
+        for v in VARIANTS
+        if v != "full"
+    ]
+    holds = all(d_iou >= ABLATION_IOU_MARGIN and d_overlap > 0 for d_iou, d_overlap, _, _ in gaps)
+    *_, env, variant = min(gaps, key=lambda g: (g[0] >= ABLATION_IOU_MARGIN and g[1] > 0, g[0]))  # worst first
+    detail = (
+        f"closest: {variant} on {_modes_label(env)}, overlap {overlap[env][variant]:.3f} vs {full[env]:.3f}, "  # type: ignore[index]
+        f"IoU {iou[env][variant]:.2f} vs {iou[env]['full']:.2f}"  # type: ignore[index]
+    )
+    findings.append(Finding(claims[1], holds, detail))
+    return findings
+
+
+def policy_findings(table: Any) -> list[Finding]:
+    """Issue 6 / thesis Table 4.1: GLiDE+Planning >= 0.98 with and without perturbations, above BC perturbed."""
+    claims = (
+        "GLiDE+Planning succeeds in >= 98 % of rollouts with and without perturbations on every env",
+        "GLiDE+Planning beats BC under perturbations on every env",
+    )
+    pair = ("bc", "glide_planning")
+    plain = {env: table.means("success", pair, env) for env in ENV_IDS}
+    pert = {env: table.means("success_perturbed", pair, env) for env in ENV_IDS}
+    if any(v is None for v in (*plain.values(), *pert.values())):
+        return [Finding(c, None) for c in claims]
+    gp = {e: (plain[e]["glide_planning"], pert[e]["glide_planning"]) for e in ENV_IDS}  # type: ignore[index]
+    bc = {e: pert[e]["bc"] for e in ENV_IDS}  # type: ignore[index]
+    return [
+        Finding(
+            claims[0],
+            all(min(v) >= 0.98 for v in gp.values()),
+            ", ".join(f"{_modes_label(e)} {a:.3f}/{b:.3f}" for e, (a, b) in gp.items()),
+        ),
+        Finding(
+            claims[1],
+            all(gp[e][1] > bc[e] for e in ENV_IDS),
+            ", ".join(f"{_modes_label(e)} {gp[e][1]:.3f} vs {bc[e]:.3f}" for e in ENV_IDS),
+        ),
+    ]
+
+
 def plot_grounding(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """Thesis Fig. 4.4: per plotted layout, one row per env (ground truth + demos, then each variant)."""
     import gymnasium as gym
@@ -256,6 +324,7 @@ GLIDE_POLYGON_GROUNDING = register_suite(
             for env in ENV_IDS
         ),
         plot=plot_grounding,
+        findings=grounding_findings,
     )
 )
 
@@ -363,5 +432,6 @@ GLIDE_POLYGON = register_suite(
         default_seeds=1,
         generate=_plan_policy,
         references=_policy_references(),
+        findings=policy_findings,
     )
 )

@@ -132,3 +132,50 @@ def test_trials_reject_unknown_variants_and_envs() -> None:
         run_grounding_trial(Trial(suite.name, "steer_envs/PolygonNav-9Mode-v0", "full", 0, params, suite.fn))
     with pytest.raises(ValueError, match="grid_resolution"):
         run_grounding_trial(Trial(suite.name, ENV3, "full", 0, {**params, "grid_resolution": 1}, suite.fn))
+
+
+def _glide_record(suite: str, env: str, method: str, metrics: dict) -> dict:
+    config = {"suite": suite, "env": env, "method": method, "params": {}}
+    return {"config": config, "seed": 0, "metrics": metrics, "key": f"{env}-{method}"}
+
+
+def test_findings_check_issue_6_claims() -> None:
+    from steer_envs.bench.report import render_markdown, summarize
+    from steer_envs.bench.suites_glide import ENV_IDS, VARIANTS
+
+    def grounding(overlap_of: dict, iou_of: dict) -> list:
+        records = [
+            _glide_record("glide-polygon-grounding", e, v, {"overlap": overlap_of[v], "mean_iou": iou_of[v]})
+            for e in ENV_IDS
+            for v in VARIANTS
+        ]
+        (table,) = summarize(records)
+        return table.findings
+
+    overlap = {
+        "full": 0.96,
+        "no_counterfactuals": 0.7,
+        "wrong_feasibility": 0.955,
+        "no_prediction_loss": 0.7,
+        "kmeans": 0.3,
+    }
+    iou = {"full": 0.6, "no_counterfactuals": 0.3, "wrong_feasibility": 0.5, "no_prediction_loss": 0.2, "kmeans": 0.1}
+    assert [f.holds for f in grounding(overlap, iou)] == [True, True]
+    close = grounding(overlap, {**iou, "wrong_feasibility": 0.58})  # within 0.05 IoU: not measurably worse
+    assert [f.holds for f in close] == [True, False] and "closest: wrong_feasibility" in close[1].detail
+    assert [f.holds for f in grounding({**overlap, "full": 0.94, "wrong_feasibility": 0.93}, iou)] == [False, True]
+
+    def policy(gp: tuple[float, float], bc_perturbed: float) -> list:
+        records = [
+            _glide_record("glide-polygon", e, m, {"success": s, "success_perturbed": p})
+            for e in ENV_IDS
+            for m, (s, p) in (("bc", (0.8, bc_perturbed)), ("glide_planning", gp))
+        ]
+        (table,) = summarize(records)
+        return table.findings
+
+    assert [f.holds for f in policy((0.99, 0.985), 0.7)] == [True, True]
+    findings = policy((0.99, 0.6), 0.7)
+    assert [f.holds for f in findings] == [False, False]
+    (table,) = summarize([_glide_record("glide-polygon", ENV_IDS[0], "bc", {"success": 1.0, "success_perturbed": 1.0})])
+    assert "finding not checked: GLiDE+Planning beats BC" in render_markdown([table])
