@@ -36,7 +36,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .policy_io import as_coords, obs_history, read_checkpoint, write_checkpoint
+from .policy_io import TorchPolicy, as_coords, obs_history, read_checkpoint, write_checkpoint
 
 __all__ = ["ACTConfig", "ACTModel", "ACTPolicy"]
 
@@ -147,7 +147,7 @@ class ACTModel(nn.Module):
         return self.head(self.decoder(self.queries.expand(b, -1, -1), memory))
 
 
-class ACTPolicy:
+class ACTPolicy(TorchPolicy):
     """Maze2D ACT: current xy -> batch of chunks, latent ``z ~ N(0, I)`` per plan (a ``TrajectoryPolicy``).
 
     Args:
@@ -180,14 +180,8 @@ class ACTPolicy:
             raise ValueError(f"mean and std must be finite arrays of shape ({d},), got {mu.shape} and {sd.shape}")
         if np.any(sd <= 0):
             raise ValueError(f"std must be positive, got {sd.tolist()}")
-        if not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be a non-negative int, got {seed!r}")
         self.mean, self.std = mu, sd
-        self._device = torch.device(device)
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(int(seed))
-            self.model = ACTModel(self.config)
-        self.model.to(self._device).eval()
+        self._init_network(lambda: ACTModel(self.config), seed, device)
 
     @property
     def horizon(self) -> int:
@@ -197,16 +191,6 @@ class ACTPolicy:
     @property
     def action_dim(self) -> int:
         return self.config.action_dim
-
-    @property
-    def device(self) -> torch.device:
-        return self._device
-
-    def to(self, device: str | torch.device) -> ACTPolicy:
-        """Move the network to ``device``; returns self."""
-        self._device = torch.device(device)
-        self.model.to(self._device)
-        return self
 
     def normalize(self, traj: Any) -> Any:
         """Env units -> standardized (mean 0, std 1 on the data); numpy or torch."""
@@ -283,7 +267,3 @@ class ACTPolicy:
         policy.model.to(policy.device).eval()
         policy.checkpoint_info = dict(config.get("extra", {}))
         return policy
-
-    def num_parameters(self) -> int:
-        """Trainable parameters (VAE encoder included)."""
-        return sum(p.numel() for p in self.model.parameters())

@@ -50,7 +50,7 @@ from diffusers import DDIMScheduler
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from .policy_io import as_coords, obs_history, read_checkpoint, write_checkpoint
+from .policy_io import TorchPolicy, as_coords, obs_history, read_checkpoint, write_checkpoint
 
 __all__ = ["ConditionalUnet1D", "DiffusionConfig", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
 
@@ -263,7 +263,7 @@ class DiffusionNet(nn.Module):
 
 
 # ------------------------------------------------------------------ policy
-class DiffusionPolicy:
+class DiffusionPolicy(TorchPolicy):
     """Maze2D Diffusion Policy: observation history -> batch of plans by DDIM (a ``DiffusionPolicyLike``).
 
     Args:
@@ -292,14 +292,8 @@ class DiffusionPolicy:
             raise ValueError(f"low and high must be finite arrays of shape ({d},), got {lo.shape} and {hi.shape}")
         if np.any(hi <= lo):
             raise ValueError(f"high must exceed low in every coordinate, got low={lo.tolist()} high={hi.tolist()}")
-        if not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be a non-negative int, got {seed!r}")
         self.low, self.high = lo, hi
-        self._device = torch.device(device)
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(int(seed))
-            self.model = DiffusionNet(self.config)
-        self.model.to(self._device).eval()
+        self._init_network(lambda: DiffusionNet(self.config), seed, device)
         self._low_t = torch.as_tensor(lo, dtype=torch.float32, device=self._device)
         self._high_t = torch.as_tensor(hi, dtype=torch.float32, device=self._device)
         self.scheduler = DDIMScheduler(
@@ -333,16 +327,8 @@ class DiffusionPolicy:
         """Index of the first plan waypoint to execute (1: ``plan[0]`` is the current position)."""
         return self.config.exec_start
 
-    @property
-    def device(self) -> torch.device:
-        return self._device
-
-    def to(self, device: str | torch.device) -> DiffusionPolicy:
-        """Move the network (and normalization tensors) to ``device``; returns self."""
-        self._device = torch.device(device)
-        self.model.to(self._device)
+    def _moved(self) -> None:
         self._low_t, self._high_t = self._low_t.to(self._device), self._high_t.to(self._device)
-        return self
 
     def normalize(self, traj: Any) -> Any:
         """Env units -> [-1, 1] per coordinate; numpy in numpy out, torch in torch out."""
@@ -472,7 +458,3 @@ class DiffusionPolicy:
         policy.model.to(policy.device).eval()
         policy.checkpoint_info = dict(config.get("extra", {}))
         return policy
-
-    def num_parameters(self) -> int:
-        """Trainable parameters of the U-Net."""
-        return sum(p.numel() for p in self.model.parameters())

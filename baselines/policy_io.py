@@ -1,4 +1,4 @@
-"""Shared plumbing of the chunked trajectory policies (DP, ACT): observation histories and checkpoints.
+"""Shared plumbing of the chunked trajectory policies (DP, ACT): the seeded network, observation histories, checkpoints.
 
 A checkpoint is one safetensors file: the weights plus a JSON config in the
 header's ``__metadata__`` (safetensors executes no code on load, unlike a
@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 import torch
@@ -19,7 +20,45 @@ from safetensors.torch import save as st_save
 
 from steer_envs.io import atomic_write_bytes
 
-__all__ = ["as_coords", "obs_history", "read_checkpoint", "write_checkpoint"]
+__all__ = ["TorchPolicy", "as_coords", "obs_history", "read_checkpoint", "write_checkpoint"]
+
+
+class TorchPolicy:
+    """What DP and ACT share: a network built under a fixed seed, on a device, in eval mode.
+
+    The network is built inside ``torch.random.fork_rng`` so the caller's RNG
+    state is left alone and the same seed gives the same initial weights.
+    """
+
+    model: torch.nn.Module
+    _device: torch.device
+
+    def _init_network(self, build: Callable[[], torch.nn.Module], seed: Any, device: str | torch.device) -> None:
+        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+            raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+        self._device = torch.device(device)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(int(seed))
+            self.model = build()
+        self.model.to(self._device).eval()
+
+    @property
+    def device(self) -> torch.device:
+        return self._device
+
+    def to(self, device: str | torch.device) -> Self:
+        """Move the network (and any other device-bound state, :meth:`_moved`) to ``device``; returns self."""
+        self._device = torch.device(device)
+        self.model.to(self._device)
+        self._moved()
+        return self
+
+    def _moved(self) -> None:
+        """Hook for subclasses with tensors besides the network (called by :meth:`to`)."""
+
+    def num_parameters(self) -> int:
+        """Trainable parameters of the network."""
+        return sum(p.numel() for p in self.model.parameters())
 
 
 def obs_history(obs: Any, n_obs: int) -> np.ndarray:
