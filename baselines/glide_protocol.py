@@ -468,7 +468,7 @@ def policy_trial(
     seed = _check_int("seed", seed)
     policy, info = make_policy(method, env_id, layout_seed, seed, setup=setup, cache_dir=cache_dir)
     start = time.perf_counter()
-    result = evaluate_policy(policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=bool(perturbed), seed=seed)
+    result = _evaluate_column(policy, env_id, layout_seed, n_rollouts, bool(perturbed), seed)
     thesis = THESIS_TABLE_4_1[method][k][1 if perturbed else 0]
     out = {
         "env_id": env_id,
@@ -483,9 +483,26 @@ def policy_trial(
         "eval_seconds": time.perf_counter() - start,
         "train_seconds": info.get("train_seconds", 0.0),
     }
-    if isinstance(policy, GlidePlanningPolicy):
-        out["planner_calls"] = dict(policy.stats)
     return out
+
+
+def _evaluate_column(
+    policy: Any,
+    env_id: str,
+    layout_seed: int,
+    n_rollouts: int,
+    perturbed: bool,
+    seed: int,
+    schedule: PerturbationSchedule | None = None,
+) -> dict[str, Any]:
+    """:func:`evaluate_policy` plus, for a planner, its call counts over these rollouts (then reset)."""
+    res = evaluate_policy(
+        policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=perturbed, seed=seed, schedule=schedule
+    )
+    if isinstance(policy, GlidePlanningPolicy):
+        res["planner_calls"] = dict(policy.stats)
+        policy.stats = dict.fromkeys(policy.stats, 0)
+    return res
 
 
 def policy_table_trial(
@@ -524,14 +541,7 @@ def policy_table_trial(
     }
     start = time.perf_counter()
     for perturbed, name in ((False, "unperturbed"), (True, "perturbed")):
-        policy.reset()
-        res = evaluate_policy(
-            policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=perturbed, seed=seed, schedule=schedule
-        )
-        out[name] = res
-        if isinstance(policy, GlidePlanningPolicy):
-            res["planner_calls"] = dict(policy.stats)
-            policy.stats = dict.fromkeys(policy.stats, 0)
+        out[name] = _evaluate_column(policy, env_id, layout_seed, n_rollouts, perturbed, seed, schedule)
     out["eval_seconds"] = time.perf_counter() - start
     out["success"] = out["unperturbed"]["success_rate"]
     out["success_perturbed"] = out["perturbed"]["success_rate"]

@@ -187,6 +187,11 @@ def mode_entry_points(demos: Sequence[np.ndarray], modes: Sequence[np.ndarray], 
     return out
 
 
+def mean_end_state(demos: Sequence[np.ndarray]) -> np.ndarray:
+    """The mean of the demos' last states ``(d,)``: where they reach the goal (the final mode's target)."""
+    return np.mean([np.asarray(d, dtype=np.float64)[-1] for d in demos], axis=0)
+
+
 # --------------------------------------------------------------------------- GLiDE+BC
 class GlideBCPolicy:
     """GLiDE+BC: per-mode BC policies chosen by the classifier, with pseudo-attractors.
@@ -227,7 +232,7 @@ class GlideBCPolicy:
         self.attractor_weight = float(attractor_weight)
         modes = segment_demonstrations(classifier, demos, self.num_modes)
         entries = mode_entry_points(demos, modes, self.num_modes)
-        goal = np.mean([np.asarray(d, dtype=np.float64)[-1] for d in demos], axis=0)
+        goal = mean_end_state(demos)
         states = np.concatenate([np.asarray(d, dtype=np.float64)[:-1] for d in demos])
         acts = np.concatenate([np.asarray(a, dtype=np.float64) for a in actions])
         state_modes = np.concatenate([m[:-1] for m in modes])
@@ -486,7 +491,7 @@ class GlidePlanningPolicy:
         modes = segment_demonstrations(classifier, demos, self.num_modes)
         self.waypoints = mode_entry_points(demos, modes, self.num_modes)
         # a mode the demos never entered (a wrong plan, a poor classifier): aim at the demos' end
-        ends = np.mean([np.asarray(d, dtype=np.float64)[-1] for d in demos], axis=0)
+        ends = mean_end_state(demos)
         for k in range(1, self.num_modes):
             if not np.all(np.isfinite(self.waypoints[k])):
                 self.waypoints[k] = ends
@@ -597,6 +602,7 @@ __all__ = [
     "GlidePlanningPolicy",
     "LearnedModeMap",
     "PlannerConfig",
+    "mean_end_state",
     "mode_entry_points",
     "rrt",
     "segment_demonstrations",

@@ -48,8 +48,7 @@ def checkpoint_record(kind: str) -> dict[str, Any]:
 
 def load_pretrained(kind: str, device: str | torch.device = "cpu") -> DiffusionPolicy | ACTPolicy:
     """The shipped Maze2D-Large policy: ``"dp"`` (:class:`DiffusionPolicy`) or ``"act"`` (:class:`ACTPolicy`)."""
-    path = checkpoint_path(kind)
-    return DiffusionPolicy.load(path, device) if kind == "dp" else ACTPolicy.load(path, device)
+    return load_checkpoint(kind, checkpoint_path(kind), device)
 
 
 def load_checkpoint(

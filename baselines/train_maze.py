@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from steer_envs.bench.cli import parse_key_value
 from steer_envs.data.maze_random_walk import PlanWindows, RandomWalkDataset, load_random_walk
 from steer_envs.io import atomic_write_text
 
@@ -312,16 +313,12 @@ def parse_model_overrides(kind: str, items: list[str] | None) -> dict[str, Any]:
     fields = set((DiffusionConfig if kind == "dp" else ACTConfig).__dataclass_fields__)
     out: dict[str, Any] = {}
     for item in items or []:
-        key, sep, raw = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ValueError(f"--model expects KEY=VALUE, got {item!r}")
+        try:
+            key, value = parse_key_value(item)
+        except ValueError as err:
+            raise ValueError(f"--model {err}") from None
         if key not in fields:
             raise ValueError(f"--model {key}: not a {kind} config field (one of {', '.join(sorted(fields))})")
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
         out[key] = tuple(value) if isinstance(value, list) else value
     return out
 

@@ -25,16 +25,27 @@ from steer_envs.bench.suite import Suite, get_suite, load_plugins, suites
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-def _param(text: str) -> tuple[str, Any]:
-    """``KEY=VALUE`` with VALUE parsed as JSON when it is JSON (``3``, ``0.5``, ``true``, ``[1, 2]``)."""
+def parse_key_value(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` with VALUE parsed as JSON when it is JSON (``3``, ``0.5``, ``true``, ``[1, 2]``), else a string.
+
+    ``ValueError`` when ``text`` has no ``=`` or an empty key. Also parses ``train_maze --model``.
+    """
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+        raise ValueError(f"expected KEY=VALUE, got {text!r}")
     try:
         parsed: Any = json.loads(value)
     except json.JSONDecodeError:
         parsed = value
     return key.strip(), parsed
+
+
+def _param(text: str) -> tuple[str, Any]:
+    """argparse type for ``--param``: :func:`parse_key_value` with argparse's error type."""
+    try:
+        return parse_key_value(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _positive_int(text: str) -> int:

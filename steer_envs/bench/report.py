@@ -86,21 +86,15 @@ class Table:
         """Metrics that have a reference in at least one row."""
         return [m for m in self.metrics if any(m.name in r.references for r in self.rows)]
 
-    def mean(self, metric: str, method: str | None = None, env: str | None = None, **params: Any) -> float | None:
-        """Mean of ``metric`` in the one row matching ``method`` / ``env`` / ``params`` (``None`` = any value).
+    def mean(self, metric: str, method: str | None = None, env: str | None = None) -> float | None:
+        """Mean of ``metric`` in the one row matching ``method`` / ``env`` (``None`` = any value).
 
         ``None`` when no row matches or the metric was not measured there;
-        ``ValueError`` when several rows match (name more to pick one).
+        ``ValueError`` when several rows match (e.g. a run with varying params).
         """
-        rows = [
-            r
-            for r in self.rows
-            if (method is None or r.method == method)
-            and (env is None or r.env == env)
-            and all(r.params.get(k) == v for k, v in params.items())
-        ]
+        rows = [r for r in self.rows if (method is None or r.method == method) and (env is None or r.env == env)]
         if len(rows) > 1:
-            raise ValueError(f"{self.suite}: {len(rows)} rows match method={method!r} env={env!r} {params}")
+            raise ValueError(f"{self.suite}: {len(rows)} rows match method={method!r} env={env!r}")
         stat = rows[0].stats.get(metric) if rows else None
         return stat.mean if stat is not None else None
 
@@ -167,8 +161,9 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
         all_keys = sorted({k for r in rows for k in r.params})
         varying = [k for k in all_keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1]
         description = suite.description if suite is not None else "(suite not registered in this process)"
-        table = Table(suite_name, description, metrics, rows, varying)
-        table.default_seeds = suite.default_seeds if suite is not None else None
+        table = Table(
+            suite_name, description, metrics, rows, varying, default_seeds=suite.default_seeds if suite else None
+        )
         if suite is not None and suite.findings is not None:
             table.findings = list(suite.findings(table))
         tables.append(table)
