@@ -23,6 +23,7 @@ from steer_envs.baselines.mode_policies import (
     GlideBCPolicy,
     GlidePlanningPolicy,
     LearnedModeMap,
+    PlannerConfig,
     mode_entry_points,
     rrt,
     segment_demonstrations,
@@ -126,6 +127,18 @@ def test_planning_on_the_true_modes_solves_the_task_and_resists_pushes(setting: 
     assert pushed["perturbations"] <= 3 * 40
     assert pushed["violation_rate"] == 0.0  # pushes are not the agent's transitions; the planner makes none
     assert pushed["success_rate"] >= 0.8
+    assert policy.stats["costmap"] > 0  # the default free-space planner
+
+
+def test_the_thesis_rrt_planner_is_still_available(setting: tuple) -> None:
+    model, demos = setting
+    config = PlannerConfig(free_space_planner="rrt")
+    policy = GlidePlanningPolicy(
+        _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, config=config
+    )
+    clean = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
+    assert clean["success_rate"] >= 0.9
+    assert policy.stats["costmap"] == 0 and policy.stats["rrt"] > 0
 
 
 class _LateFinalMode(_Oracle):
@@ -251,3 +264,57 @@ def test_demos_into_the_goal_change_the_data_cache_key() -> None:
         assert len(q) > len(p) and np.all(q.modes[len(p) - 1 :] == 3)
     with pytest.raises(ValueError, match="goal_steps"):
         demonstrations(ENV_ID, 0, 2, 0, goal_steps=-1)
+
+
+class _DiscWorld:
+    """Mode 2 is the unit disc (forbidden from free space), mode 1 the half-plane x > 4, free space elsewhere;
+    with ``wall`` a mode-2 wall at 2 < x < 3 cuts the goal off."""
+
+    def __init__(self, wall: bool = False) -> None:
+        self.wall = wall
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        x = np.asarray(states, dtype=np.float64)
+        modes = np.where(x[:, 0] > 4, 1, 0)
+        blocked = np.linalg.norm(x, axis=1) < 1
+        if self.wall:
+            blocked |= (x[:, 0] > 2) & (x[:, 0] < 3)
+        return np.where(blocked, 2, modes)
+
+
+def _polyline(start: np.ndarray, path: list[np.ndarray], spacing: float = 0.01) -> np.ndarray:
+    pts = [start, *path]
+    pieces = []
+    for a, b in itertools.pairwise(pts):
+        t = np.linspace(0, 1, max(2, int(np.linalg.norm(b - a) / spacing)))[:, None]
+        pieces.append(a + t * (b - a))
+    return np.concatenate(pieces)
+
+
+def test_costmap_path_keeps_its_distance_where_it_is_cheap_to() -> None:
+    grid_map = LearnedModeMap(_DiscWorld(), np.full(2, -6.0), np.full(2, 6.0), 0.05)
+    allowed, start, goal = frozenset({0, 1}), np.array([-4.0, 0.1]), np.array([4.5, 0.0])
+    shortest = grid_map.shortest_path(start, goal, allowed, weight=0.0, radius=2.0, spacing=0.02)
+    wary = grid_map.shortest_path(start, goal, allowed, weight=10.0, radius=2.0, spacing=0.02)
+    assert shortest is not None and wary is not None
+    for path in (shortest, wary):
+        np.testing.assert_array_equal(path[-1], goal)
+        pts = _polyline(start, path)
+        assert np.all(np.isin(grid_map.mode(pts), [0, 1]))  # never enters the forbidden disc
+    gap = {name: np.linalg.norm(_polyline(start, p), axis=1).min() - 1 for name, p in (("s", shortest), ("w", wary))}
+    assert gap["s"] < 0.2  # the plain shortest path grazes the disc
+    assert gap["w"] > 0.8  # the exposure cost keeps the path away from it
+    length = {
+        n: np.linalg.norm(np.diff(_polyline(start, p), axis=0), axis=1).sum() for n, p in (("s", shortest), ("w", wary))
+    }
+    assert length["s"] < 8.5 * 1.05 + 0.3 and length["w"] < 1.3 * length["s"]  # string-pulled, not a grid staircase
+
+
+def test_costmap_returns_none_when_the_goal_is_cut_off_and_checks_its_settings() -> None:
+    grid_map = LearnedModeMap(_DiscWorld(wall=True), np.full(2, -6.0), np.full(2, 6.0), 0.1)
+    start, goal = np.array([-4.0, 0.0]), np.array([4.5, 0.0])
+    assert grid_map.shortest_path(start, goal, frozenset({0, 1}), 10.0, 2.0, 0.02) is None
+    with pytest.raises(ValueError, match="free_space_planner"):
+        PlannerConfig(free_space_planner="astar")
+    with pytest.raises(ValueError, match="exposure_radius"):
+        PlannerConfig(exposure_radius=-1.0)
