@@ -110,6 +110,7 @@ class TrainSettings:
     warmup_steps: int = 200
     grad_clip: float = 10.0
     static_history_prob: float = 0.0
+    ema_power: float = 0.0
     seed: int = 0
     log_every: int = 50
 
@@ -130,6 +131,8 @@ class TrainSettings:
             raise ValueError(f"weight_decay must be a finite float >= 0, got {self.weight_decay!r}")
         if not 0 <= self.static_history_prob <= 1:
             raise ValueError(f"static_history_prob must be in [0, 1], got {self.static_history_prob!r}")
+        if not (math.isfinite(self.ema_power) and 0 <= self.ema_power <= 1):
+            raise ValueError(f"ema_power must be in [0, 1] (0 = no EMA), got {self.ema_power!r}")
 
     @staticmethod
     def defaults(kind: str, **overrides: Any) -> TrainSettings:
@@ -170,6 +173,7 @@ def train_policy(
     *,
     progress: bool = True,
     stop_after: int | None = None,
+    raw_weights: dict[str, torch.Tensor] | None = None,
 ) -> dict[str, Any]:
     """Train ``policy`` in place on windows of ``dataset``; returns the training record (losses, wall time).
 
@@ -177,6 +181,11 @@ def train_policy(
     ``stop_after`` ends training after that many steps of the *same* run (the
     learning-rate schedule still spans ``settings.steps``): the prefix of a
     long run, to check a recorded loss curve without paying for all of it.
+    With ``settings.ema_power > 0`` the policy ends with the exponential moving
+    average of its weights (``diffusers.training_utils.EMAModel``, warm-up
+    decay ``1 - (1 + step) ** -power`` capped at 0.9999, as in Diffusion
+    Policy); the logged losses are the raw weights' and do not change. Pass a
+    dict as ``raw_weights`` to get the raw (un-averaged) state dict as well.
     """
     if not isinstance(policy, (DiffusionPolicy, ACTPolicy)):
         raise TypeError(f"policy must be a DiffusionPolicy or ACTPolicy, got {type(policy).__name__}")
@@ -204,6 +213,11 @@ def train_policy(
             model.parameters(), lr=settings.lr, betas=settings.betas, weight_decay=settings.weight_decay
         )
         sched = get_cosine_schedule_with_warmup(opt, min(settings.warmup_steps, settings.steps), settings.steps)
+        ema = None
+        if settings.ema_power > 0:
+            from diffusers.training_utils import EMAModel
+
+            ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
         model.train()
         try:
             running = 0.0
@@ -220,6 +234,8 @@ def train_policy(
                 torch.nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
                 opt.step()
                 sched.step()
+                if ema is not None:
+                    ema.step(model.parameters())
                 running += loss.item()
                 if step % settings.log_every == 0 or step == last:
                     n = step - (losses[-1][0] if losses else 0)
@@ -233,6 +249,10 @@ def train_policy(
             model.eval()
             if bar is not None:
                 bar.close()
+    if raw_weights is not None:
+        raw_weights.update({k: v.detach().clone() for k, v in model.state_dict().items()})
+    if ema is not None:
+        ema.copy_to(model.parameters())
     return {
         "settings": {**asdict(settings), "betas": list(settings.betas)},
         "losses": losses,
@@ -363,6 +383,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch-size", type=int, default=None, help="default 64")
     parser.add_argument("--lr", type=float, default=None, help="peak learning rate (default: dp 2e-3, act 3e-4)")
     parser.add_argument("--warmup-steps", type=int, default=None, help="linear warm-up steps (default 200)")
+    parser.add_argument(
+        "--ema-power",
+        type=float,
+        default=None,
+        help="save the EMA of the weights with this warm-up power (Diffusion Policy: 0.75; default 0 = no EMA)",
+    )
     parser.add_argument("--device", default="cpu", help="torch device, e.g. cuda (default cpu)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument(
@@ -392,7 +418,13 @@ def main(argv: list[str] | None = None) -> int:
         preset = PRESETS[args.preset][args.kind]
         model_config = {**preset["model"], **parse_model_overrides(args.kind, args.model)}
         dataset = load_random_walk(args.data)
-        cli = {"steps": args.steps, "batch_size": args.batch_size, "lr": args.lr, "warmup_steps": args.warmup_steps}
+        cli = {
+            "steps": args.steps,
+            "batch_size": args.batch_size,
+            "lr": args.lr,
+            "warmup_steps": args.warmup_steps,
+            "ema_power": args.ema_power,
+        }
         settings = TrainSettings.defaults(
             args.kind, **{**preset["train"], **{k: v for k, v in cli.items() if v is not None}}, seed=args.seed
         )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -179,6 +180,23 @@ def test_tiny_training_reduces_loss_and_is_deterministic(walk) -> None:
     low, high = walk.xy_bounds()
     np.testing.assert_allclose(policies[0].low, low)
     np.testing.assert_allclose(policies[0].high, high)
+
+
+def test_ema_keeps_the_loss_curve_and_averages_the_weights(walk) -> None:
+    settings = TrainSettings.defaults("dp", steps=40, batch_size=16, warmup_steps=5, log_every=20, seed=2)
+    plain = build_policy("dp", walk, seed=2, **TINY)
+    plain_record = train_policy(plain, walk, settings, progress=False)
+    averaged = build_policy("dp", walk, seed=2, **TINY)
+    raw: dict[str, torch.Tensor] = {}
+    ema_settings = TrainSettings.defaults("dp", **{**asdict(settings), "ema_power": 0.75})
+    record = train_policy(averaged, walk, ema_settings, progress=False, raw_weights=raw)
+    assert record["losses"] == plain_record["losses"]  # the EMA never feeds back into training
+    for name, weight in plain.model.state_dict().items():
+        assert torch.equal(raw[name], weight), name  # the raw weights are the plain run's
+    moved = [n for n, w in averaged.model.state_dict().items() if not torch.equal(w, raw[n])]
+    assert moved  # the policy now holds the averaged weights
+    with pytest.raises(ValueError, match="ema_power"):
+        TrainSettings(ema_power=1.5)
 
 
 def test_save_load_round_trip(tmp_path) -> None:
