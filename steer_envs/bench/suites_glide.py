@@ -330,11 +330,23 @@ GLIDE_POLYGON_GROUNDING = register_suite(
 
 
 # ---------------------------------------------------------------------- glide-polygon
+def _planner(params: Mapping[str, Any]) -> Any:
+    """GLiDE+Planning's settings: the defaults, with the free-space planner the params name."""
+    from steer_envs.baselines.mode_policies import FREE_SPACE_PLANNERS, PlannerConfig
+
+    name = params.get("free_space_planner", "costmap")
+    if name not in FREE_SPACE_PLANNERS:
+        raise ValueError(
+            f"{POLICY_SUITE}: parameter 'free_space_planner' must be one of {FREE_SPACE_PLANNERS}, got {name!r}"
+        )
+    return PlannerConfig(free_space_planner=name)
+
+
 def _plan_policy(suite: Suite, request: TrialRequest) -> TrialPlan:
     params = suite.resolve_params(request.params, request.trials, base=request.base)
     for name, low in (("n_rollouts", 1), ("bc_seeds", 1), ("glide_seeds", 1), ("layout_seed", 0), ("bc_steps", 1)):
         _check_int_param(POLICY_SUITE, params, name, low)
-    setup_from_params(POLICY_SUITE, params)
+    setup_from_params(POLICY_SUITE, params, planner=_planner(params))
     trials = []
     for env in request.envs:
         for method in request.methods:
@@ -358,7 +370,7 @@ def run_policy_trial(trial: Trial) -> TrialResult:
     n_rollouts = _check_int_param(POLICY_SUITE, params, "n_rollouts", 1)
     layout = _check_int_param(POLICY_SUITE, params, "layout_seed", 0)
     bc = BCConfig(steps=_check_int_param(POLICY_SUITE, params, "bc_steps", 1))
-    setup = setup_from_params(POLICY_SUITE, params, bc=bc)
+    setup = setup_from_params(POLICY_SUITE, params, bc=bc, planner=_planner(params))
     with single_threaded():
         res = policy_table_trial(
             str(trial.env),
@@ -427,6 +439,7 @@ GLIDE_POLYGON = register_suite(
             "bc_seeds": 10,
             "glide_seeds": 1,
             "bc_steps": 1500,
+            "free_space_planner": "costmap",
         },
         trials_param="n_rollouts",
         default_seeds=1,

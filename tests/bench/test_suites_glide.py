@@ -132,6 +132,9 @@ def test_trials_reject_unknown_variants_and_envs() -> None:
         run_grounding_trial(Trial(suite.name, "steer_envs/PolygonNav-9Mode-v0", "full", 0, params, suite.fn))
     with pytest.raises(ValueError, match="grid_resolution"):
         run_grounding_trial(Trial(suite.name, ENV3, "full", 0, {**params, "grid_resolution": 1}, suite.fn))
+    policy_suite = get_suite("glide-polygon")
+    with pytest.raises(ValueError, match="free_space_planner"):
+        plan_trials(policy_suite, build_request(policy_suite, params={"free_space_planner": "astar"}))
 
 
 def _glide_record(suite: str, env: str, method: str, metrics: dict) -> dict:
