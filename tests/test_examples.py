@@ -51,3 +51,18 @@ def test_maze2d_examples_reject_a_missing_checkpoint(tmp_path: Path) -> None:
     for script in ("steer_maze2d.py", "sb3_steering.py"):
         res = _run(script, "--checkpoint", str(tmp_path / "absent.safetensors"), "--out", str(tmp_path))
         assert res.returncode == 2 and "no checkpoint file" in res.stderr
+
+
+def test_glide_polygon_learns_modes_and_plans_through_them(tmp_path: Path) -> None:
+    args = ("--modes", "3", "--layout", "1", "--replays", "150", "--epochs", "500", "--rollouts", "30", "--show", "4")
+    res = _run("glide_polygon.py", *args, "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    overlap = float(res.stdout.split("overlap ")[1].split(",")[0])
+    assert overlap > 0.9  # 150 + 150 replays already ground 3 modes (0.964 on this layout)
+    success = float(res.stdout.split("without teleports: success ")[1].split(",")[0])
+    assert success >= 0.8, res.stdout
+    assert (tmp_path / "glide_3modes_layout1.png").stat().st_size > 10_000
+    again = _run("glide_polygon.py", *args, "--out", str(tmp_path))  # the classifier comes from the cache
+    assert again.returncode == 0 and "(cached)" in again.stdout
+    bad = _run("glide_polygon.py", "--replays", "0", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--replays" in bad.stderr
