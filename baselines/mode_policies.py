@@ -380,6 +380,7 @@ class LearnedModeMap:
         self.labels = np.asarray(classifier.predict(pts), dtype=np.int64).reshape(self.shape)
         self._fields: dict[frozenset[int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._paths: dict[tuple[int, frozenset[int], float, float], tuple[np.ndarray, np.ndarray, int]] = {}
+        self._exposures: dict[tuple[frozenset[int], float, float], np.ndarray] = {}
 
     def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ij = np.rint((np.asarray(points, dtype=np.float64) - self.low) / self.resolution).astype(np.int64)
@@ -436,12 +437,16 @@ class LearnedModeMap:
 
         A classifier's boundary is least trustworthy where no data went (cut corners, the far side of a
         polygon): a path that keeps its distance from forbidden modes where it costs little to do so is
-        robust to such errors, a path that grazes them (the shortest one) is not.
+        robust to such errors, a path that grazes them (the shortest one) is not. Cached.
         """
-        dist = self.distance_field(allowed)[0]
-        if radius <= 0 or weight <= 0:
-            return np.ones_like(dist)
-        return 1.0 + weight * np.clip(1.0 - dist / radius, 0.0, None) ** 2
+        key = (allowed, float(weight), float(radius))
+        if key not in self._exposures:
+            dist = self.distance_field(allowed)[0]
+            if radius <= 0 or weight <= 0:
+                self._exposures[key] = np.ones_like(dist)
+            else:
+                self._exposures[key] = 1.0 + weight * np.clip(1.0 - dist / radius, 0.0, None) ** 2
+        return self._exposures[key]
 
     def cost_to_go(
         self, goal: np.ndarray, allowed: frozenset[int], weight: float, radius: float
@@ -499,22 +504,23 @@ class LearnedModeMap:
             cells.append(cell)
         # every 4th cell is enough to pull the string through (and 16x fewer segment checks)
         cells_ij = np.stack(np.divmod(np.asarray(cells[:-1][::4], dtype=np.int64), w), axis=1)
-        path = np.vstack([np.asarray(start, dtype=np.float64)[None], self.low + self.resolution * cells_ij, goal[None]])
+        ends = np.asarray([start, goal], dtype=np.float64)
+        path = np.vstack([ends[:1], self.low + self.resolution * cells_ij, ends[1:]])
         exposure = self.exposure(allowed, weight, radius)
 
-        def read(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def exposure_at(points: np.ndarray) -> np.ndarray:
             i, j = self.index(points)
-            return exposure[i, j], np.isin(self.labels[i, j], list(allowed))
+            return exposure[i, j]
 
-        along = read(path)[0]
+        along = exposure_at(path)
         out: list[np.ndarray] = []
         i = 0
         while i < len(path) - 1:
             j = len(path) - 1
             while j > i + 1:
                 n = max(2, int(np.ceil(np.linalg.norm(path[j] - path[i]) / spacing)) + 1)
-                cost, inside = read(path[i] + np.linspace(0.0, 1.0, n)[:, None] * (path[j] - path[i]))
-                if inside.all() and cost.max() <= along[i : j + 1].max() + 1e-9:
+                points = path[i] + np.linspace(0.0, 1.0, n)[:, None] * (path[j] - path[i])
+                if self.inside(points, allowed).all() and exposure_at(points).max() <= along[i : j + 1].max() + 1e-9:
                     break
                 j -= 1
             out.append(path[j])
@@ -654,6 +660,13 @@ class GlidePlanningPolicy:
     def _plan(self, x: np.ndarray, mode: int) -> list[np.ndarray]:
         goal, allowed = self._target(mode)
         cfg = self.config
+        if mode == 0 and cfg.free_space_planner == "costmap":
+            path = self.map.shortest_path(x, goal, allowed, cfg.exposure_weight, cfg.exposure_radius, cfg.check_spacing)
+            if path is not None:
+                self.stats["costmap"] += 1
+                return path
+            # no grid path inside the allowed learned modes (a poor map): the RRT below still tries (on layouts
+            # 1-4 going straight to the potential field instead cost 5-mode perturbed success 0.937 -> 0.927)
         # the clearance the path keeps: the configured one, or less where the start or the goal is closer
         # (a cell inside ``allowed`` is at least one cell from its outside: below that, only stay inside)
         margin = min(cfg.clearance, float(self.map.clearance(np.stack([x, goal]), allowed).min()))
@@ -663,13 +676,6 @@ class GlidePlanningPolicy:
         def seg(a: np.ndarray, b: np.ndarray) -> bool:
             return self.map.segment_ok(a, b, allowed, cfg.check_spacing, margin)
 
-        if mode == 0 and cfg.free_space_planner == "costmap":
-            path = self.map.shortest_path(x, goal, allowed, cfg.exposure_weight, cfg.exposure_radius, cfg.check_spacing)
-            if path is not None:
-                self.stats["costmap"] += 1
-                return path
-            # no grid path inside the allowed learned modes (a poor map): the RRT below still tries (on layouts
-            # 1-4 going straight to the potential field instead cost 5-mode perturbed success 0.937 -> 0.927)
         if seg(x, goal):
             self.stats["straight"] += 1
             return [goal]
