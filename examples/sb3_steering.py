@@ -48,6 +48,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import configure
 
     args = parse_args(argv)
     if args.steps < 1 or args.batch < 1:
@@ -63,6 +64,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(f"action space: {env.action_space} (a flattened 8-point sketch); observation space: {env.observation_space}")
     agent = PPO("MlpPolicy", env, n_steps=8, batch_size=8, n_epochs=1, seed=args.seed, verbose=0)
+    # SB3's default logger makes an SB3-<date> folder in the temp dir on every run; log into --out instead
+    agent.set_logger(configure(str(args.out / "sb3_log"), ["csv"]))
     agent.learn(total_timesteps=args.steps)
 
     obs, _ = env.reset(seed=args.seed)

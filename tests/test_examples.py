@@ -45,6 +45,7 @@ def test_sb3_agent_drives_the_steering_wrapper(tmp_path: Path) -> None:
     assert res.returncode == 0, res.stderr
     assert "a flattened 8-point sketch" in res.stdout
     assert (tmp_path / "ppo_steering.zip").stat().st_size > 0
+    assert (tmp_path / "sb3_log" / "progress.csv").is_file()  # SB3 logs into --out, not the temp dir
 
 
 def test_maze2d_examples_reject_a_missing_checkpoint(tmp_path: Path) -> None:
