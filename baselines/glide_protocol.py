@@ -54,6 +54,8 @@ from steer_envs.data.demos import Demonstration, collect_demonstrations
 
 VARIANTS: tuple[str, ...] = ("full", "no_counterfactuals", "wrong_feasibility", "no_prediction_loss", "kmeans")
 METHODS: tuple[str, ...] = ("bc", "glide_bc", "glide_planning")
+#: where evaluation episodes start (:func:`evaluate_policy`)
+EVAL_STARTS: tuple[str, ...] = ("free", "first_mode")
 ENV_IDS: tuple[str, ...] = tuple(f"steer_envs/PolygonNav-{k}Mode-v0" for k in (3, 4, 5))
 
 #: thesis Table 4.1 (success rates; "+perturb" in brackets there).
@@ -392,21 +394,37 @@ def evaluate_policy(
     perturbed: bool,
     seed: int,
     schedule: PerturbationSchedule | None = None,
+    max_steps: int | None = None,
+    start: str = "free",
 ) -> dict[str, Any]:
-    """Run ``n_rollouts`` episodes at once in the vector env; success = the env's success flag."""
+    """Run ``n_rollouts`` episodes at once in the vector env; success = the env's success flag.
+
+    ``max_steps`` caps each episode (None: the env's registered 500, the public env's nominal
+    limit). An episode that ends neither in success nor in an invalid transition timed out
+    (``timeout_rate``). ``start``: ``"free"`` (uniform in free space, the env's reset) or
+    ``"first_mode"`` (uniform inside the first polygon, as if just entered from free space: the
+    public polygon env's default reset; teleports may then come from the first step).
+    """
     n = _check_int("n_rollouts", n_rollouts, 1)
+    if start not in EVAL_STARTS:
+        raise ValueError(f"start must be one of {EVAL_STARTS}, got {start!r}")
     schedule = schedule or PerturbationSchedule()
-    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", layout_seed=int(layout_seed))
+    horizon_kwargs = {} if max_steps is None else {"max_episode_steps": _check_int("max_steps", max_steps, 1)}
+    venv = gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="vector_entry_point", layout_seed=int(layout_seed), **horizon_kwargs
+    )
     try:
         model = venv.unwrapped.model  # type: ignore[attr-defined]
         horizon = int(venv.unwrapped.max_episode_steps)  # type: ignore[attr-defined]
         obs, info = venv.reset(seed=int(seed))
         rng = np.random.default_rng([int(seed), 7])
+        if start == "first_mode":
+            obs, info = venv.reset(options={"state": _sample_in_mode(model, 1, n, rng)})
         policy.reset()
         done = np.zeros(n, dtype=bool)
         success = np.zeros(n, dtype=bool)
         violation = np.zeros(n, dtype=bool)
-        left_start = np.zeros(n, dtype=bool)
+        left_start = np.full(n, start == "first_mode")  # teleports start after the first mode change
         start_mode = np.asarray(info["mode"]).copy()
         last_push = np.full(n, -(10**9))
         pushes = np.zeros(n, dtype=np.int64)
@@ -444,10 +462,27 @@ def evaluate_policy(
         "success_rate": float(success.mean()),
         "n_success": int(success.sum()),
         "violation_rate": float(violation.mean()),
+        "timeout_rate": float((~success & ~violation).mean()),
         "perturbations": int(pushes.sum()),
         "perturbed_episodes": int((pushes > 0).sum()),
         "mean_steps": float(steps.mean()),
     }
+
+
+def _sample_in_mode(model: Any, mode: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform in the region of ``mode`` (rejection sampling in its bounding box)."""
+    lo, hi = np.asarray(model.low, dtype=np.float64), np.asarray(model.high, dtype=np.float64)
+    if mode > 0:
+        bounds = np.asarray(model.polygons[mode - 1].bounds, dtype=np.float64)
+        lo, hi = np.maximum(lo, bounds[:2]), np.minimum(hi, bounds[2:])
+    out = np.empty((n, 2))
+    todo = np.arange(n)
+    while len(todo):
+        cand = rng.uniform(lo, hi, size=(len(todo), 2))
+        ok = model.mode_of(cand) == mode
+        out[todo[ok]] = cand[ok]
+        todo = todo[~ok]
+    return out
 
 
 def policy_trial(
@@ -460,6 +495,8 @@ def policy_trial(
     *,
     setup: GlideSetup | None = None,
     cache_dir: str | os.PathLike[str] | None = None,
+    max_steps: int | None = None,
+    start: str = "free",
 ) -> dict[str, Any]:
     """Success rate of one method on one layout (thesis Table 4.1 cell; ``seed`` seeds training and rollouts)."""
     k = _check_env_id(env_id)
@@ -467,8 +504,10 @@ def policy_trial(
         raise TypeError(f"perturbed must be a bool, got {type(perturbed).__name__}")
     seed = _check_int("seed", seed)
     policy, info = make_policy(method, env_id, layout_seed, seed, setup=setup, cache_dir=cache_dir)
-    start = time.perf_counter()
-    result = _evaluate_column(policy, env_id, layout_seed, n_rollouts, bool(perturbed), seed)
+    began = time.perf_counter()
+    result = _evaluate_column(
+        policy, env_id, layout_seed, n_rollouts, bool(perturbed), seed, max_steps=max_steps, start=start
+    )
     thesis = THESIS_TABLE_4_1[method][k][1 if perturbed else 0]
     out = {
         "env_id": env_id,
@@ -480,7 +519,7 @@ def policy_trial(
         "seed": seed,
         **result,
         "thesis_success_rate": thesis,
-        "eval_seconds": time.perf_counter() - start,
+        "eval_seconds": time.perf_counter() - began,
         "train_seconds": info.get("train_seconds", 0.0),
     }
     return out
@@ -494,10 +533,20 @@ def _evaluate_column(
     perturbed: bool,
     seed: int,
     schedule: PerturbationSchedule | None = None,
+    max_steps: int | None = None,
+    start: str = "free",
 ) -> dict[str, Any]:
     """:func:`evaluate_policy` plus, for a planner, its call counts over these rollouts (then reset)."""
     res = evaluate_policy(
-        policy, env_id, layout_seed, n_rollouts=n_rollouts, perturbed=perturbed, seed=seed, schedule=schedule
+        policy,
+        env_id,
+        layout_seed,
+        n_rollouts=n_rollouts,
+        perturbed=perturbed,
+        seed=seed,
+        schedule=schedule,
+        max_steps=max_steps,
+        start=start,
     )
     if isinstance(policy, GlidePlanningPolicy):
         res["planner_calls"] = dict(policy.stats)
@@ -515,9 +564,12 @@ def policy_table_trial(
     setup: GlideSetup | None = None,
     cache_dir: str | os.PathLike[str] | None = None,
     schedule: PerturbationSchedule | None = None,
+    max_steps: int | None = None,
+    start: str = "free",
 ) -> dict[str, Any]:
     """Both columns of one thesis Table 4.1 cell: one trained policy, ``n_rollouts`` episodes each
-    without and with the evaluation perturbations (the same start states in both).
+    without and with the evaluation perturbations (the same start states in both), each at most
+    ``max_steps`` steps (None: the env's 500), starting as ``start`` says (see :func:`evaluate_policy`).
 
     Returns ``success`` / ``success_perturbed`` (and the other :func:`evaluate_policy`
     numbers under ``"unperturbed"`` / ``"perturbed"``), the thesis's numbers,
@@ -539,10 +591,12 @@ def policy_table_trial(
         "train_seconds": float(info.get("train_seconds", 0.0)),
         "classifier_cached": bool(info.get("cached", False)),
     }
-    start = time.perf_counter()
+    began = time.perf_counter()
     for perturbed, name in ((False, "unperturbed"), (True, "perturbed")):
-        out[name] = _evaluate_column(policy, env_id, layout_seed, n_rollouts, perturbed, seed, schedule)
-    out["eval_seconds"] = time.perf_counter() - start
+        out[name] = _evaluate_column(
+            policy, env_id, layout_seed, n_rollouts, perturbed, seed, schedule, max_steps, start
+        )
+    out["eval_seconds"] = time.perf_counter() - began
     out["success"] = out["unperturbed"]["success_rate"]
     out["success_perturbed"] = out["perturbed"]["success_rate"]
     out["thesis_success"], out["thesis_success_perturbed"] = THESIS_TABLE_4_1[method][k]
@@ -551,6 +605,7 @@ def policy_table_trial(
 
 __all__ = [
     "ENV_IDS",
+    "EVAL_STARTS",
     "METHODS",
     "THESIS_TABLE_4_1",
     "VARIANTS",

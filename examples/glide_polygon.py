@@ -41,15 +41,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--epochs", type=int, default=2000, help="classifier training epochs (default 2000)")
     parser.add_argument("--rollouts", type=int, default=200, help="evaluation episodes per column (default 200)")
     parser.add_argument("--planner", choices=FREE_SPACE_PLANNERS, default="costmap", help="free-space planner")
+    parser.add_argument(
+        "--max-steps", type=int, default=1000, help="episode length (default 1000, as Table 4.1's evaluation)"
+    )
     parser.add_argument("--show", type=int, default=12, help="rollouts drawn in the PNG (default 12)")
     parser.add_argument("--out", type=Path, default=Path("runs/glide"), help="output directory (default runs/glide)")
     args = parser.parse_args(argv)
     for name in ("layout", "seed"):
         if getattr(args, name) < 0:
             parser.error(f"--{name} must be >= 0")
-    for name in ("replays", "epochs", "rollouts", "show"):
+    for name in ("replays", "epochs", "rollouts", "show", "max_steps"):
         if getattr(args, name) < 1:
-            parser.error(f"--{name} must be >= 1")
+            parser.error(f"--{name.replace('_', '-')} must be >= 1")
     return args
 
 
@@ -111,12 +114,19 @@ def main(argv: list[str] | None = None) -> int:
     assert isinstance(policy, GlidePlanningPolicy)
     for perturbed in (False, True):
         res = evaluate_policy(
-            policy, env_id, args.layout, n_rollouts=args.rollouts, perturbed=perturbed, seed=args.seed
+            policy,
+            env_id,
+            args.layout,
+            n_rollouts=args.rollouts,
+            perturbed=perturbed,
+            seed=args.seed,
+            max_steps=args.max_steps,
         )
         label = "with teleports   " if perturbed else "without teleports"
         print(
             f"GLiDE+Planning ({args.planner}) {label}: success {res['success_rate']:.3f}, "
-            f"invalid transitions {res['violation_rate']:.3f} ({args.rollouts} episodes)"
+            f"invalid transitions {res['violation_rate']:.3f}, out of steps {res['timeout_rate']:.3f} "
+            f"({args.rollouts} episodes of <= {args.max_steps} steps)"
         )
 
     paths, success = record_rollouts(policy, env_id, args.layout, args.show, args.seed + 1)

@@ -67,3 +67,5 @@ def test_glide_polygon_learns_modes_and_plans_through_them(tmp_path: Path) -> No
     assert again.returncode == 0 and "(cached)" in again.stdout
     bad = _run("glide_polygon.py", "--replays", "0", "--out", str(tmp_path))
     assert bad.returncode == 2 and "--replays" in bad.stderr
+    bad = _run("glide_polygon.py", "--max-steps", "0", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--max-steps" in bad.stderr

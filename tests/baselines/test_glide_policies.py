@@ -318,3 +318,32 @@ def test_costmap_returns_none_when_the_goal_is_cut_off_and_checks_its_settings()
         PlannerConfig(free_space_planner="astar")
     with pytest.raises(ValueError, match="exposure_radius"):
         PlannerConfig(exposure_radius=-1.0)
+
+
+def test_evaluation_episode_length_is_configurable(setting: tuple) -> None:
+    """``max_steps`` caps the episodes: too short to reach the goal, every episode times out."""
+    model, demos = setting
+    policy = GlidePlanningPolicy(
+        _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
+    )
+    short = evaluate_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=5)
+    assert short["success_rate"] == 0.0 and short["timeout_rate"] == 1.0 and short["mean_steps"] == 5.0
+    full = evaluate_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=1000)
+    assert full["timeout_rate"] == 0.0 and full["success_rate"] + full["violation_rate"] == 1.0
+    with pytest.raises(ValueError, match="max_steps"):
+        evaluate_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, max_steps=0)
+
+
+def test_episodes_can_start_inside_the_first_polygon(setting: tuple) -> None:
+    """``start="first_mode"``: the public env's reset; the chain from there is one polygon shorter."""
+    model, demos = setting
+    policy = GlidePlanningPolicy(
+        _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
+    )
+    free = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
+    inside = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1, start="first_mode")
+    assert inside["success_rate"] >= 0.95 and inside["mean_steps"] < free["mean_steps"]
+    pushed = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=True, seed=1, start="first_mode")
+    assert pushed["perturbed_episodes"] > 0 and pushed["violation_rate"] == 0.0
+    with pytest.raises(ValueError, match="start"):
+        evaluate_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, start="goal")

@@ -113,7 +113,7 @@ def test_policy_suite_runs_tiny_through_the_runner(tmp_path: Path) -> None:
     ]
     for rec in summary.records:
         m = rec["metrics"]
-        for name in ("success", "success_perturbed", "violation", "violation_perturbed"):
+        for name in ("success", "success_perturbed", "violation", "violation_perturbed", "timeout_perturbed"):
             assert m[name] in {0.0, 1 / 3, 2 / 3, 1.0}, (name, m)
         assert m["train_seconds"] > 0.0 and m["eval_seconds"] > 0.0
         assert rec["extra"]["unperturbed"]["perturbations"] == 0
@@ -135,6 +135,10 @@ def test_trials_reject_unknown_variants_and_envs() -> None:
     policy_suite = get_suite("glide-polygon")
     with pytest.raises(ValueError, match="free_space_planner"):
         plan_trials(policy_suite, build_request(policy_suite, params={"free_space_planner": "astar"}))
+    with pytest.raises(ValueError, match="max_steps"):
+        plan_trials(policy_suite, build_request(policy_suite, params={"max_steps": 0}))
+    with pytest.raises(ValueError, match="start"):
+        plan_trials(policy_suite, build_request(policy_suite, params={"start": "goal"}))
 
 
 def _glide_record(suite: str, env: str, method: str, metrics: dict) -> dict:
