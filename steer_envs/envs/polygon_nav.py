@@ -8,7 +8,9 @@ chain in order. Allowed mode transitions: self-loops, ``i -> i+1``,
 straight into polygon 2) is an invalid transition: a constraint violation that
 ends the episode. Dynamics (public GLiDE code): single integrator whose step
 is the action with its length clipped to 0.1 (``dt = 1``, ``max_speed = 0.1``),
-500 steps per episode.
+500 steps per episode (the public env's nominal limit, which its own evaluation
+loop does not enforce; ``max_episode_steps=`` changes it, and the Table 4.1
+suite runs 1000).
 
 Geometry (glide.md "Polygon domain"): each polygon is a random convex
 quadrilateral scaled to the unit box; polygon ``j+1`` is attached by the

@@ -37,7 +37,7 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
     assert table.references_for("steer_envs/PolygonNav-5Mode-v0", "bc")["success_perturbed"].value == 0.596
     plan = plan_trials(table, build_request(table))
     per_method = {m: sum(t.method == m for t in plan.trials) for m in METHODS}
-    assert per_method == {"bc": 3 * 10, "glide_bc": 3, "glide_planning": 3}  # BC over 10 seeds, as in the thesis
+    assert per_method == {"bc": 3 * 10, "glide_bc": 3 * 3, "glide_planning": 3 * 3}  # BC: 10 seeds, as the thesis
     assert {t.params["n_rollouts"] for t in plan.trials} == {1000}
     explicit = plan_trials(table, build_request(table, methods=["bc", "glide_planning"], seeds=[3, 4], trials=7))
     assert sorted((t.method, t.seed) for t in explicit.trials if t.env == ENV3) == [
@@ -102,7 +102,7 @@ def test_grounding_suite_runs_tiny_through_the_runner_with_report_and_figure(tmp
 
 
 def test_policy_suite_runs_tiny_through_the_runner(tmp_path: Path) -> None:
-    params = {**TINY, "bc_seeds": 2, "bc_steps": 5, "cache_dir": str(tmp_path / "cache")}
+    params = {**TINY, "bc_seeds": 2, "glide_seeds": 1, "bc_steps": 5, "cache_dir": str(tmp_path / "cache")}
     summary = run_suite("glide-polygon", tmp_path, envs=[ENV3], trials=3, params=params, workers=1, progress=False)
     assert summary.ok, [f.error for f in summary.failures]
     assert sorted((r["config"]["method"], r["seed"]) for r in summary.records) == [
