@@ -37,7 +37,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--modes", type=int, choices=(3, 4, 5), default=4, help="PolygonNav-KMode-v0 (default 4)")
     parser.add_argument("--layout", type=int, default=0, help="layout seed of the polygon chain (default 0)")
     parser.add_argument("--seed", type=int, default=0, help="seed of demos, replays, training and rollouts")
-    parser.add_argument("--replays", type=int, default=500, help="successful and failed replays, each (default 500)")
+    parser.add_argument("--replays", type=int, default=1000, help="successful and failed replays, each (default 1000)")
     parser.add_argument("--epochs", type=int, default=2000, help="classifier training epochs (default 2000)")
     parser.add_argument("--rollouts", type=int, default=200, help="evaluation episodes per column (default 200)")
     parser.add_argument("--planner", choices=FREE_SPACE_PLANNERS, default="costmap", help="free-space planner")

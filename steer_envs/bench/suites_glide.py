@@ -24,10 +24,10 @@
   (:func:`~steer_envs.baselines.glide_protocol.policy_table_trial`), and the
   report prints the thesis's success rates beside ours. The thesis averages BC
   over 10 seeds: ``bc_seeds`` (default 10) and ``glide_seeds`` (default 3: one
-  data set + classifier per seed; on layout 0 one of three 3-mode classifiers
-  misses a polygon tip and alone costs GLiDE+Planning 8 points, so a single
-  seed says more about the draw than about the method) set how many training
-  seeds each method gets unless ``--seeds`` is given.
+  data set + classifier per seed; a single seed says as much about the draw
+  of replays as about the method -- with 500 + 500 replays one 3-mode
+  classifier in three missed a polygon tip, costing GLiDE+Planning 8 points)
+  set how many training seeds each method gets unless ``--seeds`` is given.
 
 Both suites take the data/training sizes as parameters (a tiny configuration
 runs in seconds; ``demo_goal_steps`` is how far the demos go on into the goal
@@ -88,10 +88,10 @@ TRAIN_SECONDS_GOAL = 120.0
 _SETUP_PARAMS: dict[str, Any] = {
     "n_demos": 7,
     "demo_goal_steps": 30,
-    "n_success": 500,
-    "n_failure": 500,
+    "n_success": 1000,
+    "n_failure": 1000,
     "epochs": 2000,
-    "n_heads": 10,
+    "n_heads": 5,
     "cache_dir": None,
 }
 

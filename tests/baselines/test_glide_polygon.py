@@ -55,8 +55,9 @@ def test_glide_planning_beats_bc_under_perturbations(env_id: str, tmp_path: obje
     """Issue 6 'done when': GLiDE+Planning >= 0.98 with and without perturbations, above BC perturbed."""
     setup = GlideSetup()
     plan = {
-        p: policy_trial(env_id, 0, "glide_planning", p, 1000, 0, setup=setup, cache_dir=tmp_path) for p in (False, True)
+        p: policy_trial(env_id, 0, "glide_planning", p, 1000, 0, setup=setup, cache_dir=tmp_path, max_steps=1000)
+        for p in (False, True)
     }
-    bc = policy_trial(env_id, 0, "bc", True, 1000, 0, setup=setup)
+    bc = policy_trial(env_id, 0, "bc", True, 1000, 0, setup=setup, max_steps=1000)
     assert plan[False]["success_rate"] >= 0.98 and plan[True]["success_rate"] >= 0.98, plan
     assert plan[True]["success_rate"] > bc["success_rate"]
