@@ -52,12 +52,20 @@ def test_full_loss_overlap_reaches_095_and_ablations_are_worse(env_id: str, tmp_
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_glide_planning_beats_bc_under_perturbations(env_id: str, tmp_path: object) -> None:
-    """Issue 6 'done when': GLiDE+Planning >= 0.98 with and without perturbations, above BC perturbed."""
+    """Issue 6 'done when' as glide-polygon checks it: GLiDE+Planning >= 0.98 with and without perturbations
+    (mean over 3 training seeds, 1000-step episodes), above BC perturbed."""
     setup = GlideSetup()
     plan = {
-        p: policy_trial(env_id, 0, "glide_planning", p, 1000, 0, setup=setup, cache_dir=tmp_path, max_steps=1000)
+        p: np.mean(
+            [
+                policy_trial(env_id, 0, "glide_planning", p, 1000, s, setup=setup, cache_dir=tmp_path, max_steps=1000)[
+                    "success_rate"
+                ]
+                for s in range(3)
+            ]
+        )
         for p in (False, True)
     }
     bc = policy_trial(env_id, 0, "bc", True, 1000, 0, setup=setup, max_steps=1000)
-    assert plan[False]["success_rate"] >= 0.98 and plan[True]["success_rate"] >= 0.98, plan
-    assert plan[True]["success_rate"] > bc["success_rate"]
+    assert plan[False] >= 0.98 and plan[True] >= 0.98, plan
+    assert plan[True] > bc["success_rate"]
