@@ -428,7 +428,7 @@ def evaluate_policy(
         obs, info = venv.reset(seed=int(seed))
         rng = np.random.default_rng([int(seed), 7])
         if start == "first_mode":
-            obs, info = venv.reset(options={"state": _sample_in_mode(model, 1, n, rng)})
+            obs, info = venv.reset(options={"state": model.sample_in_mode(rng, n, 1)})
         policy.reset()
         done = np.zeros(n, dtype=bool)
         success = np.zeros(n, dtype=bool)
@@ -476,22 +476,6 @@ def evaluate_policy(
         "perturbed_episodes": int((pushes > 0).sum()),
         "mean_steps": float(steps.mean()),
     }
-
-
-def _sample_in_mode(model: Any, mode: int, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` points uniform in the region of ``mode`` (rejection sampling in its bounding box)."""
-    lo, hi = np.asarray(model.low, dtype=np.float64), np.asarray(model.high, dtype=np.float64)
-    if mode > 0:
-        bounds = np.asarray(model.polygons[mode - 1].bounds, dtype=np.float64)
-        lo, hi = np.maximum(lo, bounds[:2]), np.minimum(hi, bounds[2:])
-    out = np.empty((n, 2))
-    todo = np.arange(n)
-    while len(todo):
-        cand = rng.uniform(lo, hi, size=(len(todo), 2))
-        ok = model.mode_of(cand) == mode
-        out[todo[ok]] = cand[ok]
-        todo = todo[~ok]
-    return out
 
 
 def policy_trial(

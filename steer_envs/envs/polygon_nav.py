@@ -206,11 +206,22 @@ class PolygonNavModel(KinematicTaskModel):
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Uniform in free space (rejection sampling in the workspace)."""
+        return self.sample_in_mode(rng, n, 0)
+
+    def sample_in_mode(self, rng: np.random.Generator, n: int, mode: int) -> np.ndarray:
+        """``n`` points uniform in the region of ``mode`` (0: free space), by rejection sampling in
+        the workspace (free space) or in the polygon's bounding box."""
+        if not 0 <= int(mode) < self.num_modes:
+            raise ValueError(f"mode must be in [0, {self.num_modes}), got {mode!r}")
+        lo, hi = np.asarray(self.low, dtype=np.float64), np.asarray(self.high, dtype=np.float64)
+        if mode > 0:
+            bounds = np.asarray(self.polygons[mode - 1].bounds, dtype=np.float64)
+            lo, hi = np.maximum(lo, bounds[:2]), np.minimum(hi, bounds[2:])
         out = np.empty((n, 2))
         todo = np.arange(n)
         while len(todo):
-            cand = rng.uniform(self.low, self.high, size=(len(todo), 2))
-            ok = self.mode_of(cand) == 0
+            cand = rng.uniform(lo, hi, size=(len(todo), 2))
+            ok = self.mode_of(cand) == mode
             out[todo[ok]] = cand[ok]
             todo = todo[~ok]
         return out

@@ -9,7 +9,14 @@ import pytest
 from steer_envs.bench.report import render_markdown, summarize
 from steer_envs.bench.runner import build_request, plan_trials, run_suite
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
-from steer_envs.bench.suites_glide import ENV_IDS, METHODS, THESIS_TABLE_4_1, VARIANTS, run_grounding_trial
+from steer_envs.bench.suites_glide import (
+    ENV_IDS,
+    EVAL_STARTS,
+    METHODS,
+    THESIS_TABLE_4_1,
+    VARIANTS,
+    run_grounding_trial,
+)
 
 PNG = b"\x89PNG\r\n\x1a\n"
 ENV3 = "steer_envs/PolygonNav-3Mode-v0"
@@ -32,6 +39,7 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
 
     table = get_suite("glide-polygon")
     assert {m: dict(v) for m, v in THESIS_TABLE_4_1.items()} == glide_protocol.THESIS_TABLE_4_1
+    assert EVAL_STARTS == glide_protocol.EVAL_STARTS  # kept twice so the suite imports no torch
     refs = table.references_for("steer_envs/PolygonNav-4Mode-v0", "glide_planning")
     assert (refs["success"].value, refs["success_perturbed"].value) == (0.987, 0.966)
     assert table.references_for("steer_envs/PolygonNav-5Mode-v0", "bc")["success_perturbed"].value == 0.596

@@ -318,3 +318,18 @@ def test_render_rgb_array(env_id: str) -> None:
     assert image.shape == (96, 96, 3) and image.dtype == np.uint8
     # free space, one colour per polygon, outlines and the agent
     assert len(np.unique(image.reshape(-1, 3), axis=0)) >= env.unwrapped.model.num_modes + 1
+
+
+def test_sample_in_mode_draws_inside_the_asked_region() -> None:
+    """Free space is what ``sample_start`` draws; a polygon mode samples inside that polygon only."""
+    env = gym.make("steer_envs/PolygonNav-4Mode-v0", layout_seed=0)
+    model = env.unwrapped.model
+    for mode in range(4):
+        pts = model.sample_in_mode(np.random.default_rng(mode), 200, mode)
+        assert pts.shape == (200, 2) and np.all(model.mode_of(pts) == mode)
+    np.testing.assert_array_equal(
+        model.sample_start(np.random.default_rng(3), 50), model.sample_in_mode(np.random.default_rng(3), 50, 0)
+    )
+    with pytest.raises(ValueError, match="mode"):
+        model.sample_in_mode(np.random.default_rng(0), 5, 4)
+    env.close()
