@@ -15,15 +15,15 @@ from typing import Any
 
 import torch
 
-from .act import ACTPolicy
-from .diffusion import DiffusionPolicy
+from steer_envs.baselines.act.modeling import ACTPolicy
+from steer_envs.baselines.diffusion.modeling import DiffusionPolicy
 
 __all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_checkpoint", "load_pretrained"]
 
 #: kind -> file name in ``steer_envs.baselines/checkpoints``.
 CHECKPOINTS: dict[str, str] = {
-    "dp": "maze2d_large_dp.safetensors",
-    "act": "maze2d_large_act.safetensors",
+    "dp": "maze2d_large/dp.safetensors",
+    "act": "maze2d_large/act.safetensors",
 }
 
 

@@ -26,10 +26,10 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.baselines.glide import mode_iou, mode_overlap, workspace_grid
-from steer_envs.baselines.glide_plots import ModeMapRow, plot_mode_maps
-from steer_envs.baselines.glide_protocol import GlideSetup, evaluate_policy, learn_grounding, make_policy
-from steer_envs.baselines.mode_policies import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
+from steer_envs.baselines.glide.classifier import mode_iou, mode_overlap, workspace_grid
+from steer_envs.baselines.glide.mode_policies import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
+from steer_envs.bench.suites.glide.plots import ModeMapRow, plot_mode_maps
+from steer_envs.bench.suites.glide.protocol import GlideSetup, evaluate_policy, learn_grounding, make_policy
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

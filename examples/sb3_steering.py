@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.bench.suites_itps import load_policy
+from steer_envs.bench.suites.itps.suite import load_policy
 from steer_envs.io import atomic_open
 from steer_envs.wrappers import SteeringWrapper, make_sampler
 

@@ -21,7 +21,7 @@ import gymnasium as gym
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.bench.plots import new_figure, save_figure
-from steer_envs.bench.suites_itps import load_policy
+from steer_envs.bench.suites.itps.suite import load_policy
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.users.sketcher import SketchUser
 from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduce the shipped Maze2D-Large checkpoints (baselines/checkpoints/maze2d_large_{dp,act}.*).
+# Reproduce the shipped Maze2D-Large checkpoints (baselines/checkpoints/maze2d_large/{dp,act}.*).
 #
 # 1. the D4RL-style random walk: 1M raw steps (x4 subsampled -> 250k samples), seed 0;
 # 2. the Diffusion Policy, then ACT, on it, each with a fixed seed and ONE torch thread: the
@@ -18,15 +18,15 @@ if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/maze2d-data}
 DATA="$DATA_DIR/maze2d-large-randomwalk-seed0.npz"
-OUT=baselines/checkpoints
+OUT=baselines/checkpoints/maze2d_large
 
 "$PY" -m steer_envs.data.maze_random_walk --maze large --steps 1000000 --seed 0 --out "$DATA"
 if [ "$CHECK" = 1 ]; then
-  "$PY" -m steer_envs.baselines.train_maze dp --data "$DATA" --check "$OUT/maze2d_large_dp.json" --check-steps 200
-  "$PY" -m steer_envs.baselines.train_maze act --data "$DATA" --check "$OUT/maze2d_large_act.json" --check-steps 100
+  "$PY" -m steer_envs.baselines.training dp --data "$DATA" --check "$OUT/dp.json" --check-steps 200
+  "$PY" -m steer_envs.baselines.training act --data "$DATA" --check "$OUT/act.json" --check-steps 100
   exit 0
 fi
-"$PY" -m steer_envs.baselines.train_maze dp --data "$DATA" --out "$OUT/maze2d_large_dp.safetensors" \
+"$PY" -m steer_envs.baselines.training dp --data "$DATA" --out "$OUT/dp.safetensors" \
     --steps 30000 --seed 0 --threads 1
-"$PY" -m steer_envs.baselines.train_maze act --data "$DATA" --out "$OUT/maze2d_large_act.safetensors" \
+"$PY" -m steer_envs.baselines.training act --data "$DATA" --out "$OUT/act.safetensors" \
     --steps 3000 --seed 0 --threads 1

@@ -415,7 +415,7 @@ class ModulatedPolicy:
 
     Args:
         policy: any batched ``VelocityPolicy`` (``(N, d) -> (N, d)``), e.g. an
-            :class:`~steer_envs.baselines.ds.LPVDS` or a BC policy.
+            :class:`~steer_envs.baselines.lpv_ds.lpvds.LPVDS` or a BC policy.
         cuts: a :class:`CutSet` (shared, so cuts added to it later take effect).
         max_speed: optional speed limit applied before and after modulation
             (the discrete-time guarantee needs it, see the module docstring).

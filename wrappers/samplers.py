@@ -40,7 +40,7 @@ is why RS's Min L2 ~ its Avg L2 there).
 Noise comes from the numpy ``generator`` (float32 draws for float32 policies),
 so a diffusion sampler with zero guidance reproduces the policy's own
 ``sample`` for the same generator state when that draws its initial noise the
-same way (``steer_envs.baselines.diffusion`` does): RS, PR, BI, GD and SS of
+same way (``steer_envs.baselines.diffusion.modeling`` does): RS, PR, BI, GD and SS of
 one seed start from the same noise, as in ITPS.
 
 Optional policy members: ``dtype`` (torch dtype of the denoised tensor, default

@@ -21,23 +21,9 @@ from steer_envs.bench.executors import EXECUTORS
 from steer_envs.bench.report import FORMATS, render, render_markdown, summarize
 from steer_envs.bench.store import StoreLockedError, atomic_write_text, load_results
 from steer_envs.bench.suite import Suite, get_suite, load_plugins, suites
+from steer_envs.utils.cli import parse_key_value
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-
-
-def parse_key_value(text: str) -> tuple[str, Any]:
-    """``KEY=VALUE`` with VALUE parsed as JSON when it is JSON (``3``, ``0.5``, ``true``, ``[1, 2]``), else a string.
-
-    ``ValueError`` when ``text`` has no ``=`` or an empty key. Also parses ``train_maze --model``.
-    """
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip():
-        raise ValueError(f"expected KEY=VALUE, got {text!r}")
-    try:
-        parsed: Any = json.loads(value)
-    except json.JSONDecodeError:
-        parsed = value
-    return key.strip(), parsed
 
 
 def _param(text: str) -> tuple[str, Any]:
@@ -148,7 +134,7 @@ def _describe(suite: Suite) -> list[str]:
     if suite.generate is None or suite.run_trial is not None:
         lines.append(f"    default seeds: {suite.default_seeds}")
     if suite.name == "quick":
-        from steer_envs.bench.suites_quick import quick_sections
+        from steer_envs.bench.suites.quick import quick_sections
 
         lines.append(f"    tour of: {', '.join(s.name for s in quick_sections())}")
     if suite.quick is not None:

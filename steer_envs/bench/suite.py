@@ -27,13 +27,13 @@ from typing import Any, Literal
 
 #: modules whose import registers the built-in suites (later domains append theirs)
 BUILTIN_SUITE_MODULES: tuple[str, ...] = (
-    "steer_envs.bench.suites_selftest",
-    "steer_envs.bench.suites_smoke",
-    "steer_envs.bench.suites_quick",
-    "steer_envs.bench.suites_itps",
-    "steer_envs.bench.suites_ltl",
-    "steer_envs.bench.suites_tli",
-    "steer_envs.bench.suites_glide",
+    "steer_envs.bench.suites.selftest",
+    "steer_envs.bench.suites.smoke",
+    "steer_envs.bench.suites.quick",
+    "steer_envs.bench.suites.itps.suite",
+    "steer_envs.bench.suites.ltl",
+    "steer_envs.bench.suites.tli.suite",
+    "steer_envs.bench.suites.glide.suite",
 )
 #: environment variable with extra comma-separated suite modules to import
 PLUGINS_ENV_VAR = "STEER_BENCH_PLUGINS"

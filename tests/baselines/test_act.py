@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.act import ACTConfig, ACTModel, ACTPolicy
-from steer_envs.baselines.diffusion import DiffusionPolicy
+from steer_envs.baselines.act.modeling import ACTConfig, ACTModel, ACTPolicy
+from steer_envs.baselines.diffusion.modeling import DiffusionPolicy
 from steer_envs.baselines.pretrained import CHECKPOINTS, checkpoint_path, load_pretrained
-from steer_envs.baselines.train_maze import TrainSettings, build_policy, main, train_policy
+from steer_envs.baselines.training.trainer import TrainSettings, build_policy, main, train_policy
 from steer_envs.core import DiffusionPolicyLike, TrajectoryPolicy
 from steer_envs.data.maze_random_walk import generate_random_walk, save_random_walk
 from steer_envs.envs.maze2d import MazeGrid, maze_map

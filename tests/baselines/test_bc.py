@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.bc import BCPolicy
+from steer_envs.baselines.bc.modeling import BCPolicy
 from steer_envs.core.policy import VelocityPolicy
 
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.act import ACTPolicy
-from steer_envs.baselines.diffusion import ConditionalUnet1D, DiffusionConfig, DiffusionPolicy
+from steer_envs.baselines.act.modeling import ACTPolicy
+from steer_envs.baselines.diffusion.modeling import ConditionalUnet1D, DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.pretrained import checkpoint_record, load_pretrained
-from steer_envs.baselines.train_maze import (
+from steer_envs.baselines.training.trainer import (
     PRESETS,
     TrainSettings,
     build_policy,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from steer_envs.baselines.ds import LPVDS, _benchmark_demos, benchmark_fit_time, velocities_from_positions
+from steer_envs.baselines.lpv_ds.lpvds import LPVDS, _benchmark_demos, benchmark_fit_time, velocities_from_positions
 from steer_envs.core.policy import VelocityPolicy
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.glide import (
+from steer_envs.baselines.glide.classifier import (
     GlideLossWeights,
     GlideTrainConfig,
     ModeClassifier,
@@ -19,7 +19,7 @@ from steer_envs.baselines.glide import (
     train_mode_classifier,
     workspace_grid,
 )
-from steer_envs.baselines.segmentation_kmeans import KMeansSegmentation
+from steer_envs.baselines.glide.kmeans import KMeansSegmentation
 from steer_envs.core.task import TaskSpec
 
 #: 3-mode chain a -> b -> c with back edges: only a -> c is infeasible.

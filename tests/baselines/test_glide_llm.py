@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from steer_envs.baselines.glide_llm import (
+from steer_envs.baselines.glide.llm_plan import (
     LLMProvider,
     RecordedProvider,
     build_prompt,

@@ -9,15 +9,7 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401
-from steer_envs.baselines.glide_plots import plot_groundings
-from steer_envs.baselines.glide_protocol import (
-    GlideSetup,
-    PerturbationSchedule,
-    demonstrations,
-    evaluate_policy,
-    grounding_trial,
-)
-from steer_envs.baselines.mode_policies import (
+from steer_envs.baselines.glide.mode_policies import (
     BCConfig,
     BCPolicy,
     GlideBCPolicy,
@@ -27,6 +19,14 @@ from steer_envs.baselines.mode_policies import (
     mode_entry_points,
     rrt,
     segment_demonstrations,
+)
+from steer_envs.bench.suites.glide.plots import plot_groundings
+from steer_envs.bench.suites.glide.protocol import (
+    GlideSetup,
+    PerturbationSchedule,
+    demonstrations,
+    evaluate_policy,
+    grounding_trial,
 )
 
 ENV_ID = "steer_envs/PolygonNav-4Mode-v0"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from steer_envs.baselines.glide import GlideTrainConfig
-from steer_envs.baselines.glide_protocol import ENV_IDS, GlideSetup, grounding_trial, policy_trial
+from steer_envs.baselines.glide.classifier import GlideTrainConfig
+from steer_envs.bench.suites.glide.protocol import ENV_IDS, GlideSetup, grounding_trial, policy_trial
 
 
 def test_small_run_learns_the_polygon_chain_better_than_the_baselines(tmp_path: object) -> None:

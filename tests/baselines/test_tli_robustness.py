@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from steer_envs.baselines.tli_robustness import (
+from steer_envs.bench.suites.tli.robustness import (
     THESIS_SCOOP,
     WORKSPACE_SIZE,
     drawn_scoop_demos,

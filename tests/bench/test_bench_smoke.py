@@ -6,11 +6,11 @@ import importlib.util
 
 import pytest
 
-from steer_envs.bench import suites_smoke
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.runner import build_request, plan_trials
 from steer_envs.bench.suite import Trial, get_suite
-from steer_envs.bench.suites_quick import quick_sections
+from steer_envs.bench.suites import smoke as suites_smoke
+from steer_envs.bench.suites.quick import quick_sections
 
 TINY = {"episodes": 1, "single_steps": 100, "num_envs": 64, "vec_steps": 3}
 

@@ -18,9 +18,9 @@ from steer_envs.bench.suite import (
     resolve_function,
     suites,
 )
-from steer_envs.bench.suites_selftest import run_selftest_trial
+from steer_envs.bench.suites.selftest import run_selftest_trial
 
-FN = "steer_envs.bench.suites_selftest:run_selftest_trial"
+FN = "steer_envs.bench.suites.selftest:run_selftest_trial"
 
 
 def test_trial_key_is_stable_and_ignores_param_order_and_fn():

@@ -12,10 +12,10 @@ import pytest
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
-from steer_envs.bench import suites_itps  # noqa: E402
 from steer_envs.bench.executors import execute_trial  # noqa: E402
 from steer_envs.bench.runner import build_request, plan_trials  # noqa: E402
 from steer_envs.bench.suite import Trial, get_suite  # noqa: E402
+from steer_envs.bench.suites.itps import suite as suites_itps  # noqa: E402
 
 LOADER = f"{__name__}:load_test_policy"
 FAST = {"dp_loader": LOADER, "act_loader": LOADER, "batch": 8, "plot_seeds": 1}
@@ -167,7 +167,7 @@ def test_references_and_quick_settings(suite: Any) -> None:
 
 def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Path) -> None:
     """--param dp_checkpoint=FILE runs the suite on another train_maze checkpoint (e.g. a GPU run)."""
-    from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
+    from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
 
     tiny = DiffusionConfig(horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16)
     path = DiffusionPolicy(tiny, (0.5, 0.5), (7.5, 10.5)).save(tmp_path / "dp.safetensors")

@@ -35,7 +35,7 @@ def test_trial_reports_time_and_the_soup_automaton_size():
 
 
 def test_unknown_spec_is_a_clear_error():
-    from steer_envs.bench.suites_ltl import run_translation_trial
+    from steer_envs.bench.suites.ltl import run_translation_trial
 
     with pytest.raises(ValueError, match="unknown spec"):
         run_translation_trial(

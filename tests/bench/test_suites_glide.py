@@ -9,7 +9,7 @@ import pytest
 from steer_envs.bench.report import render_markdown, summarize
 from steer_envs.bench.runner import build_request, plan_trials, run_suite
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
-from steer_envs.bench.suites_glide import (
+from steer_envs.bench.suites.glide.suite import (
     ENV_IDS,
     EVAL_STARTS,
     METHODS,
@@ -25,9 +25,9 @@ TINY = {"n_demos": 3, "n_success": 8, "n_failure": 8, "epochs": 5, "n_heads": 1}
 
 
 def test_suites_are_declared_with_the_thesis_numbers() -> None:
-    from steer_envs.baselines import glide_protocol
+    from steer_envs.bench.suites.glide import protocol as glide_protocol
 
-    assert "steer_envs.bench.suites_glide" in BUILTIN_SUITE_MODULES
+    assert "steer_envs.bench.suites.glide.suite" in BUILTIN_SUITE_MODULES
     grounding = get_suite("glide-polygon-grounding")
     assert grounding.env_list() == list(ENV_IDS) == list(glide_protocol.ENV_IDS)
     assert grounding.method_list() == list(VARIANTS) == list(glide_protocol.VARIANTS)
@@ -156,7 +156,7 @@ def _glide_record(suite: str, env: str, method: str, metrics: dict) -> dict:
 
 def test_findings_check_issue_6_claims() -> None:
     from steer_envs.bench.report import render_markdown, summarize
-    from steer_envs.bench.suites_glide import ENV_IDS, VARIANTS
+    from steer_envs.bench.suites.glide.suite import ENV_IDS, VARIANTS
 
     def grounding(overlap_of: dict, iou_of: dict) -> list:
         records = [

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from steer_envs.baselines.tli_plots import plot_scoop, plot_single_mode, single_mode_figure_data
-from steer_envs.baselines.tli_protocol import THESIS_SUCCESS, single_mode_trial
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.runner import build_request, plan_trials
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
-from steer_envs.bench.suites_tli import THESIS_SINGLE_MODE
+from steer_envs.bench.suites.tli.plots import plot_scoop, plot_single_mode, single_mode_figure_data
+from steer_envs.bench.suites.tli.protocol import THESIS_SUCCESS, single_mode_trial
+from steer_envs.bench.suites.tli.suite import THESIS_SINGLE_MODE
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -25,7 +25,7 @@ def _trial(suite_name: str, method: str | None, seed: int, **overrides) -> Trial
 
 
 def test_suites_are_declared_with_the_thesis_numbers() -> None:
-    assert "steer_envs.bench.suites_tli" in BUILTIN_SUITE_MODULES
+    assert "steer_envs.bench.suites.tli.suite" in BUILTIN_SUITE_MODULES
     single = get_suite("tli-single-mode")
     assert single.method_list() == ["bc", "bc+mod", "ds", "ds+mod"] and single.default_seeds == 50
     assert dict(THESIS_SINGLE_MODE) == {k: tuple(v) for k, v in THESIS_SUCCESS.items()}
@@ -122,7 +122,7 @@ def test_single_mode_reproduction_ordering() -> None:
 
 def test_single_mode_findings_check_fig_3_5_claims() -> None:
     from steer_envs.bench.report import Table, render_markdown, summarize
-    from steer_envs.bench.suites_tli import CONVEX_ENV
+    from steer_envs.bench.suites.tli.suite import CONVEX_ENV
 
     def table(success: dict[str, tuple[float, float, float]]) -> Table:
         records = [

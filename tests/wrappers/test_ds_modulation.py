@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.baselines.ds import LPVDS
-from steer_envs.baselines.tli_protocol import (
+from steer_envs.baselines.lpv_ds.lpvds import LPVDS
+from steer_envs.bench.suites.tli.protocol import (
     THESIS_SUCCESS,
     convex_mode_demos,
     rollout,

@@ -39,7 +39,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.csgraph import dijkstra
 from torch import nn
 
-from steer_envs.baselines.glide import ModePredictor
+from steer_envs.baselines.glide.classifier import ModePredictor
 
 
 # --------------------------------------------------------------------------------- BC

@@ -1,7 +1,7 @@
 """Figures of the TLI suites: rollouts, cuts and failures per policy (thesis Fig. 3.4 and Fig. 3.6).
 
 * :func:`single_mode_figure_data` recomputes one single-mode trial of
-  :func:`~steer_envs.baselines.tli_protocol.single_mode_trial` with the
+  :func:`~steer_envs.bench.suites.tli.protocol.single_mode_trial` with the
   rollouts kept (same demonstrations, fit, starts and cut loop; a test checks
   that the success rate and the cuts agree) as compact JSON for a record's ``extra``.
 * :func:`plot_single_mode` draws, per layout, a grid policy (rows: BC,
@@ -48,7 +48,7 @@ def _round(a: np.ndarray, digits: int = 3) -> list:
 
 def _trace(policy: Any, model: Any, starts: np.ndarray, n_steps: int, every: int) -> np.ndarray:
     """States ``(N, n_steps // every + 1, 2)`` under ConvexMode's dynamics (as tli_protocol.rollout), thinned."""
-    from steer_envs.baselines.tli_protocol import DT, MAX_SPEED
+    from steer_envs.bench.suites.tli.protocol import DT, MAX_SPEED
 
     x = np.asarray(starts, dtype=np.float64).copy()
     out = [x.copy()]
@@ -78,7 +78,7 @@ def single_mode_figure_data(
 ) -> dict[str, Any]:
     """The rollouts of one single-mode trial (``cut_sigma=None``) as JSON-able plot data.
 
-    Mirrors :func:`~steer_envs.baselines.tli_protocol.single_mode_trial`: the
+    Mirrors :func:`~steer_envs.bench.suites.tli.protocol.single_mode_trial`: the
     same demonstrations, policy fit, start states and cut loop. Keeps the first
     ``n_paths`` rollouts, subsampled every ``every`` steps (3 decimals).
 
@@ -87,7 +87,7 @@ def single_mode_figure_data(
     path), ``cuts`` (``point``, ``normal``), ``cut_points`` (last in-mode states
     of the cut failures), ``success_rate`` (over all starts), ``num_cuts``.
     """
-    from steer_envs.baselines.tli_protocol import (
+    from steer_envs.bench.suites.tli.protocol import (
         N_STEPS,
         POLICY_KINDS,
         cut_loop,

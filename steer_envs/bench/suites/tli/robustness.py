@@ -11,7 +11,7 @@ One *experiment* (``scoop_trial``) of the thesis's ten:
   straight lines through the middle of each region, and the per-mode DSs fitted
   to it hardly ever leave a mode (3 invariance failures in 10 experiments with
   5 pushes, none repeated even without modulation): too few to test the claim.
-* **Policy**: :class:`~steer_envs.baselines.ltl_ds.LTLDSPolicy` - one LPV-DS
+* **Policy**: :class:`~steer_envs.baselines.lpv_ds.ltl_ds.LTLDSPolicy` - one LPV-DS
   per mode, the soup-scooping GR(1) automaton choosing the mode from the
   sensors, with or without modulation by cuts learned from invariance failures.
 * **Perturbations** ("uniformly sampled in all directions of any magnitudes up
@@ -221,7 +221,7 @@ def scoop_demonstrations(seed: int, n_demos: int, demos: str = "drawn") -> list[
 def _fit_policy(
     seed: int, n_demos: int, modulation: bool, env: Any, demos: str, ds_eps: float, overshoot: float
 ) -> Any:
-    from steer_envs.baselines.ltl_ds import LTLDSPolicy
+    from steer_envs.baselines.lpv_ds.ltl_ds import LTLDSPolicy
     from steer_envs.ltl.specs import for_env
 
     base = env.unwrapped
@@ -264,7 +264,7 @@ def scoop_trial(
         magnitude: largest push length (default: the workspace side, 16).
         demos: ``"drawn"`` (hand-drawn-like curves, default) or ``"expert"`` (the scripted expert).
         ds_eps: stability margin of the LPV-DS fits (see :data:`DS_EPS`).
-        overshoot: of the guard attractors (see :func:`~steer_envs.baselines.ltl_ds.fit_mode_dynamics`).
+        overshoot: of the guard attractors (see :func:`~steer_envs.baselines.lpv_ds.ltl_ds.fit_mode_dynamics`).
         record: also return the trajectory, the pushes and the learned cuts (for plots).
 
     Keys: ``success`` (0/1), ``steps``, ``invariance_failures``, ``mode_reentries``,

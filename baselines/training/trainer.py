@@ -1,6 +1,6 @@
 """Train the Maze2D Diffusion Policy or ACT on a random-walk dataset (thesis §2.4.1).
 
-``python -m steer_envs.baselines.train_maze {dp,act} --data walk.npz --out dp.safetensors --steps N --seed S``
+``python -m steer_envs.baselines.training {dp,act} --data walk.npz --out dp.safetensors --steps N --seed S``
 
 ``... dp --preset itps --device cuda --data walk.npz --out dp.safetensors`` trains
 ITPS's full-size network and optimizer settings (a GPU job: ~16M parameters,
@@ -43,12 +43,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from steer_envs.bench.cli import parse_key_value
+from steer_envs.baselines.act.modeling import ACTConfig, ACTPolicy
+from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
 from steer_envs.data.maze_random_walk import PlanWindows, RandomWalkDataset, load_random_walk
 from steer_envs.io import atomic_write_text
-
-from .act import ACTConfig, ACTPolicy
-from .diffusion import DiffusionConfig, DiffusionPolicy
+from steer_envs.utils.cli import parse_key_value
 
 __all__ = [
     "KINDS",
@@ -359,7 +358,7 @@ def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> in
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see the module docstring)."""
     parser = argparse.ArgumentParser(
-        prog="python -m steer_envs.baselines.train_maze",
+        prog="python -m steer_envs.baselines.training",
         description="Train the Maze2D Diffusion Policy (dp) or ACT (act) on a random-walk .npz dataset.",
     )
     parser.add_argument("kind", choices=KINDS)
@@ -435,7 +434,7 @@ def main(argv: list[str] | None = None) -> int:
     record = train_policy(policy, dataset, settings, progress=not args.no_progress)
     record["data"]["file"] = Path(args.data).name
     record["preset"] = args.preset
-    record["command"] = "python -m steer_envs.baselines.train_maze " + " ".join(
+    record["command"] = "python -m steer_envs.baselines.training " + " ".join(
         argv if argv is not None else sys.argv[1:]
     )
     policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})

@@ -14,8 +14,8 @@ demonstrations, one policy kind (``"bc"``,
   ``demos="expert"`` uses the ConvexMode scripted expert instead (a saturated
   straight-line flow to the attractor, run for 200 steps; the first demo
   starts at ``demo_start``, further ones at ``demo_start + N(0, 0.5^2 I)``).
-* **Policies**: :class:`~steer_envs.baselines.ds.LPVDS` with the mode's
-  attractor, or :class:`~steer_envs.baselines.bc.BCPolicy` (2x100 ReLU, tanh x 50,
+* **Policies**: :class:`~steer_envs.baselines.lpv_ds.lpvds.LPVDS` with the mode's
+  attractor, or :class:`~steer_envs.baselines.bc.modeling.BCPolicy` (2x100 ReLU, tanh x 50,
   Adam 1e-3, batch 512, ``bc_epochs`` = 4000).
 * **Starts**: a random demonstration point + ``N(0, noise_sigma^2 I)``,
   redrawn until inside the mode; ``noise_sigma`` in {0, 1, 5} is the thesis's
@@ -45,8 +45,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from steer_envs.baselines.bc import BCPolicy
-from steer_envs.baselines.ds import LPVDS
+from steer_envs.baselines.bc.modeling import BCPolicy
+from steer_envs.baselines.lpv_ds.lpvds import LPVDS
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
 

@@ -3,7 +3,7 @@
 The thesis's policy (Eq. "LTL-DS") is ``pi(x, alpha) = M_m(x) f_m(x)``: the
 sensors ``alpha`` tell the task automaton which mode ``m`` the system is in
 (:class:`~steer_envs.ltl.replanner.ModeReplanner`), the mode's dynamical
-system ``f_m`` (an :class:`~steer_envs.baselines.ds.LPVDS`, stable at the
+system ``f_m`` (an :class:`~steer_envs.baselines.lpv_ds.lpvds.LPVDS`, stable at the
 mode's attractor) drives the state toward the guard of the next planned mode,
 and the modulation ``M_m`` (:func:`~steer_envs.wrappers.ds_modulation.modulate`)
 keeps the flow behind the cuts learned from the mode's invariance failures.
@@ -53,7 +53,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from steer_envs.baselines.ds import LPVDS, MIN_POINTS_PER_DIM
+from steer_envs.baselines.lpv_ds.lpvds import LPVDS, MIN_POINTS_PER_DIM
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.core.task import TaskSpec
 from steer_envs.data.segmentation import segment_demonstrations

@@ -5,18 +5,18 @@
   one policy (BC, BC+mod, DS, DS+mod), run at the three start-noise levels
   (sigma 0 / 1 / 5 workspace units = the thesis's 0 / 5 / 30 %) with
   ``n_starts`` starts each, through
-  :func:`~steer_envs.baselines.tli_protocol.single_mode_trial`. Success is
+  :func:`~steer_envs.bench.suites.tli.protocol.single_mode_trial`. Success is
   reported in %, with the thesis's numbers beside; ``cuts_30`` is the number of
   cuts the cut loop added at the large noise (thesis: DS reaches 100 % within
   four). The first ``plot_seeds`` layouts keep rollouts for the Fig. 3.4-style
-  plot (:func:`~steer_envs.baselines.tli_plots.plot_single_mode`).
+  plot (:func:`~steer_envs.bench.suites.tli.plots.plot_single_mode`).
 * ``tli-scoop`` (thesis §3.7.2): one trial = one experiment (the thesis ran
   10) of LTL-DS soup scooping under random pushes, without (``ltl-ds``) and with
   (``ltl-ds+mod``) modulation, through
-  :func:`~steer_envs.baselines.tli_robustness.scoop_trial`: eventual success
+  :func:`~steer_envs.bench.suites.tli.robustness.scoop_trial`: eventual success
   (%), invariance failures (= discrete loop iterations), cuts, steps.
 * ``tli-ds-fit``: wall time of an LPV-DS fit of 3 demos x 200 points in 2D
-  (issue target < 5 s, :func:`~steer_envs.baselines.ds.benchmark_fit_time`).
+  (issue target < 5 s, :func:`~steer_envs.baselines.lpv_ds.lpvds.benchmark_fit_time`).
 
 Trials run with one BLAS and one torch thread (the fits and rollouts are tiny;
 extra threads only add contention on a shared machine).
@@ -79,7 +79,7 @@ def _check_single_params(params: Mapping[str, Any]) -> None:
 
 def run_single_mode_trial(trial: Trial) -> TrialResult:
     """One layout x one policy at the three noise levels (see the module docstring)."""
-    from steer_envs.baselines.tli_protocol import POLICY_KINDS, single_mode_trial
+    from steer_envs.bench.suites.tli.protocol import POLICY_KINDS, single_mode_trial
 
     if trial.method not in POLICY_KINDS:
         raise ValueError(f"tli-single-mode: unknown method {trial.method!r}; expected one of {POLICY_KINDS}")
@@ -110,7 +110,7 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
             }
             per_noise[label]["cut_round_success"] = res["cut_round_success"]
             if trial.seed < int(params["plot_seeds"]) and cut_sigma is None:
-                from steer_envs.baselines.tli_plots import single_mode_figure_data
+                from steer_envs.bench.suites.tli.plots import single_mode_figure_data
 
                 figures[str(sigma)] = single_mode_figure_data(
                     trial.seed,
@@ -169,7 +169,7 @@ def _single_mode_references() -> tuple[Reference, ...]:
 
 
 def _plot_single_mode(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.baselines.tli_plots import plot_single_mode
+    from steer_envs.bench.suites.tli.plots import plot_single_mode
 
     return plot_single_mode(suite, records, out_dir)
 
@@ -220,7 +220,7 @@ TLI_SINGLE_MODE = register_suite(
 # ------------------------------------------------------------------ tli-scoop
 def run_scoop_trial(trial: Trial) -> TrialResult:
     """One soup-scooping experiment under pushes, without or with modulation."""
-    from steer_envs.baselines.tli_robustness import scoop_trial
+    from steer_envs.bench.suites.tli.robustness import scoop_trial
 
     if trial.method not in SCOOP_METHODS:
         raise ValueError(f"tli-scoop: unknown method {trial.method!r}; expected one of {SCOOP_METHODS}")
@@ -248,14 +248,14 @@ def run_scoop_trial(trial: Trial) -> TrialResult:
     }
     extra: dict[str, Any] = {"n_demos": res["n_demos"], "fit_seconds": res["fit_seconds"]}
     if record:
-        from steer_envs.baselines.tli_plots import scoop_figure_data
+        from steer_envs.bench.suites.tli.plots import scoop_figure_data
 
         extra["figure"] = scoop_figure_data(res)
     return TrialResult(metrics, extra)
 
 
 def _plot_scoop(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.baselines.tli_plots import plot_scoop
+    from steer_envs.bench.suites.tli.plots import plot_scoop
 
     return plot_scoop(suite, records, out_dir)
 
@@ -300,7 +300,7 @@ TLI_SCOOP = register_suite(
 # ----------------------------------------------------------------- tli-ds-fit
 def run_ds_fit_trial(trial: Trial) -> dict[str, float]:
     """Wall time of one LPV-DS fit of ``n_demos`` x ``n_points`` curved 2D demonstrations."""
-    from steer_envs.baselines.ds import benchmark_fit_time
+    from steer_envs.baselines.lpv_ds.lpvds import benchmark_fit_time
 
     with single_threaded():
         out = benchmark_fit_time(int(trial.params["n_demos"]), int(trial.params["n_points"]), seed=trial.seed)

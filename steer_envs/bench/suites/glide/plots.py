@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.baselines.glide import ModePredictor, mode_overlap, workspace_grid
+from steer_envs.baselines.glide.classifier import ModePredictor, mode_overlap, workspace_grid
 from steer_envs.io import atomic_write_bytes
 
 #: mode colours (free space first), as in the thesis figures: light free space, saturated polygons.
@@ -71,7 +71,7 @@ class ModeMapRow:
         model: the env's task model (``env.unwrapped.model``) with ``low``,
             ``high``, ``num_modes``, ``vertices`` and ``mode_of``.
         panels: panel title -> labels ``(resolution**2,)`` on
-            :func:`~steer_envs.baselines.glide.workspace_grid`'s grid; a ground-truth
+            :func:`~steer_envs.baselines.glide.classifier.workspace_grid`'s grid; a ground-truth
             panel is added in front.
         title: row title (shown on the ground-truth panel).
         trajectories: ``(T_i, 2)`` paths drawn on the ground-truth panel (or every panel).

@@ -5,7 +5,7 @@
   ``wrong_feasibility`` (a plan one mode short), ``no_prediction_loss``
   (``L_succ`` and ``L_fail`` off) and the ``kmeans`` trajectory-segmentation
   baseline) x one layout (the seed; issue 6: layouts 0-4), through
-  :func:`~steer_envs.baselines.glide_protocol.grounding_trial`. Metrics: the
+  :func:`~steer_envs.bench.suites.glide.protocol.grounding_trial`. Metrics: the
   overlap of the learned modes with the ground truth on a 200 x 200 grid (the
   report's mean over the seeds is the mean over layouts; issue 6 target for
   the full loss: >= 0.95), the mean per-mode IoU (stricter: free space
@@ -21,7 +21,7 @@
   (episodes of ``max_steps``, default 1000 as in the public evaluation loop,
   starting in free space or, with ``start=first_mode``, inside the first polygon)
   without and with the evaluation perturbations
-  (:func:`~steer_envs.baselines.glide_protocol.policy_table_trial`), and the
+  (:func:`~steer_envs.bench.suites.glide.protocol.policy_table_trial`), and the
   report prints the thesis's success rates beside ours. The thesis averages BC
   over 10 seeds: ``bc_seeds`` (default 10) and ``glide_seeds`` (default 3: one
   data set + classifier per seed; a single seed says as much about the draw
@@ -55,7 +55,7 @@ from steer_envs.bench.suite import (
     TrialResult,
     register_suite,
 )
-from steer_envs.bench.suites_tli import single_threaded
+from steer_envs.bench.suites.tli.suite import single_threaded
 
 GROUNDING_SUITE = "glide-polygon-grounding"
 POLICY_SUITE = "glide-polygon"
@@ -110,8 +110,8 @@ def _check_int_param(suite: str, params: Mapping[str, Any], name: str, low: int)
 
 
 def setup_from_params(suite: str, params: Mapping[str, Any], **extra: Any) -> Any:
-    """The :class:`~steer_envs.baselines.glide_protocol.GlideSetup` a trial's params describe."""
-    from steer_envs.baselines.glide_protocol import GlideSetup
+    """The :class:`~steer_envs.bench.suites.glide.protocol.GlideSetup` a trial's params describe."""
+    from steer_envs.bench.suites.glide.protocol import GlideSetup
 
     for name, low in (("n_demos", 1), ("n_success", 1), ("n_failure", 1), ("epochs", 1), ("n_heads", 1)):
         _check_int_param(suite, params, name, low)
@@ -141,8 +141,8 @@ def _cache_dir(params: Mapping[str, Any]) -> str | None:
 # ------------------------------------------------------------ glide-polygon-grounding
 def run_grounding_trial(trial: Trial) -> TrialResult:
     """One env x variant x layout (the seed): overlap and IoU of the learned modes."""
-    from steer_envs.baselines.glide_plots import encode_labels
-    from steer_envs.baselines.glide_protocol import grounding_trial
+    from steer_envs.bench.suites.glide.plots import encode_labels
+    from steer_envs.bench.suites.glide.protocol import grounding_trial
 
     _num_modes(trial.env)
     if trial.method not in VARIANTS:
@@ -268,7 +268,7 @@ def plot_grounding(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: 
     import numpy as np
 
     import steer_envs  # noqa: F401  (registers the envs)
-    from steer_envs.baselines.glide_plots import ModeMapRow, decode_labels, plot_mode_maps
+    from steer_envs.bench.suites.glide.plots import ModeMapRow, decode_labels, plot_mode_maps
 
     with_fig = [r for r in records if "figure" in r.get("extra", {}) and r["config"]["suite"] == suite.name]
     written: list[str] = []
@@ -352,7 +352,7 @@ GLIDE_POLYGON_GROUNDING = register_suite(
 # ---------------------------------------------------------------------- glide-polygon
 def _planner(params: Mapping[str, Any]) -> Any:
     """GLiDE+Planning's settings: the defaults, with the free-space planner the params name."""
-    from steer_envs.baselines.mode_policies import FREE_SPACE_PLANNERS, PlannerConfig
+    from steer_envs.baselines.glide.mode_policies import FREE_SPACE_PLANNERS, PlannerConfig
 
     name = params.get("free_space_planner", "costmap")
     if name not in FREE_SPACE_PLANNERS:
@@ -396,8 +396,8 @@ def _plan_policy(suite: Suite, request: TrialRequest) -> TrialPlan:
 
 def run_policy_trial(trial: Trial) -> TrialResult:
     """One env x method x training seed: success without and with perturbations (thesis Table 4.1)."""
-    from steer_envs.baselines.glide_protocol import policy_table_trial
-    from steer_envs.baselines.mode_policies import BCConfig
+    from steer_envs.baselines.glide.mode_policies import BCConfig
+    from steer_envs.bench.suites.glide.protocol import policy_table_trial
 
     _num_modes(trial.env)
     if trial.method not in METHODS:

@@ -36,7 +36,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from .policy_io import TorchPolicy, as_coords, obs_history, read_checkpoint, write_checkpoint
+from steer_envs.baselines.common.torch_policy import (
+    TorchPolicy,
+    as_coords,
+    obs_history,
+    read_checkpoint,
+    write_checkpoint,
+)
 
 __all__ = ["ACTConfig", "ACTModel", "ACTPolicy"]
 

@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401  (registers the envs)
-from steer_envs.baselines.glide import (
+from steer_envs.baselines.glide.classifier import (
     GlideLossWeights,
     GlideTrainConfig,
     ModeClassifier,
@@ -47,8 +47,14 @@ from steer_envs.baselines.glide import (
     train_mode_classifier,
     workspace_grid,
 )
-from steer_envs.baselines.mode_policies import BCConfig, BCPolicy, GlideBCPolicy, GlidePlanningPolicy, PlannerConfig
-from steer_envs.baselines.segmentation_kmeans import KMeansSegmentation
+from steer_envs.baselines.glide.kmeans import KMeansSegmentation
+from steer_envs.baselines.glide.mode_policies import (
+    BCConfig,
+    BCPolicy,
+    GlideBCPolicy,
+    GlidePlanningPolicy,
+    PlannerConfig,
+)
 from steer_envs.data.counterfactual_dataset import CounterfactualDataset, build_counterfactual_dataset
 from steer_envs.data.demos import Demonstration, collect_demonstrations
 
@@ -311,7 +317,7 @@ def grounding_trial(
     alone is lenient: ``all_free_overlap`` is what labelling everything free
     scores), training time and the CPU load average around training.
     ``keep_labels`` adds the predicted grid labels (``"labels"``, an int array
-    on :func:`~steer_envs.baselines.glide.workspace_grid`'s grid) and the demos'
+    on :func:`~steer_envs.baselines.glide.classifier.workspace_grid`'s grid) and the demos'
     states (``"demo_states"``) for plots.
     """
     setup = setup or GlideSetup()

@@ -50,7 +50,13 @@ from diffusers import DDIMScheduler
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from .policy_io import TorchPolicy, as_coords, obs_history, read_checkpoint, write_checkpoint
+from steer_envs.baselines.common.torch_policy import (
+    TorchPolicy,
+    as_coords,
+    obs_history,
+    read_checkpoint,
+    write_checkpoint,
+)
 
 __all__ = ["ConditionalUnet1D", "DiffusionConfig", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
 

@@ -1,0 +1,1 @@
+"""Helpers shared by every layer: command-line parsing, the env checker."""
