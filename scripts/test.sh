@@ -1,8 +1,18 @@
 #!/usr/bin/env bash
-# Run the default test suite (everything not marked slow), from a fresh clone.
+# The default checks, from a fresh clone: ruff (lint + format), mypy, then the test
+# suite (everything not marked slow). What CI runs (.ci/run calls this).
+# Extra arguments go to pytest, e.g. `scripts/test.sh tests/envs -x`; STEER_SKIP_LINT=1 skips ruff and mypy.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/bootstrap.sh
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 export PYOPENGL_PLATFORM=${PYOPENGL_PLATFORM:-$MUJOCO_GL}
+if [ "${STEER_SKIP_LINT:-0}" != 1 ]; then
+  echo "[test] ruff check"
+  .venv/bin/ruff check .
+  echo "[test] ruff format --check"
+  .venv/bin/ruff format --check .
+  echo "[test] mypy steer_envs wrappers baselines"
+  .venv/bin/mypy steer_envs wrappers baselines
+fi
 exec .venv/bin/python -m pytest -n auto "$@"
