@@ -1,8 +1,13 @@
-"""The Maze2D policies shipped with the package (``baselines/checkpoints``), loaded without pickle.
+"""The Maze2D-Large policies shipped with the package (``baselines/checkpoints``), loaded without pickle.
 
 ``scripts/train_maze_checkpoints.sh`` holds the exact commands that produced
-them (random-walk data from a fixed seed, then :mod:`.train_maze`); each
-checkpoint's ``.json`` record beside it has the loss curve and wall time.
+them (random-walk data from a fixed seed, then
+``python -m steer_envs.baselines.training``); each checkpoint's ``.json``
+record beside it has the loss curve and wall time.
+
+>>> policy = load_pretrained("dp")
+>>> policy.horizon, policy.action_dim, policy.n_obs_steps
+(64, 2, 2)
 """
 
 from __future__ import annotations
@@ -15,22 +20,30 @@ from typing import Any
 
 import torch
 
-from steer_envs.baselines.act.modeling import ACTPolicy
-from steer_envs.baselines.diffusion.modeling import DiffusionPolicy
+from steer_envs.baselines.common.torch_policy import TorchPolicy
+from steer_envs.baselines.factory import load_policy
 
 __all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_checkpoint", "load_pretrained"]
 
-#: kind -> file name in ``steer_envs.baselines/checkpoints``.
+#: kind (a policy name of :mod:`steer_envs.baselines.factory`) -> file in ``steer_envs.baselines/checkpoints``.
 CHECKPOINTS: dict[str, str] = {
     "dp": "maze2d_large/dp.safetensors",
     "act": "maze2d_large/act.safetensors",
 }
 
 
-def checkpoint_path(kind: str) -> Path:
-    """Filesystem path of the shipped checkpoint of ``kind`` (``"dp"`` or ``"act"``)."""
+def _check_kind(kind: str) -> None:
     if kind not in CHECKPOINTS:
         raise ValueError(f"kind must be one of {sorted(CHECKPOINTS)}, got {kind!r}")
+
+
+def checkpoint_path(kind: str) -> Path:
+    """Filesystem path of the shipped checkpoint of ``kind`` (``"dp"`` or ``"act"``).
+
+    >>> checkpoint_path("act").name
+    'act.safetensors'
+    """
+    _check_kind(kind)
     ref = resources.files("steer_envs.baselines") / "checkpoints" / CHECKPOINTS[kind]
     path = Path(str(ref))
     if not path.is_file():
@@ -42,22 +55,23 @@ def checkpoint_path(kind: str) -> Path:
 
 
 def checkpoint_record(kind: str) -> dict[str, Any]:
-    """The training record (config, settings, losses, wall time) written beside the checkpoint."""
+    """The training record (config, settings, losses, wall time) written beside the checkpoint.
+
+    >>> checkpoint_record("dp")["training"]["settings"]["steps"]
+    30000
+    """
     return json.loads(checkpoint_path(kind).with_suffix(".json").read_text(encoding="utf-8"))
 
 
-def load_pretrained(kind: str, device: str | torch.device = "cpu") -> DiffusionPolicy | ACTPolicy:
-    """The shipped Maze2D-Large policy: ``"dp"`` (:class:`DiffusionPolicy`) or ``"act"`` (:class:`ACTPolicy`)."""
+def load_pretrained(kind: str, device: str | torch.device = "cpu") -> TorchPolicy:
+    """The shipped Maze2D-Large policy: ``"dp"`` (a ``DiffusionPolicy``) or ``"act"`` (an ``ACTPolicy``)."""
     return load_checkpoint(kind, checkpoint_path(kind), device)
 
 
-def load_checkpoint(
-    kind: str, path: str | os.PathLike[str], device: str | torch.device = "cpu"
-) -> DiffusionPolicy | ACTPolicy:
-    """A Maze2D policy of ``kind`` (``"dp"`` or ``"act"``) from a file written by ``train_maze`` (e.g. a GPU run).
+def load_checkpoint(kind: str, path: str | os.PathLike[str], device: str | torch.device = "cpu") -> TorchPolicy:
+    """A policy of ``kind`` (``"dp"`` or ``"act"``) from a checkpoint file, e.g. a GPU training run.
 
-    ``ValueError`` when the file is missing or holds the other kind of policy.
+    ``ValueError`` when the file is missing or holds another kind of policy.
     """
-    if kind not in CHECKPOINTS:
-        raise ValueError(f"kind must be one of {sorted(CHECKPOINTS)}, got {kind!r}")
-    return DiffusionPolicy.load(path, device) if kind == "dp" else ACTPolicy.load(path, device)
+    _check_kind(kind)
+    return load_policy(path, name=kind, device=device)

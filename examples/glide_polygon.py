@@ -26,8 +26,8 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
+from steer_envs.baselines.glide import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
 from steer_envs.baselines.glide.classifier import mode_iou, mode_overlap, workspace_grid
-from steer_envs.baselines.glide.mode_policies import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
 from steer_envs.bench.suites.glide.plots import ModeMapRow, plot_mode_maps
 from steer_envs.bench.suites.glide.protocol import GlideSetup, evaluate_policy, learn_grounding, make_policy
 

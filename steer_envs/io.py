@@ -3,6 +3,16 @@
 Readers never see a half-written file and a crash never loses the previous
 version. Every module that writes results, datasets, checkpoints or figures
 goes through here.
+
+>>> import tempfile
+>>> from pathlib import Path
+>>> with tempfile.TemporaryDirectory() as tmp:
+...     path = Path(tmp, "results", "trial.json")
+...     atomic_write_text(path, '{"success": true}')
+...     with atomic_open(path, "w") as fh:
+...         _ = fh.write('{"success": false}')
+...     print(path.read_text(), sorted(p.name for p in path.parent.iterdir()))
+{"success": false} ['trial.json']
 """
 
 from __future__ import annotations
@@ -12,11 +22,11 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 
 @contextmanager
-def atomic_open(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO]:
+def atomic_open(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
     """Open a temp file that replaces ``path`` when the block exits without error.
 
     ``mode`` is ``"wb"`` or ``"w"`` (UTF-8 text). On an exception the temp file
@@ -29,7 +39,7 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO]:
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, mode, **({"encoding": "utf-8"} if mode == "w" else {})) as fh:
+        with os.fdopen(fd, mode, encoding="utf-8" if mode == "w" else None) as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())

@@ -1,7 +1,21 @@
 """Composable wrappers of steer-envs (installed as ``steer_envs.wrappers``).
 
-Names are imported lazily, so ``from steer_envs.wrappers import LTLReplanWrapper``
-does not pay for torch (the ITPS samplers) or cvxpy (the DS cuts).
+* :class:`SteeringWrapper` - the action becomes a user interaction; a frozen
+  policy plans and an ITPS sampler steers it (:mod:`~steer_envs.wrappers.samplers`).
+* :class:`LTLReplanWrapper` - adds the LTL-planned next mode to the observation.
+* :class:`DSModulationWrapper` - modulates velocity actions by cuts learned on
+  invariance failures.
+
+Every wrapper records its constructor arguments, so ``env.spec`` shows the
+stack. Names are imported lazily, so ``from steer_envs.wrappers import
+LTLReplanWrapper`` does not pay for torch (the ITPS samplers) or scipy (the DS cuts).
+
+>>> import gymnasium as gym
+>>> import steer_envs
+>>> from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper
+>>> env = DSModulationWrapper(LTLReplanWrapper(gym.make("steer_envs/SoupScoop-v0")), attractor=[4.75, 5.99])
+>>> [w.name for w in env.spec.additional_wrappers]
+['LTLReplanWrapper', 'DSModulationWrapper']
 """
 
 from __future__ import annotations
@@ -31,8 +45,6 @@ _EXPORTS: dict[str, str] = {
     "CutSet": "ds_modulation",
     "solve_cut": "ds_modulation",
     "modulate": "ds_modulation",
-    # GLiDE counterfactual perturbations
-    "CounterfactualPerturbationWrapper": "counterfactual",
 }
 
 __all__ = sorted(_EXPORTS)

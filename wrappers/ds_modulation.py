@@ -24,7 +24,7 @@ feasible normal. An infeasible program is relaxed in a fixed order (drop the
 earlier last-in-mode states, then the entry state, then shrink ``rho``) and
 the cut records what was dropped.
 
-**Gamma and modulation** (tli.md, thesis Eq. "modulate") with the reference
+**Gamma and modulation** (thesis Eq. "modulate") with the reference
 point ``r = x*``: ``Gamma_k(x) = max(0, 1 - ((f_k - x)^T n_k) / ((f_k - r)^T n_k))``
 is 0 on the plane through ``r`` parallel to cut ``k``, 1 on the cut, > 1
 beyond. Among the cuts the state is inside of (``Gamma_k <= 1``) and the flow
@@ -34,9 +34,9 @@ approaches (``n_k^T v > 0``) the one with the largest ``Gamma_k`` is used: ``M =
 (x - r) / h_k`` with ``h_k = (f_k - r)^T n_k``. Outside every cut the nominal
 velocity is used (thesis: "outside the cuts but inside the mode, it follows the
 nominal DS"); we read "outside" per cut, so a state beyond one cut (a start
-drawn there, or a push) is still held by the cuts it is inside of. Measured on
-tli-single-mode at 30 % noise: reading it for the whole intersection lets a start
-beyond an older cut follow the nominal flow out through a newer cut's failure.
+drawn there, or a push) is still held by the cuts it is inside of; read for the
+whole intersection, a start beyond an older cut would follow the nominal flow out
+through a newer cut's failure.
 
 Two safeguards make the no-crossing guarantee actually hold: (1) the
 nearest-cut rule alone keeps the velocity *tangent* to the nearest cut, which
@@ -56,6 +56,7 @@ step, so no cut is crossed whenever ``dt * max_speed < min_k h_k``
 
 from __future__ import annotations
 
+import copy
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -66,6 +67,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
+from steer_envs.core.env import HasTask, perturbable_env
 from steer_envs.core.policy import VelocityPolicy
 
 __all__ = [
@@ -400,7 +402,7 @@ def modulate(x: ArrayLike, velocity: ArrayLike, cuts: CutSet, max_speed: float |
         scale = np.clip(bound.min(axis=1), 0.0, 1.0)
         # what the scaling takes away goes straight toward the reference point instead: that direction
         # approaches no cut (n_j . (r - x) = -Gamma_j h_j <= 0) and decreases V, so a flow pinned in a
-        # corner of two cuts keeps moving instead of stalling there (measured: 2 of 5000 starts stalled)
+        # corner of two cuts keeps moving instead of stalling there
         home = -rel[idx]
         dist = np.linalg.norm(home, axis=1)
         home = home * (np.minimum(speed, dist) / np.maximum(dist, 1e-300))[:, None]
@@ -466,11 +468,11 @@ def resolve_cuts(
 PlanFn = Callable[[int, Mapping[str, Any]], Iterable[int] | None]
 
 
-class DSModulationWrapper(gym.ActionWrapper):
+class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordConstructorArgs):
     """Modulate any velocity action by learned cuts; learn a cut on every invariance failure.
 
-    The wrapped env must expose the agent's state as ``env.unwrapped.state`` and
-    report ``info["mode"]`` (the 2D kinematic envs do). The agent's action is a
+    The unwrapped env must be a :class:`~steer_envs.core.env.PerturbableEnv`
+    (``state`` and ``perturb``) and report ``info["mode"]`` (the 2D kinematic envs do). The agent's action is a
     nominal velocity (from a DS, BC, or anything); the env receives
     ``M(x) action`` for the current mode (nominal where that mode has no
     attractor or no cuts yet).
@@ -492,7 +494,7 @@ class DSModulationWrapper(gym.ActionWrapper):
     not failures.
 
     On a failure the cut through the last in-mode state is added and all cuts
-    of that mode are re-solved with the new visited set (tli.md protocol). Cuts
+    of that mode are re-solved with the new visited set (the TLI protocol). Cuts
     persist across episodes (that is the learning); :meth:`clear_cuts` forgets.
     ``info`` gains ``invariance_failure``, ``cut_added``, ``num_cuts`` and ``modulated``.
 
@@ -504,7 +506,21 @@ class DSModulationWrapper(gym.ActionWrapper):
             task's initial mode).
         margin: radius around each attractor every cut keeps inside.
         learn: add cuts on failures (``False``: only apply the given ``cuts``).
-        cuts: optional initial ``{mode: CutSet}``.
+        cuts: optional initial ``{mode: CutSet}`` (extended in place as cuts are learned).
+
+    The constructor arguments are recorded (``env.spec``) as given, ``cuts`` as
+    a copy taken before any learning.
+
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> env = DSModulationWrapper(gym.make("steer_envs/ConvexMode-v0", layout_seed=0), attractor=[0.0, 0.0])
+    >>> obs, info = env.reset(seed=0)
+    >>> obs, reward, terminated, truncated, info = env.step(np.zeros(2, dtype=np.float32))
+    >>> info["num_cuts"], info["invariance_failure"]
+    (0, False)
+    >>> env.spec.additional_wrappers[0].kwargs["margin"]
+    0.4
     """
 
     def __init__(
@@ -518,17 +534,27 @@ class DSModulationWrapper(gym.ActionWrapper):
         learn: bool = True,
         cuts: Mapping[int, CutSet] | None = None,
     ) -> None:
-        super().__init__(env)
-        base = env.unwrapped
-        if not hasattr(base, "state"):
-            raise TypeError("DSModulationWrapper needs an env whose unwrapped env exposes `state` (a kinematic env)")
+        gym.utils.RecordConstructorArgs.__init__(
+            self,
+            attractor=attractor,
+            plan=plan,
+            home_mode=home_mode,
+            margin=margin,
+            learn=learn,
+            cuts=copy.deepcopy(cuts),
+            _disable_deepcopy=True,  # `plan` may be a bound method: record it, do not copy its owner
+        )
+        gym.ActionWrapper.__init__(self, env)
+        base = perturbable_env(env, who="DSModulationWrapper")
+        self._base = base
         if plan is not None and not callable(plan):
             raise TypeError(f"plan must be None or a callable (mode, info) -> modes, got {type(plan).__name__}")
         if not (np.isfinite(margin) and margin >= 0):
             raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
         self.max_speed: float | None = getattr(base, "max_speed", None)
         self.dt: float | None = getattr(base, "dt", None)
-        task = getattr(base, "task", None)
+        task = base.task if isinstance(base, HasTask) else None
+        self._task = task
         if isinstance(attractor, Mapping):
             self.attractors = {int(m): _vec(a, f"attractor[{m}]") for m, a in attractor.items()}
         else:
@@ -574,8 +600,7 @@ class DSModulationWrapper(gym.ActionWrapper):
         plan = info.get("plan")
         if plan is None:
             return None
-        task = getattr(self.env.unwrapped, "task", None)
-        names = tuple(task.modes) if task is not None else ()
+        names = tuple(self._task.modes) if self._task is not None else ()
         if any(isinstance(m, str) and m not in names for m in plan):
             if not self._warned_plan:
                 warnings.warn(
@@ -593,7 +618,7 @@ class DSModulationWrapper(gym.ActionWrapper):
 
     def _track(self, info: Mapping[str, Any], *, entered: bool) -> None:
         mode = int(info["mode"])
-        state = np.asarray(self.env.unwrapped.state, dtype=np.float64)
+        state = np.asarray(self._base.state, dtype=np.float64)
         if entered or mode != self._mode:
             self._entry = state.copy()
         self._mode, self._state, self._info = mode, state, dict(info)
@@ -612,7 +637,7 @@ class DSModulationWrapper(gym.ActionWrapper):
 
     def perturb(self, delta: ArrayLike | None = None, *, to: ArrayLike | None = None) -> dict[str, Any]:
         """Push the agent (``env.unwrapped.perturb``); a mode exit caused by a push is not a failure."""
-        info = self.env.unwrapped.perturb(delta, to=to)
+        info = self._base.perturb(delta, to=to)
         self._track(info, entered=False)
         return info
 
@@ -623,18 +648,18 @@ class DSModulationWrapper(gym.ActionWrapper):
         cuts = self.cut_sets.get(self._mode) if self._mode is not None else None
         if cuts is None or len(cuts) == 0 or v.shape != (cuts.dim,) or not np.all(np.isfinite(v)):
             return v.astype(np.float32)  # nothing to modulate (bad actions are the env's to reject)
-        x = np.asarray(self.env.unwrapped.state, dtype=np.float64)
+        x = np.asarray(self._base.state, dtype=np.float64)
         out = modulate(x[None], v[None], cuts, self.max_speed)[0]
         nominal = _clip(v[None], self.max_speed)[0] if self.max_speed is not None else v
         self._modulated = not np.allclose(out, nominal)
         return out.astype(np.float32)
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        before = np.asarray(self.env.unwrapped.state, dtype=np.float64)
+        before = np.asarray(self._base.state, dtype=np.float64)
         pushed = self._state is not None and not np.array_equal(before, self._state)
         prev_mode, prev_info, entry = self._mode, self._info, self._entry
         obs, reward, terminated, truncated, info = self.env.step(self.action(action))
-        after = np.asarray(self.env.unwrapped.state, dtype=np.float64)
+        after = np.asarray(self._base.state, dtype=np.float64)
         mode = int(info["mode"])
         failure = added = False
         # a push through env.unwrapped.perturb (not our perturb) makes the pre-step mode unknown: no verdict

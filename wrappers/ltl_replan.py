@@ -24,6 +24,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.env import task_of
 from steer_envs.core.task import TaskSpec
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
@@ -42,17 +43,25 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
             or ``None`` for the env's default spec.
         task: the :class:`TaskSpec` giving the sensor APs (default:
             ``env.unwrapped.task``).
+
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> env = LTLReplanWrapper(gym.make("steer_envs/SoupScoop-v0"))
+    >>> obs, info = env.reset(seed=0)
+    >>> info["plan"], env.modes[obs["next_mode"]]
+    (['a', 'b', 'c', 'd'], 'b')
+    >>> env.spec.additional_wrappers[0].kwargs
+    {'spec': None, 'task': None}
     """
 
-    def __init__(self, env: gym.Env[Any, Any], spec: GR1Spec | str | None = None, *, task: TaskSpec | None = None):
+    def __init__(
+        self, env: gym.Env[Any, Any], spec: GR1Spec | str | None = None, *, task: TaskSpec | None = None
+    ) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, spec=spec, task=task)
         gym.Wrapper.__init__(self, env)
         if task is None:
-            task = getattr(env.unwrapped, "task", None)
-            if not isinstance(task, TaskSpec):
-                raise TypeError(
-                    "LTLReplanWrapper: `task` is required when env.unwrapped has no TaskSpec attribute `task`"
-                )
+            task = task_of(env, who="LTLReplanWrapper (or pass `task=`)")
         elif not isinstance(task, TaskSpec):
             raise TypeError(f"LTLReplanWrapper: `task` must be a TaskSpec, got {type(task).__name__}")
         if spec is None or isinstance(spec, str):
@@ -90,7 +99,9 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
         info["ltl_stuck"] = rp.stuck
         return {"observation": obs, "next_mode": np.int64(self.modes.index(nxt))}, info
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         self._plan = []
         self.replanner.reset(self._sensors(info))

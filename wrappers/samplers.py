@@ -20,7 +20,7 @@ GD     :class:`GuidedDiffusion`      ``DiffusionPolicyLike``          Point, Ske
 SS     :class:`StochasticSampling`   ``DiffusionPolicyLike``          Point, Sketch
 =====  ============================  ===============================  ======================
 
-Hyperparameters default to the public ITPS code (``shared/reference/itps.md``):
+Hyperparameters default to the public ITPS code:
 GD adds ``20 * grad xi`` to the noise estimate at every step ``t > 0``; SS runs
 ``M = 4`` iterations per noise level with ``60 * grad xi``, the first ``M - 1``
 predicting ``x0`` (clipped) and re-noising it to the *same* level with fresh
@@ -218,7 +218,7 @@ class Sampler(ABC):
     name: ClassVar[str]
     requires_diffusion: ClassVar[bool] = False
     #: interaction types the sampler accepts (``None`` is accepted by RS only)
-    interactions: ClassVar[tuple[type, ...]] = (Point, Sketch)
+    interactions: ClassVar[tuple[type[Point] | type[Sketch] | type[Nudge], ...]] = (Point, Sketch)
 
     def __call__(
         self,
@@ -523,7 +523,24 @@ SAMPLERS: dict[str, type[Sampler]] = {
 
 
 def make_sampler(name: str, **kwargs: Any) -> Sampler:
-    """The sampler called ``name`` (``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ``"GD"``, ``"SS"``, any case)."""
+    """The sampler called ``name`` (``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ``"GD"``, ``"SS"``, any case).
+
+    ``kwargs`` go to the sampler's constructor.
+
+    >>> import numpy as np
+    >>> from steer_envs.core.interaction import Sketch
+    >>> class Noisy:  # a stand-in TrajectoryPolicy: noisy straight plans from the origin to (1, 1)
+    ...     horizon, action_dim = 8, 2
+    ...     def sample(self, obs, n, *, generator=None):
+    ...         plan = np.linspace([0.0, 0.0], [1.0, 1.0], self.horizon)
+    ...         return plan + generator.normal(0.0, 0.05, (n, self.horizon, 2))
+    >>> sampler = make_sampler("pr")
+    >>> result = sampler(Noisy(), np.zeros(2), Sketch([[0, 0], [1, 1]]), 4, generator=np.random.default_rng(0))
+    >>> result.sampler, result.plans.shape, result.chosen == int(np.argmin(result.costs))
+    ('PR', (4, 8, 2), True)
+    >>> make_sampler("GD", guide_ratio=10.0)
+    GuidedDiffusion(guide_ratio=10.0, min_guided_t=0)
+    """
     if not isinstance(name, str) or name.upper() not in SAMPLERS:
         raise ValueError(f"`name` must be one of {sorted(SAMPLERS)}, got {name!r}")
     return SAMPLERS[name.upper()](**kwargs)

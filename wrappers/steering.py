@@ -40,6 +40,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.env import HasInteractionKinds, perturbable_env
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
 from steer_envs.core.policy import TrajectoryPolicy
 
@@ -64,7 +65,7 @@ def policy_observation(policy: Any, history: Sequence[Any]) -> Any:
         raise ValueError(f"policy.n_obs_steps must be a positive int, got {steps!r}")
     if steps == 1:
         return history[-1]
-    recent = list(history[-steps:])
+    recent = list(history[-int(steps) :])
     recent = [recent[0]] * (steps - len(recent)) + recent
     return np.stack([np.asarray(o, dtype=np.float32) for o in recent])
 
@@ -132,7 +133,7 @@ class InteractionSpace(spaces.Space[Any]):
         )
 
 
-class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
+class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstructorArgs):
     """Drive ``env`` with user interactions; ``policy`` plans, ``sampler`` steers (see the module docstring).
 
     Args:
@@ -148,6 +149,26 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
 
     An :class:`OutputPerturbation` without a collision check gets the env's
     ``is_wall`` (when it has one), so the agent stops before the sketch's first wall.
+    The constructor arguments are recorded (``env.spec``) by reference, not
+    copied: the policy is shared, not duplicated.
+
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> from steer_envs.core.interaction import Sketch
+    >>> from steer_envs.wrappers.samplers import PostHocRanking
+    >>> class Straight:  # a stand-in policy: 8 waypoints from the agent toward the maze's top-left free cell
+    ...     horizon, action_dim = 8, 2
+    ...     def sample(self, obs, n, *, generator=None):
+    ...         path = np.linspace(obs[:2], [1.0, 1.0], self.horizon)
+    ...         return np.repeat(path[None], n, axis=0) + generator.normal(0.0, 0.05, (n, self.horizon, 2))
+    >>> env = SteeringWrapper(gym.make("steer_envs/Maze2D-Umaze-v0"), Straight(), PostHocRanking(), batch=4)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs, reward, terminated, truncated, info = env.step(Sketch([obs, [1.0, 1.0]]))
+    >>> info["plans"].shape, info["sampler"], len(info["executed"])
+    ((4, 8, 2), 'PR', 8)
+    >>> env.spec.additional_wrappers[0].name
+    'SteeringWrapper'
     """
 
     def __init__(
@@ -161,7 +182,17 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
         sketch_points: int | None = None,
         unsteered: Sampler | None = None,
     ) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(
+            self,
+            policy=policy,
+            sampler=sampler,
+            batch=batch,
+            execute=execute,
+            sketch_points=sketch_points,
+            unsteered=unsteered,
+            _disable_deepcopy=True,
+        )
+        gym.Wrapper.__init__(self, env)
         if not isinstance(policy, TrajectoryPolicy):
             raise TypeError(f"`policy` must be a TrajectoryPolicy (horizon, action_dim, sample), got {policy!r}")
         if not isinstance(sampler, Sampler):
@@ -181,12 +212,9 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
                 f"got {inner}"
             )
         base = env.unwrapped
-        if (
-            isinstance(sampler, OutputPerturbation)
-            and sampler.collides is None
-            and callable(getattr(base, "is_wall", None))
-        ):
-            sampler = OutputPerturbation(sampler.index, collides=base.is_wall, obs_at=sampler.obs_at)
+        is_wall = getattr(base, "is_wall", None)  # an optional extra of maze envs, not part of the contract
+        if isinstance(sampler, OutputPerturbation) and sampler.collides is None and callable(is_wall):
+            sampler = OutputPerturbation(sampler.index, collides=is_wall, obs_at=sampler.obs_at)
         self.policy = policy
         self.sampler = sampler
         self.unsteered = unsteered if unsteered is not None else RandomSampling()
@@ -201,12 +229,14 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
                 np.tile(inner.low, self.sketch_points), np.tile(inner.high, self.sketch_points), dtype=np.float32
             )
         else:
-            kinds = tuple(k for k in getattr(base, "interaction_kinds", tuple(_KIND_CLASSES)) if k in _KIND_CLASSES)
+            declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
+            kinds = tuple(k for k in declared if k in _KIND_CLASSES)
             self.action_space = InteractionSpace(inner.low, inner.high, kinds or tuple(_KIND_CLASSES))
         start = getattr(policy, "exec_start", 0)
         if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < int(policy.horizon):
             raise ValueError(f"policy.exec_start must be an int in [0, horizon), got {start!r}")
         self._exec_start = int(start)
+        self._inner_box: spaces.Box = inner
         self._history: list[Any] = []
         self._rng = np.random.default_rng()
         self._dim = d
@@ -248,14 +278,12 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any]):
         result = sampler(self.policy, obs_in, interaction, self.batch, generator=self._rng)
         base = self.env.unwrapped
         if result.perturbed_state is not None:
-            if not callable(getattr(base, "perturb", None)):
-                raise TypeError(f"{result.sampler} moves the agent but the env has no perturb(to=...) method")
-            base.perturb(to=result.perturbed_state)
-            where = getattr(base, "state", result.perturbed_state)
-            self._history.append(place_observation(self._history[-1], where))
+            pushable = perturbable_env(self.env, who=f"SteeringWrapper ({result.sampler} moves the agent)")
+            pushable.perturb(to=result.perturbed_state)
+            self._history.append(place_observation(self._history[-1], pushable.state))
         plan = result.plan[self._exec_start :]
         waypoints = plan if self.execute is None else plan[: self.execute]
-        box = self.env.action_space
+        box = self._inner_box
         total, violated = 0.0, False
         terminated = truncated = False
         info: dict[str, Any] = {}

@@ -1,197 +1,316 @@
-"""The thesis's behaviour-cloning velocity policy (TLI appendix "BC Policy Architecture").
+"""Behaviour cloning: an MLP from state to action (a velocity), fitted by mean squared error.
 
-An MLP ``d -> 100 -> 100 -> d`` with ReLU hidden layers and a ``tanh`` output
-scaled to ``[-50, 50]``, trained on i.i.d. (state, velocity) pairs with Adam
-(lr 1e-3, batch 512) on the mean squared error. Unlike :class:`LPVDS` it has
-no stability guarantee: that contrast is the point of the single-mode study.
+One policy class, :class:`BCPolicy`, configured by :class:`BCConfig`. The
+defaults are the thesis's BC velocity policy of the TLI single-mode study
+(appendix "BC Policy Architecture"): ``d -> 100 -> 100 -> d`` with ReLU hidden
+layers and a ``tanh`` output scaled to ``[-50, 50]``, trained with Adam
+(lr 1e-3, batch 512) on i.i.d. (state, velocity) pairs. Unlike an LPV-DS it
+has no stability guarantee, which is what the single-mode study contrasts.
 
-Training runs on the CPU and is deterministic for a given ``seed`` (its own
-``torch.Generator`` for the initial weights and the batch order; no global
-RNG is touched). Checkpoints are safetensors files, written atomically.
+The other settings cover GLiDE's BC baselines (see
+:class:`~steer_envs.baselines.glide.mode_policies.GlideBCConfig`): inputs
+standardised with the training statistics, a linear output in units of a
+speed limit whose norm is clipped to it (``output="clip"``), and a fixed
+number of minibatches drawn with replacement (``steps``) instead of epochs.
+
+Training runs on the CPU and is deterministic given ``seed``: the initial
+weights (PyTorch's default ``nn.Linear`` initialisation) come from a
+``torch.Generator`` of the policy's own, so the global torch RNG is never
+touched. With ``epochs`` the shuffles continue that generator; with
+``steps`` the minibatch indices come from a second generator seeded with
+``seed``. Checkpoints are safetensors files, written atomically.
 """
 
 from __future__ import annotations
 
 import itertools
-import json
+import math
 import os
-import tempfile
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Any, Literal, Self, cast
 
 import numpy as np
 import torch
 from numpy.typing import ArrayLike
-from safetensors.torch import load as st_load
-from safetensors.torch import save as st_save
 from torch import nn
 
-__all__ = ["BCPolicy"]
+from steer_envs.baselines.common.torch_policy import read_checkpoint, write_checkpoint
 
-_FORMAT = "steer_envs.baselines.bc/1"
+__all__ = ["BC_OUTPUTS", "BCConfig", "BCOutput", "BCPolicy", "clip_speed"]
+
+BCOutput = Literal["tanh", "clip"]
+#: how :class:`BCPolicy` bounds its output (see :attr:`BCConfig.output`)
+BC_OUTPUTS: tuple[str, ...] = ("tanh", "clip")
+_FORMAT = "steer_envs.baselines.bc/2"
+
+
+def _check_int(name: str, value: Any, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+
+
+def _check_positive(name: str, value: Any) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.number))
+        or not (np.isfinite(value) and value > 0)
+    ):
+        raise ValueError(f"{name} must be a positive finite float, got {value!r}")
+
+
+@dataclass(frozen=True)
+class BCConfig:
+    """Architecture and training of a :class:`BCPolicy` (defaults: the thesis's TLI velocity MLP).
+
+    Args:
+        state_dim: input features ``d``.
+        action_dim: output features (2 for a planar velocity).
+        hidden: hidden layer widths (ReLU).
+        output: ``"tanh"``: ``output_scale * tanh(MLP(x))``, each component bounded,
+            trained on the action error itself (targets must lie inside
+            ``(-output_scale, output_scale)``); ``"clip"``: the MLP predicts
+            ``action / output_scale`` (trained in those units) and the action's
+            norm is clipped to ``output_scale`` (a speed limit).
+        output_scale: the bound of the outputs (see ``output``).
+        standardize: standardise inputs with the mean and std of the first
+            :meth:`BCPolicy.fit`'s states.
+        lr: Adam learning rate.
+        batch_size: minibatch size.
+        epochs: passes over the data, each in a fresh random order.
+        steps: instead of ``epochs``: this many minibatches drawn with replacement
+            (set exactly one of ``epochs`` and ``steps``).
+        num_threads: torch intra-op threads while training (small networks: extra threads only contend).
+
+    >>> BCConfig().hidden, BCConfig(hidden=[32]).hidden
+    ((100, 100), (32,))
+    """
+
+    state_dim: int = 2
+    action_dim: int = 2
+    hidden: tuple[int, ...] = (100, 100)
+    output: BCOutput = "tanh"
+    output_scale: float = 50.0
+    standardize: bool = False
+    lr: float = 1e-3
+    batch_size: int = 512
+    epochs: int | None = 4000
+    steps: int | None = None
+    num_threads: int = 1
+
+    def __post_init__(self) -> None:
+        _check_int("state_dim", self.state_dim, 1)
+        _check_int("action_dim", self.action_dim, 1)
+        try:
+            hidden = tuple(int(h) for h in self.hidden)
+        except (TypeError, ValueError):
+            raise TypeError(f"hidden must be a sequence of ints, got {self.hidden!r}") from None
+        if not hidden or min(hidden) < 1:
+            raise ValueError(f"hidden must be a non-empty tuple of positive ints, got {self.hidden!r}")
+        object.__setattr__(self, "hidden", hidden)
+        if self.output not in BC_OUTPUTS:
+            raise ValueError(f"output must be one of {BC_OUTPUTS}, got {self.output!r}")
+        _check_positive("output_scale", self.output_scale)
+        _check_positive("lr", self.lr)
+        object.__setattr__(self, "output_scale", float(self.output_scale))
+        object.__setattr__(self, "lr", float(self.lr))
+        if not isinstance(self.standardize, (bool, np.bool_)):
+            raise TypeError(f"standardize must be a bool, got {type(self.standardize).__name__}")
+        _check_int("batch_size", self.batch_size, 1)
+        if (self.epochs is None) == (self.steps is None):
+            raise ValueError(f"set exactly one of epochs and steps, got epochs={self.epochs!r}, steps={self.steps!r}")
+        if self.epochs is not None:
+            _check_int("epochs", self.epochs, 0)
+        if self.steps is not None:
+            _check_int("steps", self.steps, 0)
+        _check_int("num_threads", self.num_threads, 1)
+
+
+def clip_speed(v: np.ndarray, max_speed: float) -> np.ndarray:
+    """Rows of ``v`` ``(N, d)`` scaled down to norm at most ``max_speed`` (shorter rows unchanged).
+
+    >>> clip_speed(np.array([[3.0, 4.0], [0.3, 0.4]]), 1.0)
+    array([[0.6, 0.8],
+           [0.3, 0.4]])
+    """
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return cast(np.ndarray, v * np.minimum(1.0, max_speed / np.maximum(norm, 1e-12)))
+
+
+def _build_mlp(config: BCConfig, generator: torch.Generator) -> nn.Sequential:
+    """``Linear, ReLU, ..., Linear[, Tanh]`` with PyTorch's default init drawn from ``generator``, layer by layer."""
+    layers: list[nn.Module] = []
+    widths = (config.state_dim, *config.hidden)
+    for a, b in itertools.pairwise(widths):
+        layers += [nn.Linear(a, b, device="meta"), nn.ReLU()]  # meta: no draw from the global RNG
+    layers.append(nn.Linear(widths[-1], config.action_dim, device="meta"))
+    if config.output == "tanh":
+        layers.append(nn.Tanh())
+    net = nn.Sequential(*layers).to_empty(device="cpu")
+    with torch.no_grad():
+        for m in net:
+            if isinstance(m, nn.Linear):  # nn.Linear.reset_parameters, with our generator
+                nn.init.kaiming_uniform_(m.weight, a=math.sqrt(5), generator=generator)
+                bound = 1.0 / math.sqrt(m.in_features)
+                nn.init.uniform_(m.bias, -bound, bound, generator=generator)
+    return net
 
 
 class BCPolicy:
-    """MLP velocity policy ``x -> x_dot`` (a batched ``VelocityPolicy``).
+    """An MLP policy ``state -> action`` trained by behaviour cloning (see :class:`BCConfig`).
+
+    Batched: ``policy(states (N, d)) -> (N, a)`` (a ``VelocityPolicy``; a single
+    ``(d,)`` state gives ``(a,)``). :meth:`act` and :meth:`reset` are the same
+    policy in the interface of GLiDE's batched mode policies.
 
     Args:
-        state_dim: dimension ``d`` of states and velocities.
-        hidden: hidden layer widths (thesis: ``(100, 100)``).
-        output_scale: the tanh output is multiplied by this (thesis: 50).
-        lr: Adam learning rate (thesis: 1e-3).
-        batch_size: minibatch size (tli.md: 512).
-        seed: seed of the weight initialisation and of the batch order.
+        config: architecture and training settings (default: the thesis's TLI MLP).
+        seed: seeds the initial weights and the minibatches.
+
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).uniform(-1, 1, (64, 2))
+    >>> policy = BCPolicy(BCConfig(hidden=(16,), epochs=3), seed=0)
+    >>> losses = policy.fit(x, -x)
+    >>> len(losses), policy(x).shape, policy(x[0]).shape
+    (3, (64, 2), (2,))
     """
 
-    def __init__(
-        self,
-        state_dim: int = 2,
-        *,
-        hidden: tuple[int, ...] = (100, 100),
-        output_scale: float = 50.0,
-        lr: float = 1e-3,
-        batch_size: int = 512,
-        seed: int = 0,
-    ) -> None:
-        if not isinstance(state_dim, (int, np.integer)) or state_dim < 1:
-            raise ValueError(f"state_dim must be a positive int, got {state_dim!r}")
-        hidden = tuple(int(h) for h in hidden)
-        if len(hidden) == 0 or any(h < 1 for h in hidden):
-            raise ValueError(f"hidden must be a non-empty tuple of positive ints, got {hidden!r}")
-        for name, value in (("output_scale", output_scale), ("lr", lr)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite float, got {value!r}")
-        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
-        self.state_dim = int(state_dim)
-        self.hidden = hidden
-        self.output_scale = float(output_scale)
-        self.lr = float(lr)
-        self.batch_size = int(batch_size)
+    def __init__(self, config: BCConfig | None = None, *, seed: int = 0) -> None:
+        if config is not None and not isinstance(config, BCConfig):
+            raise TypeError(f"config must be a BCConfig or None, got {type(config).__name__}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+            raise TypeError(f"seed must be an int, got {type(seed).__name__}")
+        self.config = config if config is not None else BCConfig()
         self.seed = int(seed)
         self._generator = torch.Generator().manual_seed(self.seed)
-        self.net = self._build()
-        self.epochs_trained = 0
+        self.net = _build_mlp(self.config, self._generator)
+        self.net.eval()
+        self._batch_generator = (
+            self._generator if self.config.steps is None else torch.Generator().manual_seed(self.seed)
+        )
+        #: input standardisation (set by the first :meth:`fit` when ``config.standardize``)
+        self.input_mean: np.ndarray | None = None
+        self.input_scale: np.ndarray | None = None
+        #: epochs (or, with ``config.steps``, minibatch steps) trained so far
+        self.trained_for = 0
 
-    def _build(self) -> nn.Sequential:
-        layers: list[nn.Module] = []
-        widths = (self.state_dim, *self.hidden)
-        for a, b in itertools.pairwise(widths):
-            layers += [nn.Linear(a, b), nn.ReLU()]
-        layers += [nn.Linear(widths[-1], self.state_dim), nn.Tanh()]
-        net = nn.Sequential(*layers)
-        with torch.no_grad():  # PyTorch's default init, drawn from our own generator
-            for m in net:
-                if isinstance(m, nn.Linear):
-                    bound = 1.0 / np.sqrt(m.in_features)
-                    m.weight.uniform_(-bound, bound, generator=self._generator)
-                    m.bias.uniform_(-bound, bound, generator=self._generator)
-        return net
+    # ------------------------------------------------------------------ training
+    def fit(self, states: ArrayLike, actions: ArrayLike) -> list[float]:
+        """Train on pairs ``(N, d)`` / ``(N, a)``; returns the loss per epoch (or per step with ``steps``).
 
-    def fit(self, states: ArrayLike, velocities: ArrayLike, epochs: int = 4000) -> list[float]:
-        """Train on pairs ``(N, d)``/``(N, d)`` for ``epochs`` passes; returns the per-epoch mean loss."""
-        x = _as_batch(states, "states", self.state_dim)
-        v = _as_batch(velocities, "velocities", self.state_dim)
-        if len(x) != len(v):
-            raise ValueError(f"states and velocities must have the same length, got {len(x)} and {len(v)}")
-        if np.any(np.abs(v) >= self.output_scale):
-            raise ValueError(f"velocities must lie strictly inside (-{self.output_scale}, {self.output_scale})")
-        if not isinstance(epochs, (int, np.integer)) or epochs < 0:
-            raise ValueError(f"epochs must be a non-negative int, got {epochs!r}")
-        xt, vt = torch.from_numpy(x).float(), torch.from_numpy(v).float()
-        opt = torch.optim.Adam(self.net.parameters(), lr=self.lr)
+        Each call trains ``config.epochs`` (or ``config.steps``) more from the current
+        weights, with a fresh Adam optimiser.
+        """
+        cfg = self.config
+        s = _as_batch(states, "states", cfg.state_dim)
+        a = _as_batch(actions, "actions", cfg.action_dim)
+        if len(s) != len(a):
+            raise ValueError(f"states and actions must have the same length, got {len(s)} and {len(a)}")
+        if cfg.output == "tanh" and np.any(np.abs(a) >= cfg.output_scale):
+            raise ValueError(
+                f"actions must lie strictly inside (-{cfg.output_scale}, {cfg.output_scale}) for a tanh output, "
+                f"got max |a| = {float(np.abs(a).max())}"
+            )
+        s32 = s.astype(np.float32)
+        if cfg.standardize and self.input_mean is None:
+            self.input_mean = s32.mean(0)
+            self.input_scale = np.maximum(s32.std(0), 1e-6)
+        x = torch.from_numpy(self._standardized(s32))
+        a32 = a.astype(np.float32)
+        y = torch.from_numpy(a32 if cfg.output == "tanh" else a32 / cfg.output_scale)
+        opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
         losses: list[float] = []
         threads = torch.get_num_threads()
-        torch.set_num_threads(1)  # a 100-wide MLP: extra intra-op threads only add contention (restored below)
+        torch.set_num_threads(cfg.num_threads)
         try:
             self.net.train()
-            for _ in range(int(epochs)):
-                order = torch.randperm(len(xt), generator=self._generator)
-                total = 0.0
-                for start in range(0, len(xt), self.batch_size):
-                    idx = order[start : start + self.batch_size]
-                    loss = torch.mean((self._forward(xt[idx]) - vt[idx]) ** 2)
-                    opt.zero_grad()
-                    loss.backward()
-                    opt.step()
-                    total += loss.item() * len(idx)
-                losses.append(total / len(xt))
+            if cfg.epochs is not None:
+                for _ in range(cfg.epochs):
+                    order = torch.randperm(len(x), generator=self._batch_generator)
+                    total = 0.0
+                    for start in range(0, len(x), cfg.batch_size):
+                        idx = order[start : start + cfg.batch_size]
+                        total += self._step(opt, x[idx], y[idx]) * len(idx)
+                    losses.append(total / len(x))
+                self.trained_for += cfg.epochs
+            else:
+                assert cfg.steps is not None
+                n = min(cfg.batch_size, len(x))
+                for _ in range(cfg.steps):
+                    idx = torch.randint(0, len(x), (n,), generator=self._batch_generator)
+                    losses.append(self._step(opt, x[idx], y[idx]))
+                self.trained_for += cfg.steps
         finally:
             torch.set_num_threads(threads)
             self.net.eval()
-        self.epochs_trained += int(epochs)
         return losses
 
-    def _forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.output_scale * self.net(x)
+    def _step(self, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.Tensor) -> float:
+        """One Adam step on the squared error of a minibatch; returns its loss."""
+        loss = ((self._train_output(x) - y) ** 2).mean()
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        return float(loss.item())
 
-    def __call__(self, x: ArrayLike) -> np.ndarray:
-        """Velocities for states ``(N, d) -> (N, d)`` (a single ``(d,)`` state gives ``(d,)``)."""
-        arr = np.asarray(x, dtype=np.float64)
+    def _train_output(self, x: torch.Tensor) -> torch.Tensor:
+        """The network's output in the units the loss is taken in (actions, or actions / scale for ``clip``)."""
+        out = self.net(x)
+        return self.config.output_scale * out if self.config.output == "tanh" else out
+
+    def _standardized(self, s32: np.ndarray) -> np.ndarray:
+        if self.input_mean is None or self.input_scale is None:
+            return s32
+        return cast(np.ndarray, (s32 - self.input_mean) / self.input_scale)
+
+    # ----------------------------------------------------------------- inference
+    def __call__(self, states: ArrayLike) -> np.ndarray:
+        """Actions for states ``(N, d) -> (N, a)`` (a single ``(d,)`` state gives ``(a,)``), float64."""
+        arr = np.asarray(states, dtype=np.float64)
         single = arr.ndim == 1
-        xb = _as_batch(arr[None] if single else arr, "x", self.state_dim)
+        s = _as_batch(arr[None] if single else arr, "states", self.config.state_dim)
+        x = torch.from_numpy(self._standardized(s.astype(np.float32)))
         with torch.no_grad():
-            out = self._forward(torch.from_numpy(xb).float()).numpy().astype(np.float64)
+            if self.config.output == "tanh":
+                out = self._train_output(x).numpy().astype(np.float64)
+            else:
+                out = clip_speed(
+                    self.net(x).numpy().astype(np.float64) * self.config.output_scale, self.config.output_scale
+                )
         return out[0] if single else out
 
-    # ------------------------------------------------------------ persistence
+    def act(self, states: ArrayLike) -> np.ndarray:
+        """Same as calling the policy: actions ``(N, a)`` for states ``(N, d)``."""
+        return self(states)
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Stateless: nothing to forget (the batched-policy interface of the GLiDE evaluation)."""
+
+    # --------------------------------------------------------------- persistence
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write weights + config to a safetensors file atomically (temp file + ``os.replace``)."""
-        path = Path(path)
-        config = {
-            "format": _FORMAT,
-            "state_dim": self.state_dim,
-            "hidden": list(self.hidden),
-            "output_scale": self.output_scale,
-            "lr": self.lr,
-            "batch_size": self.batch_size,
-            "seed": self.seed,
-            "epochs_trained": self.epochs_trained,
-        }
-        tensors = {k: v.detach().contiguous() for k, v in self.net.state_dict().items()}
-        data = st_save(tensors, metadata={"config": json.dumps(config)})
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        """Write weights, input statistics and config to a ``.safetensors`` file atomically."""
+        tensors = {k: v.detach() for k, v in self.net.state_dict().items()}
+        if self.input_mean is not None and self.input_scale is not None:
+            tensors["input_mean"] = torch.from_numpy(self.input_mean)
+            tensors["input_scale"] = torch.from_numpy(self.input_scale)
+        meta = {"format": _FORMAT, "config": asdict(self.config), "seed": self.seed, "trained_for": self.trained_for}
+        return write_checkpoint(path, tensors, meta)
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> BCPolicy:
+    def load(cls, path: str | os.PathLike[str]) -> Self:
         """A policy from a file written by :meth:`save` (safetensors: no code is executed)."""
-        raw = Path(path).read_bytes()
-        config = _read_config(raw, path)
-        policy = cls(
-            config["state_dim"],
-            hidden=tuple(config["hidden"]),
-            output_scale=config["output_scale"],
-            lr=config["lr"],
-            batch_size=config["batch_size"],
-            seed=config["seed"],
-        )
-        policy.net.load_state_dict(st_load(raw))
+        tensors, meta = read_checkpoint(path)
+        if meta.get("format") != _FORMAT:
+            raise ValueError(f"{path} holds format {meta.get('format')!r}, expected a BCPolicy file ({_FORMAT!r})")
+        known = {f.name for f in fields(BCConfig)}
+        policy = cls(BCConfig(**{k: v for k, v in meta["config"].items() if k in known}), seed=int(meta["seed"]))
+        mean, scale = tensors.pop("input_mean", None), tensors.pop("input_scale", None)
+        policy.net.load_state_dict(tensors)
         policy.net.eval()
-        policy.epochs_trained = int(config["epochs_trained"])
+        if mean is not None and scale is not None:
+            policy.input_mean, policy.input_scale = mean.numpy(), scale.numpy()
+        policy.trained_for = int(meta["trained_for"])
         return policy
-
-
-def _read_config(raw: bytes, path: str | os.PathLike[str]) -> dict:
-    """The JSON config from a safetensors header (8-byte length + JSON with ``__metadata__``)."""
-    try:
-        n = int.from_bytes(raw[:8], "little")
-        header = json.loads(raw[8 : 8 + n])
-        config = json.loads(header["__metadata__"]["config"])
-    except (ValueError, KeyError, TypeError):
-        raise ValueError(f"{path} is not a BCPolicy safetensors file") from None
-    if config.get("format") != _FORMAT:
-        raise ValueError(f"{path} holds format {config.get('format')!r}, expected {_FORMAT!r}")
-    return config
 
 
 def _as_batch(value: ArrayLike, name: str, d: int) -> np.ndarray:

@@ -1,37 +1,160 @@
-"""Shared plumbing of the chunked trajectory policies (DP, ACT): the seeded network, observation histories, checkpoints.
+"""The base of the chunked trajectory policies (DP, ACT): seeded network, device, normalizers, checkpoints.
 
-A checkpoint is one safetensors file: the weights plus a JSON config in the
-header's ``__metadata__`` (safetensors executes no code on load, unlike a
-pickle). It is written atomically through :mod:`steer_envs.io`.
+A checkpoint is one safetensors file: the weights plus a JSON header in its
+``__metadata__`` naming the policy, its config and its normalization
+statistics (safetensors executes no code on load, unlike a pickle). It is
+written atomically through :mod:`steer_envs.io`.
+
+>>> from steer_envs.baselines.act import ACTConfig, ACTPolicy
+>>> policy = ACTPolicy(ACTConfig(obs_dim=3, action_dim=2, chunk_size=4, d_model=8, n_heads=1, dim_feedforward=8))
+>>> policy.observation_history([1.0, 2.0, 3.0]).shape
+(1, 3)
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Self
+from typing import Any, ClassVar, Self
 
 import numpy as np
 import torch
 from safetensors.torch import load as st_load
 from safetensors.torch import save as st_save
 
+from steer_envs.baselines.common.configuration import PolicyConfig
+from steer_envs.baselines.common.normalize import FEATURES, FeatureStats, Normalizer, parse_stats
 from steer_envs.io import atomic_write_bytes
 
-__all__ = ["TorchPolicy", "as_coords", "obs_history", "read_checkpoint", "write_checkpoint"]
+__all__ = [
+    "CHECKPOINT_FORMAT",
+    "TorchPolicy",
+    "check_sample_args",
+    "observation_history",
+    "read_checkpoint",
+    "write_checkpoint",
+]
+
+#: the ``format`` of the checkpoint header written by :meth:`TorchPolicy.save`.
+CHECKPOINT_FORMAT = "steer_envs.baselines.policy/2"
 
 
-class TorchPolicy:
-    """What DP and ACT share: a network built under a fixed seed, on a device, in eval mode.
+def observation_history(obs: Any, n_obs: int, obs_dim: int, obs_indices: tuple[int, ...] | None = None) -> np.ndarray:
+    """The last ``n_obs`` policy observations ``(n_obs, obs_dim)`` float32 from an env observation or history.
 
-    The network is built inside ``torch.random.fork_rng`` so the caller's RNG
-    state is left alone and the same seed gives the same initial weights.
+    ``obs`` is one observation ``(D,)`` or a history ``(k, D)``, oldest first.
+    With ``obs_indices`` the policy's observation is those entries of each
+    (``D`` may be larger); without, ``D`` must be ``obs_dim``. A history
+    shorter than ``n_obs`` is padded by repeating its oldest entry, as LeRobot
+    fills its observation queue after a reset (one observation = at rest).
+
+    >>> observation_history([1.0, 2.0, 0.5, 0.5], 2, 2, (0, 1)).tolist()
+    [[1.0, 2.0], [1.0, 2.0]]
     """
+    try:
+        arr = np.asarray(obs, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"obs must be a numeric array, got {type(obs).__name__}") from None
+    if arr.ndim == 1:
+        arr = arr[None]
+    if obs_indices is None:
+        ok, want = arr.ndim == 2 and arr.shape[1] == obs_dim, f"D = obs_dim = {obs_dim}"
+    else:
+        ok, want = arr.ndim == 2 and arr.shape[1] > max(obs_indices), f"D > {max(obs_indices)} (obs_indices)"
+    if not ok or arr.shape[0] < 1:
+        raise ValueError(f"obs must have shape (D,) or (k, D) with {want}, got {np.shape(obs)}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("obs must be finite")
+    hist = arr[-n_obs:] if obs_indices is None else arr[-n_obs:, list(obs_indices)]
+    if len(hist) < n_obs:
+        hist = np.concatenate([np.repeat(hist[:1], n_obs - len(hist), axis=0), hist])
+    return hist.astype(np.float32)
+
+
+def check_sample_args(n: Any, generator: Any) -> np.random.Generator:
+    """Validate ``sample``'s ``n`` and ``generator``; returns the generator to draw from."""
+    if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
+        raise ValueError(f"n must be a positive int, got {n!r}")
+    if generator is not None and not isinstance(generator, np.random.Generator):
+        raise TypeError(f"generator must be a numpy Generator or None, got {type(generator).__name__}")
+    return generator if generator is not None else np.random.default_rng()
+
+
+def _default_stats(mode: str, dim: int) -> FeatureStats:
+    """Statistics under which ``mode`` is the identity map (for a policy made without data)."""
+    if mode == "min_max":
+        return FeatureStats(min=-np.ones(dim), max=np.ones(dim))
+    if mode == "mean_std":
+        return FeatureStats(mean=np.zeros(dim), std=np.ones(dim))
+    return FeatureStats()
+
+
+class TorchPolicy(ABC):
+    """What DP and ACT share: config, normalizers, a network built under a fixed seed, checkpoints.
+
+    Subclasses set :attr:`name` and :attr:`config_class`, build the network in
+    :meth:`_build_model` and implement the plan layout, ``sample`` and ``loss``.
+
+    Args:
+        config: the policy's config; its feature fields must be set.
+        stats: normalization statistics ``{"observation": ..., "action": ...}``
+            (mappings of ``min``/``max``/``mean``/``std`` or
+            :class:`~steer_envs.baselines.common.normalize.FeatureStats`), e.g.
+            ``dataset.stats()``; ``None``: the identity (data already normalized).
+        seed: seed of the initial weights (the caller's torch RNG is left alone).
+        device: torch device of the network.
+    """
+
+    #: the policy's name in the factory and in checkpoints
+    name: ClassVar[str]
+    config_class: ClassVar[type[PolicyConfig]]
+    #: the pre-factory checkpoint format this class can still read (see :meth:`upgrade_legacy`)
+    legacy_format: ClassVar[str | None] = None
 
     model: torch.nn.Module
     _device: torch.device
+
+    def __init__(
+        self,
+        config: PolicyConfig,
+        stats: Mapping[str, Any] | None = None,
+        *,
+        seed: int = 0,
+        device: str | torch.device = "cpu",
+    ) -> None:
+        if not isinstance(config, self.config_class):
+            raise TypeError(f"config must be a {self.config_class.__name__}, got {type(config).__name__}")
+        config.require_features()
+        self.config = config
+        dims = {"observation": self.obs_dim, "action": self.action_dim}
+        parsed = parse_stats(stats)
+        if stats is None:
+            parsed = {k: _default_stats(config.normalization, dims[k]) for k in FEATURES}
+        #: the normalization statistics per feature (saved in the checkpoint)
+        self.stats: dict[str, FeatureStats] = parsed
+        self.obs_normalizer = Normalizer(
+            config.normalization, parsed["observation"], dims["observation"], "observation"
+        )
+        self.action_normalizer = Normalizer(config.normalization, parsed["action"], dims["action"], "action")
+        self._check_relative()
+        #: the ``extra`` dict of the checkpoint the policy was loaded from
+        self.checkpoint_info: dict[str, Any] = {}
+        self._init_network(self._build_model, seed, device)
+
+    def _check_relative(self) -> None:
+        if not self.config.relative or self.config.action_obs_indices is None:
+            return
+        idx = list(self.config.action_obs_indices)
+        obs_p, act_p = self.obs_normalizer.params, self.action_normalizer.params
+        if not all(np.array_equal(o[idx], a) for o, a in zip(obs_p, act_p, strict=True)):
+            raise ValueError(
+                "relative=True: the observation entries action_obs_indices="
+                f"{list(self.config.action_obs_indices)} must be normalized with the actions' statistics, got "
+                f"{self.stats['observation'].to_dict()} vs {self.stats['action'].to_dict()}"
+            )
 
     def _init_network(self, build: Callable[[], torch.nn.Module], seed: Any, device: str | torch.device) -> None:
         if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
@@ -42,75 +165,148 @@ class TorchPolicy:
             self.model = build()
         self.model.to(self._device).eval()
 
+    @abstractmethod
+    def _build_model(self) -> torch.nn.Module:
+        """The network for ``self.config`` (called under the weight seed)."""
+
+    # ------------------------------------------------------------ features
+    @property
+    def obs_dim(self) -> int:
+        """Entries of the policy's observation at one step."""
+        assert self.config.obs_dim is not None  # checked by require_features
+        return self.config.obs_dim
+
+    @property
+    def action_dim(self) -> int:
+        """Entries of one plan waypoint."""
+        assert self.config.action_dim is not None
+        return self.config.action_dim
+
+    @property
+    @abstractmethod
+    def horizon(self) -> int:
+        """Waypoints per plan."""
+
+    @property
+    @abstractmethod
+    def n_obs_steps(self) -> int:
+        """Observations of history the policy conditions on."""
+
+    @property
+    @abstractmethod
+    def exec_start(self) -> int:
+        """Index of the first plan waypoint to execute."""
+
+    @property
+    @abstractmethod
+    def window_layout(self) -> dict[str, int]:
+        """:class:`~steer_envs.data.trajectories.PlanWindows` arguments giving this policy's training pairs."""
+
+    @abstractmethod
+    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
+        """``n`` plans ``(n, horizon, action_dim)`` float64 in data units."""
+
+    @abstractmethod
+    def loss(self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Training loss on a batch ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, horizon, action_dim)``."""
+
+    def observation_history(self, obs: Any) -> np.ndarray:
+        """The policy's observation history ``(n_obs_steps, obs_dim)`` from an env observation or history."""
+        return observation_history(obs, self.n_obs_steps, self.obs_dim, self.config.obs_indices)
+
+    def normalize(self, traj: Any) -> Any:
+        """Plans / actions in data units -> network units, over ``(..., action_dim)``; numpy or torch."""
+        return self.action_normalizer.normalize(traj)
+
+    def unnormalize(self, traj: Any) -> Any:
+        """Inverse of :meth:`normalize`."""
+        return self.action_normalizer.unnormalize(traj)
+
+    # -------------------------------------------------------------- device
     @property
     def device(self) -> torch.device:
+        """Torch device of the network."""
         return self._device
 
     def to(self, device: str | torch.device) -> Self:
-        """Move the network (and any other device-bound state, :meth:`_moved`) to ``device``; returns self."""
+        """Move the network to ``device``; returns self."""
         self._device = torch.device(device)
         self.model.to(self._device)
-        self._moved()
         return self
-
-    def _moved(self) -> None:
-        """Hook for subclasses with tensors besides the network (called by :meth:`to`)."""
 
     def num_parameters(self) -> int:
         """Trainable parameters of the network."""
         return sum(p.numel() for p in self.model.parameters())
 
+    # --------------------------------------------------------- persistence
+    def save(self, path: str | os.PathLike[str], extra: Mapping[str, Any] | None = None) -> Path:
+        """Write weights, config and normalization statistics to a ``.safetensors`` file atomically."""
+        header = {
+            "format": CHECKPOINT_FORMAT,
+            "policy": self.name,
+            "config": self.config.to_dict(),
+            "stats": {k: v.to_dict() for k, v in self.stats.items()},
+            "extra": dict(extra or {}),
+        }
+        return write_checkpoint(path, self.model.state_dict(), header)
 
-def obs_history(obs: Any, n_obs: int) -> np.ndarray:
-    """The last ``n_obs`` agent positions ``(n_obs, 2)`` float32 from an env observation.
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], device: str | torch.device = "cpu") -> Self:
+        """A policy from a file written by :meth:`save` (safetensors: loading runs no code)."""
+        tensors, header = read_checkpoint(path)
+        return cls.from_checkpoint(tensors, header, device=device, source=str(path))
 
-    Accepts one observation ``(2,)`` (xy) or ``(4,)`` (xy + velocity), or a
-    history ``(k, 2)`` / ``(k, 4)`` oldest first. A history shorter than
-    ``n_obs`` is padded by repeating its oldest entry, as LeRobot fills its
-    observation queue after a reset (a single observation = an agent at rest).
-    """
-    try:
-        arr = np.asarray(obs, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"obs must be an array of xy positions, got {type(obs).__name__}") from None
-    if arr.ndim == 1:
-        arr = arr[None]
-    if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] not in (2, 4):
-        raise ValueError(f"obs must have shape (2,), (4,), (k, 2) or (k, 4), got {np.shape(obs)}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("obs must be finite")
-    xy = arr[-n_obs:, :2]
-    if len(xy) < n_obs:
-        xy = np.concatenate([np.repeat(xy[:1], n_obs - len(xy), axis=0), xy])
-    return xy.astype(np.float32)
+    @classmethod
+    def from_checkpoint(
+        cls,
+        tensors: Mapping[str, torch.Tensor],
+        header: Mapping[str, Any],
+        *,
+        device: str | torch.device = "cpu",
+        source: str = "checkpoint",
+    ) -> Self:
+        """A policy from the contents of a checkpoint (see :func:`read_checkpoint`)."""
+        fmt = header.get("format")
+        if fmt == CHECKPOINT_FORMAT:
+            if header.get("policy") != cls.name:
+                raise ValueError(f"{source} holds a {header.get('policy')!r} policy, expected {cls.name!r}")
+            config, stats = cls.config_class.from_dict(header["config"]), header["stats"]
+        elif cls.legacy_format is not None and fmt == cls.legacy_format:
+            config, stats = cls.upgrade_legacy(header)
+        else:
+            raise ValueError(f"{source} holds format {fmt!r}, expected {CHECKPOINT_FORMAT!r} ({cls.name})")
+        policy = cls(config, stats, device=device)
+        policy.model.load_state_dict(dict(tensors))
+        policy.model.to(policy.device).eval()
+        policy.checkpoint_info = dict(header.get("extra", {}))
+        return policy
+
+    @classmethod
+    def upgrade_legacy(cls, header: Mapping[str, Any]) -> tuple[PolicyConfig, dict[str, Any]]:
+        """Config and statistics from a header in :attr:`legacy_format` (subclasses that have one)."""
+        raise ValueError(f"{cls.name} has no legacy checkpoint format")
+
+    @classmethod
+    def upgrade_legacy_config(cls, values: Mapping[str, Any]) -> PolicyConfig:
+        """A config from the ``model`` dict of a legacy checkpoint or training record."""
+        raise ValueError(f"{cls.name} has no legacy config format")
 
 
-def as_coords(value: Any, d: int, name: str) -> np.ndarray:
-    """``value`` as a float64 array of ``d``-dimensional points ``(..., d)``; raises naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a numeric array or torch tensor, got {type(value).__name__}") from None
-    if arr.ndim == 0 or arr.shape[-1] != d:
-        raise ValueError(f"{name} must have shape (..., {d}), got {arr.shape}")
-    return arr
-
-
-def write_checkpoint(path: str | os.PathLike[str], tensors: dict[str, torch.Tensor], config: dict[str, Any]) -> Path:
-    """Write ``tensors`` with ``config`` (JSON-serializable) as a safetensors file, atomically."""
+def write_checkpoint(path: str | os.PathLike[str], tensors: Mapping[str, torch.Tensor], header: dict[str, Any]) -> Path:
+    """Write ``tensors`` with ``header`` (JSON-serializable) as a safetensors file, atomically."""
     out = Path(path)
     if out.suffix != ".safetensors":
         raise ValueError(f"path must end with .safetensors, got {str(out)!r}")
     data = st_save(
         {k: v.detach().to("cpu").contiguous() for k, v in tensors.items()},
-        metadata={"config": json.dumps(config)},
+        metadata={"config": json.dumps(header)},
     )
     atomic_write_bytes(out, data)
     return out
 
 
-def read_checkpoint(path: str | os.PathLike[str], fmt: str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """Tensors and config of a file written by :func:`write_checkpoint`; its config must carry ``format == fmt``."""
+def read_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """Tensors and header of a file written by :func:`write_checkpoint` (``ValueError`` for other files)."""
     src = Path(path)
     if not src.is_file():
         raise ValueError(f"no checkpoint file at {str(src)!r}")
@@ -121,7 +317,6 @@ def read_checkpoint(path: str | os.PathLike[str], fmt: str) -> tuple[dict[str, t
         config = json.loads(header["__metadata__"]["config"])
     except (ValueError, KeyError, TypeError):
         raise ValueError(f"{src} is not a steer-envs safetensors checkpoint (no config metadata)") from None
-    if not isinstance(config, dict) or config.get("format") != fmt:
-        found = config.get("format") if isinstance(config, dict) else None
-        raise ValueError(f"{src} holds format {found!r}, expected {fmt!r}")
+    if not isinstance(config, dict):
+        raise ValueError(f"{src} is not a steer-envs safetensors checkpoint (header is not a JSON object)")
     return st_load(raw), config

@@ -1,48 +1,33 @@
-"""Diffusion Policy (Chi et al. 2023) for Maze2D, in the ITPS configuration scaled down for the CPU.
+"""Diffusion Policy (Chi et al. 2023): a 1D temporal U-Net denoising plans, sampled by DDIM.
 
-The denoiser is Diffusion Policy's 1D temporal U-Net: residual blocks of
-``Conv1d -> GroupNorm -> SiLU`` whose features are FiLM-modulated (per-channel
+The denoiser is Diffusion Policy's conditional U-Net: residual blocks of
+``Conv1d -> GroupNorm -> SiLU`` (Chi et al. use Mish, a nearly identical curve
+with a much slower CPU kernel) whose features are FiLM-modulated (per-channel
 scale and bias) by the diffusion-step embedding concatenated with the global
-condition, here the last ``n_obs_steps`` agent positions. Sampling runs a
-diffusers :class:`~diffusers.DDIMScheduler` with the ITPS maze settings (100
-training steps, ``squaredcos_cap_v2``, epsilon parameterization,
-``clip_sample`` +-1, 10 inference steps: t = 90, 80, ..., 0): samplers see an
-epsilon predictor, :meth:`DiffusionPolicy.predict_noise`.
+condition, the normalized observation history (optionally through
+:class:`ObsEncoder`). Sampling runs a diffusers ``DDIMScheduler`` with epsilon
+parameterization and ``clip_sample``; whatever the network's target
+(:attr:`DiffusionConfig.prediction`), samplers see an epsilon predictor,
+:meth:`DiffusionPolicy.predict_noise`, so the guided samplers (BI, GD, SS)
+can run and steer the denoising loop (:class:`steer_envs.core.DiffusionPolicyLike`).
 
-What differs from ITPS, and why (2 shared CPU cores instead of a GPU for 100k
-steps at batch 256, i.e. ~1/200 of the training compute):
+The policy is domain-agnostic: observation and action sizes, normalization
+and the plan layout come from :class:`DiffusionConfig`, the statistics from
+the training data.
 
-* widths: down dims 16/32/64 instead of 128/256/512 (a 10-step batch of 32
-  costs 10 passes of a 0.7M-parameter net);
-* SiLU instead of Mish (nearly the same curve; torch's CPU Mish kernel is
-  ~40x slower than SiLU and took a third of the sampling time);
-* by default the network is trained with the *v* target (Salimans & Ho 2022)
-  on plans *relative to the current position* (``relative``), plus a
-  plan-index input channel and a Fourier-feature MLP encoding the observation.
-  ``predict_noise`` converts v to the epsilon it implies exactly, so the
-  scheduler and the guidance math are unchanged. In short CPU runs the ITPS
-  parameterization (``prediction="epsilon"``, absolute plans) mislocated plans
-  by several cells at high noise, where epsilon errors are amplified by
-  ``1/sqrt(abar)``; ``DiffusionConfig(prediction="epsilon", relative=False,
-  time_channel=False, obs_embed_dim=0)`` is Chi et al.'s network (with SiLU).
-
-Plans use LeRobot's layout (ITPS): ``horizon`` waypoints starting at the
-*current* position, so ``plan[0]`` is where the agent is and
-``plan[exec_start:]`` (63 waypoints) are executed. Positions and plans are
-min-max normalized to [-1, 1] with the training data's bounds.
-
-:class:`DiffusionPolicy` satisfies :class:`steer_envs.core.DiffusionPolicyLike`,
-so the guided samplers (BI, GD, SS) can run and steer its denoising loop.
+>>> import numpy as np
+>>> cfg = DiffusionConfig(obs_dim=7, action_dim=4, horizon=8, down_dims=(8, 16), obs_embed_dim=8)
+>>> policy = DiffusionPolicy(cfg)
+>>> policy.sample(np.zeros(7), 3, generator=np.random.default_rng(0)).shape
+(3, 8, 4)
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-import os
-from dataclasses import asdict, dataclass
-from pathlib import Path
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Protocol, cast
 
 import numpy as np
 import torch
@@ -50,80 +35,27 @@ from diffusers import DDIMScheduler
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from steer_envs.baselines.common.torch_policy import (
-    TorchPolicy,
-    as_coords,
-    obs_history,
-    read_checkpoint,
-    write_checkpoint,
-)
+from steer_envs.baselines.common.torch_policy import TorchPolicy, check_sample_args
+from steer_envs.baselines.diffusion.configuration import DiffusionConfig
 
-__all__ = ["ConditionalUnet1D", "DiffusionConfig", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
+__all__ = ["ConditionalUnet1D", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
 
-FORMAT = "steer_envs.baselines.diffusion/1"
-#: the network's target: the noise (Chi et al., ITPS) or the velocity v = sqrt(abar) eps - sqrt(1 - abar) x0.
-PREDICTIONS = ("epsilon", "v")
+#: the checkpoint format written before the policy factory (still readable).
+LEGACY_FORMAT = "steer_envs.baselines.diffusion/1"
 
 
-@dataclass(frozen=True)
-class DiffusionConfig:
-    """Architecture and sampling settings; defaults = the shipped checkpoint (departures from ITPS: module doc)."""
+class _Scheduler(Protocol):
+    """The members of diffusers' ``DDIMScheduler`` this module uses."""
 
-    horizon: int = 64
-    n_obs_steps: int = 2
-    action_dim: int = 2
-    down_dims: tuple[int, ...] = (16, 32, 64)
-    kernel_size: int = 5
-    n_groups: int = 8
-    step_embed_dim: int = 64
-    num_train_timesteps: int = 100
-    num_inference_steps: int = 10
-    beta_schedule: str = "squaredcos_cap_v2"
-    clip_sample_range: float = 1.0
-    prediction: str = "v"
-    relative: bool = True
-    time_channel: bool = True
-    obs_embed_dim: int = 256
-    obs_octaves: int = 6
+    alphas_cumprod: torch.Tensor
+    timesteps: torch.Tensor
+    config: Any
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "down_dims", tuple(int(d) for d in self.down_dims))
-        for name in ("horizon", "n_obs_steps", "action_dim", "kernel_size", "n_groups", "step_embed_dim"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 1:
-                raise ValueError(f"{name} must be a positive int, got {value!r}")
-        if not self.down_dims or any(d < 1 or d % self.n_groups for d in self.down_dims):
-            raise ValueError(f"down_dims must be positive multiples of n_groups={self.n_groups}, got {self.down_dims}")
-        if self.kernel_size % 2 == 0:
-            raise ValueError(f"kernel_size must be odd, got {self.kernel_size}")
-        if self.step_embed_dim % 2:
-            raise ValueError(f"step_embed_dim must be even, got {self.step_embed_dim}")
-        stride = 2 ** (len(self.down_dims) - 1)
-        if self.horizon % stride:
-            raise ValueError(f"horizon must be a multiple of {stride} for {len(self.down_dims)} U-Net levels")
-        if not 1 <= self.num_inference_steps <= self.num_train_timesteps:
-            raise ValueError(
-                f"num_inference_steps must be in [1, num_train_timesteps={self.num_train_timesteps}], "
-                f"got {self.num_inference_steps}"
-            )
-        if self.prediction not in PREDICTIONS:
-            raise ValueError(f"prediction must be one of {PREDICTIONS}, got {self.prediction!r}")
-        for name in ("obs_embed_dim", "obs_octaves"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 0:
-                raise ValueError(f"{name} must be an int >= 0, got {value!r}")
-        if not (np.isfinite(self.clip_sample_range) and self.clip_sample_range > 0):
-            raise ValueError(f"clip_sample_range must be a positive float, got {self.clip_sample_range!r}")
+    def set_timesteps(self, num_inference_steps: int) -> None: ...
 
-    @property
-    def exec_start(self) -> int:
-        """Index of the first executed waypoint: ``plan[:n_obs_steps - 1]`` re-states observed positions."""
-        return self.n_obs_steps - 1
+    def step(self, model_output: torch.Tensor, timestep: Any, sample: torch.Tensor) -> Any: ...
 
-    def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["down_dims"] = list(self.down_dims)
-        return out
+    def add_noise(self, original: torch.Tensor, noise: torch.Tensor, timesteps: torch.Tensor) -> torch.Tensor: ...
 
 
 # ----------------------------------------------------------------- network
@@ -201,24 +133,29 @@ class ConditionalUnet1D(nn.Module):
         cond = torch.cat([self.step_mlp(emb.to(x.dtype)), global_cond], dim=-1)
         h = x.transpose(1, 2)
         skips = []
-        for res1, res2, downsample in self.down:
+        for level in self.down:
+            res1, res2, downsample = cast(nn.ModuleList, level)
             h = res2(res1(h, cond), cond)
             skips.append(h)
             h = downsample(h)
         for res in self.mid:
             h = res(h, cond)
-        for res1, res2, upsample in self.up:
+        for level in self.up:
+            res1, res2, upsample = cast(nn.ModuleList, level)
             h = torch.cat([h, skips.pop()], dim=1)
             h = upsample(res2(res1(h, cond), cond))
         return self.final(h).transpose(1, 2)
 
 
 class ObsEncoder(nn.Module):
-    """Normalized position history ``(B, c)`` -> ``(B, embed_dim)``: Fourier features + MLP.
+    """Normalized observation history ``(B, c)`` -> ``(B, embed_dim)``: Fourier features + MLP.
 
-    Raw coordinates enter FiLM only linearly; sines and cosines at ``octaves``
-    frequencies let a small network resolve walls a cell apart.
+    Raw inputs enter FiLM only linearly; sines and cosines at ``octaves``
+    frequencies let a small network resolve fine spatial detail (e.g. walls
+    close to the agent).
     """
+
+    freqs: torch.Tensor
 
     def __init__(self, in_dim: int, embed_dim: int, octaves: int) -> None:
         super().__init__()
@@ -240,9 +177,13 @@ class ObsEncoder(nn.Module):
 class DiffusionNet(nn.Module):
     """Observation encoder (optional) + :class:`ConditionalUnet1D`: the trainable part of the policy."""
 
+    ramp: torch.Tensor
+
     def __init__(self, cfg: DiffusionConfig) -> None:
         super().__init__()
-        cond_dim = cfg.n_obs_steps * cfg.action_dim
+        if cfg.obs_dim is None or cfg.action_dim is None:
+            raise ValueError("DiffusionNet needs cfg.obs_dim and cfg.action_dim")
+        cond_dim = cfg.n_obs_steps * cfg.obs_dim
         if cfg.obs_embed_dim:
             self.obs_encoder: nn.Module = ObsEncoder(cond_dim, cfg.obs_embed_dim, cfg.obs_octaves)
             cond_dim = cfg.obs_embed_dim
@@ -263,6 +204,7 @@ class DiffusionNet(nn.Module):
         self.time_channel = cfg.time_channel
 
     def forward(self, x: torch.Tensor, timestep: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """Network output ``(B, T, action_dim)`` for noisy plans ``x``, steps ``timestep (B,)``, condition ``cond``."""
         if self.time_channel:
             x = torch.cat([x, self.ramp.expand(x.shape[0], -1, -1).to(x.dtype)], dim=-1)
         return self.unet(x, timestep, self.obs_encoder(cond))
@@ -270,92 +212,79 @@ class DiffusionNet(nn.Module):
 
 # ------------------------------------------------------------------ policy
 class DiffusionPolicy(TorchPolicy):
-    """Maze2D Diffusion Policy: observation history -> batch of plans by DDIM (a ``DiffusionPolicyLike``).
+    """Observation history -> batch of plans by DDIM (a ``DiffusionPolicyLike``).
 
     Args:
-        config: architecture and sampling settings.
-        low, high: per-coordinate bounds of positions in the training data;
-            ``normalize`` maps ``[low, high]`` to ``[-1, 1]``.
+        config: a :class:`DiffusionConfig` with its features set.
+        stats: normalization statistics ``{"observation": ..., "action": ...}``
+            (e.g. ``dataset.stats()``); ``None``: data already normalized.
         seed: seed of the initial weights.
         device: torch device of the network.
+
+    >>> import numpy as np
+    >>> cfg = DiffusionConfig(obs_dim=2, action_dim=2, horizon=8, down_dims=(8, 16), obs_embed_dim=8)
+    >>> box = {"min": [0.0, 0.0], "max": [4.0, 4.0]}
+    >>> policy = DiffusionPolicy(cfg, {"observation": box, "action": box})
+    >>> policy.normalize(np.array([[2.0, 4.0]])).tolist()
+    [[0.0, 1.0]]
     """
+
+    name = "dp"
+    config_class = DiffusionConfig
+    legacy_format = LEGACY_FORMAT
+    config: DiffusionConfig
 
     def __init__(
         self,
-        config: DiffusionConfig | None = None,
-        low: Any = (0.0, 0.0),
-        high: Any = (1.0, 1.0),
+        config: DiffusionConfig,
+        stats: Mapping[str, Any] | None = None,
         *,
         seed: int = 0,
         device: str | torch.device = "cpu",
     ) -> None:
-        self.config = config if config is not None else DiffusionConfig()
-        if not isinstance(self.config, DiffusionConfig):
-            raise TypeError(f"config must be a DiffusionConfig, got {type(config).__name__}")
-        d = self.config.action_dim
-        lo, hi = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
-        if lo.shape != (d,) or hi.shape != (d,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-            raise ValueError(f"low and high must be finite arrays of shape ({d},), got {lo.shape} and {hi.shape}")
-        if np.any(hi <= lo):
-            raise ValueError(f"high must exceed low in every coordinate, got low={lo.tolist()} high={hi.tolist()}")
-        self.low, self.high = lo, hi
-        self._init_network(lambda: DiffusionNet(self.config), seed, device)
-        self._low_t = torch.as_tensor(lo, dtype=torch.float32, device=self._device)
-        self._high_t = torch.as_tensor(hi, dtype=torch.float32, device=self._device)
-        self.scheduler = DDIMScheduler(
-            num_train_timesteps=self.config.num_train_timesteps,
-            beta_schedule=self.config.beta_schedule,
-            clip_sample=True,
-            clip_sample_range=self.config.clip_sample_range,
-            prediction_type="epsilon",
-            set_alpha_to_one=True,
-            steps_offset=0,
+        super().__init__(config, stats, seed=seed, device=device)
+        self.scheduler = cast(
+            _Scheduler,
+            DDIMScheduler(
+                num_train_timesteps=self.config.num_train_timesteps,
+                beta_schedule=self.config.beta_schedule,
+                clip_sample=True,
+                clip_sample_range=self.config.clip_sample_range,
+                prediction_type="epsilon",
+                set_alpha_to_one=True,
+                steps_offset=0,
+            ),
         )
         self.num_inference_steps = self.config.num_inference_steps
+
+    def _build_model(self) -> nn.Module:
+        return DiffusionNet(self.config)
 
     # ------------------------------------------------------------ protocol
     @property
     def horizon(self) -> int:
-        """States per plan (64; ``plan[0]`` is the current position)."""
+        """Waypoints per plan."""
         return self.config.horizon
 
     @property
-    def action_dim(self) -> int:
-        return self.config.action_dim
-
-    @property
     def n_obs_steps(self) -> int:
-        """Positions of history the policy conditions on."""
+        """Observations of history the policy conditions on."""
         return self.config.n_obs_steps
 
     @property
     def exec_start(self) -> int:
-        """Index of the first plan waypoint to execute (1: ``plan[0]`` is the current position)."""
+        """Index of the first plan waypoint to execute (``plan[:exec_start]`` re-states observed steps)."""
         return self.config.exec_start
 
-    def _moved(self) -> None:
-        self._low_t, self._high_t = self._low_t.to(self._device), self._high_t.to(self._device)
-
-    def normalize(self, traj: Any) -> Any:
-        """Env units -> [-1, 1] per coordinate; numpy in numpy out, torch in torch out."""
-        if isinstance(traj, torch.Tensor):
-            lo, hi = self._low_t.to(traj.device, traj.dtype), self._high_t.to(traj.device, traj.dtype)
-            return 2 * (traj - lo) / (hi - lo) - 1
-        arr = as_coords(traj, self.action_dim, "traj")
-        return 2 * (arr - self.low) / (self.high - self.low) - 1
-
-    def unnormalize(self, traj: Any) -> Any:
-        """Inverse of :meth:`normalize`."""
-        if isinstance(traj, torch.Tensor):
-            lo, hi = self._low_t.to(traj.device, traj.dtype), self._high_t.to(traj.device, traj.dtype)
-            return (traj + 1) / 2 * (hi - lo) + lo
-        arr = as_coords(traj, self.action_dim, "traj")
-        return (arr + 1) / 2 * (self.high - self.low) + self.low
+    @property
+    def window_layout(self) -> dict[str, int]:
+        """``PlanWindows`` arguments giving this policy's training pairs (LeRobot layout)."""
+        return self.config.window_layout
 
     def encode_obs(self, obs: Any) -> torch.Tensor:
-        """Global condition ``(1, n_obs_steps * 2)``: the normalized position history (see ``obs_history``)."""
-        hist = obs_history(obs, self.n_obs_steps)
-        return self.normalize(torch.from_numpy(hist).to(self._device)).reshape(1, -1)
+        """Global condition ``(1, n_obs_steps * obs_dim)``: the normalized observation history."""
+        hist = self.observation_history(obs)
+        return self.obs_normalizer.normalize(torch.from_numpy(hist).to(self._device)).reshape(1, -1)
 
     def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
         """``eps(x_t, t | cond)`` for normalized plans ``x_t (n, H, d)``; differentiable in ``x_t``.
@@ -371,10 +300,9 @@ class DiffusionPolicy(TorchPolicy):
         if t.numel() not in (1, n):
             raise ValueError(f"t must be a scalar or have {n} entries, got {t.numel()}")
         cond = torch.as_tensor(cond, device=x_t.device, dtype=x_t.dtype)
-        if cond.ndim != 2 or cond.shape[0] not in (1, n) or cond.shape[1] != self.n_obs_steps * self.action_dim:
-            raise ValueError(
-                f"cond must have shape (1 or {n}, {self.n_obs_steps * self.action_dim}), got {tuple(cond.shape)}"
-            )
+        width = self.n_obs_steps * self.obs_dim
+        if cond.ndim != 2 or cond.shape[0] not in (1, n) or cond.shape[1] != width:
+            raise ValueError(f"cond must have shape (1 or {n}, {width}), got {tuple(cond.shape)}")
         cond = cond.expand(n, -1)
         abar = self.scheduler.alphas_cumprod.to(x_t.device)[t.long()].to(x_t.dtype).reshape(-1, 1, 1)
         x_rel = self._centered(x_t, abar, cond)
@@ -384,23 +312,23 @@ class DiffusionPolicy(TorchPolicy):
         return (1 - abar).sqrt() * x_rel + abar.sqrt() * out  # epsilon implied by v (exact, no division)
 
     def _centered(self, x: torch.Tensor, abar: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
-        """``x - sqrt(abar) * p`` with ``p`` the last observed position (normalized) when ``relative``.
+        """``x - sqrt(abar) * p`` with ``p`` the current values of ``action_obs_indices`` when ``relative``.
 
         Noising commutes with this shift (the noise is unchanged), so the network
-        sees and predicts plans relative to the agent, not absolute positions
-        that GroupNorm would have to carry through every block.
+        sees and predicts plans relative to the current state, not absolute
+        values that GroupNorm would have to carry through every block.
         """
-        if not self.config.relative:
+        if not self.config.relative or self.config.action_obs_indices is None:
             return x
-        return x - abar.sqrt() * cond[:, None, -self.action_dim :]
+        current = cond.reshape(cond.shape[0], self.n_obs_steps, self.obs_dim)[:, -1]
+        return x - abar.sqrt() * current[:, None, list(self.config.action_obs_indices)]
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        """``n`` plans ``(n, horizon, 2)`` in env units by DDIM; the initial noise comes from ``generator``."""
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-            raise ValueError(f"n must be a positive int, got {n!r}")
-        if generator is not None and not isinstance(generator, np.random.Generator):
-            raise TypeError(f"generator must be a numpy Generator or None, got {type(generator).__name__}")
-        rng = generator if generator is not None else np.random.default_rng()
+        """``n`` plans ``(n, horizon, action_dim)`` in data units by DDIM, the initial noise from ``generator``.
+
+        ``obs`` is an env observation or a history of them, oldest first.
+        """
+        rng = check_sample_args(n, generator)
         noise = rng.standard_normal((int(n), self.horizon, self.action_dim), dtype=np.float32)
         with torch.no_grad():
             cond = self.encode_obs(obs)
@@ -415,21 +343,16 @@ class DiffusionPolicy(TorchPolicy):
         return x
 
     # ------------------------------------------------------------ training
-    @property
-    def window_layout(self) -> dict[str, int]:
-        """``PlanWindows`` arguments giving this policy's training pairs (LeRobot layout)."""
-        return {"n_obs": self.n_obs_steps, "horizon": self.horizon, "action_start": 1 - self.n_obs_steps}
-
     def loss(self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Denoising MSE (epsilon or v target) on a batch: ``obs (B, n_obs, 2)``, ``plans (B, H, 2)`` in env units."""
+        """Denoising MSE (epsilon or v target): ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, H, action_dim)``."""
         b = plans.shape[0]
-        if obs.shape != (b, self.n_obs_steps, self.action_dim) or plans.shape[1:] != (self.horizon, self.action_dim):
+        if obs.shape != (b, self.n_obs_steps, self.obs_dim) or plans.shape[1:] != (self.horizon, self.action_dim):
             raise ValueError(
-                f"expected obs (B, {self.n_obs_steps}, {self.action_dim}) and plans (B, {self.horizon}, "
+                f"expected obs (B, {self.n_obs_steps}, {self.obs_dim}) and plans (B, {self.horizon}, "
                 f"{self.action_dim}), got {tuple(obs.shape)} and {tuple(plans.shape)}"
             )
         x0 = self.normalize(plans.to(self._device, torch.float32))
-        cond = self.normalize(obs.to(self._device, torch.float32)).reshape(b, -1)
+        cond = self.obs_normalizer.normalize(obs.to(self._device, torch.float32)).reshape(b, -1)
         gen_device = generator.device if generator is not None else self._device
         noise = torch.randn(x0.shape, generator=generator, device=gen_device).to(self._device)
         t = torch.randint(0, self.config.num_train_timesteps, (b,), generator=generator, device=gen_device)
@@ -443,24 +366,23 @@ class DiffusionPolicy(TorchPolicy):
         return nn.functional.mse_loss(out, abar.sqrt() * noise - (1 - abar).sqrt() * x0_rel)
 
     # --------------------------------------------------------- persistence
-    def save(self, path: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> Path:
-        """Write weights, config and normalization bounds to a ``.safetensors`` file atomically."""
-        config = {
-            "format": FORMAT,
-            "model": self.config.to_dict(),
-            "low": self.low.tolist(),
-            "high": self.high.tolist(),
-            "extra": dict(extra or {}),
-        }
-        return write_checkpoint(path, self.model.state_dict(), config)
+    @classmethod
+    def upgrade_legacy_config(cls, values: Mapping[str, Any]) -> DiffusionConfig:
+        """The config of a pre-factory DP (2-D positions; observation = the xy of the env observation)."""
+        old = dict(values)
+        d = int(old.get("action_dim", 2))
+        return DiffusionConfig.from_dict(
+            {
+                **old,
+                "obs_dim": d,
+                "normalization": "min_max",
+                "obs_indices": list(range(d)),
+                "action_obs_indices": list(range(d)),
+            }
+        )
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str], device: str | torch.device = "cpu") -> DiffusionPolicy:
-        """A policy from a file written by :meth:`save` (safetensors: loading runs no code)."""
-        tensors, config = read_checkpoint(path, FORMAT)
-        model_cfg = dict(config["model"])
-        policy = cls(DiffusionConfig(**model_cfg), config["low"], config["high"], device=device)
-        policy.model.load_state_dict(tensors)
-        policy.model.to(policy.device).eval()
-        policy.checkpoint_info = dict(config.get("extra", {}))
-        return policy
+    def upgrade_legacy(cls, header: Mapping[str, Any]) -> tuple[DiffusionConfig, dict[str, Any]]:
+        """Config and statistics of a pre-factory checkpoint (one min-max box for positions and plans)."""
+        bounds = {"min": header["low"], "max": header["high"]}
+        return cls.upgrade_legacy_config(header["model"]), {"observation": bounds, "action": bounds}

@@ -1,10 +1,10 @@
 """GLiDE mode classifier: grounding modes from success-labelled trajectories (thesis §4.2).
 
 The classifier ``phi`` maps a state to a belief over ``K`` modes (an MLP with
-one hidden layer of 128 ReLU units and a softmax, glide.md). It is trained
-without any mode labels, only from which trajectories succeeded, through a
-differentiable forward model of task success built on the feasibility
-matrix ``F`` (``F[i, j] = 0`` for feasible moves, negative otherwise):
+one hidden layer of 128 ReLU units and a softmax). It is trained without any
+mode labels, only from which trajectories succeeded, through a differentiable
+forward model of task success built on the feasibility matrix ``F``
+(``F[i, j] = 0`` for feasible moves, negative otherwise):
 
 * transition score ``f_t = phi(s_t)^T F phi(s_{t+1})``;
 * ``L_succ = -mean_{tau+} mean_t f_t`` -- successes make only feasible moves;
@@ -20,26 +20,21 @@ matrix ``F`` (``F[i, j] = 0`` for feasible moves, negative otherwise):
 with the public code's weights 1000 / 1 / 10 / 10 as defaults (``w_dyn = 0``
 for the fully actuated PolygonNav). Any weight set to 0 ablates its term.
 
-Optimisation (what we found necessary; the public code instead runs tens of
-thousands of full-batch epochs): ten heads are trained in parallel (loss
-``(1 - b) * mean_head + b * best_head``, as in the public code) and the head
-with the lowest *training loss* is kept (never chosen by ground truth); the
-weight of ``L_succ`` is warmed up geometrically over the first half of
-training, because at full weight from the start it drives every head into
-labellings where one mode fills whole regions before the failures can act.
-Heads typically leave the warm-up in a labelling that drops one mode of the
-plan (every failure explained, every success paying one skipped mode) and
-escape from it at random times afterwards; on the 5-mode PolygonNav layouts
-only one or two heads in six escaped within 2000 epochs, so the default is
-ten heads (the public code's number) rather than more epochs (1400 epochs
-were clearly worse). Escapes happened between 50 % and 70 % of training and
-the eventual best heads were among the three best at 60 %, so at 60 % only the
-three heads with the lowest training loss train on (about 72 % of the cost of
-ten heads throughout; it keeps training under two minutes on a 5-mode layout).
-Training is full batch over *distinct* states and *distinct* transitions:
-replays share most of their states and whole stretches of transitions with
-their demo, so per-trajectory sums are taken over runs of consecutive
-transitions with one cumulative sum (exact, see :func:`pack_trajectories`).
+Optimisation (:class:`GlideTrainConfig`): several heads train in parallel
+(loss ``(1 - b) * mean_head + b * best_head``) and the head with the lowest
+*training loss* is kept (never one chosen by ground truth); after a fraction
+of training only the best few heads train on. The weight of ``L_succ`` is
+warmed up geometrically over the first half of training: at full weight from
+the start it drives the heads into labellings where one mode fills whole
+regions before the failures can act. Training is full batch over *distinct*
+states and *distinct* transitions: replays share most of their states and
+whole stretches of transitions with their demo, so per-trajectory sums are
+taken over runs of consecutive transitions with one cumulative sum (exact,
+see :func:`pack_trajectories`).
+
+Once trained, the classifier only provides labels:
+:func:`label_demonstrations` labels every state of the demonstrations, which
+:mod:`steer_envs.data.segmentation` (and GLiDE's policies) turn into modes.
 """
 
 from __future__ import annotations
@@ -84,7 +79,11 @@ class GlideLossWeights:
             raise ValueError(f"fail_clip must be a negative float, got {self.fail_clip!r}")
 
     def without(self, *terms: str) -> GlideLossWeights:
-        """These weights with ``terms`` switched off (e.g. ``without("succ", "fail")``)."""
+        """These weights with ``terms`` switched off.
+
+        >>> GlideLossWeights().without("succ", "fail").succ
+        0.0
+        """
         for t in terms:
             if t not in LOSS_TERMS:
                 raise ValueError(f"unknown loss term {t!r}; expected one of {LOSS_TERMS}")
@@ -99,17 +98,17 @@ class GlideTrainConfig:
         epochs: full-batch Adam steps.
         lr: initial learning rate (cosine-decayed to ``lr * lr_final_ratio``).
         hidden: hidden units of the MLP.
-        n_heads: classifiers trained in parallel; the best by training loss is kept.
+        n_heads: classifiers trained in parallel; the best by training loss is kept
+            (the GLiDE suites' setting: 5 heads, the best 2 after pruning).
         best_head_weight: ``b`` in ``(1 - b) * mean_head_loss + b * best_head_loss``.
         prune_at, prune_to: after the fraction ``prune_at`` of the steps, only the
             ``prune_to`` heads with the lowest training loss (full weights) train on;
-            the others are dropped (restarts cost compute only while they can still
-            win: heads that leave the warm-up stuck and have not escaped by then
-            stayed stuck in our runs). ``prune_to >= n_heads`` never prunes.
+            the others are dropped, so restarts cost compute only while they can still
+            win. ``prune_to >= n_heads`` never prunes.
         stride: keep every ``stride``-th state of each trajectory (its last state always).
         init_mode_bias: added to the initial mode's output bias at initialisation,
             so training starts from "every state is in the plan's first mode"
-            (see the module docstring).
+            (0: off).
         succ_warmup: fraction of the steps over which the weight of ``L_succ``
             grows geometrically from ``succ_warmup_start`` times its value to its
             value (0: no warm-up).
@@ -121,16 +120,19 @@ class GlideTrainConfig:
         num_threads: torch intra-op threads during training (None: leave torch's setting); 1 by
             default: the networks are small and extra threads mostly spin on a shared CPU.
         progress: show a tqdm bar over epochs.
+
+    >>> GlideTrainConfig().n_heads, GlideTrainConfig().prune_to, GlideTrainConfig(n_heads=1).epochs
+    (5, 2, 2000)
     """
 
     epochs: int = 2000
     lr: float = 1e-2
     lr_final_ratio: float = 0.05
     hidden: int = 128
-    n_heads: int = 10
+    n_heads: int = 5
     best_head_weight: float = 0.9
     prune_at: float = 0.6
-    prune_to: int = 3
+    prune_to: int = 2
     stride: int = 1
     n_batches: int = 1
     init_mode_bias: float = 0.0
@@ -175,7 +177,35 @@ class GlideTrainConfig:
 class ModePredictor(Protocol):
     """Anything that labels states with mode indices (classifier, k-means baseline)."""
 
-    def predict(self, states: np.ndarray) -> np.ndarray: ...
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        """The mode index of each state ``(N, d) -> (N,)``."""
+        ...
+
+
+def label_demonstrations(predictor: ModePredictor, demos: Sequence[np.ndarray], num_modes: int) -> list[np.ndarray]:
+    """The predicted mode of every state of every demo (``(T_i,)`` int arrays).
+
+    The labels are what :func:`~steer_envs.data.segmentation.segment_demonstrations`
+    splits demonstrations by; a mode outside ``[0, num_modes)`` is an error.
+
+    >>> import numpy as np
+    >>> class LeftRight:  # mode 1 right of x = 0
+    ...     def predict(self, s): return (np.asarray(s)[:, 0] > 0).astype(int)
+    >>> label_demonstrations(LeftRight(), [np.array([[-1.0, 0.0], [1.0, 0.0]])], 2)
+    [array([0, 1])]
+    """
+    if len(demos) == 0:
+        raise ValueError("demos must not be empty")
+    out = []
+    for i, d in enumerate(demos):
+        arr = np.asarray(d, dtype=np.float64)
+        if arr.ndim != 2:
+            raise ValueError(f"demos[{i}] must be (T, d), got {arr.shape}")
+        modes = np.asarray(predictor.predict(arr), dtype=np.int64)
+        if np.any((modes < 0) | (modes >= num_modes)):
+            raise ValueError(f"the predictor returned modes outside [0, {num_modes}) for demos[{i}]")
+        out.append(modes)
+    return out
 
 
 # -------------------------------------------------------------------------- models
@@ -190,6 +220,9 @@ class ModeClassifier(nn.Module):
     Inputs are standardised with the ``mean``/``scale`` buffers (set from the
     training states). ``head`` selects the head :meth:`predict_proba` uses.
     """
+
+    mean: torch.Tensor
+    scale: torch.Tensor
 
     def __init__(self, state_dim: int, num_modes: int, *, hidden: int = 128, n_heads: int = 1, seed: int = 0) -> None:
         super().__init__()
@@ -563,6 +596,14 @@ def train_mode_classifier(
         weights: loss weights (default: the public code's 1000 / 1 / 10 / 10).
         config: optimisation settings.
         init_mode, final_mode: the plan's first and last mode (default ``0`` and ``K - 1``).
+
+    >>> import numpy as np
+    >>> line = np.stack([np.linspace(-1, 1, 21), np.zeros(21)], axis=1)
+    >>> feasibility = np.array([[0.0, 0.0], [-1.0, 0.0]])  # mode 1 -> 0 is infeasible
+    >>> result = train_mode_classifier(  # a success, and a failure that turns back
+    ...     [line, line[::-1][:8]], [True, False], feasibility, config=GlideTrainConfig(epochs=50, n_heads=2))
+    >>> result.classifier.predict(np.array([[-1.0, 0.0], [1.0, 0.0]])).tolist(), len(result.head_losses)
+    ([0, 1], 2)
     """
     weights = weights or GlideLossWeights()
     config = config or GlideTrainConfig()
@@ -611,7 +652,7 @@ def train_mode_classifier(
             "final_mode": final_mode,
             "state_scale": clf.scale,
         }
-        opt = torch.optim.Adam(params, lr=config.lr)
+        opt: torch.optim.Optimizer = torch.optim.Adam(params, lr=config.lr)
         lr_min = config.lr * config.lr_final_ratio
         prune_step = round(config.prune_at * steps) if config.prune_to < config.n_heads else -1
         history: dict[str, list[Any]] = {t: [] for t in (*LOSS_TERMS, "total", "heads")}
@@ -661,7 +702,11 @@ def train_mode_classifier(
 
 # --------------------------------------------------------------------------- metrics
 def workspace_grid(low: np.ndarray, high: np.ndarray, resolution: int = 200) -> np.ndarray:
-    """``resolution x resolution`` grid points ``(R*R, 2)`` spanning the box ``[low, high]``."""
+    """``resolution x resolution`` grid points ``(R*R, 2)`` spanning the box ``[low, high]``.
+
+    >>> workspace_grid(np.zeros(2), np.ones(2), 2).tolist()
+    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+    """
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 2:
         raise ValueError(f"resolution must be an int >= 2, got {resolution!r}")
     lo, hi = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
@@ -673,7 +718,11 @@ def workspace_grid(low: np.ndarray, high: np.ndarray, resolution: int = 200) -> 
 
 
 def mode_overlap(predicted: np.ndarray, truth: np.ndarray) -> float:
-    """Fraction of points whose predicted mode equals the true mode (glide.md overlap metric)."""
+    """Fraction of points whose predicted mode equals the true mode (the grounding study's overlap).
+
+    >>> mode_overlap(np.array([0, 1, 1, 2]), np.array([0, 1, 2, 2]))
+    0.75
+    """
     p, t = np.asarray(predicted), np.asarray(truth)
     if p.shape != t.shape or p.ndim != 1 or len(p) == 0:
         raise ValueError(f"predicted and truth must be equal-length 1-D arrays, got {p.shape} and {t.shape}")
@@ -681,7 +730,11 @@ def mode_overlap(predicted: np.ndarray, truth: np.ndarray) -> float:
 
 
 def mode_iou(predicted: np.ndarray, truth: np.ndarray, num_modes: int) -> np.ndarray:
-    """Per-mode intersection over union ``(K,)`` (stricter than overlap: free space dominates the grid)."""
+    """Per-mode intersection over union ``(K,)`` (stricter than overlap where one mode dominates the grid).
+
+    >>> mode_iou(np.array([0, 1, 1, 2]), np.array([0, 1, 2, 2]), 3).round(2).tolist()
+    [1.0, 0.5, 0.5]
+    """
     p, t = np.asarray(predicted), np.asarray(truth)
     if p.shape != t.shape:
         raise ValueError(f"predicted and truth must have the same shape, got {p.shape} and {t.shape}")
@@ -702,6 +755,7 @@ __all__ = [
     "ModePredictor",
     "PackedTrajectories",
     "glide_losses",
+    "label_demonstrations",
     "mode_iou",
     "mode_overlap",
     "pack_trajectories",

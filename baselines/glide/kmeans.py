@@ -23,6 +23,12 @@ class KMeansSegmentation:
         num_modes: number of clusters ``K`` (the plan's number of modes).
         seed: seeds k-means++.
         n_init: k-means restarts (best inertia kept).
+
+    >>> import numpy as np
+    >>> demo = np.stack([np.linspace(0, 9, 30), np.zeros(30)], axis=1)  # moves right over time
+    >>> km = KMeansSegmentation(3, n_init=1).fit([demo])
+    >>> km.predict(np.array([[0.0, 0.0], [4.5, 0.0], [9.0, 0.0]])).tolist()
+    [0, 1, 2]
     """
 
     def __init__(self, num_modes: int, *, seed: int = 0, n_init: int = 10) -> None:

@@ -104,6 +104,10 @@ class RecordedProvider:
 
     The first key that occurs in the prompt (in insertion order) wins, so keys
     can be task descriptions. No network; used by the tests and examples.
+
+    >>> provider = RecordedProvider({"lift": "<plan>steps = []</plan>"})
+    >>> provider.complete("Task: lift the cube"), len(provider.prompts)
+    ('<plan>steps = []</plan>', 1)
     """
 
     def __init__(self, responses: Mapping[str, str]) -> None:
@@ -131,7 +135,12 @@ class RecordedProvider:
 
 
 def build_prompt(task: str, available_features: Sequence[str]) -> str:
-    """The full prompt: thesis instructions + task description + available features."""
+    """The full prompt: thesis instructions + task description + available features.
+
+    >>> prompt = build_prompt("Lift the cube.", ["cube_pos", "gripper_state"])
+    >>> prompt.startswith(SYSTEM_PROMPT), "available_features = ['cube_pos', 'gripper_state']" in prompt
+    (True, True)
+    """
     if not isinstance(task, str) or not task.strip():
         raise ValueError("task must be a non-empty description")
     feats = list(available_features)
@@ -211,7 +220,11 @@ _TAGS = {
 
 
 def extract_tag(text: str, tag: str) -> str | None:
-    """Content of the first ``<tag>...</tag>`` in ``text`` (None if absent)."""
+    """Content of the first ``<tag>...</tag>`` in ``text`` (None if absent).
+
+    >>> extract_tag("a <plan>x = 1</plan> b", "plan"), extract_tag("no tags", "plan")
+    ('x = 1', None)
+    """
     m = re.search(rf"<{re.escape(tag)}>(.*?)</{re.escape(tag)}>", text, flags=re.DOTALL)
     return None if m is None else m.group(1)
 
@@ -244,6 +257,15 @@ def parse_plan_response(text: str) -> GlidePlan:
     ``<plan>`` and ``<feasibility>`` are required; ``<selected_features>`` and
     ``<goal>``/``<goals>`` are optional. Raises ValueError naming the tag on
     malformed content, unknown step ids or duplicate ids.
+
+    >>> plan = parse_plan_response(
+    ...     "<plan>steps = [{'id': 1, 'desc': 'Reach'}, {'id': 2, 'desc': 'Grasp'}, {'id': 3, 'desc': 'Lift'}]</plan>"
+    ...     "<feasibility>feasibility = {(1, 2): True, (2, 3): True, (1, 3): False}</feasibility>"
+    ... )
+    >>> plan.mode_names()
+    ('1: Reach', '2: Grasp', '3: Lift')
+    >>> plan.feasibility_matrix().tolist()  # skipping a step costs one infeasible move
+    [[0.0, 0.0, -1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
     """
     if not isinstance(text, str):
         raise TypeError(f"text must be a str, got {type(text).__name__}")
@@ -306,7 +328,12 @@ def parse_plan_response(text: str) -> GlidePlan:
 
 
 def request_plan(provider: LLMProvider, task: str, available_features: Iterable[str]) -> GlidePlan:
-    """Prompt ``provider`` for a plan of ``task`` and parse its response."""
+    """Prompt ``provider`` for a plan of ``task`` and parse its response.
+
+    >>> reply = "<plan>[{'id': 1, 'desc': 'a'}, {'id': 2, 'desc': 'b'}]</plan><feasibility>{(1, 2): True}</feasibility>"
+    >>> request_plan(RecordedProvider({"Push": reply}), "Push the block.", ["block_pos"]).num_modes
+    2
+    """
     if not isinstance(provider, LLMProvider):
         raise TypeError(f"provider must implement complete(prompt) -> str, got {type(provider).__name__}")
     response = provider.complete(build_prompt(task, list(available_features)))

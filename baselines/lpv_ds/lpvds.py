@@ -30,6 +30,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import cvxpy as cp
 import numpy as np
@@ -70,7 +71,13 @@ class StabilityReport:
 
 
 def velocities_from_positions(positions: ArrayLike, dt: float, window: int = 11, order: int = 3) -> np.ndarray:
-    """Velocities of one sampled trajectory ``(T, d)`` by a Savitzky-Golay derivative (as the public TLI code)."""
+    """Velocities of one sampled trajectory ``(T, d)`` by a Savitzky-Golay derivative (as the public TLI code).
+
+    >>> import numpy as np
+    >>> x = np.stack([np.linspace(0, 1, 21), np.zeros(21)], axis=1)
+    >>> np.round(velocities_from_positions(x, dt=0.05)[10], 6).tolist()
+    [1.0, 0.0]
+    """
     x = _as_points(positions, "positions")
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a positive finite float, got {dt!r}")
@@ -95,6 +102,13 @@ class LPVDS:
         attractor_tol: how far (in units of the data's bounding-box diagonal) every
             demonstration's last point may be from the attractor.
         random_state: seed of the GMM fit (the fit is deterministic given it).
+
+    >>> import numpy as np
+    >>> t = np.linspace(0.0, 1.0, 60)[:, None]
+    >>> demo = np.hstack([4 * (1 - t), 2 * (1 - t) ** 2])  # a curve ending at the origin
+    >>> ds = LPVDS(n_components=1).fit(demo, velocities_from_positions(demo, dt=0.01), attractor=np.zeros(2))
+    >>> ds.check_stability().stable, ds(np.array([[1.0, 1.0]])).shape
+    (True, (1, 2))
     """
 
     def __init__(
@@ -149,7 +163,13 @@ class LPVDS:
         means: ArrayLike,
         covariances: ArrayLike,
     ) -> LPVDS:
-        """An LPV-DS from given parameters (``b_k = -A_k x*``); no certificate is assumed, see ``check_stability``."""
+        """An LPV-DS from given parameters (``b_k = -A_k x*``); no certificate is assumed, see ``check_stability``.
+
+        >>> import numpy as np
+        >>> ds = LPVDS.from_parameters(np.zeros(2), np.eye(2), [-np.eye(2)], [1.0], [np.zeros(2)], [np.eye(2)])
+        >>> ds(np.array([[1.0, 2.0]])).tolist(), ds.check_stability().stable
+        ([[-1.0, -2.0]], True)
+        """
         ds = cls()
         att = np.asarray(attractor, dtype=np.float64)
         if att.ndim != 1:
@@ -205,7 +225,7 @@ class LPVDS:
             infeasible stability program.
         """
         start = time.perf_counter()
-        # small dense problems: BLAS threads only add contention (10x slower on a busy 2-core machine)
+        # small dense problems: BLAS threads only add contention
         with threadpool_limits(limits=1):
             self._fit(positions, velocities, attractor)
         self.fit_seconds = time.perf_counter() - start
@@ -232,7 +252,7 @@ class LPVDS:
         ends = np.stack([x[-1] for x in xs])
         att = ends.mean(axis=0) if attractor is None else np.asarray(attractor, dtype=np.float64)
         if att.shape != (d,) or not np.all(np.isfinite(att)):
-            raise ValueError(f"attractor must be a finite vector of shape ({d},), got {np.shape(attractor)}")
+            raise ValueError(f"attractor must be a finite vector of shape ({d},), got {np.shape(att)}")
         extent = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
         if extent <= 0:
             raise ValueError("positions are all identical; the demonstrations do not move")
@@ -298,7 +318,8 @@ class LPVDS:
         objective = cp.sum(cp.pos(G @ cp.vec(P, order="C"))) / len(xu) + 1e-3 * cp.sum_squares(P - np.eye(d))
         constraints = [P >> self.eps * np.eye(d), cp.trace(P) == d]
         _solve(cp.Problem(cp.Minimize(objective), constraints), "Lyapunov matrix P")
-        Pv = 0.5 * (P.value + P.value.T)
+        p_value = cast(np.ndarray, P.value)
+        Pv = 0.5 * (p_value + p_value.T)
         evals, evecs = np.linalg.eigh(Pv)
         return (evecs * np.maximum(evals, self.eps)) @ evecs.T  # clean tiny solver negatives
 
@@ -316,7 +337,7 @@ class LPVDS:
             Q = Ak.T @ self.P + self.P @ Ak
             constraints += [0.5 * (Q + Q.T) << -self.eps * np.eye(d), cp.norm(Ak, "fro") <= self.a_max]
         _solve(cp.Problem(cp.Minimize(objective), constraints), "linear systems A_k")
-        return np.stack([Ak.value for Ak in A])
+        return np.stack([cast(np.ndarray, Ak.value) for Ak in A])
 
     # ---------------------------------------------------------------- evaluate
     def _require_fit(self) -> None:
@@ -405,8 +426,7 @@ def _thin_matmul(x: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``x @ m.T`` for a small inner dimension ``d`` by broadcasting: no BLAS call.
 
     BLAS threads cost more than they give on ``(N, d) x (d, K d)`` products with
-    ``d`` = 2 or 3 (several times slower on a busy machine); ``d`` fused
-    multiply-adds over ``(N, K d)`` arrays are cheap.
+    ``d`` = 2 or 3; ``d`` fused multiply-adds over ``(N, K d)`` arrays are cheap.
     """
     out = x[:, 0, None] * m[None, :, 0]
     for j in range(1, x.shape[1]):
@@ -445,7 +465,7 @@ def _as_demos(value: ArrayLike | Sequence[ArrayLike], name: str) -> list[np.ndar
     if isinstance(value, np.ndarray) or (
         isinstance(value, Sequence) and len(value) > 0 and np.ndim(value[0]) == 1  # type: ignore[arg-type]
     ):
-        return [_as_points(value, name)]
+        return [_as_points(cast(ArrayLike, value), name)]
     if not isinstance(value, Sequence) or len(value) == 0:
         raise TypeError(f"{name} must be a (T, d) array or a non-empty list of them, got {type(value).__name__}")
     return [_as_points(v, f"{name}[{i}]") for i, v in enumerate(value)]
@@ -466,9 +486,13 @@ def _benchmark_demos(n_demos: int, n_points: int, seed: int) -> tuple[list[np.nd
 
 
 def benchmark_fit_time(n_demos: int = 3, n_points: int = 200, seed: int = 0) -> dict[str, float]:
-    """Time an LPV-DS fit of ``n_demos`` x ``n_points`` curved 2D demonstrations (issue: < 5 s).
+    """Time an LPV-DS fit of ``n_demos`` x ``n_points`` curved 2D demonstrations (the fit-time benchmark).
 
     Returns ``{"fit_seconds", "n_components", "worst_margin", "n_points"}``.
+
+    >>> result = benchmark_fit_time(n_demos=1, n_points=60)
+    >>> sorted(result), result["worst_margin"] < 0
+    (['fit_seconds', 'n_components', 'n_points', 'worst_margin'], True)
     """
     xs, vs = _benchmark_demos(n_demos, n_points, seed)
     ds = LPVDS(random_state=seed).fit(xs, vs, attractor=np.zeros(2))

@@ -48,7 +48,7 @@ import warnings
 from collections import Counter
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -174,7 +174,7 @@ def fit_mode_dynamics(
     d = parsed[0][0].shape[1]
     entered_from: dict[str, Counter[str]] = {}  # mode -> the modes the demonstrations entered it from
     for _, lab, _ in parsed:
-        names = [task.modes[task.mode_index(m)] for m in lab]
+        names = [task.modes[task.mode_index(cast(str | int, m))] for m in lab]
         for a, b in itertools.pairwise(names):
             if a != b:
                 entered_from.setdefault(b, Counter())[a] += 1
@@ -238,6 +238,12 @@ def hold_beyond_cuts(x: ArrayLike, velocity: ArrayLike, cuts: CutSet) -> np.ndar
     in decreasing ``Gamma_k``; each step only lowers the approach to the other
     cuts beyond which the row lies, so none is left approached (a residual from
     rounding is zeroed).
+
+    >>> import numpy as np
+    >>> from steer_envs.wrappers.ds_modulation import Cut, CutSet
+    >>> cuts = CutSet(np.zeros(2), [Cut(point=np.array([1.0, 0.0]), normal=np.array([1.0, 0.0]))])
+    >>> hold_beyond_cuts(np.array([[2.0, 0.0], [0.5, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]), cuts).tolist()
+    [[0.0, 0.0], [1.0, 0.0]]
     """
     xb = np.asarray(x, dtype=np.float64)
     v = np.array(velocity, dtype=np.float64)
@@ -279,6 +285,23 @@ class LTLDSPolicy:
         cut_sets: ``mode -> CutSet`` of the learned cuts.
         failures: ``mode -> [FailureRecord]`` (recorded with and without modulation).
         events: the mode changes since the last :meth:`reset`.
+
+    >>> import gymnasium as gym
+    >>> from steer_envs.data.demos import collect_demonstrations
+    >>> from steer_envs.ltl.specs import for_env
+    >>> env = gym.make("steer_envs/SoupScoop-v0", max_episode_steps=3000)
+    >>> base = env.unwrapped
+    >>> demos = collect_demonstrations("steer_envs/SoupScoop-v0", 1, seed=0)
+    >>> policy = LTLDSPolicy.fit(demos, base.task, for_env(env), max_speed=base.max_speed, dt=base.dt)
+    >>> obs, info = env.reset(seed=0)
+    >>> policy.reset(obs, info)
+    >>> while not info["success"]:
+    ...     obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+    ...     if terminated or truncated:
+    ...         break
+    >>> info["success"], policy.plan[-1]
+    (True, 'd')
+    >>> env.close()
     """
 
     def __init__(
@@ -444,6 +467,7 @@ class LTLDSPolicy:
         x = self._state(obs)
         pushed = bool(info.get("perturbed", False)) or self._jumped(x)
         prev_mode, prev_next, prev_x = self._mode, self._next, self._x
+        mode: str | None
         try:
             mode = self.replanner.update(self._sensors(info))
         except UnknownSensorReading:

@@ -1,15 +1,16 @@
-"""Train the Maze2D Diffusion Policy or ACT on a random-walk dataset (thesis §2.4.1).
+"""Train any registered trajectory policy (DP, ACT) on any trajectory dataset; check a recorded run.
 
-``python -m steer_envs.baselines.training {dp,act} --data walk.npz --out dp.safetensors --steps N --seed S``
+``python -m steer_envs.baselines.training --policy dp --dataset FILE --preset cpu --out dp.safetensors``
 
-``... dp --preset itps --device cuda --data walk.npz --out dp.safetensors`` trains
-ITPS's full-size network and optimizer settings (a GPU job: ~16M parameters,
-100k steps at batch 256); ``--model KEY=VALUE`` overrides one architecture
-field (``--model down_dims=[32,64,128]``), ``--steps`` etc. the preset's training.
+* ``--preset NAME``: a registered (model config, training settings) pair of
+  the policy (:func:`steer_envs.baselines.factory.get_preset`);
+* ``--model KEY=VALUE``: override one config field (``down_dims=[32,64,128]``);
+  ``--train KEY=VALUE`` or ``--steps``, ``--lr``, ... one training setting;
+* ``--dataset``: a :mod:`steer_envs.data.trajectories` file or a Maze2D random walk.
 
-``... {dp,act} --data walk.npz --check dp.json --check-steps 200`` re-runs the
-first steps of a recorded run and compares the logged losses (a cheap check
-that the committed command reproduces a shipped checkpoint's training).
+``... --policy dp --dataset FILE --check dp.json --check-steps 200`` re-runs
+the first steps of the run recorded in ``dp.json`` and compares the logged
+losses (a cheap check that a recorded command reproduces a checkpoint).
 
 Training is deterministic for a given seed, thread count and device: batches
 are drawn by a ``numpy`` generator, diffusion noise / timesteps and the VAE's
@@ -17,157 +18,56 @@ reparameterization noise by a ``torch.Generator``, dropout by torch's global
 RNG seeded inside ``torch.random.fork_rng`` (the caller's RNG state is left
 alone). Optimizer: AdamW with a linear warm-up and cosine decay to 0
 (``diffusers.optimization``), gradient-norm clipping. The checkpoint is a
-safetensors file; a JSON file beside it (same stem) records the model config,
-the training settings, the data's provenance, the loss curve and the wall time.
-Both are written atomically.
+safetensors file; a JSON record beside it (same stem) holds the policy, the
+preset, the config, the training settings, the data's provenance, the loss
+curve and the wall time. Both are written atomically.
 
-Data layout (``PlanWindows``): DP conditions on 2 positions and predicts the
-64 positions starting at the current one (LeRobot / ITPS); ACT conditions on
-the current position and predicts the next 64. With ``static_history_prob`` a
-fraction of DP's histories are replaced by the current position repeated, the
-history a policy sees right after a reset (the steering suite starts at rest).
+>>> import numpy as np
+>>> from steer_envs.baselines.factory import make_policy, make_policy_config
+>>> from steer_envs.data.trajectories import TrajectoryDataset
+>>> data = TrajectoryDataset(np.random.default_rng(0).normal(size=(40, 3)), np.zeros((40, 2)))
+>>> policy = make_policy(make_policy_config("act", chunk_size=4, d_model=8, n_heads=1, dim_feedforward=8), dataset=data)
+>>> record = train_policy(policy, data, TrainSettings(steps=2, batch_size=4, log_every=1), progress=False)
+>>> [step for step, _ in record["losses"]]
+[1, 2]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from steer_envs.baselines.act.modeling import ACTConfig, ACTPolicy
-from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
-from steer_envs.data.maze_random_walk import PlanWindows, RandomWalkDataset, load_random_walk
+from steer_envs.baselines.common.configuration import PolicyConfig, TrainSettings
+from steer_envs.baselines.common.torch_policy import TorchPolicy
+from steer_envs.baselines.factory import get_policy_class, get_preset, make_policy, policy_names
+from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
 from steer_envs.io import atomic_write_text
 from steer_envs.utils.cli import parse_key_value
 
 __all__ = [
-    "KINDS",
-    "PRESETS",
-    "TrainSettings",
-    "build_policy",
     "check_record",
     "main",
-    "parse_model_overrides",
+    "parse_overrides",
+    "read_record",
+    "sidecar_path",
     "train_policy",
 ]
 
-KINDS = ("dp", "act")
-
-#: named (architecture, training) settings per policy kind. ``cpu``: the shipped checkpoints (the
-#: config defaults); ``itps``: the public ITPS maze configs (shared/reference/itps.md), sized for a GPU.
-#: ``static_history_prob`` stays 0.2 for DP: our suites start the agent at rest.
-PRESETS: dict[str, dict[str, dict[str, dict[str, Any]]]] = {
-    "cpu": {
-        "dp": {"model": {}, "train": {"steps": 30_000}},
-        "act": {"model": {}, "train": {"steps": 3_000}},
-    },
-    "itps": {
-        "dp": {
-            "model": {
-                "down_dims": (128, 256, 512),
-                "step_embed_dim": 128,
-                "prediction": "epsilon",
-                "relative": False,
-                "time_channel": False,
-                "obs_embed_dim": 0,
-            },
-            "train": {"steps": 100_000, "batch_size": 256, "lr": 1e-4, "warmup_steps": 500},
-        },
-        "act": {
-            "model": {
-                "d_model": 512,
-                "n_heads": 8,
-                "dim_feedforward": 3200,
-                "n_encoder_layers": 4,
-                "n_decoder_layers": 1,
-                "n_vae_encoder_layers": 4,
-            },
-            "train": {"steps": 100_000, "batch_size": 256, "lr": 1e-5},
-        },
-    },
-}
-
-
-@dataclass(frozen=True)
-class TrainSettings:
-    """Optimization settings; :meth:`defaults` gives each policy's."""
-
-    steps: int = 1000
-    batch_size: int = 64
-    lr: float = 1e-3
-    weight_decay: float = 1e-6
-    betas: tuple[float, float] = (0.95, 0.999)
-    warmup_steps: int = 200
-    grad_clip: float = 10.0
-    static_history_prob: float = 0.0
-    ema_power: float = 0.0
-    seed: int = 0
-    log_every: int = 50
-
-    def __post_init__(self) -> None:
-        for name in ("steps", "batch_size", "warmup_steps", "seed", "log_every"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-        if self.steps < 1 or self.batch_size < 1 or self.log_every < 1:
-            raise ValueError("steps, batch_size and log_every must be >= 1")
-        if self.warmup_steps < 0 or self.seed < 0:
-            raise ValueError("warmup_steps and seed must be >= 0")
-        for name in ("lr", "grad_clip"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite float, got {value!r}")
-        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
-            raise ValueError(f"weight_decay must be a finite float >= 0, got {self.weight_decay!r}")
-        if not 0 <= self.static_history_prob <= 1:
-            raise ValueError(f"static_history_prob must be in [0, 1], got {self.static_history_prob!r}")
-        if not (math.isfinite(self.ema_power) and 0 <= self.ema_power <= 1):
-            raise ValueError(f"ema_power must be in [0, 1] (0 = no EMA), got {self.ema_power!r}")
-
-    @staticmethod
-    def defaults(kind: str, **overrides: Any) -> TrainSettings:
-        """Per-policy defaults: DP AdamW 2e-3 (betas 0.95/0.999, wd 1e-6: ITPS but the lr); ACT AdamW 3e-4, wd 1e-4."""
-        _check_kind(kind)
-        base: dict[str, Any] = (
-            {"lr": 2e-3, "weight_decay": 1e-6, "betas": (0.95, 0.999), "static_history_prob": 0.2}
-            if kind == "dp"
-            else {"lr": 3e-4, "weight_decay": 1e-4, "betas": (0.9, 0.999), "static_history_prob": 0.0}
-        )
-        base.update({k: v for k, v in overrides.items() if v is not None})
-        return TrainSettings(**base)
-
-
-def _check_kind(kind: str) -> None:
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
-
-
-def build_policy(
-    kind: str, dataset: RandomWalkDataset, *, seed: int = 0, device: str = "cpu", **config: Any
-) -> DiffusionPolicy | ACTPolicy:
-    """A fresh policy whose normalization is fitted to ``dataset`` (DP: min-max; ACT: mean/std of positions)."""
-    _check_kind(kind)
-    if not isinstance(dataset, RandomWalkDataset):
-        raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
-    pts = np.concatenate([dataset.xy, dataset.actions]).astype(np.float64)
-    if kind == "dp":
-        low, high = dataset.xy_bounds()
-        return DiffusionPolicy(DiffusionConfig(**config), low, high, seed=seed, device=device)
-    return ACTPolicy(ACTConfig(**config), pts.mean(axis=0), pts.std(axis=0), seed=seed, device=device)
+PROG = "python -m steer_envs.baselines.training"
 
 
 def train_policy(
-    policy: DiffusionPolicy | ACTPolicy,
-    dataset: RandomWalkDataset,
+    policy: TorchPolicy,
+    dataset: TrajectoryDataset,
     settings: TrainSettings,
     *,
     progress: bool = True,
@@ -181,15 +81,21 @@ def train_policy(
     learning-rate schedule still spans ``settings.steps``): the prefix of a
     long run, to check a recorded loss curve without paying for all of it.
     With ``settings.ema_power > 0`` the policy ends with the exponential moving
-    average of its weights (``diffusers.training_utils.EMAModel``, warm-up
-    decay ``1 - (1 + step) ** -power`` capped at 0.9999, as in Diffusion
-    Policy); the logged losses are the raw weights' and do not change. Pass a
+    average of its weights (``diffusers.training_utils.EMAModel``, capped at
+    0.9999); the logged losses are the raw weights' and do not change. Pass a
     dict as ``raw_weights`` to get the raw (un-averaged) state dict as well.
     """
-    if not isinstance(policy, (DiffusionPolicy, ACTPolicy)):
-        raise TypeError(f"policy must be a DiffusionPolicy or ACTPolicy, got {type(policy).__name__}")
+    if not isinstance(policy, TorchPolicy):
+        raise TypeError(f"policy must be a TorchPolicy (e.g. DiffusionPolicy, ACTPolicy), got {type(policy).__name__}")
+    if not isinstance(dataset, TrajectoryDataset):
+        raise TypeError(f"dataset must be a TrajectoryDataset, got {type(dataset).__name__}")
     if not isinstance(settings, TrainSettings):
         raise TypeError(f"settings must be TrainSettings, got {type(settings).__name__}")
+    if (dataset.obs_dim, dataset.action_dim) != (policy.obs_dim, policy.action_dim):
+        raise ValueError(
+            f"dataset has obs_dim={dataset.obs_dim}, action_dim={dataset.action_dim}; "
+            f"the policy expects {policy.obs_dim}, {policy.action_dim}"
+        )
     if stop_after is not None and not (isinstance(stop_after, int) and 1 <= stop_after <= settings.steps):
         raise ValueError(
             f"stop_after must be None or an int in [1, settings.steps={settings.steps}], got {stop_after!r}"
@@ -197,7 +103,7 @@ def train_policy(
     last = settings.steps if stop_after is None else stop_after
     windows = PlanWindows(dataset, **policy.window_layout)
     if len(windows) == 0:
-        raise ValueError(f"dataset of {len(dataset)} samples is too short for {policy.window_layout}")
+        raise ValueError(f"dataset of {len(dataset)} steps is too short for windows {policy.window_layout}")
     from diffusers.optimization import get_cosine_schedule_with_warmup
 
     model = policy.model
@@ -253,7 +159,7 @@ def train_policy(
     if ema is not None:
         ema.copy_to(model.parameters())
     return {
-        "settings": {**asdict(settings), "betas": list(settings.betas)},
+        "settings": settings.to_dict(),
         "losses": losses,
         "final_loss": losses[-1][1],
         "wall_s": round(time.perf_counter() - tic, 1),
@@ -261,53 +167,8 @@ def train_policy(
         "device": str(policy.device),
         "torch": torch.__version__,
         "windows": len(windows),
-        "data": {k: dataset.meta.get(k) for k in ("format", "maze", "seed", "raw_steps", "subsample")},
+        "data": dataset.provenance(),
     }
-
-
-def check_record(
-    record_path: str | os.PathLike[str], data: str | os.PathLike[str], steps: int = 200, *, progress: bool = False
-) -> dict[str, Any]:
-    """Re-run the first ``steps`` steps of a recorded training run and compare its logged losses.
-
-    ``record_path`` is a checkpoint's JSON record (:func:`sidecar_path`); the
-    model config, settings, seed and thread count come from it. Returns
-    ``{"compared": [[step, recorded, rerun], ...], "max_rel_diff": float}``.
-    Bit-identical on the same torch version, thread count and CPU kind;
-    another CPU's kernels give rounding-level differences that grow slowly.
-    """
-    summary = json.loads(Path(record_path).read_text())
-    try:
-        kind, config, record = summary["kind"], summary["model"], summary["training"]
-        raw = dict(record["settings"])
-    except (KeyError, TypeError) as err:
-        raise ValueError(f"{record_path} is not a train_maze record (missing {err})") from None
-    raw["betas"] = tuple(raw["betas"])
-    settings = TrainSettings(**raw)
-    if not isinstance(steps, int) or not 1 <= steps <= settings.steps:
-        raise ValueError(f"steps must be an int in [1, {settings.steps}], got {steps!r}")
-    dataset = load_random_walk(data)
-    for key in ("maze", "seed", "raw_steps", "subsample"):
-        if dataset.meta.get(key) != record["data"].get(key):
-            raise ValueError(
-                f"data {data} has {key}={dataset.meta.get(key)!r}; the record was trained on "
-                f"{record['data'].get(key)!r}"
-                " (regenerate it with python -m steer_envs.data.maze_random_walk)"
-            )
-    threads = torch.get_num_threads()
-    torch.set_num_threads(int(record.get("threads", threads)))
-    try:
-        config = {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
-        policy = build_policy(kind, dataset, seed=settings.seed, **config)
-        rerun = train_policy(policy, dataset, settings, progress=progress, stop_after=steps)
-    finally:
-        torch.set_num_threads(threads)
-    recorded = {int(s): float(v) for s, v in record["losses"]}
-    compared = [[s, recorded[s], v] for s, v in rerun["losses"] if s in recorded]
-    if not compared:
-        raise ValueError(f"no logged step <= {steps} to compare (the record logs every {settings.log_every})")
-    rel = max(abs(b - a) / max(abs(a), 1e-12) for _, a, b in compared)
-    return {"kind": kind, "compared": compared, "max_rel_diff": rel, "wall_s": rerun["wall_s"]}
 
 
 def _progress(total: int, enabled: bool) -> Any:
@@ -319,69 +180,148 @@ def _progress(total: int, enabled: bool) -> Any:
 
 
 def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
-    """The JSON record beside a checkpoint: ``x.safetensors`` -> ``x.json``."""
+    """The JSON record beside a checkpoint: ``x.safetensors`` -> ``x.json``.
+
+    >>> sidecar_path("runs/dp.safetensors").name
+    'dp.json'
+    """
     return Path(checkpoint).with_suffix(".json")
 
 
-def parse_model_overrides(kind: str, items: list[str] | None) -> dict[str, Any]:
-    """``["key=value", ...]`` -> config overrides for ``kind``'s config; values are JSON (else strings).
+def read_record(summary: Mapping[str, Any]) -> tuple[str, PolicyConfig, TrainSettings, dict[str, Any]]:
+    """``(policy name, config, settings, training record)`` of a training record's JSON.
 
-    Raises ``ValueError`` naming the item when it is not ``key=value`` or the key is not a config field.
+    Reads the records of this CLI (``policy``/``config``) and those written
+    before the policy factory (``kind``/``model``, upgraded by the policy class).
     """
-    _check_kind(kind)
-    fields = set((DiffusionConfig if kind == "dp" else ACTConfig).__dataclass_fields__)
+    try:
+        record = dict(summary["training"])
+        settings = TrainSettings.from_dict(record["settings"])
+        if "policy" in summary:
+            name = str(summary["policy"])
+            config = get_policy_class(name).config_class.from_dict(summary["config"])
+        else:
+            name = str(summary["kind"])
+            config = get_policy_class(name).upgrade_legacy_config(summary["model"])
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"not a training record (missing or malformed {err})") from None
+    return name, config, settings, record
+
+
+def check_record(
+    record_path: str | os.PathLike[str],
+    data: str | os.PathLike[str] | TrajectoryDataset,
+    steps: int = 200,
+    *,
+    policy: str | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Re-run the first ``steps`` steps of a recorded training run and compare its logged losses.
+
+    ``record_path`` is a checkpoint's JSON record (:func:`sidecar_path`); the
+    config, settings, seed and thread count come from it, the data from
+    ``data`` (its provenance must match the record's). ``policy`` (optional)
+    must be the record's policy. Returns ``{"policy", "compared": [[step,
+    recorded, rerun], ...], "max_rel_diff", "wall_s"}``. Bit-identical on the
+    same torch version, thread count and CPU kind; another CPU's kernels give
+    rounding-level differences that grow slowly.
+    """
+    path = Path(record_path)
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise ValueError(f"cannot read the record {str(path)!r}: {err}") from None
+    try:
+        name, config, settings, record = read_record(summary)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
+    if policy is not None and policy != name:
+        raise ValueError(f"--policy is {policy!r} but {path} records a {name!r} run")
+    if not isinstance(steps, int) or isinstance(steps, bool) or not 1 <= steps <= settings.steps:
+        raise ValueError(f"steps must be an int in [1, {settings.steps}], got {steps!r}")
+    dataset = data if isinstance(data, TrajectoryDataset) else load_trajectories(data)
+    recorded_data = {k: v for k, v in dict(record.get("data") or {}).items() if k != "file"}
+    for key, value in recorded_data.items():
+        if dataset.meta.get(key) != value:
+            raise ValueError(
+                f"the dataset has {key}={dataset.meta.get(key)!r}; the record was trained on {value!r} "
+                "(regenerate the data with the recorded command)"
+            )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(int(record.get("threads", threads)))
+    try:
+        fresh = make_policy(config, dataset=dataset, seed=settings.seed)
+        rerun = train_policy(fresh, dataset, settings, progress=progress, stop_after=steps)
+    finally:
+        torch.set_num_threads(threads)
+    recorded = {int(s): float(v) for s, v in record["losses"]}
+    compared = [[s, recorded[s], v] for s, v in rerun["losses"] if s in recorded]
+    if not compared:
+        raise ValueError(f"no logged step <= {steps} to compare (the record logs every {settings.log_every})")
+    rel = max(abs(b - a) / max(abs(a), 1e-12) for _, a, b in compared)
+    return {"policy": name, "compared": compared, "max_rel_diff": rel, "wall_s": rerun["wall_s"]}
+
+
+def parse_overrides(items: list[str] | None, fields: set[str], flag: str) -> dict[str, Any]:
+    """``["key=value", ...]`` -> overrides; values are JSON (else strings), JSON lists become tuples.
+
+    ``ValueError`` naming ``flag`` and the item when it is not ``key=value`` or
+    ``key`` is not in ``fields``.
+
+    >>> parse_overrides(["down_dims=[8,16]", "relative=false"], {"down_dims", "relative"}, "--model")
+    {'down_dims': (8, 16), 'relative': False}
+    """
     out: dict[str, Any] = {}
     for item in items or []:
         try:
             key, value = parse_key_value(item)
         except ValueError as err:
-            raise ValueError(f"--model {err}") from None
+            raise ValueError(f"{flag} {err}") from None
         if key not in fields:
-            raise ValueError(f"--model {key}: not a {kind} config field (one of {', '.join(sorted(fields))})")
+            raise ValueError(f"{flag} {key}: not a field (one of {', '.join(sorted(fields))})")
         out[key] = tuple(value) if isinstance(value, list) else value
     return out
 
 
-def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    try:
-        res = check_record(args.check, args.data, args.check_steps, progress=not args.no_progress)
-    except (OSError, TypeError, ValueError) as err:
-        parser.error(str(err))
-    for step, recorded, rerun in res["compared"]:
-        print(f"step {step:6d}: recorded {recorded:.6f}  re-run {rerun:.6f}")
-    ok = res["max_rel_diff"] <= args.check_rtol
-    verdict = "reproduced" if ok else "DIFFERENT"
-    print(f"{res['kind']}: {verdict}: max relative difference {res['max_rel_diff']:.2e} (rtol {args.check_rtol:g})")
-    return 0 if ok else 1
-
-
-def main(argv: list[str] | None = None) -> int:
-    """CLI entry point (see the module docstring)."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m steer_envs.baselines.training",
-        description="Train the Maze2D Diffusion Policy (dp) or ACT (act) on a random-walk .npz dataset.",
+        prog=PROG,
+        description="Train a trajectory policy (Diffusion Policy, ACT) on a trajectory dataset, "
+        "or check that a recorded training run reproduces.",
     )
-    parser.add_argument("kind", choices=KINDS)
-    parser.add_argument("--data", required=True, help="dataset written by python -m steer_envs.data.maze_random_walk")
+    parser.add_argument("--policy", choices=policy_names(), help="policy to train (with --check: optional)")
+    parser.add_argument(
+        "--dataset",
+        required=True,
+        metavar="FILE",
+        help="training data: a steer_envs.data.trajectories .npz or a maze2d random walk "
+        "(python -m steer_envs.data.maze_random_walk)",
+    )
     parser.add_argument("--out", help="checkpoint path (.safetensors); a .json record goes beside it")
     parser.add_argument(
         "--preset",
-        choices=sorted(PRESETS),
         default="cpu",
-        help="architecture + training: cpu (the shipped checkpoints, default) or itps (ITPS's full size; a GPU job)",
+        help="registered (model, training) preset of the policy, e.g. cpu (the shipped checkpoints, default) "
+        "or itps (ITPS's full size; a GPU job)",
     )
     parser.add_argument(
         "--model",
         action="append",
         metavar="KEY=VALUE",
-        help="override one architecture field of the preset, VALUE as JSON (repeatable), e.g. down_dims=[32,64,128]",
+        help="override one field of the preset's model config, VALUE as JSON (repeatable), e.g. down_dims=[32,64]",
+    )
+    parser.add_argument(
+        "--train",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override one training setting, VALUE as JSON (repeatable), e.g. static_history_prob=0",
     )
     parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batches and noise (default 0)")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
-    parser.add_argument("--batch-size", type=int, default=None, help="default 64")
-    parser.add_argument("--lr", type=float, default=None, help="peak learning rate (default: dp 2e-3, act 3e-4)")
-    parser.add_argument("--warmup-steps", type=int, default=None, help="linear warm-up steps (default 200)")
+    parser.add_argument("--batch-size", type=int, default=None, help="default: the preset's")
+    parser.add_argument("--lr", type=float, default=None, help="peak learning rate (default: the preset's)")
+    parser.add_argument("--warmup-steps", type=int, default=None, help="linear warm-up steps (default: the preset's)")
     parser.add_argument(
         "--ema-power",
         type=float,
@@ -394,18 +334,40 @@ def main(argv: list[str] | None = None) -> int:
         "--check",
         metavar="RECORD",
         help="instead of training: re-run the first --check-steps steps of the run recorded in RECORD "
-        "(a checkpoint's .json) on --data and compare the logged losses; exit 1 if they differ",
+        "(a checkpoint's .json) on --dataset and compare the logged losses; exit 1 if they differ",
     )
     parser.add_argument("--check-steps", type=int, default=200, help="steps --check re-runs (default 200)")
     parser.add_argument(
         "--check-rtol", type=float, default=1e-3, help="largest relative loss difference --check accepts (default 1e-3)"
     )
+    return parser
+
+
+def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    try:
+        res = check_record(
+            args.check, args.dataset, args.check_steps, policy=args.policy, progress=not args.no_progress
+        )
+    except (OSError, TypeError, ValueError) as err:
+        parser.error(str(err))
+    for step, recorded, rerun in res["compared"]:
+        print(f"step {step:6d}: recorded {recorded:.6f}  re-run {rerun:.6f}")
+    ok = res["max_rel_diff"] <= args.check_rtol
+    verdict = "reproduced" if ok else "DIFFERENT"
+    print(f"{res['policy']}: {verdict}: max relative difference {res['max_rel_diff']:.2e} (rtol {args.check_rtol:g})")
+    return 0 if ok else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point (see the module docstring); exit 0 done, 1 ``--check`` differs, 2 usage error."""
+    parser = _parser()
     args = parser.parse_args(argv)
     if args.check is not None:
         return _check_main(parser, args)
+    if args.policy is None:
+        parser.error("--policy is required (unless --check)")
     if args.out is None:
         parser.error("--out is required (unless --check)")
-
     out = Path(args.out)
     if out.suffix != ".safetensors":
         parser.error(f"--out must end with .safetensors, got {args.out!r}")
@@ -414,31 +376,40 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--threads must be >= 1, got {args.threads}")
         torch.set_num_threads(args.threads)
     try:
-        preset = PRESETS[args.preset][args.kind]
-        model_config = {**preset["model"], **parse_model_overrides(args.kind, args.model)}
-        dataset = load_random_walk(args.data)
-        cli = {
+        preset = get_preset(args.policy, args.preset)
+        config = preset.model.replace(**parse_overrides(args.model, preset.model.field_names(), "--model"))
+        flags = {
             "steps": args.steps,
             "batch_size": args.batch_size,
             "lr": args.lr,
             "warmup_steps": args.warmup_steps,
             "ema_power": args.ema_power,
         }
-        settings = TrainSettings.defaults(
-            args.kind, **{**preset["train"], **{k: v for k, v in cli.items() if v is not None}}, seed=args.seed
-        )
-        policy = build_policy(args.kind, dataset, seed=args.seed, device=args.device, **model_config)
+        changes = {
+            **parse_overrides(args.train, TrainSettings.field_names(), "--train"),
+            **{k: v for k, v in flags.items() if v is not None},
+            "seed": args.seed,
+        }
+        settings = preset.train.replace(**changes)
+        dataset = load_trajectories(args.dataset)
+        policy = make_policy(config, dataset=dataset, seed=args.seed, device=args.device)
     except (TypeError, ValueError) as err:
         parser.error(str(err))
-    print(f"{args.kind}: {policy.num_parameters():,} parameters, {len(dataset):,} samples, {settings.steps} steps")
-    record = train_policy(policy, dataset, settings, progress=not args.no_progress)
-    record["data"]["file"] = Path(args.data).name
-    record["preset"] = args.preset
-    record["command"] = "python -m steer_envs.baselines.training " + " ".join(
-        argv if argv is not None else sys.argv[1:]
+    print(
+        f"{args.policy} ({args.preset}): {policy.num_parameters():,} parameters, {len(dataset):,} steps "
+        f"(obs {policy.obs_dim}, action {policy.action_dim}), {settings.steps} training steps"
     )
+    record = train_policy(policy, dataset, settings, progress=not args.no_progress)
+    record["data"]["file"] = Path(args.dataset).name
+    record["preset"] = args.preset
+    record["command"] = f"{PROG} " + " ".join(argv if argv is not None else sys.argv[1:])
     policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})
-    summary = {"kind": args.kind, "model": policy.config.to_dict(), "training": record}
+    summary = {
+        "policy": args.policy,
+        "config": policy.config.to_dict(),
+        "stats": {k: v.to_dict() for k, v in policy.stats.items()},
+        "training": record,
+    }
     atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
     print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
     print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")

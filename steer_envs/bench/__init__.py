@@ -6,14 +6,20 @@ process pool or on Ray; ``store.py`` appends each finished trial as a JSON
 line and resumes killed runs; ``report.py`` / ``plots.py`` turn the lines into
 tables and figures; ``cli.py`` is the ``steer-bench`` command.
 
-Python API::
+A suite's parameters are a frozen dataclass (``params.py``,
+:class:`SuiteParams`), coerced and checked before any trial runs.
 
-    from steer_envs.bench import run_suite, summarize, render
-    summary = run_suite("smoke", "runs/smoke", seeds=3)
-    print(render(summarize(summary.records), "md"))
+Python API:
+
+>>> import tempfile
+>>> with tempfile.TemporaryDirectory() as out:
+...     summary = run_suite("selftest", out, seeds=2, trials=400, progress=False)
+>>> print(render(summarize(summary.records), "csv").splitlines()[0])
+suite,env,method,params,metric,kind,trials,n,mean,std,min,max,reference,diff,source,goal,meets_goal
 """
 
 from steer_envs.bench.executors import Executor, Outcome, execute_trial, make_executor
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.report import render, summarize
 from steer_envs.bench.runner import RunSummary, build_request, plan_trials, run_suite
 from steer_envs.bench.store import ResultStore, load_results, read_jsonl
@@ -41,6 +47,7 @@ __all__ = [
     "ResultStore",
     "RunSummary",
     "Suite",
+    "SuiteParams",
     "Trial",
     "TrialPlan",
     "TrialRequest",

@@ -5,6 +5,16 @@ Exit status: 0 success; 1 some trials failed (they are logged in
 configuration (unknown suite/env/method/parameter, wrong ``--out``, missing
 optional dependency); 130 interrupted (finished trials are on disk).
 Set ``STEER_BENCH_DEBUG=1`` to get tracebacks instead of one-line errors.
+
+>>> main(["list", "selftest"])
+suites:
+  selftest: Runner self-check: pi by Monte Carlo vs. stratified sampling (no envs needed).
+      methods: mc, stratified
+      metrics: pi, abs_error, samples_per_s
+      params: samples=10000, sleep=0.0, fail_seeds=[]  (--trials sets samples)
+      default seeds: 4
+      reference numbers: 1 (pi = 3.14159...)
+0
 """
 
 from __future__ import annotations
@@ -45,7 +55,11 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``steer-bench`` (``--help`` on every sub-command)."""
+    """The argument parser of ``steer-bench`` (``--help`` on every sub-command).
+
+    >>> build_parser().parse_args(["run", "smoke", "--param", "episodes=3"]).param
+    [('episodes', 3)]
+    """
     from steer_envs import __version__
 
     parser = argparse.ArgumentParser(
@@ -126,9 +140,10 @@ def _describe(suite: Suite) -> list[str]:
         lines.append(f"    methods: {', '.join(methods)}")
     if suite.metrics:
         lines.append(f"    metrics: {', '.join(m.name for m in suite.metrics)}")
-    if suite.params:
+    defaults = suite.defaults.to_json()
+    if defaults:
         lines.append(
-            f"    params: {', '.join(f'{k}={json.dumps(v)}' for k, v in suite.params.items())}"
+            f"    params: {', '.join(f'{k}={json.dumps(v)}' for k, v in defaults.items())}"
             + (f"  (--trials sets {suite.trials_param})" if suite.trials_param else "")
         )
     if suite.generate is None or suite.run_trial is not None:
@@ -234,7 +249,17 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``steer-bench`` console script; returns the exit status."""
+    """Entry point of the ``steer-bench`` console script; returns the exit status.
+
+    Errors in the request (unknown suite, env, method or parameter, a bad
+    value) print one line to stderr and return 2.
+
+    >>> import contextlib, io, tempfile
+    >>> with tempfile.TemporaryDirectory() as out, contextlib.redirect_stderr(io.StringIO()) as err:
+    ...     status = main(["run", "selftest", "--param", "samples=0", "--out", out, "--no-progress"])
+    >>> status, err.getvalue().strip()
+    (2, "steer-bench: error: selftest: parameter 'samples' must be >= 1, got 0")
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)

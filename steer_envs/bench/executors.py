@@ -8,6 +8,14 @@ identical whichever executor runs them.
 
 Ray is optional (``pip install 'steer-envs[ray]'``) and imported only when
 the Ray executor is created.
+
+>>> from steer_envs.bench.runner import build_request, plan_trials
+>>> from steer_envs.bench.suite import get_suite
+>>> suite = get_suite("selftest")
+>>> plan = plan_trials(suite, build_request(suite, methods=["stratified"], seeds=2, trials=100))
+>>> with make_executor("local") as executor:
+...     [o.record["metrics"]["pi"] for o in executor.map(plan.trials)]
+[3.16, 3.12]
 """
 
 from __future__ import annotations
@@ -65,6 +73,15 @@ def execute_trial(trial: Trial, executor: str = "local") -> Outcome:
     The record holds the config, seed, metrics, optional ``extra`` data,
     timings (wall and CPU seconds, start/end UTC) and provenance (versions,
     git commit, host).
+
+    >>> from steer_envs.bench.suite import Trial
+    >>> fn = "steer_envs.bench.suites.selftest:run_selftest_trial"
+    >>> ok = execute_trial(Trial("selftest", None, "mc", 0, {"samples": 100}, fn))
+    >>> ok.ok, sorted(ok.record["metrics"])
+    (True, ['abs_error', 'pi', 'samples_per_s'])
+    >>> failed = execute_trial(Trial("selftest", None, "mc", 1, {"samples": 100, "fail_seeds": [1]}, fn))
+    >>> failed.error.splitlines()[0]
+    'RuntimeError: selftest: seed 1 is listed in fail_seeds'
     """
     started = utc_now()
     wall0, cpu0 = time.perf_counter(), time.process_time()
@@ -241,6 +258,9 @@ def make_executor(kind: str = "local", workers: int | None = None, address: str 
 
     ``local`` with one worker (the default): in-process; ``local`` with more:
     a process pool; ``ray``: Ray tasks (``workers`` defaults to every CPU).
+
+    >>> make_executor().name, make_executor("local", workers=2).name
+    ('sequential', 'process')
     """
     if kind not in EXECUTORS:
         raise ValueError(f"executor must be one of {EXECUTORS}, got {kind!r}")

@@ -1,4 +1,4 @@
-"""PNG figures for ``steer-bench report --plots``.
+r"""PNG figures for ``steer-bench report --plots``, and the figure helper every suite's plots use.
 
 One bar chart per (suite, metric): the mean over seeds per cell with the
 standard deviation as error bar, the thesis's reference value of each cell
@@ -6,8 +6,17 @@ drawn as a red tick across its bar, and the metric's goal as a dashed line.
 Suites may add their own figures through ``Suite.plot`` (e.g. throughput of
 single vs. vectorized envs, trajectories stored in a record's ``extra``).
 
-Figures are drawn with matplotlib's object API on the Agg canvas (no pyplot
-state, no display needed) and written atomically.
+Every figure of the package is made by :func:`new_figure` (matplotlib's
+object API on the Agg canvas: no pyplot state, no display needed) and written
+by :func:`save_figure` (PNG, atomically, so a killed report leaves no torn file).
+
+>>> import tempfile
+>>> from pathlib import Path
+>>> fig = new_figure(3.0, 2.0)
+>>> _ = fig.add_subplot().plot([0, 1], [1, 0])
+>>> with tempfile.TemporaryDirectory() as tmp:
+...     save_figure(fig, Path(tmp) / "line.png").read_bytes()[:4]
+b'\x89PNG'
 """
 
 from __future__ import annotations
@@ -17,25 +26,48 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from steer_envs.bench.report import Table, summarize
-from steer_envs.bench.store import atomic_write_bytes
 from steer_envs.bench.suite import Suite, get_suite
+from steer_envs.io import atomic_write_bytes
+
+#: matplotlib layout engines :func:`new_figure` accepts (``None``: place axes by hand)
+FigureLayout = Literal["constrained", "tight"] | None
 
 
-def new_figure(width: float = 7.0, height: float = 4.0) -> Any:
-    """A matplotlib ``Figure`` on an Agg canvas (safe in headless processes)."""
+def new_figure(width: float = 7.0, height: float = 4.0, *, layout: FigureLayout = "constrained") -> Any:
+    """A matplotlib ``Figure`` (100 dpi) on an Agg canvas, safe in headless worker processes.
+
+    ``layout`` is matplotlib's layout engine: ``"constrained"`` (default),
+    ``"tight"`` (for grids of image panels) or ``None``.
+
+    >>> new_figure(4.0, 3.0).get_size_inches().tolist()
+    [4.0, 3.0]
+    """
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+            raise ValueError(f"{name} must be a positive number of inches, got {value!r}")
+    if layout not in ("constrained", "tight", None):
+        raise ValueError(f"layout must be 'constrained', 'tight' or None, got {layout!r}")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height), dpi=100, layout="constrained")
+    fig = Figure(figsize=(width, height), dpi=100, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
 
 def save_figure(fig: Any, path: str | os.PathLike[str]) -> Path:
-    """Render ``fig`` to PNG and write it atomically to ``path``."""
+    """Render ``fig`` to PNG and write it atomically to ``path`` (parent folders created); returns the path.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     save_figure(new_figure(1.0, 1.0), Path(tmp) / "sub" / "empty.png").name
+    'empty.png'
+    """
+    if Path(path).suffix.lower() != ".png":
+        raise ValueError(f"path must end in .png, got {str(path)!r}")
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     atomic_write_bytes(path, buf.getvalue())
@@ -43,12 +75,25 @@ def save_figure(fig: Any, path: str | os.PathLike[str]) -> Path:
 
 
 def safe_name(text: str) -> str:
-    """``text`` reduced to a file-name-safe token."""
+    """``text`` reduced to a file-name-safe token.
+
+    >>> safe_name("itps-maze2d / DP-SS")
+    'itps-maze2d_DP-SS'
+    """
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "plot"
 
 
 def metric_bar_chart(table: Table, metric: str, path: str | os.PathLike[str]) -> Path | None:
-    """Bar chart of ``metric`` across the cells of ``table`` (``None`` when no cell has a value)."""
+    """Bar chart of ``metric`` across the cells of ``table`` (``None`` when no cell has a value).
+
+    >>> import tempfile
+    >>> records = [{"config": {"suite": "selftest", "env": None, "method": m, "params": {}}, "seed": 0,
+    ...             "metrics": {"pi": v}} for m, v in (("mc", 3.1), ("stratified", 3.14))]
+    >>> (table,) = summarize(records)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     metric_bar_chart(table, "pi", Path(tmp) / "pi.png").name
+    'pi.png'
+    """
     m = next((x for x in table.metrics if x.name == metric), None)
     if m is None:
         raise ValueError(f"table {table.suite!r} has no metric {metric!r}")
@@ -97,7 +142,15 @@ def _lookup(name: str) -> Suite | None:
 
 
 def write_plots(records: Sequence[Mapping[str, Any]], out_dir: str | os.PathLike[str]) -> list[Path]:
-    """All figures for ``records``: a bar chart per (suite, metric) plus each suite's own plots."""
+    """All figures for ``records``: a bar chart per (suite, metric) plus each suite's own plots.
+
+    >>> import tempfile
+    >>> records = [{"config": {"suite": "selftest", "env": None, "method": "mc", "params": {}}, "seed": 0,
+    ...             "metrics": {"pi": 3.1, "abs_error": 0.04}}]
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     sorted(p.name for p in write_plots(records, tmp))
+    ['selftest_abs_error.png', 'selftest_pi.png']
+    """
     out_dir = Path(out_dir)
     written: list[Path] = []
     for table in summarize(records):

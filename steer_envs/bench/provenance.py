@@ -2,6 +2,9 @@
 
 Versions are read from package metadata (``importlib.metadata``), so asking
 for torch's version does not import torch. Computed once per process.
+
+>>> sorted(host())
+['cpus', 'hostname', 'pid']
 """
 
 from __future__ import annotations
@@ -54,7 +57,12 @@ def _versions() -> tuple[tuple[str, str | None], ...]:
 
 
 def versions() -> dict[str, str | None]:
-    """``{"python": ..., "numpy": ..., "gymnasium": ..., "torch": ..., "steer_envs": ..., "git_commit": ...}``."""
+    """``{"python": ..., "numpy": ..., "gymnasium": ..., "torch": ..., "steer_envs": ..., "git_commit": ...}``.
+
+    >>> import platform
+    >>> versions()["python"] == platform.python_version()
+    True
+    """
     return dict(_versions())
 
 

@@ -7,6 +7,11 @@ seeds. Where the suite declares a :class:`~steer_envs.bench.suite.Reference`
 with the difference ``measured - reference``; metrics with a ``goal`` get a
 pass/fail line under the table; a suite's ``findings`` hook adds its
 qualitative claims (orderings, "within x of") with a verdict each.
+
+>>> records = [{"config": {"suite": "selftest", "env": None, "method": "mc", "params": {}}, "seed": s,
+...             "metrics": {"pi": v}} for s, v in enumerate((3.1, 3.2))]
+>>> print(render(summarize(records), "csv").splitlines()[1])
+selftest,,mc,{},pi,value,2,2,3.1500000000000004,0.07071067811865482,3.1,3.2,3.141592653589793,0.008407346410207...
 """
 
 from __future__ import annotations
@@ -128,6 +133,11 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
 
     Suites that are not registered in this process still get a table, with
     metric names taken from the records and no references.
+
+    >>> rec = {"config": {"suite": "mine", "env": None, "method": "a", "params": {}}, "seed": 0, "metrics": {"x": 2.0}}
+    >>> (table,) = summarize([rec])
+    >>> table.suite, table.mean("x", "a")
+    ('mine', 2.0)
     """
     by_suite: dict[str, list[Mapping[str, Any]]] = {}
     for rec in records:
@@ -341,7 +351,19 @@ def render_json(tables: Sequence[Table]) -> str:
 
 
 def render(tables: Sequence[Table], fmt: str = "md", *, title: str | None = None, notes: Sequence[str] = ()) -> str:
-    """Render ``tables`` as ``md``, ``csv`` or ``json`` (title and notes: markdown only)."""
+    """Render ``tables`` as ``md``, ``csv`` or ``json`` (title and notes: markdown only).
+
+    >>> rec = {"config": {"suite": "mine", "env": None, "method": "a", "params": {}}, "seed": 0, "metrics": {"x": 2.0}}
+    >>> print(render(summarize([rec]), "md"))
+    ## mine
+    <BLANKLINE>
+    (suite not registered in this process)
+    <BLANKLINE>
+    | env | method | n | x |
+    |-----|--------|---|---|
+    | -   | a      | 1 | 2 |
+    <BLANKLINE>
+    """
     if fmt == "md":
         return render_markdown(tables, title=title, notes=notes)
     if fmt == "csv":

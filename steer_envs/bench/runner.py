@@ -1,13 +1,15 @@
 """Run a suite into a results directory: plan, skip finished trials, execute, append.
 
-This is the Python API behind ``steer-bench run``::
+This is the Python API behind ``steer-bench run``. A second call on the same
+directory resumes: trials whose key is already in ``results.jsonl`` are
+skipped, the others run and are appended one line each as they finish.
 
-    from steer_envs.bench import run_suite
-    summary = run_suite("smoke", "runs/smoke", seeds=3, workers=2)
-
-A second call on the same directory resumes: trials whose key is already in
-``results.jsonl`` are skipped, the others run and are appended one line each
-as they finish.
+>>> import tempfile
+>>> with tempfile.TemporaryDirectory() as out:
+...     first = run_suite("selftest", out, seeds=2, trials=100, progress=False)
+...     again = run_suite("selftest", out, seeds=3, trials=100, progress=False)
+>>> (first.completed, first.skipped), (again.completed, again.skipped), again.ok
+((4, 0), (2, 4), True)
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from steer_envs.envs.registry import NAMESPACE
 
 @dataclass
 class RunSummary:
-    """What one ``run`` did."""
+    """What one ``run`` did (see :func:`run_suite` for an example)."""
 
     suite: str
     out_dir: Path
@@ -77,6 +79,12 @@ def build_request(
     """Validate the ``run`` options against ``suite``.
 
     ``seeds`` is a count (seeds ``0..N-1``) or an explicit list of seeds.
+    Env names may omit the ``steer_envs/`` namespace.
+
+    >>> from steer_envs.bench.suite import get_suite
+    >>> request = build_request(get_suite("smoke"), envs=["ConvexMode-v0"], seeds=[5, 9])
+    >>> request.envs, request.seeds
+    (('steer_envs/ConvexMode-v0',), (5, 9))
     """
     if isinstance(seeds, bool):
         raise TypeError("seeds must be an int count or a sequence of ints")
@@ -102,7 +110,13 @@ def build_request(
 
 
 def plan_trials(suite: Suite, request: TrialRequest) -> TrialPlan:
-    """The suite's plan for ``request``, checked for duplicate trial keys."""
+    """The suite's plan for ``request``, checked for duplicate trial keys.
+
+    >>> from steer_envs.bench.suite import get_suite
+    >>> suite = get_suite("selftest")
+    >>> len(plan_trials(suite, build_request(suite, seeds=3)).trials)  # 2 methods x 3 seeds
+    6
+    """
     plan = suite.plan(request)
     keys = [t.key for t in plan.trials]
     if len(set(keys)) != len(keys):
@@ -111,7 +125,13 @@ def plan_trials(suite: Suite, request: TrialRequest) -> TrialPlan:
 
 
 def check_metrics(outcome: Outcome) -> Outcome:
-    """Reject metrics the trial's suite does not declare (typos would vanish from reports)."""
+    """Reject metrics the trial's suite does not declare (typos would vanish from reports).
+
+    >>> from steer_envs.bench.suite import Trial
+    >>> trial = Trial("selftest", None, "mc", 0, {}, "steer_envs.bench.suites.selftest:run_selftest_trial")
+    >>> check_metrics(Outcome(trial, {"metrics": {"pie": 3.1}})).error
+    "ValueError: undeclared metrics ['pie']; declared: ['abs_error', 'pi', 'samples_per_s']"
+    """
     if outcome.record is None:
         return outcome
     try:
@@ -143,6 +163,12 @@ def run_suite(
 
     ``KeyboardInterrupt`` is caught: the summary comes back with
     ``interrupted=True`` and every finished trial is on disk.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     summary = run_suite("selftest", out, methods=["stratified"], seeds=1, trials=100, progress=False)
+    >>> summary.ok, summary.records[0]["metrics"]["pi"]
+    (True, 3.16)
     """
     suite = get_suite(suite) if isinstance(suite, str) else suite
     if not isinstance(suite, Suite):

@@ -14,6 +14,14 @@ still leave a torn last line; :func:`read_jsonl` ignores it and
 ``os.replace``) and says so in :attr:`ResultStore.notes`, so a resumed run
 appends after the last complete record.
 Records are keyed by :attr:`Trial.key`; duplicates are dropped on read.
+
+>>> import tempfile
+>>> with tempfile.TemporaryDirectory() as out:
+...     with ResultStore(out, suite="selftest") as store:
+...         store.append({"key": "k1", "config": {"suite": "selftest"}, "seed": 0, "metrics": {"pi": 3.1}})
+...     manifest, records, report = load_results(out)
+>>> manifest["suite"], [r["key"] for r in records], report.clean
+('selftest', ['k1'], True)
 """
 
 from __future__ import annotations
@@ -41,12 +49,20 @@ class StoreLockedError(RuntimeError):
 
 
 def utc_now() -> str:
-    """Current UTC time, ISO 8601 with seconds."""
+    """Current UTC time, ISO 8601 with seconds.
+
+    >>> utc_now().endswith("+00:00")
+    True
+    """
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def encode_record(record: Mapping[str, Any]) -> bytes:
-    """One JSON line (strict JSON: NaN/inf rejected; newlines inside strings are escaped)."""
+    r"""One JSON line (strict JSON: NaN/inf rejected; newlines inside strings are escaped).
+
+    >>> encode_record({"key": "k", "note": "a\nb"})
+    b'{"key":"k","note":"a\\nb"}\n'
+    """
     if not isinstance(record, Mapping):
         raise TypeError(f"record must be a mapping, got {type(record).__name__}")
     try:
@@ -70,11 +86,19 @@ class ReadReport:
 
 
 def read_jsonl(path: str | os.PathLike[str], *, key: str | None = "key") -> tuple[list[dict[str, Any]], ReadReport]:
-    """Records of a JSON-lines file, tolerating a torn last line.
+    r"""Records of a JSON-lines file, tolerating a torn last line.
 
     Complete lines that do not parse as a JSON object (with ``key``, when
     given) are skipped and listed in the report; with ``key``, later
     duplicates of a key are dropped. A missing file reads as empty.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = Path(tmp) / "r.jsonl"
+    ...     _ = path.write_bytes(b'{"key": "a"}\n{"key": "a"}\nnot json\n{"key": "b", "tor')
+    ...     records, report = read_jsonl(path)
+    >>> [r["key"] for r in records], report.duplicates, report.corrupt_lines, report.torn_tail
+    (['a'], 1, [3], b'{"key": "b", "tor')
     """
     path = Path(path)
     report = ReadReport()
@@ -111,11 +135,17 @@ def read_jsonl(path: str | os.PathLike[str], *, key: str | None = "key") -> tupl
 class ResultStore:
     """Exclusive, append-only access to one results directory.
 
-    Use as a context manager::
+    Use as a context manager (it locks the directory; a second writer gets
+    :class:`StoreLockedError`):
 
-        with ResultStore(out, suite="smoke") as store:
-            if trial.key not in store.finished_keys: ...
-            store.append(record)
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     with ResultStore(out, suite="smoke") as store:
+    ...         if "k1" not in store.finished_keys:
+    ...             store.append({"key": "k1", "metrics": {}})
+    ...     with ResultStore(out, suite="smoke") as resumed:
+    ...         sorted(resumed.finished_keys)
+    ['k1']
     """
 
     def __init__(self, out_dir: str | os.PathLike[str], suite: str) -> None:
@@ -268,7 +298,14 @@ def _append_line(path: Path, data: bytes) -> None:
 
 
 def load_results(out_dir: str | os.PathLike[str]) -> tuple[dict[str, Any], list[dict[str, Any]], ReadReport]:
-    """Manifest and records of a results directory, read-only (no lock, no repair)."""
+    """Manifest and records of a results directory, read-only (no lock, no repair).
+
+    ``FileNotFoundError`` when ``out_dir`` is not a steer-bench directory.
+
+    >>> load_results("/nonexistent/steer-bench-dir")
+    Traceback (most recent call last):
+    FileNotFoundError: no results directory at /nonexistent/steer-bench-dir
+    """
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise FileNotFoundError(f"no results directory at {out_dir}")

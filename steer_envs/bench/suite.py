@@ -1,8 +1,9 @@
 """Suites, trials and the suite registry of steer-bench.
 
 A :class:`Suite` is declared in code: which envs and methods it compares, the
-metrics a trial reports, how to turn a request (envs x methods x seeds x
-params) into :class:`Trial` objects, the function that runs one trial and,
+metrics a trial reports, its parameters (a frozen dataclass, see
+:mod:`steer_envs.bench.params`), how to turn a request (envs x methods x seeds
+x params) into :class:`Trial` objects, the function that runs one trial and,
 where the suite reproduces a thesis table, the thesis's numbers
 (:class:`Reference`). A trial is a pure function of its config and seed, so
 any executor (in-process, process pool, Ray) gives the same metrics.
@@ -12,10 +13,14 @@ imported. Built-in suite modules are listed in :data:`BUILTIN_SUITE_MODULES`;
 other modules are loaded with :func:`load_plugins` (``--plugin`` on the
 command line, or the ``STEER_BENCH_PLUGINS`` environment variable holding
 comma-separated module names).
+
+>>> get_suite("selftest").method_list()
+['mc', 'stratified']
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import json
@@ -24,6 +29,8 @@ import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
+
+from steer_envs.bench.params import NoParams, SuiteParams, params_from_defaults
 
 #: modules whose import registers the built-in suites (later domains append theirs)
 BUILTIN_SUITE_MODULES: tuple[str, ...] = (
@@ -50,6 +57,10 @@ class Metric:
     (throughput, latency) depend on the machine and its load.
     ``goal`` is an acceptance threshold (e.g. a speed-up of 20), checked in
     the direction given by ``higher_is_better``.
+
+    >>> m = Metric("speedup", "vectorized / single steps per second", kind="timing", goal=20.0)
+    >>> m.meets_goal(25.0), m.meets_goal(3.0)
+    (True, False)
     """
 
     name: str
@@ -79,6 +90,9 @@ class Reference:
 
     ``env`` / ``method`` ``None`` match any env / method. ``source`` names
     where the number comes from (e.g. ``"thesis Table 3.1"``).
+
+    >>> Reference("collision", 0.01, method="DP-SS", source="thesis Table 2.1").matches("any/Env-v0", "DP-SS")
+    True
     """
 
     metric: str
@@ -98,7 +112,15 @@ class Trial:
 
     ``fn`` is the ``"module:function"`` path of the function that runs the
     trial; it is resolved by import in whichever process runs it, so trials
-    can be shipped to process pools and Ray workers.
+    can be shipped to process pools and Ray workers. ``params`` is the JSON
+    form of the suite's parameters (:meth:`SuiteParams.to_json`); suites build
+    trials with :meth:`Suite.trial`, and trial functions read the typed
+    parameters back with ``TheirParams.from_json(trial.params)``.
+
+    >>> t = Trial("selftest", None, "mc", 0, {"samples": 100, "sleep": 0.0, "fail_seeds": []},
+    ...           "steer_envs.bench.suites.selftest:run_selftest_trial")
+    >>> t.label, len(t.key)
+    ('selftest - mc seed=0', 20)
     """
 
     suite: str
@@ -143,6 +165,9 @@ class TrialResult:
 
     ``extra`` holds JSON-serialisable data kept in the record (e.g. a
     trajectory for a per-suite plot).
+
+    >>> TrialResult({"success": 1.0}, extra={"path": [[0.0, 0.0], [1.0, 0.5]]}).metrics
+    {'success': 1.0}
     """
 
     metrics: Mapping[str, float | None]
@@ -154,7 +179,12 @@ class TrialRequest:
     """What the user asked for (``steer-bench run`` options), envs/methods already validated.
 
     ``seeds=None`` and ``trials=None`` mean "the suite's default";
-    ``params`` holds only the user's overrides (``--param KEY=VALUE``).
+    ``params`` holds only the user's overrides (``--param KEY=VALUE``);
+    ``base`` holds overrides applied to the defaults before ``params`` (the
+    ``quick`` tour passes each suite's :attr:`Suite.quick` settings there).
+
+    >>> TrialRequest(envs=(None,), methods=("mc",), seeds=(0, 1), params={"samples": 500}).trials is None
+    True
     """
 
     envs: tuple[str | None, ...]
@@ -162,12 +192,16 @@ class TrialRequest:
     seeds: tuple[int, ...] | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
     trials: int | None = None
-    base: Mapping[str, Any] | None = None  # replaces the suite's defaults (the quick tour's settings)
+    base: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
 class TrialPlan:
-    """The trials a suite generated plus notes for the user (e.g. skipped envs)."""
+    """The trials a suite generated plus notes for the user (e.g. skipped envs).
+
+    >>> TrialPlan((), notes=("skipped steer_envs/Foo-v0: module missing",)).notes[0]
+    'skipped steer_envs/Foo-v0: module missing'
+    """
 
     trials: tuple[Trial, ...]
     notes: tuple[str, ...] = ()
@@ -179,6 +213,9 @@ class Finding:
 
     ``holds`` is ``None`` when the run lacks the cells the claim needs (e.g. a
     ``--method`` subset); ``detail`` gives the measured numbers behind the verdict.
+
+    >>> Finding("SS beats GD on Min L2", True, "SS 0.10, GD 0.11").holds
+    True
     """
 
     claim: str
@@ -196,6 +233,32 @@ FindingsHook = Callable[[Any], Sequence[Finding]]
 class Suite:
     """A benchmark: envs x methods x seeds, the metrics and the reference numbers.
 
+    A suite module declares the suite's parameters as one frozen dataclass
+    deriving from :class:`~steer_envs.bench.params.SuiteParams` (field
+    defaults = the suite's defaults, value checks in ``__post_init__``), a
+    module-level trial function that reads them back typed, and the suite::
+
+        @dataclass(frozen=True)
+        class CoinParams(SuiteParams):
+            suite_name: ClassVar[str] = "coin"
+            flips: int = 100
+
+            def __post_init__(self) -> None:
+                self.require_at_least(1, "flips")
+
+        def run_coin_trial(trial: Trial) -> dict[str, float]:
+            p = CoinParams.from_json(trial.params)
+            heads = np.random.default_rng(trial.seed).integers(0, 2, p.flips).sum()
+            return {"heads": heads / p.flips}
+
+        COIN = register_suite(Suite("coin", "fair coin", (Metric("heads"),), run_coin_trial,
+                                    params=CoinParams(), trials_param="flips"))
+
+    ``--param KEY=VALUE`` and ``--trials N`` then work, are coerced to the
+    field types and checked before any trial runs; ``Trial.params`` holds
+    :meth:`SuiteParams.to_json` of the resolved parameters. A plain mapping of
+    defaults is accepted too (each value typed by its default).
+
     Attributes:
         name: registry name (``steer-bench run NAME``).
         description: one line shown by ``steer-bench list``.
@@ -206,11 +269,12 @@ class Suite:
         envs / methods: the axes; a callable is evaluated lazily (e.g. "every
             registered env with an expert"). ``(None,)`` for a suite without
             that axis.
-        params: defaults of the suite's parameters (``--param KEY=VALUE``).
+        params: the default parameters, a frozen :class:`SuiteParams`
+            dataclass instance (``--param KEY=VALUE`` overrides its fields).
         trials_param: the parameter ``--trials N`` sets (e.g. episodes per trial).
         default_seeds: seeds ``0..N-1`` when ``--seeds`` is not given.
         generate: custom trial generator; the default is the full product
-            envs x methods x seeds with ``params``.
+            envs x methods x seeds with the resolved parameters.
         references: the thesis's numbers the report prints beside the measured ones.
         quick: parameter overrides that make this suite part of the ``quick``
             tour (``None``: not part of it); ``quick_seeds`` seeds there.
@@ -219,6 +283,14 @@ class Suite:
         findings: optional hook ``report.Table -> [Finding]``: the thesis's
             qualitative claims (orderings, "within x of"), checked on the
             summary and listed under the table.
+
+    >>> from steer_envs.bench.suites.selftest import SelftestParams, run_selftest_trial
+    >>> demo = Suite("pi-demo", "pi by sampling", (Metric("pi"),), run_selftest_trial,
+    ...              methods=("mc",), params=SelftestParams(samples=100), trials_param="samples")
+    >>> demo.resolve_params({"sleep": 0}, trials=50)
+    SelftestParams(samples=50, sleep=0.0, fail_seeds=())
+    >>> [t.label for t in demo.plan(TrialRequest(envs=(None,), methods=("mc",), seeds=(0, 1))).trials]
+    ['pi-demo - mc seed=0', 'pi-demo - mc seed=1']
     """
 
     name: str
@@ -227,7 +299,7 @@ class Suite:
     run_trial: Callable[[Trial], Mapping[str, Any] | TrialResult] | None = None
     envs: Sequence[str | None] | Callable[[], Sequence[str | None]] = (None,)
     methods: Sequence[str | None] | Callable[[], Sequence[str | None]] = (None,)
-    params: Mapping[str, Any] = field(default_factory=dict)
+    params: SuiteParams | Mapping[str, Any] = field(default_factory=NoParams)
     trials_param: str | None = None
     default_seeds: int = 3
     generate: TrialGenerator | None = None
@@ -248,18 +320,52 @@ class Suite:
                 raise ValueError(f"Suite {self.name!r}: reference for unknown metric {ref.metric!r}; metrics: {names}")
             if not math.isfinite(ref.value):
                 raise ValueError(f"Suite {self.name!r}: reference value for {ref.metric!r} must be finite")
-        if self.trials_param is not None and self.trials_param not in self.params:
+        self._check_params()
+        if self.trials_param is not None and self.trials_param not in self.param_names:
             raise ValueError(f"Suite {self.name!r}: trials_param {self.trials_param!r} is not one of its params")
         if self.default_seeds < 1 or self.quick_seeds < 1:
             raise ValueError(f"Suite {self.name!r}: default_seeds and quick_seeds must be >= 1")
         if self.quick is not None:
-            unknown = set(self.quick) - set(self.params)
+            unknown = set(self.quick) - set(self.param_names)
             if unknown:
                 raise ValueError(f"Suite {self.name!r}: quick overrides unknown params {sorted(unknown)}")
+            self.resolve_params({}, base=self.quick)  # the tour's values must pass the suite's checks
         if self.run_trial is None and self.generate is None:
             raise ValueError(f"Suite {self.name!r} needs run_trial (or a generate that builds trials of other suites)")
         if self.run_trial is not None:
             function_path(self.run_trial)  # must be importable by workers
+
+    def _check_params(self) -> None:
+        params = self.params
+        if isinstance(params, Mapping):
+            params = params_from_defaults(self.name, params)
+            object.__setattr__(self, "params", params)
+        params_type = type(params)
+        if not (
+            isinstance(params, SuiteParams)
+            and dataclasses.is_dataclass(params)
+            and params_type.__dataclass_params__.frozen  # type: ignore[attr-defined]
+        ):
+            raise TypeError(
+                f"Suite {self.name!r}: params must be an instance of a frozen dataclass deriving from SuiteParams "
+                f"(or a mapping of defaults), got {params_type.__name__}"
+            )
+        params_type.field_names()  # resolves the field types (TypeError on a name that shadows a method)
+        try:
+            json.dumps(params.to_json(), allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"Suite {self.name!r}: default params must be JSON with finite numbers: {exc}") from None
+
+    @property
+    def defaults(self) -> SuiteParams:
+        """The default parameters (typed)."""
+        assert isinstance(self.params, SuiteParams)  # a mapping is converted in __post_init__
+        return self.params
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """The names ``--param`` accepts, in declaration order."""
+        return type(self.defaults).field_names()
 
     @property
     def fn(self) -> str:
@@ -294,24 +400,35 @@ class Suite:
 
     def resolve_params(
         self, overrides: Mapping[str, Any], trials: int | None = None, *, base: Mapping[str, Any] | None = None
-    ) -> dict[str, Any]:
-        """Defaults (or ``base``) updated with ``overrides`` and ``--trials``, type-checked.
+    ) -> Any:
+        """The defaults updated with ``base``, then ``overrides`` and ``--trials``: coerced and checked.
 
-        A value is coerced to the type of the default (an int given for a float
-        parameter becomes a float, so equal configs hash equally).
+        Returns the suite's params dataclass (typed ``Any`` so a suite's own
+        code reads its fields without a cast). A value is coerced to its
+        field's type (an int given for a float parameter becomes a float, so
+        equal configs hash equally); unknown names and bad values raise
+        ``ValueError`` naming the suite and the parameter.
         """
-        params = dict(self.params if base is None else base)
-        for name, value in overrides.items():
-            if name not in self.params:
-                raise ValueError(f"suite {self.name!r} has no parameter {name!r}; parameters: {sorted(self.params)}")
-            params[name] = _coerce_param(self.name, name, value, self.params[name])
+        names = self.param_names
+        values = self.defaults.to_json()
+        for source in (base or {}, overrides):
+            for name, value in source.items():
+                if name not in names:
+                    raise ValueError(f"suite {self.name!r} has no parameter {name!r}; parameters: {sorted(names)}")
+                values[name] = value
         if trials is not None:
             if self.trials_param is None:
                 raise ValueError(f"suite {self.name!r} has no per-trial count; --trials does not apply")
-            params[self.trials_param] = _coerce_param(
-                self.name, self.trials_param, trials, self.params[self.trials_param]
+            values[self.trials_param] = trials
+        return type(self.defaults).from_json(values, suite=self.name)
+
+    def trial(self, env: str | None, method: str | None, seed: int, params: SuiteParams) -> Trial:
+        """The :class:`Trial` of this suite for one cell and seed (``params`` stored as JSON)."""
+        if not isinstance(params, type(self.defaults)):
+            raise TypeError(
+                f"suite {self.name!r}: params must be {type(self.defaults).__name__}, got {type(params).__name__}"
             )
-        return params
+        return Trial(self.name, env, method, seed, params.to_json(), self.fn)
 
     def seed_list(self, request: TrialRequest, default: int | None = None) -> tuple[int, ...]:
         """The request's seeds, or ``0..default-1`` (``default_seeds`` when not given)."""
@@ -326,7 +443,7 @@ class Suite:
             return out if isinstance(out, TrialPlan) else TrialPlan(tuple(out))
         params = self.resolve_params(request.params, request.trials, base=request.base)
         trials = tuple(
-            Trial(self.name, env, method, seed, params, self.fn)
+            self.trial(env, method, seed, params)
             for env in request.envs
             for method in request.methods
             for seed in self.seed_list(request)
@@ -334,22 +451,13 @@ class Suite:
         return TrialPlan(trials)
 
 
-def _coerce_param(suite: str, name: str, value: Any, default: Any) -> Any:
-    """``value`` converted to the type of ``default`` (ValueError naming the parameter otherwise)."""
-    same_boolness = isinstance(value, bool) == isinstance(default, bool)
-    if default is None or (isinstance(value, type(default)) and same_boolness):
-        return value
-    if isinstance(default, bool):
-        raise ValueError(f"suite {suite!r}: parameter {name!r} must be true/false, got {value!r}")
-    if isinstance(default, int) and isinstance(value, float) and value.is_integer():
-        return int(value)
-    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    raise ValueError(f"suite {suite!r}: parameter {name!r} must be {type(default).__name__}, got {value!r}")
-
-
 def function_path(fn: Callable[..., Any]) -> str:
-    """``"module:qualname"`` of a module-level function, checked to resolve back to ``fn``."""
+    """``"module:qualname"`` of a module-level function, checked to resolve back to ``fn``.
+
+    >>> from steer_envs.bench.suites.selftest import run_selftest_trial
+    >>> function_path(run_selftest_trial)
+    'steer_envs.bench.suites.selftest:run_selftest_trial'
+    """
     module, qualname = getattr(fn, "__module__", None), getattr(fn, "__qualname__", "")
     if not module or not qualname or "<" in qualname:
         raise ValueError(f"run_trial must be a module-level function, got {fn!r}")
@@ -360,7 +468,11 @@ def function_path(fn: Callable[..., Any]) -> str:
 
 
 def resolve_function(path: str) -> Callable[..., Any]:
-    """Import ``"module:qualname"`` and return the object."""
+    """Import ``"module:qualname"`` and return the object.
+
+    >>> resolve_function("math:sqrt")(9.0)
+    3.0
+    """
     if not isinstance(path, str) or path.count(":") != 1:
         raise ValueError(f"function path must be 'module:qualname', got {path!r}")
     module_name, qualname = path.split(":")
@@ -376,7 +488,15 @@ _loaded_builtins = False
 
 
 def register_suite(suite: Suite, *, replace: bool = False) -> Suite:
-    """Add ``suite`` to the registry (``replace=True`` to redefine a name)."""
+    """Add ``suite`` to the registry (``replace=True`` to redefine a name); returns it.
+
+    Call it at import time of the suite's module, so ``get_suite`` (and worker
+    processes) find the suite by name.
+
+    >>> selftest = get_suite("selftest")
+    >>> register_suite(selftest) is selftest  # registering the same object again is a no-op
+    True
+    """
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a Suite, got {type(suite).__name__}")
     if suite.name in _SUITES and not replace and _SUITES[suite.name] is not suite:
@@ -399,6 +519,9 @@ def load_plugins(modules: Iterable[str]) -> list[str]:
 
     Returns the module names imported. An unimportable module raises
     ``ImportError`` naming it.
+
+    >>> load_plugins(["steer_envs.bench.suites.selftest"])[-1]
+    'steer_envs.bench.suites.selftest'
     """
     names = [m.strip() for m in os.environ.get(PLUGINS_ENV_VAR, "").split(",") if m.strip()]
     names += [m for m in modules if m not in names]
@@ -411,7 +534,11 @@ def load_plugins(modules: Iterable[str]) -> list[str]:
 
 
 def get_suite(name: str) -> Suite:
-    """The registered suite ``name`` (``KeyError`` listing the known names)."""
+    """The registered suite ``name`` (``KeyError`` listing the known names).
+
+    >>> get_suite("selftest").default_seeds
+    4
+    """
     _load_builtins()
     if name not in _SUITES:
         raise KeyError(f"unknown suite {name!r}; known suites: {', '.join(sorted(_SUITES))}")
@@ -419,6 +546,10 @@ def get_suite(name: str) -> Suite:
 
 
 def suites() -> list[Suite]:
-    """Every registered suite, sorted by name."""
+    """Every registered suite, sorted by name.
+
+    >>> "smoke" in [s.name for s in suites()]
+    True
+    """
     _load_builtins()
     return [_SUITES[n] for n in sorted(_SUITES)]

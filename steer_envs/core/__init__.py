@@ -1,10 +1,27 @@
-"""The shared vocabulary of steer-envs: tasks, interactions, metrics, policy contracts.
+"""The shared vocabulary of steer-envs: tasks, interactions, metrics, the env and policy contracts.
 
 Numpy-only on purpose, so ``import steer_envs`` stays fast. The differentiable
 alignment objectives need torch and live in :mod:`steer_envs.core.objectives`
 (import it explicitly).
 """
 
+from steer_envs.core.env import (
+    CONSTRAINT_VIOLATION,
+    INFO_KEYS,
+    INTERACTION_KINDS,
+    MODE,
+    MODE_NAME,
+    PERTURBED,
+    SENSORS,
+    SUCCESS,
+    HasInteractionKinds,
+    HasTask,
+    PerturbableEnv,
+    SteerEnv,
+    perturbable_env,
+    steer_env,
+    task_of,
+)
 from steer_envs.core.interaction import (
     Interaction,
     InteractionKind,
@@ -26,14 +43,26 @@ from steer_envs.core.policy import DiffusionPolicyLike, NoiseSchedulerLike, Traj
 from steer_envs.core.task import TaskSpec
 
 __all__ = [
+    "CONSTRAINT_VIOLATION",
+    "INFO_KEYS",
+    "INTERACTION_KINDS",
+    "MODE",
+    "MODE_NAME",
+    "PERTURBED",
+    "SENSORS",
+    "SUCCESS",
     "DiffusionPolicyLike",
+    "HasInteractionKinds",
+    "HasTask",
     "Interaction",
     "InteractionKind",
     "MotionAlignment",
     "NoiseSchedulerLike",
     "Nudge",
+    "PerturbableEnv",
     "Point",
     "Sketch",
+    "SteerEnv",
     "TaskSpec",
     "TrajectoryPolicy",
     "VelocityPolicy",
@@ -41,7 +70,10 @@ __all__ = [
     "constraint_satisfaction",
     "make_interaction",
     "motion_alignment",
+    "perturbable_env",
     "resample_path",
     "sketch_distances",
+    "steer_env",
     "task_alignment",
+    "task_of",
 ]

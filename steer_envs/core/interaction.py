@@ -12,6 +12,17 @@ Each stores its data as a read-only ``float64`` numpy array, validates on
 construction (finite numbers, right rank, minimum length, optional expected
 dimension ``dim``) and raises ``TypeError``/``ValueError`` naming the argument.
 The classes import no torch; :meth:`as_tensor` imports it on demand.
+
+>>> Point([1.0, 2.0]).target
+array([1., 2.])
+>>> Sketch([[0, 0], [1, 0], [1, 1]]).resample(5).points.shape
+(5, 2)
+>>> Nudge([[0.5, 0.5]], dim=2).k
+1
+>>> Sketch([[0.0, 0.0]])
+Traceback (most recent call last):
+...
+ValueError: Sketch: `points` needs at least 2 entries along axis 0, got shape (1, 2)
 """
 
 from __future__ import annotations
@@ -74,6 +85,11 @@ def resample_path(path: Any, n: int) -> np.ndarray:
     linearly interpolated between neighbouring path points, so the endpoints are
     kept and arc length is *not* equalised (a slowly drawn part of a sketch keeps
     more points). ``n == 1`` returns the first point.
+
+    >>> resample_path([[0.0, 0.0], [2.0, 0.0]], 3)
+    array([[0., 0.],
+           [1., 0.],
+           [2., 0.]])
     """
     pts = as_finite_array(path, name="path", ndim=2, min_len=1)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
@@ -90,6 +106,7 @@ class _Interaction:
     """Shared behaviour: read-only array storage, immutability, equality, hashing, pickling."""
 
     __slots__ = ("_data",)
+    _data: np.ndarray  # the slot: a read-only float64 array
     kind: ClassVar[InteractionKind]
     _name: ClassVar[str]  # constructor argument name, used in error messages
     _ndim: ClassVar[int]
@@ -132,9 +149,9 @@ class _Interaction:
         return torch.as_tensor(np.array(self._data), dtype=dtype or torch.float64, device=device)
 
     def __eq__(self, other: object) -> bool:
-        if type(other) is not type(self):
+        if type(other) is not type(self) or not isinstance(other, _Interaction):
             return NotImplemented
-        return bool(np.array_equal(self._data, other._data))  # type: ignore[attr-defined]
+        return bool(np.array_equal(self._data, other._data))
 
     def __hash__(self) -> int:
         return hash((type(self).__name__, self._data.shape, self._data.tobytes()))
@@ -152,7 +169,8 @@ class _Interaction:
 class Point(_Interaction):
     """A target state ``z`` of shape ``(d,)`` (thesis: point input).
 
-    ``Point([1.0, 2.0], dim=2)`` also checks the state dimension.
+    >>> Point([1.0, 2.0], dim=2)  # `dim` also checks the state dimension
+    Point(target=[1.0, 2.0])
     """
 
     __slots__ = ()
@@ -170,7 +188,12 @@ class Point(_Interaction):
 
 
 class Sketch(_Interaction):
-    """A path ``(T, d)`` with ``T >= 2`` the trajectory should follow (thesis: sketch input)."""
+    """A path ``(T, d)`` with ``T >= 2`` the trajectory should follow (thesis: sketch input).
+
+    >>> sketch = Sketch([[0.0, 0.0], [3.0, 4.0]])
+    >>> len(sketch), sketch.arc_length()
+    (2, 5.0)
+    """
 
     __slots__ = ()
     kind: ClassVar[InteractionKind] = "sketch"
@@ -201,7 +224,11 @@ class Sketch(_Interaction):
 
 
 class Nudge(_Interaction):
-    """A physical correction: ``(k, d)`` states, ``k >= 1``, overwriting a plan's first ``k`` states."""
+    """A physical correction: ``(k, d)`` states, ``k >= 1``, overwriting a plan's first ``k`` states.
+
+    >>> Nudge([[0.0, 1.0], [0.0, 2.0]]).states[-1]
+    array([0., 2.])
+    """
 
     __slots__ = ()
     kind: ClassVar[InteractionKind] = "nudge"
@@ -231,7 +258,11 @@ _KINDS: dict[str, type[Point] | type[Sketch] | type[Nudge]] = {"point": Point, "
 
 
 def make_interaction(kind: str, data: Any, *, dim: int | None = None) -> Interaction:
-    """Build the interaction named ``kind`` ("point", "sketch", "nudge") from raw data."""
+    """Build the interaction named ``kind`` ("point", "sketch", "nudge") from raw data.
+
+    >>> make_interaction("sketch", [[0, 0], [1, 1]], dim=2)
+    Sketch(points=[[0.0, 0.0], [1.0, 1.0]])
+    """
     try:
         cls = _KINDS[kind]
     except (KeyError, TypeError):

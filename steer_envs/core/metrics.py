@@ -76,19 +76,33 @@ def sketch_distances(trajs: Any, sketch: Sketch | Any, *, scale: float = 1.0) ->
 
 
 def motion_alignment(trajs: Any, sketch: Sketch | Any, *, scale: float = 1.0) -> MotionAlignment:
-    """``(min_l2, avg_l2)`` over the batch of :func:`sketch_distances` (negative ``MA``)."""
+    """``(min_l2, avg_l2)`` over the batch of :func:`sketch_distances` (negative ``MA``).
+
+    >>> import numpy as np
+    >>> trajs = np.array([[[0.0, 0.0], [1.0, 0.0]], [[0.0, 1.0], [1.0, 1.0]]])  # two plans of 2 steps
+    >>> motion_alignment(trajs, Sketch([[0.0, 0.0], [1.0, 0.0]]))
+    MotionAlignment(min_l2=0.0, avg_l2=0.5)
+    """
     dist = sketch_distances(trajs, sketch, scale=scale)
     return MotionAlignment(min_l2=float(dist.min()), avg_l2=float(dist.mean()))
 
 
 def constraint_satisfaction(violated: Any) -> float:
-    """``CS``: the fraction of entries *without* a violation (``1 - collision rate``)."""
+    """``CS``: the fraction of entries *without* a violation (``1 - collision rate``).
+
+    >>> constraint_satisfaction([False, True, False, False])
+    0.75
+    """
     flags = _as_flags(violated, name="violated")
     return float(1.0 - flags.mean())
 
 
 def task_alignment(aligned: Any) -> float:
-    """``TA``: the fraction of interactions that executed the intended task."""
+    """``TA``: the fraction of interactions that executed the intended task.
+
+    >>> task_alignment([1, 1, 0, 1])
+    0.75
+    """
     return float(_as_flags(aligned, name="aligned").mean())
 
 
@@ -98,6 +112,9 @@ def aligned_success(aligned: Any, success: Any) -> dict[str, float]:
     Returns fractions ``AS`` (aligned success), ``AF`` (aligned failure), ``MS``
     (misaligned success), ``MF`` (misaligned failure), which sum to 1, plus
     ``TA = AS + AF`` and ``CS = AS + MS``.
+
+    >>> aligned_success([True, True, False, False], [True, False, True, False])["TA"]
+    0.5
     """
     a = _as_flags(aligned, name="aligned")
     s = _as_flags(success, name="success")

@@ -119,6 +119,11 @@ def apply_nudge(tau: ArrayOrTensor, nudge: Nudge | torch.Tensor | Any) -> ArrayO
     Accepts a torch tensor (gradients flow to the kept states ``s_{k+1..T}``) or a
     numpy array ``(B, T, d)``; returns a new object of the same kind, ``tau`` is
     not modified. Raises ``ValueError`` when ``k > T``.
+
+    >>> apply_nudge(np.zeros((1, 3, 2)), Nudge([[1.0, 1.0]]))[0]
+    array([[1., 1.],
+           [0., 0.],
+           [0., 0.]])
     """
     if isinstance(tau, np.ndarray):
         out = apply_nudge(torch.as_tensor(np.asarray(tau, dtype=np.float64)), nudge)
@@ -153,6 +158,14 @@ def alignment_cost(
 
     ``reduction`` applies to sketches only (a point cost is a mean by definition);
     ``atol`` to nudges only.
+
+    >>> tau = torch.zeros(2, 4, 2, requires_grad=True)  # two plans resting at the origin
+    >>> cost = alignment_cost(tau, Point([3.0, 4.0]))
+    >>> cost.tolist()
+    [5.0, 5.0]
+    >>> cost.sum().backward()  # guidance differentiates the cost
+    >>> tuple(tau.grad.shape)
+    (2, 4, 2)
     """
     if isinstance(interaction, Point):
         return point_cost(tau, interaction)
@@ -166,7 +179,11 @@ def alignment_cost(
 def alignment_cost_np(
     tau: np.ndarray | Any, interaction: Interaction, *, reduction: Reduction = "mean", atol: float = 1e-6
 ) -> np.ndarray:
-    """Numpy convenience: ``tau`` array-like ``(B, T, d)`` -> float64 costs ``(B,)`` (no gradients)."""
+    """Numpy convenience: ``tau`` array-like ``(B, T, d)`` -> float64 costs ``(B,)`` (no gradients).
+
+    >>> alignment_cost_np(np.zeros((1, 3, 2)), Sketch([[0.0, 0.0], [0.0, 2.0]]))
+    array([1.])
+    """
     arr = np.asarray(tau)
     if arr.ndim != 3:
         raise ValueError(f"`tau` must have shape (B, T, d), got shape {arr.shape}")

@@ -15,6 +15,16 @@ that the members *exist*, not their signatures or return shapes.
 
 ``core`` imports no torch; tensor-typed members are annotated ``Any`` and their
 expected types are documented.
+
+>>> import numpy as np
+>>> class StandStill:  # plans that keep the agent where it is
+...     horizon, action_dim = 4, 2
+...     def sample(self, obs, n, *, generator=None):
+...         return np.repeat(np.asarray(obs, dtype=float)[None, None], self.horizon, axis=1).repeat(n, axis=0)
+>>> isinstance(StandStill(), TrajectoryPolicy), isinstance(StandStill(), DiffusionPolicyLike)
+(True, False)
+>>> StandStill().sample([1.0, 2.0], 3).shape
+(3, 4, 2)
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import networkx as nx
 import numpy as np
@@ -47,6 +47,22 @@ class TaskSpec:
         ltl: optional LTL text (Spot syntax) of the task specification.
         ltl_variants: optional named alternative specifications (e.g. the
             cooking re-taskings ``phi_cb``, ``phi_bc``...).
+
+    Bad input (duplicate or unknown modes, unknown APs) raises ``ValueError``.
+
+    >>> task = TaskSpec(
+    ...     name="scoop",
+    ...     modes=("reach", "scoop", "carry"),
+    ...     sensors=("in_soup", "soup_on_spoon"),
+    ...     sensor_modes={frozenset(): "reach", frozenset({"in_soup"}): "scoop", frozenset({"soup_on_spoon"}): "carry"},
+    ...     transitions=frozenset({("reach", "scoop"), ("scoop", "carry"), ("carry", "reach")}),
+    ... )
+    >>> task.mode_of({"in_soup": True, "soup_on_spoon": False}), task.goal, task.shortest_plan("reach")
+    ('scoop', ('carry',), ['reach', 'scoop', 'carry'])
+    >>> task.feasibility_matrix()
+    array([[ 0.,  0., -1.],
+           [-1.,  0.,  0.],
+           [ 0., -1.,  0.]])
     """
 
     name: str
@@ -193,10 +209,14 @@ class TaskSpec:
         return best
 
     @classmethod
-    def linear(cls, name: str, modes: Iterable[str], *, back_edges: bool = False, **kwargs: object) -> TaskSpec:
-        """A chain ``m0 -> m1 -> ... -> mK`` (optionally with ``m(i+1) -> m(i)``)."""
+    def linear(cls, name: str, modes: Iterable[str], *, back_edges: bool = False, **kwargs: Any) -> TaskSpec:
+        """A chain ``m0 -> m1 -> ... -> mK`` (optionally with ``m(i+1) -> m(i)``); ``kwargs`` go to the constructor.
+
+        >>> TaskSpec.linear("chain", ["a", "b", "c"]).is_allowed("a", "c")
+        False
+        """
         modes = tuple(modes)
         transitions = {(modes[i], modes[i + 1]) for i in range(len(modes) - 1)}
         if back_edges:
             transitions |= {(modes[i + 1], modes[i]) for i in range(len(modes) - 1)}
-        return cls(name=name, modes=modes, transitions=frozenset(transitions), **kwargs)  # type: ignore[arg-type]
+        return cls(name=name, modes=modes, transitions=frozenset(transitions), **kwargs)

@@ -1,1 +1,1 @@
-"""Scripted experts (demonstration generators) and dataset writing/reading."""
+"""Demonstrations and data sets: scripted experts, expert demos, GLiDE's counterfactual replays."""

@@ -38,14 +38,13 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
-if TYPE_CHECKING:  # the builder imports the wrapper lazily: data sits below wrappers in the layering
-    from steer_envs.wrappers.counterfactual import Replay
+from steer_envs.data.counterfactual import EXECUTIONS, CounterfactualReplayer, Execution, Replay
 
 KINDS: tuple[str, ...] = ("demo", "segment", "kernel", "gripper")
 FORMAT_VERSION = 1
@@ -215,6 +214,14 @@ def build_counterfactual_dataset(
     for every detour. Replays are drawn in seeded batches until both quotas are
     filled (surplus of the more frequent outcome is dropped in draw order).
     The demos are replayed too (kind ``"demo"``) and must all succeed.
+    ``make_kwargs`` go to ``gymnasium.make``.
+
+    >>> from steer_envs.data.demos import collect_demonstrations
+    >>> env_id = "steer_envs/PolygonNav-3Mode-v0"
+    >>> demos = [d.states for d in collect_demonstrations(env_id, n=2, seed=0, layout_seed=0)]
+    >>> data = build_counterfactual_dataset(env_id, demos, n_success=3, n_failure=3, batch_size=64, layout_seed=0)
+    >>> len(data), int(data.is_demo.sum()), int(data.success[~data.is_demo].sum())
+    (8, 2, 3)
     """
     for name, v in (("n_success", n_success), ("n_failure", n_failure)):
         if not isinstance(v, (int, np.integer)) or v < 0:
@@ -223,12 +230,12 @@ def build_counterfactual_dataset(
         raise ValueError(f"max_replays must be a positive int, got {max_replays!r}")
     if len(demos) == 0:
         raise ValueError("demos must hold at least one demonstration")
-    from steer_envs.wrappers.counterfactual import CounterfactualPerturbationWrapper
-
+    if execution not in EXECUTIONS:
+        raise ValueError(f"execution must be one of {EXECUTIONS}, got {execution!r}")
     env = gym.make(env_id, terminate_on_violation=False, max_episode_steps=max_episode_steps, **make_kwargs)
-    wrapper = CounterfactualPerturbationWrapper(env, kind, execution=execution)  # type: ignore[arg-type]
+    replayer = CounterfactualReplayer(env, kind, execution=cast(Execution, execution))
     try:
-        demo_replays = wrapper.replay_batch([wrapper.unperturbed(d, source=i) for i, d in enumerate(demos)])
+        demo_replays = replayer.replay_batch([replayer.unperturbed(d, source=i) for i, d in enumerate(demos)])
         failed = [i for i, r in enumerate(demo_replays) if not r.success]
         if failed:
             raise ValueError(f"demos {failed} do not succeed when replayed in {env_id}")
@@ -245,10 +252,10 @@ def build_counterfactual_dataset(
                         f"(wanted {n_success} / {n_failure})"
                     )
                 sources = rng.integers(0, len(paths), size=batch_size)
-                refs = [wrapper.sample(paths[s], rng, source=int(s)) for s in sources]
+                refs = [replayer.sample(paths[s], rng, source=int(s)) for s in sources]
                 drawn += len(refs)
                 before = len(succ) + len(fail)
-                for r in wrapper.replay_batch(refs):
+                for r in replayer.replay_batch(refs):
                     if r.truncated:
                         continue
                     raw_total += 1
@@ -264,7 +271,7 @@ def build_counterfactual_dataset(
         "env_id": env_id,
         "make_kwargs": {k: v for k, v in make_kwargs.items() if isinstance(v, (int, float, str, bool))},
         "seed": int(seed),
-        "kind": wrapper.kind_weights,
+        "kind": replayer.kind_weights,
         "execution": execution,
         "n_demos": len(demo_replays),
         "n_success": len(succ),

@@ -14,12 +14,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from steer_envs.core.env import task_of
+from steer_envs.core.task import TaskSpec
 from steer_envs.data.experts import make_expert
 
 
 @dataclass(frozen=True)
 class Demonstration:
-    """One expert episode of ``T`` states and ``T - 1`` actions."""
+    """One expert episode of ``T`` states and ``T - 1`` actions (see :func:`collect_demonstrations`)."""
 
     env_id: str
     seed: int
@@ -51,6 +53,12 @@ def rollout_expert(
     for PolygonNav) the demo then shows the goal's interior, which GLiDE's
     classifier cannot otherwise see. ``success`` still reports whether the goal
     was reached; ``max_steps`` bounds the steps before success.
+
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> demo = rollout_expert(gym.make("steer_envs/ConvexMode-v0"), seed=0)
+    >>> demo.success, demo.states.shape[1], len(demo.actions) == len(demo) - 1
+    (True, 2, True)
     """
     if not isinstance(seed, (int, np.integer)):
         raise TypeError(f"seed must be an int, got {type(seed).__name__}")
@@ -59,7 +67,7 @@ def rollout_expert(
     if steps_after_success < 0:
         raise ValueError(f"steps_after_success must be >= 0, got {steps_after_success}")
     expert = make_expert(env, **dict(expert_kwargs or {}))
-    task = env.unwrapped.task
+    task = task_of(env, who="rollout_expert")
     obs, info = env.reset(seed=int(seed))
     expert.reset(obs, info)
     states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
@@ -108,7 +116,13 @@ def collect_demonstrations(
     With ``only_successful`` (default), failed episodes are skipped and more
     seeds are tried (at most ``10 * n``) until ``n`` successes are found.
     ``steps_after_success`` and ``expert_kwargs`` go to :func:`rollout_expert`
-    (defaults: demos end on success, the expert's default settings).
+    (defaults: demos end on success, the expert's default settings);
+    ``make_kwargs`` to ``gymnasium.make``.
+
+    >>> import steer_envs
+    >>> demos = collect_demonstrations("steer_envs/PolygonNav-3Mode-v0", n=2, seed=0, layout_seed=0)
+    >>> [d.success for d in demos], demos[0].modes[0], demos[0].modes[-1]
+    ([True, True], 0, 2)
     """
     if not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive int, got {n!r}")
@@ -126,5 +140,5 @@ def collect_demonstrations(
     raise RuntimeError(f"the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes")
 
 
-def _sensor_row(task: Any, info: dict[str, Any]) -> list[bool]:
+def _sensor_row(task: TaskSpec, info: dict[str, Any]) -> list[bool]:
     return [bool(info["sensors"][ap]) for ap in task.sensors]

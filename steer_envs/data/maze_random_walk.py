@@ -22,11 +22,18 @@ Dataset file (``.npz``, written atomically; see :class:`RandomWalkDataset`)::
     leg_starts      int64   (L,)    samples where the walk picked a new goal
     meta            str             JSON: maze, seed, raw_steps, subsample, dt, format, ...
 
-Minari is not used: minari 0.5 stores datasets through h5py or pyarrow (its
-``hdf5``/``arrow`` extras), neither of which is a dependency of steer-envs.
-:func:`to_minari` converts a dataset when one of them is installed.
+Policies train on :meth:`RandomWalkDataset.to_trajectories`, a
+:class:`~steer_envs.data.trajectories.TrajectoryDataset` whose observation is
+the position (entries 0, 1 of the env observation) and whose action is the
+next position (a position target for those entries). :func:`to_minari`
+stores a dataset as a Minari dataset (needs Minari's ``hdf5`` backend).
 
 CLI: ``python -m steer_envs.data.maze_random_walk --out data/ --steps 1000000``.
+
+>>> walk = generate_random_walk("umaze", 400, seed=0, progress=False)
+>>> traj = walk.to_trajectories()
+>>> len(walk), traj.obs_dim, traj.action_dim, traj.action_obs_indices
+(100, 2, 2, (0, 1))
 """
 
 from __future__ import annotations
@@ -38,13 +45,13 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
 from steer_envs.io import atomic_open
 
@@ -214,6 +221,22 @@ class RandomWalkDataset:
         pts = np.concatenate([self.xy, self.actions])
         return pts.min(axis=0), pts.max(axis=0)
 
+    def to_trajectories(self) -> TrajectoryDataset:
+        """The policy training data: observation = position, action = next position (a position target).
+
+        Declares ``obs_indices=(0, 1)`` (the xy of an ``(x, y)`` or ``(x, y, vx,
+        vy)`` env observation) and ``action_obs_indices=(0, 1)``, so positions
+        and plans share normalization statistics.
+        """
+        return TrajectoryDataset(
+            self.xy,
+            self.actions,
+            self.episode_starts,
+            obs_indices=(0, 1),
+            action_obs_indices=(0, 1),
+            meta=dict(self.meta),
+        )
+
 
 def generate_random_walk(
     maze: str = "large",
@@ -373,65 +396,6 @@ def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
     """``(observations (N, 4), actions (N, 2), episode_starts (E,))`` of a saved dataset."""
     ds = load_random_walk(path)
     return ds.observations, ds.actions, ds.episode_starts
-
-
-# ----------------------------------------------------------------- windowing
-class PlanWindows:
-    """Training pairs ``(observation history, plan)`` for chunked policies (DP, ACT).
-
-    Sample ``i`` at step ``t``: ``obs = xy[t - n_obs + 1 .. t]`` ``(n_obs, 2)`` and
-    ``plan = actions[t + action_start .. t + action_start + horizon - 1]``
-    ``(horizon, 2)``, where ``actions[t] = xy[t + 1]``. The default
-    ``action_start = 0`` gives the next ``horizon`` waypoints; LeRobot's DP (used
-    by ITPS) takes ``action_start = 1 - n_obs`` and executes ``plan[n_obs - 1:]``.
-    Windows never cross an episode boundary. Indexable (a torch-style dataset).
-    """
-
-    def __init__(self, dataset: RandomWalkDataset, n_obs: int = 2, horizon: int = 64, action_start: int = 0) -> None:
-        if not isinstance(dataset, RandomWalkDataset):
-            raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
-        if not isinstance(n_obs, (int, np.integer)) or n_obs < 1:
-            raise ValueError(f"n_obs must be a positive int, got {n_obs!r}")
-        if not isinstance(horizon, (int, np.integer)) or horizon < 1:
-            raise ValueError(f"horizon must be a positive int, got {horizon!r}")
-        if not isinstance(action_start, (int, np.integer)) or action_start < 1 - n_obs:
-            raise ValueError(f"action_start must be an int >= 1 - n_obs = {1 - n_obs}, got {action_start!r}")
-        self.xy = np.ascontiguousarray(dataset.xy, dtype=np.float32)
-        self.actions = np.ascontiguousarray(dataset.actions, dtype=np.float32)
-        self.n_obs, self.horizon, self.action_start = int(n_obs), int(horizon), int(action_start)
-        steps = []
-        for sl in dataset.episode_slices():
-            first = sl.start + self.n_obs - 1
-            last = sl.stop - self.action_start - self.horizon  # last t with a full plan inside the episode
-            if last >= first:
-                steps.append(np.arange(first, last + 1))
-        self.steps = np.concatenate(steps) if steps else np.zeros(0, dtype=np.int64)
-        self._obs_offsets = np.arange(1 - self.n_obs, 1)
-        self._plan_offsets = self.action_start + np.arange(self.horizon)
-
-    def __len__(self) -> int:
-        return len(self.steps)
-
-    def __getitem__(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        if not -len(self) <= int(i) < len(self):
-            raise IndexError(f"window index {i} out of range for {len(self)} windows")
-        obs, plan = self.gather(np.array([int(i)]))
-        return obs[0], plan[0]
-
-    def gather(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Batched windows: ``obs (B, n_obs, 2)`` and ``plans (B, horizon, 2)`` float32."""
-        t = self.steps[np.asarray(indices, dtype=np.int64)]
-        return self.xy[t[:, None] + self._obs_offsets], self.actions[t[:, None] + self._plan_offsets]
-
-    def batches(
-        self, batch_size: int, rng: np.random.Generator | None = None
-    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """One epoch of batches (shuffled when ``rng`` is given)."""
-        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
-        order = rng.permutation(len(self)) if rng is not None else np.arange(len(self))
-        for a in range(0, len(order), int(batch_size)):
-            yield self.gather(order[a : a + int(batch_size)])
 
 
 # -------------------------------------------------------------------- Minari

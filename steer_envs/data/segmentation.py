@@ -1,16 +1,25 @@
-"""Sensor-based segmentation of demonstrations into modes, and one attractor per mode.
+"""Segmentation of demonstrations into modes by per-step mode labels, and one attractor per mode.
 
-TLI appendix "Sensor-based Motion Segmentation and Attractor Identification":
-consecutive steps of a demonstration with the same sensor state (the same
-mode) form a segment; all segments of a mode are that mode's training data,
-and the mode's attractor is the mean of the *last* state of each of its
-segments (the transition states to the next mode; for a demonstration's final
-segment, its final state).
+The one segmentation of the library: consecutive steps of a demonstration
+with the same label form a segment (TLI appendix "Sensor-based Motion
+Segmentation and Attractor Identification"); all segments of a mode are that
+mode's training data, and the mode's attractor is the mean of the *last*
+state of each of its segments (the transition states to the next mode; for a
+demonstration's final segment, its final state).
 
+Where the labels come from is the caller's choice: the env's sensors or the
+recorded modes of a demonstration (TLI, LTL-DS), or a learned classifier
+(GLiDE: :func:`~steer_envs.baselines.glide.classifier.label_demonstrations`).
 Per-step labels may be mode indices or names, boolean sensor rows
 ``(T, num_aps)``, or ``{ap: bool}`` dicts; with a :class:`TaskSpec` sensor
 readings are mapped to the task's mode names (``task.mode_of``), otherwise
 every distinct sensor state is its own mode (as in the appendix table).
+
+>>> import numpy as np
+>>> x = np.arange(10.0).reshape(5, 2)
+>>> seg = segment_demonstrations([(x, [0, 0, 1, 1, 1])])
+>>> seg.order, seg[1].attractor.tolist(), [len(s) for s in seg[0].segments]
+((0, 1), [8.0, 9.0], [2])
 """
 
 from __future__ import annotations
@@ -99,6 +108,7 @@ class Segmentation:
 
     @property
     def order(self) -> tuple[Hashable, ...]:
+        """The modes in order of first appearance."""
         return tuple(self.modes)
 
     @property
@@ -158,6 +168,12 @@ def segment_demonstration(
         demo: index stored in the segments.
         task: map sensor readings to the task's modes (and indices to names).
         min_length: runs shorter than this (sensor chatter) are merged into the preceding run.
+
+    >>> import numpy as np
+    >>> [(s.mode, s.start, s.stop) for s in segment_demonstration(np.zeros((5, 2)), ["a", "a", "b", "a", "a"])]
+    [('a', 0, 2), ('b', 2, 3), ('a', 3, 5)]
+    >>> [(s.mode, s.start, s.stop) for s in segment_demonstration(np.zeros((5, 2)), [0, 0, 1, 0, 0], min_length=2)]
+    [(0, 0, 5)]
     """
     x = np.asarray(states, dtype=np.float64)
     if x.ndim != 2 or len(x) == 0:
@@ -173,13 +189,12 @@ def segment_demonstration(
         raise ValueError(f"min_length must be a positive int, got {min_length!r}")
     lab = _labels(labels, len(x), task)
     bounds = [0] + [t for t in range(1, len(lab)) if lab[t] != lab[t - 1]] + [len(lab)]
-    runs = [[lab[a], a, b] for a, b in itertools.pairwise(bounds)]
-    merged: list[list] = []
-    for run in runs:
-        if merged and (run[2] - run[1] < min_length or merged[-1][0] == run[0]):
-            merged[-1][2] = run[2]  # chatter (or a run equal to the previous after merging) extends it
+    merged: list[tuple[Hashable, int, int]] = []
+    for a, b in itertools.pairwise(bounds):
+        if merged and (b - a < min_length or merged[-1][0] == lab[a]):
+            merged[-1] = (merged[-1][0], merged[-1][1], b)  # chatter (or a run equal to the previous) extends it
         else:
-            merged.append(run)
+            merged.append((lab[a], a, b))
     return [
         ModeSegment(mode=m, demo=demo, start=a, stop=b, states=x[a:b], velocities=None if v is None else v[a:b])
         for m, a, b in merged
@@ -192,7 +207,11 @@ def segment_demonstrations(
     task: TaskSpec | None = None,
     min_length: int = 1,
 ) -> Segmentation:
-    """Segment demonstrations ``[(states, labels[, velocities]), ...]`` and find each mode's attractor."""
+    """Segment demonstrations ``[(states, labels[, velocities]), ...]`` and find each mode's attractor.
+
+    ``labels`` as in :func:`segment_demonstration`; the modes are kept in order of first appearance.
+    See the module docstring for an example.
+    """
     if not isinstance(demos, Sequence) or len(demos) == 0:
         raise ValueError("demos must be a non-empty sequence of (states, labels[, velocities]) tuples")
     per_mode: dict[Hashable, list[ModeSegment]] = {}

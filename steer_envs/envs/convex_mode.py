@@ -141,7 +141,7 @@ class ConvexModeModel(KinematicTaskModel):
         self.polygon: Polygon = orient(hull, sign=1.0)
         self.vertices = np.asarray(self.polygon.exterior.coords, dtype=np.float64)[:-1]
         self.A, self.b = convex_halfspaces(self.vertices)
-        # attractor (tli.md): 0.9 * a point on the edge between the two right-most vertices
+        # attractor (public TLI code): 0.9 * a point on the edge between the two right-most vertices
         # + 0.05 * each of the two left-most vertices; the point on the edge is drawn uniformly
         # on its middle 60% so the attractor is strictly inside, near the right edge.
         by_x = np.argsort(self.vertices[:, 0])
@@ -232,6 +232,14 @@ class ConvexModeEnv(Kinematic2DEnv):
         dt, max_speed: integration step and speed limit (thesis: 0.01, 20).
         render_mode: ``None`` or ``"rgb_array"``.
         render_size: side of the rendered square image in pixels.
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/ConvexMode-v0", layout_seed=3, start_noise=1.0)  # TLI's 5 % noise starts
+    >>> obs, info = env.reset(seed=0)
+    >>> model = env.unwrapped.model
+    >>> info["mode_name"], info["success"], bool(np.linalg.norm(obs - model.attractor) > model.attractor_radius)
+    ('inside', False, True)
     """
 
     def __init__(

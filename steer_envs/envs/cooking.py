@@ -256,6 +256,12 @@ class CookingEnv(Kinematic2DEnv):
         render_size: side of the rendered square image in pixels.
 
     Spills are reported, never terminal (``terminate_on_violation=False``).
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/Cooking-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> info["mode_name"], env.unwrapped.task.sensors
+    ('w0', ('hc', 'hb', 'p', 'ch', 'br'))
     """
 
     def __init__(

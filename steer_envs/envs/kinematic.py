@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -23,6 +23,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
@@ -103,8 +104,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     ``constraint_violation``. Reward: +1 on success, -1 on a violation, else 0.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 30}
-    interaction_kinds: tuple[str, ...] = ("point", "sketch", "nudge")
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 30}  # noqa: RUF012 - Env's type
+    interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
 
     def __init__(
         self,
@@ -224,9 +225,17 @@ class Kinematic2DVectorEnv(VectorEnv):
     autoreset is ``NEXT_STEP`` (Gymnasium's default). ``infos`` holds arrays:
     ``mode``, ``success``, ``constraint_violation`` and ``sensors`` (an
     ``(num_envs, num_aps)`` bool array, columns in ``task.sensors`` order).
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> venv = gym.make_vec("steer_envs/PolygonNav-3Mode-v0", num_envs=4, vectorization_mode="vector_entry_point")
+    >>> obs, infos = venv.reset(seed=0)
+    >>> obs, rewards, terminated, truncated, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
+    >>> obs.shape, infos["mode"].shape, infos["sensors"].shape
+    ((4, 2), (4,), (4, 2))
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012 - VectorEnv's type
 
     def __init__(self, env: Kinematic2DEnv, num_envs: int, max_episode_steps: int | None = None) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
@@ -337,7 +346,7 @@ def _check_xy(value: Any, name: str) -> np.ndarray:
     return arr
 
 
-def _check_action(action: Any, space: spaces.Box) -> np.ndarray:
+def _check_action(action: Any, space: spaces.Space[Any]) -> np.ndarray:
     try:
         arr = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):

@@ -25,13 +25,14 @@ from __future__ import annotations
 import contextlib
 import io
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.envs.kinematic import _check_action, _check_xy
 from steer_envs.envs.render import Canvas
@@ -282,10 +283,20 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
     (the agent had a MuJoCo contact with a wall during the step), ``perturbed``.
     Reset options: ``state`` (xy start; must not be in a wall cell, it is nudged
     off walls closer than the agent's radius), ``goal_cell`` ((row, col) or None).
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/Maze2D-Umaze-v0")
+    >>> obs, info = env.reset(seed=0, options={"state": [1.0, 1.0], "goal_cell": (3, 1)})
+    >>> obs, reward, terminated, truncated, info = env.step(np.array([1.0, 2.0], dtype=np.float32))
+    >>> env.unwrapped.xy_to_cell(obs).tolist(), info["constraint_violation"]
+    ([1, 1], False)
+    >>> bool(env.unwrapped.is_wall(np.array([2.0, 1.0])))
+    True
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 25}
-    interaction_kinds: tuple[str, ...] = ("point", "sketch", "nudge")
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012 - Env's type
+    interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     _OPTION_KEYS = frozenset({"state", "goal_cell"})
 
     def __init__(
@@ -298,6 +309,7 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         cell_px: int = 32,
     ) -> None:
+        layout: Sequence[Sequence[int | str]]
         if isinstance(maze, str):
             self.maze_name = maze
             layout = maze_map(maze)

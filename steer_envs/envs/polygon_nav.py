@@ -8,11 +8,9 @@ chain in order. Allowed mode transitions: self-loops, ``i -> i+1``,
 straight into polygon 2) is an invalid transition: a constraint violation that
 ends the episode. Dynamics (public GLiDE code): single integrator whose step
 is the action with its length clipped to 0.1 (``dt = 1``, ``max_speed = 0.1``),
-500 steps per episode (the public env's nominal limit, which its own evaluation
-loop does not enforce; ``max_episode_steps=`` changes it, and the Table 4.1
-suite runs 1000).
+500 steps per episode (``gym.make(..., max_episode_steps=...)`` changes it).
 
-Geometry (glide.md "Polygon domain"): each polygon is a random convex
+Geometry (after the public GLiDE generator): each polygon is a random convex
 quadrilateral scaled to the unit box; polygon ``j+1`` is attached by the
 orientation-preserving similarity that maps its first edge ``(v0, v1)`` onto
 polygon ``j``'s last edge ``(v2, v3)`` (reversed, so it lies on the other side);
@@ -186,7 +184,7 @@ class PolygonNavModel(KinematicTaskModel):
             ):
                 continue
             return verts
-        raise RuntimeError(  # pragma: no cover - ~1.4 / 3 / 8 draws per layout for 3 / 4 / 5 modes
+        raise RuntimeError(  # pragma: no cover - a valid layout takes a handful of draws
             f"PolygonNav: no valid layout in {_MAX_LAYOUT_TRIES} draws (num_modes={self.num_modes})"
         )
 
@@ -268,6 +266,12 @@ class PolygonNavEnv(Kinematic2DEnv):
         workspace_margin, min_gap: layout validity margins (see the module docstring).
         render_mode: ``None`` or ``"rgb_array"``.
         render_size: side of the rendered square image in pixels.
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/PolygonNav-4Mode-v0", layout_seed=0)
+    >>> obs, info = env.reset(seed=0)
+    >>> env.unwrapped.task.modes, info["mode_name"]
+    (('free', 'p1', 'p2', 'p3'), 'free')
     """
 
     def __init__(

@@ -16,17 +16,39 @@ NAMESPACE = "steer_envs"
 
 @dataclass(frozen=True)
 class EnvEntry:
-    """One registered environment id."""
+    """One registered environment id: how Gymnasium makes it and which scripted expert solves it.
 
-    name: str  # e.g. "SoupScoop-v0" (registered as "steer_envs/SoupScoop-v0")
+    Attributes:
+        name: the id without the namespace, e.g. ``"SoupScoop-v0"`` (registered as
+            ``"steer_envs/SoupScoop-v0"``).
+        entry_point: ``"module:Class"`` of the env.
+        max_episode_steps: the registered step limit.
+        vector_entry_point: ``"module:function"`` building a batched env, if the domain has one.
+        kwargs: constructor arguments of this id (e.g. ``num_modes``).
+        kinematic: a 2D numpy domain with a batched vector path.
+        expert: ``"module:Class"`` of its scripted expert (:func:`steer_envs.data.experts.make_expert`),
+            or None; imported only when an expert is made.
+
+    >>> entry("ConvexMode-v0").expert
+    'steer_envs.data.experts.convex_mode:ConvexModeExpert'
+    """
+
+    name: str
     entry_point: str
     max_episode_steps: int
     vector_entry_point: str | None = None
     kwargs: dict[str, Any] = field(default_factory=dict)
-    kinematic: bool = False  # 2D numpy domain with a batched vector path
+    kinematic: bool = False
+    expert: str | None = None
+
+    def __post_init__(self) -> None:
+        for label, value in (("entry_point", self.entry_point), ("expert", self.expert)):
+            if value is not None and (not isinstance(value, str) or value.count(":") != 1):
+                raise ValueError(f"EnvEntry {self.name!r}: `{label}` must be 'module:Name', got {value!r}")
 
     @property
     def id(self) -> str:
+        """The registered id, ``"steer_envs/<name>"``."""
         return f"{NAMESPACE}/{self.name}"
 
 
@@ -37,6 +59,7 @@ ENTRIES: tuple[EnvEntry, ...] = (
         max_episode_steps=1000,
         vector_entry_point="steer_envs.envs.soup_scoop:make_vector_env",
         kinematic=True,
+        expert="steer_envs.data.experts.soup_scoop:SoupScoopExpert",
     ),
     EnvEntry(
         "ConvexMode-v0",
@@ -44,6 +67,7 @@ ENTRIES: tuple[EnvEntry, ...] = (
         max_episode_steps=1000,
         vector_entry_point="steer_envs.envs.convex_mode:make_vector_env",
         kinematic=True,
+        expert="steer_envs.data.experts.convex_mode:ConvexModeExpert",
     ),
     EnvEntry(
         "Cooking-v0",
@@ -51,6 +75,7 @@ ENTRIES: tuple[EnvEntry, ...] = (
         max_episode_steps=2000,
         vector_entry_point="steer_envs.envs.cooking:make_vector_env",
         kinematic=True,
+        expert="steer_envs.data.experts.cooking:CookingExpert",
     ),
     *(
         EnvEntry(
@@ -60,6 +85,7 @@ ENTRIES: tuple[EnvEntry, ...] = (
             vector_entry_point="steer_envs.envs.polygon_nav:make_vector_env",
             kwargs={"num_modes": k},
             kinematic=True,
+            expert="steer_envs.data.experts.polygon_nav:PolygonNavExpert",
         )
         for k in (3, 4, 5)
     ),
@@ -69,6 +95,7 @@ ENTRIES: tuple[EnvEntry, ...] = (
             "steer_envs.envs.maze2d:Maze2DEnv",
             max_episode_steps=steps,
             kwargs={"maze": maze.lower()},
+            expert="steer_envs.data.experts.maze2d:Maze2DExpert",
         )
         for maze, steps in (("Umaze", 300), ("Medium", 600), ("Large", 800))
     ),
@@ -76,12 +103,20 @@ ENTRIES: tuple[EnvEntry, ...] = (
 
 
 def env_ids(kinematic_only: bool = False) -> list[str]:
-    """Every registered steer-envs id (optionally only the 2D kinematic ones)."""
+    """Every registered steer-envs id (optionally only the 2D kinematic ones).
+
+    >>> env_ids(kinematic_only=True)[:2]
+    ['steer_envs/SoupScoop-v0', 'steer_envs/ConvexMode-v0']
+    """
     return [e.id for e in ENTRIES if e.kinematic or not kinematic_only]
 
 
 def entry(env_id: str) -> EnvEntry:
-    """The registry entry of ``env_id`` (with or without the namespace)."""
+    """The registry entry of ``env_id`` (with or without the namespace); ``ValueError`` for an unknown id.
+
+    >>> entry("steer_envs/Maze2D-Large-v0").kwargs
+    {'maze': 'large'}
+    """
     for e in ENTRIES:
         if env_id in (e.id, e.name):
             return e
@@ -89,7 +124,13 @@ def entry(env_id: str) -> EnvEntry:
 
 
 def register_all() -> None:
-    """Register every entry with Gymnasium (idempotent)."""
+    """Register every entry with Gymnasium (idempotent; ``import steer_envs`` calls it).
+
+    >>> import gymnasium as gym
+    >>> register_all()
+    >>> "steer_envs/Cooking-v0" in gym.registry
+    True
+    """
     for e in ENTRIES:
         if e.id in gym.registry:
             continue

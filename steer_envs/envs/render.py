@@ -1,8 +1,13 @@
 """A tiny numpy rasterizer for the 2D kinematic envs.
 
-Drawing with numpy keeps ``render()`` fast (a few ms per frame) and free of a
-GUI toolkit. The canvas maps a world rectangle to an ``H x W`` RGB image with
-``y`` pointing up.
+Drawing with numpy keeps ``render()`` fast and free of a GUI toolkit. The
+canvas maps a world rectangle to an ``H x W`` RGB image with ``y`` pointing up.
+
+>>> import numpy as np
+>>> canvas = Canvas(np.array([-1.0, -1.0]), np.array([1.0, 1.0]), width=32, height=32)
+>>> canvas.disc(np.zeros(2), 4, (220, 30, 30))
+>>> canvas.image.shape, canvas.image[16, 16].tolist()
+((32, 32, 3), [220, 30, 30])
 """
 
 from __future__ import annotations

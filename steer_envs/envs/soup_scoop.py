@@ -1,8 +1,8 @@
 """SoupScoop-v0: the 2D soup-scooping abstraction of TLI (thesis §3.2 Fig. 3.2, §3.6).
 
 The state ``x = (x1, x2)`` in ``[-8, 8]^2`` abstracts the spoon's orientation
-and its distance to the soup. Regions (rectangles ``[x0, x1] x [y0, y1]``; the
-public TLI code, see ``shared/reference/tli.md``):
+and its distance to the soup. Regions (rectangles ``[x0, x1] x [y0, y1]``, as
+in the public TLI code):
 
 =========  ==========================  =====================================
 region     rectangle                   meaning
@@ -48,9 +48,8 @@ Modes: ``a`` reach, ``b`` scoop, ``c`` transport, ``d`` done. Transitions
 ``c -> a``, ``c -> b``. Violations do not end the episode
 (``terminate_on_violation=False``): TLI recovers by replanning.
 
-Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10`` (tli.md: speed
-clip 10; the public simulation steps 0.005, we use 0.01 so that perturbed DS
-rollouts fit the registered 1000-step limit). Starts are uniform in
+Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10`` (a step long
+enough for perturbed DS rollouts to fit the registered 1000-step limit). Starts are uniform in
 ``[-7.5, -5.5] x [1, 5]`` (white, above the first segment attractor, where
 the reach segment of the demonstrations begins).
 """
@@ -79,13 +78,13 @@ RECTS: MappingProxyType[str, tuple[float, float, float, float]] = MappingProxyTy
         "green": (2.0, 6.0, 6.0, 8.0),
     }
 )
-#: per-region attractors of the public demonstrations' segments (tli.md).
+#: per-region attractors of the public demonstrations' segments.
 REGION_ATTRACTORS: MappingProxyType[str, tuple[float, float]] = MappingProxyType(
     {"yellow": (-6.47, -4.13), "pink": (2.06, -6.98), "green": (4.69, 6.03)}
 )
 #: a point within this distance of a region's attractor counts as in the region.
 ATTRACTOR_RADIUS = 0.4
-#: attractor of the unsegmented task (tli.md).
+#: attractor of the unsegmented task (public TLI code).
 TASK_ATTRACTOR = (4.75, 5.99)
 #: start box ``(low, high)`` corners.
 START_BOX = ((-7.5, 1.0), (-5.5, 5.0))
@@ -219,6 +218,15 @@ class SoupScoopEnv(Kinematic2DEnv):
         render_size: side of the rendered square image in pixels.
 
     Spills are reported, never terminal (``terminate_on_violation=False``).
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/SoupScoop-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> info["mode_name"], info["sensors"]
+    ('a', {'r': False, 's': False, 't': False})
+    >>> info = env.unwrapped.perturb(to=[0.0, -6.0])  # pushed into the soup
+    >>> info["mode_name"], info["perturbed"]
+    ('b', True)
     """
 
     def __init__(

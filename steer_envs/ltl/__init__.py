@@ -9,6 +9,14 @@ lasso-word semantics (:func:`evaluate`) is the reference the translator is
 tested against. :class:`ModeReplanner` turns a GR(1)-style task specification
 (:class:`GR1Spec`) over a :class:`~steer_envs.core.task.TaskSpec` into a task
 automaton over modes that answers "which mode next?" from sensor readings.
+
+>>> from steer_envs.ltl import LassoWord, evaluate, parse, translate
+>>> formula = parse("G(request -> F grant)")
+>>> automaton = translate(formula)
+>>> automaton.accepts(prefix=[{"request"}], loop=[{"grant"}])
+True
+>>> evaluate(formula, LassoWord.of([], [{"request"}]))
+False
 """
 
 from steer_envs.ltl.automaton import Automaton, Edge

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
-from steer_envs.ltl.guards import MAX_APS, full_mask, guard_to_str, remap_guard, valuation_of
+from steer_envs.ltl.guards import MAX_APS, GuardLetter, full_mask, guard_to_str, remap_guard, valuation_of
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -117,11 +117,11 @@ class Automaton:
         """Edges leaving ``state``."""
         return [e for e in self.edges if e.src == state]
 
-    def valuation(self, letter: object) -> int:
+    def valuation(self, letter: GuardLetter) -> int:
         """The valuation int of a letter (set of true APs, mapping AP -> bool, or int)."""
-        return valuation_of(letter, self.aps)  # type: ignore[arg-type]
+        return valuation_of(letter, self.aps)
 
-    def successors(self, state: int, letter: object) -> list[int]:
+    def successors(self, state: int, letter: GuardLetter) -> list[int]:
         """States reachable from ``state`` in one step reading ``letter``."""
         v = self.valuation(letter)
         return sorted({dst for dst, guard, _ in self._out[state] if (guard >> v) & 1})
@@ -143,7 +143,7 @@ class Automaton:
         )
 
     # ------------------------------------------------------------ acceptance
-    def accepts(self, prefix: Iterable[object], loop: Iterable[object]) -> bool:
+    def accepts(self, prefix: Iterable[GuardLetter], loop: Iterable[GuardLetter]) -> bool:
         """Is the lasso word ``prefix loop^omega`` accepted?
 
         Exact: searches the product with the word's positions for a reachable
@@ -193,8 +193,8 @@ class Automaton:
             return None
         prefix: list[int] = []
         node = target
-        while parent[node] is not None:
-            src, guard = parent[node]  # type: ignore[misc]
+        while (edge := parent[node]) is not None:
+            src, guard = edge
             prefix.append(_lowest_bit(guard))
             node = src
         prefix.reverse()
@@ -328,7 +328,7 @@ class Automaton:
             edges = tuple(Edge(s, d, g, frozenset({0}) if s in accepting else frozenset()) for s, d, g, _ in raw)
         else:
             edges = tuple(Edge(s, d, g, frozenset({0}) if c else frozenset()) for s, d, g, c in raw)
-        names = ()
+        names: tuple[str, ...] = ()
         if self.state_names:
             by_index = sorted(index.items(), key=lambda kv: kv[1])
             names = tuple(f"{self.state_names[q]} [{lvl}]" for (q, lvl), _ in by_index)
@@ -503,10 +503,9 @@ def _covering_cycle(aut: Automaton, start: int, scc: set[int]) -> list[int]:
                 if goal(q, dst, acc):
                     steps = [(q, dst, guard, acc)]
                     node = q
-                    while parent[node] is not None:
-                        step = parent[node]
-                        steps.append(step)  # type: ignore[arg-type]
-                        node = step[0]  # type: ignore[index]
+                    while (step := parent[node]) is not None:
+                        steps.append(step)
+                        node = step[0]
                     steps.reverse()
                     return steps
                 if dst not in parent:

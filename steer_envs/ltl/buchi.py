@@ -289,6 +289,12 @@ def translate(
 
     Both backends return an :class:`~steer_envs.ltl.automaton.Automaton` over
     ``aps`` accepting exactly the words that satisfy the formula.
+
+    >>> aut = translate("G(a -> F b)")
+    >>> aut
+    Automaton(2 states, 4 edges, 1 acceptance sets, aps=('a', 'b'))
+    >>> aut.accepts([{"a"}], [{"b"}]), aut.accepts([], [{"a"}])
+    (True, False)
     """
     if backend not in BACKENDS:
         raise ValueError(f"translate: `backend` must be one of {BACKENDS}, got {backend!r}")

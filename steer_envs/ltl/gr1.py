@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import Any
 
 from steer_envs.ltl.parser import LTLParseError, parse
 from steer_envs.ltl.syntax import TRUE, And, Finally, Formula, Globally, Implies, Next, Not, Or
@@ -58,6 +59,12 @@ class GR1Spec:
         description: free text (where the spec comes from).
 
     All parts are LTL text in Spot syntax; they are parsed and checked here.
+
+    >>> spec = GR1Spec(sys_init="m0", sys_safety="G(m0 -> X m1) & G(m1 -> X m1)", sys_liveness="G F m1")
+    >>> str(spec.formula())
+    '(true & true & true) -> (m0 & G(m0 -> Xm1) & G(m1 -> Xm1) & GFm1)'
+    >>> spec.retask("G(m0 -> X m0)").sys_safety
+    'G(m0 -> X m0)'
     """
 
     env_init: str = "true"
@@ -194,9 +201,9 @@ class GR1Spec:
 
     def retask(self, sys_safety: str, *, name: str = "", modes: tuple[str, ...] | None = None, **parts: str) -> GR1Spec:
         """A copy with a new ``sys_safety`` (thesis: re-tasking edits ``phi_s_t``) and optionally other parts."""
-        changes: dict[str, object] = {"sys_safety": sys_safety, **parts}
+        changes: dict[str, Any] = {"sys_safety": sys_safety, **parts}
         if name:
             changes["name"] = name
         if modes is not None:
             changes["modes"] = modes
-        return replace(self, **changes)  # type: ignore[arg-type]
+        return replace(self, **changes)

@@ -14,7 +14,7 @@ irredundant cover) for printing and for HOA labels.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
 
 from steer_envs.ltl.syntax import (
@@ -81,9 +81,11 @@ def cube_mask(cube: Cube, n: int) -> int:
     return m & full_mask(n)
 
 
-def valuation_of(
-    letter: Mapping[str, bool] | Sequence[str] | set[str] | frozenset[str] | int, aps: Sequence[str]
-) -> int:
+#: a letter: the set (any iterable) of true APs, a mapping AP -> bool, or a valuation int
+GuardLetter = Mapping[str, bool] | Iterable[str] | int
+
+
+def valuation_of(letter: GuardLetter, aps: Sequence[str]) -> int:
     """The valuation (int) of a letter: set of true APs, mapping AP -> bool, or an int already."""
     if isinstance(letter, bool):
         raise TypeError("a letter must be a set of true APs, a mapping AP -> bool or an int, got bool")

@@ -25,7 +25,15 @@ def _hoa_string(text: str) -> str:
 
 
 def to_hoa(aut: Automaton) -> str:
-    """Serialise ``aut`` in HOA v1."""
+    """Serialise ``aut`` in HOA v1.
+
+    >>> from steer_envs.ltl.buchi import translate
+    >>> text = to_hoa(translate("F a"))
+    >>> text.splitlines()[:3]
+    ['HOA: v1', 'name: "Fa"', 'States: 2']
+    >>> from_hoa(text).accepts([], [{"a"}])
+    True
+    """
     k = aut.num_sets
     lines = ["HOA: v1"]
     if aut.name:
@@ -283,11 +291,11 @@ def from_hoa(text: str) -> Automaton:
             raise ValueError(f"from_hoa: edge before any State: ({tok.text!r})")
         if tok.text != "[":
             raise ValueError("from_hoa: implicit (unlabelled) edges are not supported")
-        j = next((k for k in range(i, len(body)) if body[k].text == "]"), None)
-        if j is None:
+        close = next((k for k in range(i, len(body)) if body[k].text == "]"), None)
+        if close is None:
             raise ValueError("from_hoa: unterminated edge label")
-        guard = _LabelParser(body[i + 1 : j], n, aliases).parse()
-        i = j + 1
+        guard = _LabelParser(body[i + 1 : close], n, aliases).parse()
+        i = close + 1
         dst = int(body[i].text)
         i += 1
         if i < len(body) and body[i].text == "&":

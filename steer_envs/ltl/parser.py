@@ -280,6 +280,15 @@ def parse(text: str | Formula) -> Formula:
     """Parse LTL ``text`` (Spot syntax) into an immutable :class:`Formula`.
 
     A :class:`Formula` is returned unchanged, so APIs can accept either.
+    Malformed text raises :class:`LTLParseError` (a ``ValueError``) pointing at the column.
+
+    >>> f = parse("G(a -> F b)")
+    >>> f, sorted(f.atoms())
+    (parse('G(a -> Fb)'), ['a', 'b'])
+    >>> parse("G (a &")
+    Traceback (most recent call last):
+    ...
+    steer_envs.ltl.parser.LTLParseError: LTL syntax error at column 7: expected a formula ...
     """
     if isinstance(text, Formula):
         return text

@@ -397,11 +397,12 @@ class TaskAutomaton:
 
 
 def _reading(sensors: Mapping[str, bool] | Iterable[str], known: tuple[str, ...]) -> frozenset[str]:
+    keys: set[str] | frozenset[str]
     if isinstance(sensors, Mapping):
         reading = frozenset(str(k) for k, v in sensors.items() if bool(v))
         keys = {str(k) for k in sensors}
     elif isinstance(sensors, str):
-        reading = keys = frozenset((sensors,))  # type: ignore[assignment]
+        reading = keys = frozenset((sensors,))
     else:
         try:
             reading = frozenset(str(x) for x in sensors)
@@ -426,6 +427,16 @@ class ModeReplanner:
     Use :meth:`reset` with the first reading of an episode, then :meth:`update`
     (or :meth:`next_mode` / :meth:`plan`, which update first) with every new
     reading.
+
+    >>> from steer_envs.envs.soup_scoop import SOUP_TASK
+    >>> from steer_envs.ltl import specs
+    >>> replanner = ModeReplanner(SOUP_TASK, specs.soup_scoop("public"))
+    >>> replanner.reset({"r": False, "s": False, "t": False}), replanner.plan()
+    ('a', ['a', 'b', 'c', 'd'])
+    >>> replanner.next_mode({"r": True, "s": False, "t": False})  # the spoon is in the soup: mode b, then c
+    'c'
+    >>> replanner.next_mode({"r": False, "s": False, "t": False})  # it left the soup unscooped: back to a
+    'b'
     """
 
     def __init__(self, task: TaskSpec, spec: GR1Spec) -> None:

@@ -13,7 +13,7 @@ tests use it as the oracle for the translator.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from steer_envs.ltl.parser import parse
@@ -55,12 +55,11 @@ def _letter(letter: object, aps: Sequence[str] | None, what: str) -> frozenset[s
         return frozenset(str(k) for k, v in letter.items() if bool(v))
     if isinstance(letter, str):
         return frozenset((letter,))
-    try:
-        return frozenset(str(x) for x in letter)  # type: ignore[union-attr]
-    except TypeError:
+    if not isinstance(letter, Iterable):
         raise TypeError(
             f"{what}: a letter must be a set of true APs, a mapping AP -> bool or an int, got {type(letter).__name__}"
-        ) from None
+        )
+    return frozenset(str(x) for x in letter)
 
 
 @dataclass(frozen=True)
@@ -92,7 +91,11 @@ class LassoWord:
 
 
 def evaluate_positions(formula: str | Formula, word: LassoWord) -> tuple[bool, ...]:
-    """Truth value of ``formula`` at each position ``0 .. len(word) - 1`` of the lasso."""
+    """Truth value of ``formula`` at each position ``0 .. len(word) - 1`` of the lasso.
+
+    >>> evaluate_positions("X b", LassoWord.of([{"a"}, {"b"}], [set()]))
+    (True, False, False)
+    """
     f = parse(formula)
     if not isinstance(word, LassoWord):
         raise TypeError(f"word must be a LassoWord, got {type(word).__name__}")
@@ -101,13 +104,13 @@ def evaluate_positions(formula: str | Formula, word: LassoWord) -> tuple[bool, .
     succ = [word.successor(i) for i in range(n)]
     values: dict[Formula, list[bool]] = {}
 
-    def fixpoint(init: bool, step: object) -> list[bool]:
+    def fixpoint(init: bool, step: Callable[..., bool]) -> list[bool]:
         val = [init] * n
         changed = True
         while changed:
             changed = False
             for i in range(n - 1, -1, -1):
-                new = step(i, val[succ[i]])  # type: ignore[operator]
+                new = step(i, val[succ[i]])
                 if new != val[i]:
                     val[i] = new
                     changed = True
@@ -163,6 +166,11 @@ def evaluate(
 
     ``prefix`` may also be a ready :class:`LassoWord` (then omit ``loop``).
     Letters are sets of true APs, mappings AP -> bool, or ints with ``aps``.
+
+    >>> evaluate("a U b", [{"a"}, {"a"}], [{"b"}])
+    True
+    >>> evaluate("G F a", [], [0b1, 0b0], aps=["a"])
+    True
     """
     if isinstance(prefix, LassoWord):
         if loop is not None:

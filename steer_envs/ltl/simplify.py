@@ -15,6 +15,7 @@ checked against the lasso-word semantics by the property tests.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
 
 from steer_envs.ltl.parser import parse
@@ -44,7 +45,11 @@ __all__ = ["clear_caches", "conjunction", "disjunction", "nnf", "simplify"]
 
 # ---------------------------------------------------------------- NNF
 def nnf(formula: str | Formula) -> Formula:
-    """Negation normal form: ``!`` only on atoms; no ``->``, ``<->``, ``xor``."""
+    """Negation normal form: ``!`` only on atoms; no ``->``, ``<->``, ``xor``.
+
+    >>> str(nnf("!G(a -> b)"))
+    'F(a & !b)'
+    """
     return _nnf(parse(formula), False)
 
 
@@ -77,8 +82,13 @@ def _nnf(f: Formula, neg: bool) -> Formula:
         return Globally(_nnf(f.arg, True)) if neg else Finally(_nnf(f.arg, False))
     if isinstance(f, Globally):
         return Finally(_nnf(f.arg, True)) if neg else Globally(_nnf(f.arg, False))
-    dual = {Until: Release, Release: Until, WeakUntil: StrongRelease, StrongRelease: WeakUntil}
-    if type(f) in dual:
+    if isinstance(f, Until | Release | WeakUntil | StrongRelease):
+        dual: dict[type[Formula], type[Until | Release | WeakUntil | StrongRelease]] = {
+            Until: Release,
+            Release: Until,
+            WeakUntil: StrongRelease,
+            StrongRelease: WeakUntil,
+        }
         a, b = f.args
         cls = dual[type(f)] if neg else type(f)
         return cls(_nnf(a, neg), _nnf(b, neg))
@@ -138,7 +148,11 @@ def _junction(args: tuple[Formula, ...], cls: type, unit: Const, zero: Const) ->
 
 # ----------------------------------------------------------- simplification
 def simplify(formula: str | Formula) -> Formula:
-    """An equivalent, usually smaller formula in negation normal form."""
+    """An equivalent, usually smaller formula in negation normal form.
+
+    >>> str(simplify("!(a U b)")), str(simplify("G G a & G b"))
+    ('!a R !b', 'G(a & b)')
+    """
     f = nnf(formula)
     while True:
         g = _simp(f)
@@ -174,7 +188,9 @@ def _simp(f: Formula) -> Formula:
     raise TypeError(f"simplify: unexpected non-NNF node {type(f).__name__}")  # pragma: no cover
 
 
-def _merge(items: list[Formula], cls: type, combine: type) -> list[Formula]:
+def _merge(
+    items: list[Formula], cls: type[Globally | Finally | Next], combine: Callable[..., Formula]
+) -> list[Formula]:
     """Merge all operands of type ``cls`` (e.g. every ``G x``) into ``cls(combine(xs))``."""
     group = [a for a in items if type(a) is cls]
     if len(group) < 2:

@@ -33,6 +33,7 @@ from __future__ import annotations
 import statistics
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from types import MappingProxyType
 from typing import Any
 
@@ -221,9 +222,9 @@ def color_tracing(variant: str = "a") -> GR1Spec:
 
 # ------------------------------------------------------------------ lookup
 _ENVS: dict[str, tuple[str, dict[str, Callable[[], GR1Spec]]]] = {
-    "SoupScoop-v0": ("public", {"public": lambda: soup_scoop("public"), "thesis": lambda: soup_scoop("thesis")}),
-    "Cooking-v0": ("phi_cb", {v: (lambda v=v: cooking(v)) for v in _COOKING_SYS_SAFETY}),
-    "ColorTracing": ("a", {v: (lambda v=v: color_tracing(v)) for v in _REENTRY}),
+    "SoupScoop-v0": ("public", {c: partial(soup_scoop, c) for c in ("public", "thesis")}),
+    "Cooking-v0": ("phi_cb", {v: partial(cooking, v) for v in _COOKING_SYS_SAFETY}),
+    "ColorTracing": ("a", {v: partial(color_tracing, v) for v in _REENTRY}),
 }
 
 
@@ -253,6 +254,9 @@ def for_env(env: Any, variant: str | None = None) -> GR1Spec:
         variant: which spec (see :func:`variants`); default: the env's own
             (SoupScoop: the env's ``sensor_convention``, else ``"public"``;
             Cooking: ``"phi_cb"``; ColorTracing: ``"a"``).
+
+    >>> for_env("steer_envs/Cooking-v0").name, variants("steer_envs/Cooking-v0")
+    ('phi_cb', ('phi_cb', 'phi_bc', 'phi_c', 'phi_cc'))
     """
     name, instance = _env_name(env)
     if name not in _ENVS:

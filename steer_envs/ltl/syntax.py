@@ -20,7 +20,7 @@ import itertools
 import re
 import weakref
 from collections.abc import Iterator
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 __all__ = [
     "FALSE",
@@ -98,15 +98,17 @@ class Formula:
     _boolean: bool
 
     @classmethod
-    def _make(cls, args: tuple[Formula, ...], name: Any = None) -> Formula:
+    def _make(cls, args: tuple[Formula, ...], name: Any = None) -> Self:
         # Children are interned, so their ids identify them; the entry lives only
         # as long as the node, which keeps its children (and their ids) alive.
         key = (cls, name, *map(id, args))
         try:
-            node = _TABLE[key]
+            found = _TABLE[key]
         except KeyError:
-            node = None
-        if node is None:
+            found = None
+        if isinstance(found, cls):  # `cls` is part of the key: a hit is always of class `cls`
+            node = found
+        else:
             node = object.__new__(cls)
             object.__setattr__(node, "_args", args)
             object.__setattr__(node, "_name", name)
@@ -198,9 +200,11 @@ class Formula:
 
     # --------------------------------------------------------------- printing
     def __str__(self) -> str:
-        if self._str is None:
-            object.__setattr__(self, "_str", _to_str(self))
-        return self._str  # type: ignore[return-value]
+        text = self._str
+        if text is None:
+            text = _to_str(self)
+            object.__setattr__(self, "_str", text)
+        return text
 
     def __repr__(self) -> str:
         return f"parse({str(self)!r})"
@@ -226,7 +230,7 @@ class Const(Formula):
     def __new__(cls, value: bool) -> Const:
         if not isinstance(value, bool):
             raise TypeError(f"Const: value must be a bool, got {type(value).__name__}")
-        return cls._make((), value)  # type: ignore[return-value]
+        return cls._make((), value)
 
     @property
     def value(self) -> bool:
@@ -241,7 +245,7 @@ class Atom(Formula):
     def __new__(cls, name: str) -> Atom:
         if not isinstance(name, str) or not name:
             raise ValueError(f"Atom: name must be a non-empty string, got {name!r}")
-        return cls._make((), name)  # type: ignore[return-value]
+        return cls._make((), name)
 
     @property
     def name(self) -> str:
@@ -255,7 +259,7 @@ FALSE: Const = Const(False)
 class _Unary(Formula):
     __slots__ = ()
 
-    def __new__(cls, arg: Formula) -> Formula:
+    def __new__(cls, arg: Formula) -> Self:
         return cls._make((_check(arg, cls.__name__),))
 
     @property
@@ -297,7 +301,7 @@ class Globally(_Unary):
 class _Binary(Formula):
     __slots__ = ()
 
-    def __new__(cls, left: Formula, right: Formula) -> Formula:
+    def __new__(cls, left: Formula, right: Formula) -> Self:
         return cls._make((_check(left, cls.__name__), _check(right, cls.__name__)))
 
     @property
@@ -373,7 +377,10 @@ class _NAry(Formula):
     __slots__ = ()
     _unit: ClassVar[bool]
 
-    def __new__(cls, *args: Formula) -> Formula:
+    # And()/Or() of no or one operand is its unit or that operand, not an _NAry node. Python allows
+    # __new__ to return another type and mypy types the call as the annotation says, but it flags the
+    # annotation itself: hence the one [misc] ignore.
+    def __new__(cls, *args: Formula) -> Formula:  # type: ignore[misc]
         flat: list[Formula] = []
         for arg in args:
             _check(arg, cls.__name__)

@@ -14,8 +14,8 @@ of which cross walls. :class:`SketchUser` draws such sketches reproducibly:
   wall cell: the user ignores the maze (constraint-violating input).
 
 A share ``through_wall`` of the sketches is of the second kind. Lengths are in
-cells; the defaults match the reach of one 63-waypoint ITPS plan (~9 cells of
-arc length on the random-walk data). Everything is a pure function of the seed.
+cells; the defaults match the reach of one 63-waypoint ITPS plan on the
+random-walk data. Everything is a pure function of the seed.
 """
 
 from __future__ import annotations
@@ -74,6 +74,11 @@ class SketchUser:
         points: number of points of every sketch.
         hand_jitter: uniform offset (cells) of each path corner, a shaky hand.
         seed: seed of the user's randomness (or pass ``rng`` to :meth:`draw`).
+
+    >>> user = SketchUser("umaze", seed=0, points=8, min_length=2.0, max_length=4.0)
+    >>> drawn = user.draw([1.0, 1.0], kind="through")
+    >>> drawn.kind, drawn.collides, drawn.sketch.points.shape
+    ('through', True, (8, 2))
     """
 
     def __init__(
@@ -124,7 +129,8 @@ class SketchUser:
             raise ValueError(f"`kind` must be 'follow', 'through' or None, got {kind!r}")
         if kind is None:
             kind = "through" if rng.random() < self.through_wall else "follow"
-        cell = tuple(int(v) for v in self.grid.xy_to_cell(xy))
+        row, col = self.grid.xy_to_cell(xy)
+        cell = (int(row), int(col))
         if cell not in self.graph:
             raise ValueError(f"`start` {xy.tolist()} lies in a wall cell {cell}")
         if kind == "through":

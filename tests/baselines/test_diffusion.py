@@ -1,30 +1,24 @@
-"""Maze2D Diffusion Policy: protocol, shapes, DDIM setup, training, determinism, checkpoints, bad input."""
+"""Diffusion Policy: protocol, shapes, DDIM setup, relative plans, training, determinism, checkpoints, bad input."""
 
 from __future__ import annotations
-
-import json
-from dataclasses import asdict
 
 import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.act.modeling import ACTPolicy
-from steer_envs.baselines.diffusion.modeling import ConditionalUnet1D, DiffusionConfig, DiffusionPolicy
+from steer_envs.baselines.act import ACTConfig, ACTPolicy
+from steer_envs.baselines.common import TrainSettings
+from steer_envs.baselines.common.torch_policy import write_checkpoint
+from steer_envs.baselines.diffusion import ConditionalUnet1D, DiffusionConfig, DiffusionPolicy
+from steer_envs.baselines.factory import get_preset, make_policy
 from steer_envs.baselines.pretrained import checkpoint_record, load_pretrained
-from steer_envs.baselines.training.trainer import (
-    PRESETS,
-    TrainSettings,
-    build_policy,
-    main,
-    parse_model_overrides,
-    train_policy,
-)
+from steer_envs.baselines.training import train_policy
 from steer_envs.core import DiffusionPolicyLike, NoiseSchedulerLike, TrajectoryPolicy
-from steer_envs.data.maze_random_walk import generate_random_walk, save_random_walk
+from steer_envs.data.maze_random_walk import generate_random_walk
 from steer_envs.envs.maze2d import MazeGrid, maze_map
 
-TINY = {
+#: a tiny network
+ARCH = {
     "horizon": 16,
     "down_dims": (8, 16),
     "step_embed_dim": 16,
@@ -32,6 +26,10 @@ TINY = {
     "obs_embed_dim": 16,
     "obs_octaves": 2,
 }
+#: ... as a Maze-like DP: the xy of the env observation, plans relative to the agent
+TINY = {**ARCH, "obs_dim": 2, "action_dim": 2, "obs_indices": (0, 1), "action_obs_indices": (0, 1), "relative": True}
+BOX = {"min": (0.5, 0.5), "max": (7.5, 10.5)}
+STATS = {"observation": BOX, "action": BOX}
 
 
 @pytest.fixture(autouse=True)
@@ -45,11 +43,11 @@ def _one_thread():
 
 @pytest.fixture(scope="module")
 def walk():
-    return generate_random_walk("large", 20_000, seed=3, progress=False)
+    return generate_random_walk("large", 20_000, seed=3, progress=False).to_trajectories()
 
 
-def _tiny(seed: int = 0) -> DiffusionPolicy:
-    return DiffusionPolicy(DiffusionConfig(**TINY), low=(0.5, 0.5), high=(7.5, 10.5), seed=seed)
+def _tiny(seed: int = 0, **changes) -> DiffusionPolicy:
+    return DiffusionPolicy(DiffusionConfig(**{**TINY, **changes}), STATS, seed=seed)
 
 
 def test_protocol_and_itps_scheduler() -> None:
@@ -70,7 +68,7 @@ def test_shapes_and_observation_forms() -> None:
     policy = _tiny()
     assert policy.encode_obs(np.array([1.0, 2.0])).shape == (1, 4)
     single = policy.encode_obs(np.array([1.0, 2.0]))
-    # a single xy (or xy + velocity) is a history at rest; a long history keeps its last 2 entries
+    # a single observation is a history at rest; obs_indices=(0, 1) keeps the xy of an (x, y, vx, vy) observation
     torch.testing.assert_close(single, policy.encode_obs(np.array([[1.0, 2.0], [1.0, 2.0]])))
     torch.testing.assert_close(single, policy.encode_obs(np.array([1.0, 2.0, 0.3, -0.1])))
     hist = np.array([[5.0, 5.0], [1.0, 1.5], [1.0, 2.0]])
@@ -83,7 +81,32 @@ def test_shapes_and_observation_forms() -> None:
     plans = policy.sample([1.0, 2.0], 3, generator=np.random.default_rng(0))
     assert plans.shape == (3, 16, 2) and plans.dtype == np.float64 and np.all(np.isfinite(plans))
     # clip_sample keeps the DDIM x0 estimates, hence the plans, inside the normalized box
-    assert np.all(plans >= policy.low - 1e-4) and np.all(plans <= policy.high + 1e-4)
+    assert np.all(plans >= np.array(BOX["min"]) - 1e-4) and np.all(plans <= np.array(BOX["max"]) + 1e-4)
+
+
+def test_observation_and_action_sizes_are_independent() -> None:
+    """A 7-D observation and 4-D actions, each with its own statistics: nothing assumes 2-D positions."""
+    cfg = DiffusionConfig(**{**TINY, "obs_dim": 7, "action_dim": 4, "obs_indices": None, "action_obs_indices": None})
+    stats = {
+        "observation": {"min": np.zeros(7), "max": np.arange(1.0, 8.0)},
+        "action": {"min": -np.ones(4), "max": np.ones(4) * 3},
+    }
+    with pytest.raises(ValueError, match="relative=True needs action_obs_indices"):
+        DiffusionPolicy(cfg, stats)
+    policy = DiffusionPolicy(cfg.replace(relative=False), stats)
+    assert policy.encode_obs(np.ones(7)).shape == (1, 14)
+    assert policy.sample(np.ones(7), 2, generator=np.random.default_rng(0)).shape == (2, 16, 4)
+    np.testing.assert_allclose(policy.normalize(np.array([[3.0, -1.0, 1.0, 1.0]])), [[1.0, -1.0, 0.0, 0.0]])
+    np.testing.assert_allclose(policy.obs_normalizer.normalize(np.arange(1.0, 8.0)), np.ones(7))
+    with pytest.raises(ValueError, match="obs"):
+        policy.sample(np.ones(9), 2)  # without obs_indices the observation must have obs_dim entries
+    # relative plans: action j is a target for observation entry action_obs_indices[j], normalized alike
+    box = {"min": [0.0, 0.0, 0.0, 0.0], "max": [1.0, 2.0, 3.0, 4.0]}
+    rel = cfg.replace(action_obs_indices=(3, 0, 1, 2))
+    ok = {"observation": {"min": np.zeros(7), "max": [2.0, 3.0, 4.0, 1.0, 5.0, 6.0, 7.0]}, "action": box}
+    DiffusionPolicy(rel, ok)
+    with pytest.raises(ValueError, match="normalized with the actions' statistics"):
+        DiffusionPolicy(rel, {**ok, "observation": {"min": np.zeros(7), "max": np.ones(7)}})
 
 
 def test_unet_levels_and_film_conditioning() -> None:
@@ -100,7 +123,10 @@ def test_unet_levels_and_film_conditioning() -> None:
 @pytest.mark.parametrize("relative", [False, True])
 def test_predict_noise_recovers_the_noise_from_an_exact_network(prediction: str, relative: bool) -> None:
     """With a network that outputs the exact target, ``predict_noise`` returns the true noise (any parameterization)."""
-    policy = DiffusionPolicy(DiffusionConfig(**TINY, prediction=prediction, relative=relative), (0.0, 0.0), (8.0, 11.0))
+    box = {"min": (0.0, 0.0), "max": (8.0, 11.0)}
+    policy = DiffusionPolicy(
+        DiffusionConfig(**{**TINY, "prediction": prediction, "relative": relative}), {"observation": box, "action": box}
+    )
     gen = torch.Generator().manual_seed(0)
     x0 = torch.rand(3, 16, 2, generator=gen) * 2 - 1
     noise = torch.randn(3, 16, 2, generator=gen)
@@ -121,9 +147,8 @@ def test_predict_noise_recovers_the_noise_from_an_exact_network(prediction: str,
 
 
 def test_chi_et_al_network_is_available() -> None:
-    """The ITPS/Chi parameterization: epsilon target, absolute plans, raw positions as the FiLM condition."""
-    cfg = DiffusionConfig(**{**TINY, "obs_embed_dim": 0}, prediction="epsilon", relative=False, time_channel=False)
-    policy = DiffusionPolicy(cfg, (0.0, 0.0), (8.0, 11.0))
+    """The ITPS/Chi parameterization: epsilon target, absolute plans, raw observations as the FiLM condition."""
+    policy = _tiny(obs_embed_dim=0, prediction="epsilon", relative=False, time_channel=False)
     assert isinstance(policy.model.obs_encoder, torch.nn.Identity)
     assert policy.model.unet.down[0][0].block1[0].in_channels == 2
     x = torch.randn(2, 16, 2)
@@ -132,6 +157,13 @@ def test_chi_et_al_network_is_available() -> None:
         policy.model(x, torch.tensor([20, 20]), policy.encode_obs([1.0, 1.0]).expand(2, -1)),
     )
     assert policy.sample([1.0, 1.0], 2, generator=np.random.default_rng(0)).shape == (2, 16, 2)
+    preset = get_preset("dp", "itps").model
+    assert (preset.prediction, preset.relative, preset.time_channel, preset.obs_embed_dim) == (
+        "epsilon",
+        False,
+        False,
+        0,
+    )
 
 
 def test_normalization_round_trip_numpy_and_torch() -> None:
@@ -143,6 +175,8 @@ def test_normalization_round_trip_numpy_and_torch() -> None:
     assert isinstance(policy.normalize(t), torch.Tensor)
     torch.testing.assert_close(policy.normalize(t), torch.tensor(policy.normalize(pts), dtype=torch.float32))
     torch.testing.assert_close(policy.unnormalize(policy.normalize(t)), t)
+    identity = DiffusionPolicy(DiffusionConfig(**TINY))  # no statistics: data already in [-1, 1]
+    np.testing.assert_allclose(identity.normalize(pts), pts, rtol=1e-12, atol=1e-12)
 
 
 def test_predict_noise_is_differentiable_in_x_t() -> None:
@@ -164,12 +198,14 @@ def test_sampling_is_reproducible_from_the_generator() -> None:
 
 
 def test_tiny_training_reduces_loss_and_is_deterministic(walk) -> None:
-    settings = TrainSettings.defaults("dp", steps=80, batch_size=32, warmup_steps=10, log_every=20, seed=5)
+    settings = get_preset("dp", "cpu").train.replace(steps=80, batch_size=32, warmup_steps=10, log_every=20, seed=5)
+    config = get_preset("dp", "cpu").model.replace(**ARCH)  # features from the dataset
     policies, records = [], []
     for _ in range(2):
-        policy = build_policy("dp", walk, seed=5, **TINY)
+        policy = make_policy(config, dataset=walk, seed=5)
         records.append(train_policy(policy, walk, settings, progress=False))
         policies.append(policy)
+    assert policies[0].config.obs_indices == (0, 1) and policies[0].config.action_obs_indices == (0, 1)
     losses = [loss for _, loss in records[0]["losses"]]
     assert len(losses) == 4 and losses[-1] < 0.85 * losses[0]
     assert records[0]["losses"] == records[1]["losses"]
@@ -177,19 +213,21 @@ def test_tiny_training_reduces_loss_and_is_deterministic(walk) -> None:
         policies[0].model.state_dict().items(), policies[1].model.state_dict().values(), strict=True
     ):
         assert torch.equal(a, b), name
-    low, high = walk.xy_bounds()
-    np.testing.assert_allclose(policies[0].low, low)
-    np.testing.assert_allclose(policies[0].high, high)
+    # positions and plans share one min-max box (the dataset pools them)
+    pts = np.concatenate([walk.observations, walk.actions])
+    for feature in ("observation", "action"):
+        np.testing.assert_array_equal(policies[0].stats[feature].min, pts.min(axis=0))
+        np.testing.assert_array_equal(policies[0].stats[feature].max, pts.max(axis=0))
 
 
 def test_ema_keeps_the_loss_curve_and_averages_the_weights(walk) -> None:
-    settings = TrainSettings.defaults("dp", steps=40, batch_size=16, warmup_steps=5, log_every=20, seed=2)
-    plain = build_policy("dp", walk, seed=2, **TINY)
+    settings = TrainSettings(steps=40, batch_size=16, warmup_steps=5, log_every=20, seed=2, lr=2e-3)
+    config = DiffusionConfig(**TINY)
+    plain = make_policy(config, dataset=walk, seed=2)
     plain_record = train_policy(plain, walk, settings, progress=False)
-    averaged = build_policy("dp", walk, seed=2, **TINY)
+    averaged = make_policy(config, dataset=walk, seed=2)
     raw: dict[str, torch.Tensor] = {}
-    ema_settings = TrainSettings.defaults("dp", **{**asdict(settings), "ema_power": 0.75})
-    record = train_policy(averaged, walk, ema_settings, progress=False, raw_weights=raw)
+    record = train_policy(averaged, walk, settings.replace(ema_power=0.75), progress=False, raw_weights=raw)
     assert record["losses"] == plain_record["losses"]  # the EMA never feeds back into training
     for name, weight in plain.model.state_dict().items():
         assert torch.equal(raw[name], weight), name  # the raw weights are the plain run's
@@ -204,7 +242,7 @@ def test_save_load_round_trip(tmp_path) -> None:
     path = policy.save(tmp_path / "dp.safetensors", extra={"note": "x"})
     loaded = DiffusionPolicy.load(path)
     assert loaded.config == policy.config and loaded.checkpoint_info == {"note": "x"}
-    np.testing.assert_array_equal(loaded.low, policy.low)
+    assert loaded.stats == policy.stats
     obs = np.array([[2.0, 2.0], [2.1, 2.05]])
     np.testing.assert_array_equal(
         loaded.sample(obs, 3, generator=np.random.default_rng(0)),
@@ -213,90 +251,29 @@ def test_save_load_round_trip(tmp_path) -> None:
     assert not list(tmp_path.glob(".*tmp"))  # atomic write leaves no temp file
 
 
-def test_training_cli_writes_checkpoint_and_record(tmp_path, walk) -> None:
-    data = save_random_walk(walk, tmp_path / "walk.npz")
-    out = tmp_path / "ck" / "dp.safetensors"
-    argv = ["dp", "--data", str(data), "--out", str(out), "--steps", "3", "--batch-size", "4", "--threads", "1"]
-    assert main([*argv, "--seed", "2", "--no-progress"]) == 0
-    record = json.loads(out.with_suffix(".json").read_text())
-    assert record["kind"] == "dp" and record["model"]["down_dims"] == [16, 32, 64]
-    assert record["training"]["settings"]["steps"] == 3 and record["training"]["data"]["seed"] == 3
-    assert len(record["training"]["losses"]) == 1 and record["training"]["threads"] == 1
-    policy = DiffusionPolicy.load(out)
-    assert policy.checkpoint_info["steps"] == 3
-    with pytest.raises(SystemExit):
-        main(["dp", "--data", str(data), "--out", str(tmp_path / "x.pt"), "--steps", "1"])
-    with pytest.raises(SystemExit):
-        main(["dp", "--data", str(tmp_path / "missing.npz"), "--out", str(out), "--steps", "1"])
-    with pytest.raises(SystemExit):
-        main(["dp", "--data", str(data), "--out", str(out), "--steps", "0"])
-
-
-def test_presets_and_model_overrides(tmp_path, walk) -> None:
-    """--preset itps builds ITPS's full-size networks; --model KEY=VALUE overrides one field; bad keys are rejected."""
-    dp = build_policy("dp", walk, **PRESETS["itps"]["dp"]["model"])
-    assert dp.config.down_dims == (128, 256, 512) and dp.config.prediction == "epsilon" and not dp.config.relative
-    assert 15e6 < dp.num_parameters() < 18e6  # ITPS: about 16M
-    act = build_policy("act", walk, **PRESETS["itps"]["act"]["model"])
-    assert act.config.d_model == 512 and act.config.n_vae_encoder_layers == 4
-    assert PRESETS["itps"]["dp"]["train"]["batch_size"] == 256 and PRESETS["cpu"]["dp"]["train"]["steps"] == 30_000
-    assert parse_model_overrides("dp", ["down_dims=[8,16]", "prediction=epsilon", "relative=false"]) == {
-        "down_dims": (8, 16),
-        "prediction": "epsilon",
-        "relative": False,
+def test_legacy_checkpoints_still_load(tmp_path) -> None:
+    """A file in the format written before the factory (``low``/``high``, 2-D config) loads as the same policy."""
+    policy = _tiny(seed=2)
+    old_model = {
+        **{k: list(v) if isinstance(v, tuple) else v for k, v in ARCH.items()},
+        **{"n_obs_steps": 2, "action_dim": 2, "n_groups": 8, "num_train_timesteps": 100, "num_inference_steps": 10},
+        **{"beta_schedule": "squaredcos_cap_v2", "clip_sample_range": 1.0, "prediction": "v", "relative": True},
+        "time_channel": True,
     }
-    with pytest.raises(ValueError, match="not a dp config field"):
-        parse_model_overrides("dp", ["d_model=8"])
-    with pytest.raises(ValueError, match="KEY=VALUE"):
-        parse_model_overrides("act", ["d_model"])
-    data = save_random_walk(walk, tmp_path / "walk.npz")
-    out = tmp_path / "dp.safetensors"
-    argv = ["dp", "--data", str(data), "--out", str(out), "--steps", "2", "--batch-size", "4", "--no-progress"]
-    assert main([*argv, "--model", "down_dims=[8,16]", "--model", "step_embed_dim=16"]) == 0
-    record = json.loads(out.with_suffix(".json").read_text())
-    assert record["model"]["down_dims"] == [8, 16] and record["training"]["preset"] == "cpu"
-    for bad in (["--model", "nope=1"], ["--model", "down_dims=[7]"], ["--preset", "gpu"]):
-        with pytest.raises(SystemExit):
-            main([*argv, *bad])
-
-
-def test_check_reruns_a_recorded_run_and_flags_a_difference(tmp_path, walk) -> None:
-    """--check re-runs the start of a recorded run: same losses -> exit 0; a tampered record -> exit 1."""
-    data = save_random_walk(walk, tmp_path / "walk.npz")
-    out = tmp_path / "dp.safetensors"
-    argv = ["dp", "--data", str(data), "--out", str(out), "--steps", "3", "--batch-size", "4", "--threads", "1"]
-    assert main([*argv, "--no-progress"]) == 0
-    record = out.with_suffix(".json")
-    check = ["dp", "--data", str(data), "--check", str(record), "--check-steps", "3", "--no-progress"]
-    assert main(check) == 0
-    summary = json.loads(record.read_text())
-    summary["training"]["losses"][-1][1] *= 1.01
-    record.write_text(json.dumps(summary))
-    assert main(check) == 1
-    with pytest.raises(SystemExit):  # no logged step within the first 2
-        main([*check[:-2], "--check-steps", "2", "--no-progress"])
-    with pytest.raises(SystemExit):  # neither --check nor --out/--steps
-        main(["dp", "--data", str(data)])
-
-
-@pytest.mark.slow
-def test_shipped_checkpoints_reproduce_with_the_committed_commands(tmp_path) -> None:
-    """Issue 7: scripts/train_maze_checkpoints.sh --check (data + the first steps of both runs), ~3 minutes."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
-    env = {**os.environ, "PYTHON": sys.executable}
-    proc = subprocess.run(
-        ["bash", str(root / "scripts" / "train_maze_checkpoints.sh"), "--check", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        env=env,
+    header = {
+        "format": "steer_envs.baselines.diffusion/1",
+        "model": old_model,
+        "low": list(BOX["min"]),
+        "high": list(BOX["max"]),
+        "extra": {"steps": 3},
+    }
+    path = write_checkpoint(tmp_path / "old.safetensors", policy.model.state_dict(), header)
+    loaded = DiffusionPolicy.load(path)
+    assert loaded.config == policy.config and loaded.checkpoint_info == {"steps": 3}
+    np.testing.assert_array_equal(
+        loaded.sample([2.0, 2.0], 2, generator=np.random.default_rng(0)),
+        policy.sample([2.0, 2.0], 2, generator=np.random.default_rng(0)),
     )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert proc.stdout.count("reproduced") == 2, proc.stdout
 
 
 def test_bad_input_raises() -> None:
@@ -306,13 +283,23 @@ def test_bad_input_raises() -> None:
         DiffusionConfig(down_dims=(12, 16))
     with pytest.raises(ValueError, match="num_inference_steps"):
         DiffusionConfig(num_inference_steps=0)
-    with pytest.raises(ValueError, match="high"):
-        DiffusionPolicy(DiffusionConfig(**TINY), low=(1.0, 1.0), high=(1.0, 2.0))
+    with pytest.raises(ValueError, match="normalization"):
+        DiffusionConfig(normalization="z-score")
+    with pytest.raises(ValueError, match="action_obs_indices"):
+        DiffusionConfig(obs_dim=2, action_dim=2, action_obs_indices=(0, 2))
+    with pytest.raises(ValueError, match="obs_dim and action_dim must be set"):
+        DiffusionPolicy(DiffusionConfig())
+    with pytest.raises(ValueError, match="max must be >= min"):
+        DiffusionPolicy(DiffusionConfig(**TINY), {"observation": BOX, "action": {"min": (1.0, 1.0), "max": (1.0, 0.0)}})
+    with pytest.raises(ValueError, match="action"):
+        DiffusionPolicy(DiffusionConfig(**TINY), {"observation": BOX, "action": {"min": (0.0,), "max": (1.0,)}})
+    with pytest.raises(ValueError, match="needs the statistics"):
+        DiffusionPolicy(DiffusionConfig(**TINY), {"observation": BOX, "action": {"mean": (0.0, 0.0)}})
     with pytest.raises(TypeError, match="config"):
         DiffusionPolicy({"horizon": 16})  # type: ignore[arg-type]
     policy = _tiny()
     with pytest.raises(ValueError, match="obs"):
-        policy.sample(np.zeros(3), 2)
+        policy.sample(np.zeros(1), 2)
     with pytest.raises(ValueError, match="obs"):
         policy.sample([np.nan, 1.0], 2)
     with pytest.raises(TypeError, match="obs"):
@@ -325,15 +312,23 @@ def test_bad_input_raises() -> None:
         policy.predict_noise(torch.zeros(2, 15, 2), 10, policy.encode_obs([1.0, 1.0]))
     with pytest.raises(ValueError, match="cond"):
         policy.predict_noise(torch.zeros(2, 16, 2), 10, torch.zeros(3, 4))
-    with pytest.raises(ValueError, match="traj"):
+    with pytest.raises(ValueError, match="action"):
         policy.normalize(np.zeros((4, 3)))
     with pytest.raises(ValueError, match="obs"):
         policy.loss(torch.zeros(4, 1, 2), torch.zeros(4, 16, 2))
 
 
+def test_constant_dimensions_map_to_zero() -> None:
+    """A dimension without spread in the data (e.g. a gripper never used) is normalized to 0, not divided by 0."""
+    box = {"min": (0.0, 2.0), "max": (4.0, 2.0)}
+    policy = DiffusionPolicy(DiffusionConfig(**TINY), {"observation": box, "action": box})
+    np.testing.assert_allclose(policy.normalize(np.array([[2.0, 2.0]])), [[0.0, 0.0]])
+    np.testing.assert_allclose(policy.unnormalize(np.array([[0.0, 0.0]])), [[2.0, 2.0]])
+
+
 def test_load_rejects_foreign_files(tmp_path) -> None:
-    act_file = ACTPolicy().save(tmp_path / "act.safetensors")
-    with pytest.raises(ValueError, match="format"):
+    act_file = ACTPolicy(ACTConfig(obs_dim=2, action_dim=2)).save(tmp_path / "act.safetensors")
+    with pytest.raises(ValueError, match="'act' policy, expected 'dp'"):
         DiffusionPolicy.load(act_file)
     junk = tmp_path / "junk.safetensors"
     junk.write_bytes(b"not a checkpoint")
@@ -343,16 +338,19 @@ def test_load_rejects_foreign_files(tmp_path) -> None:
         DiffusionPolicy.load(tmp_path / "absent.safetensors")
     with pytest.raises(ValueError, match=r"\.safetensors"):
         _tiny().save(tmp_path / "dp.pt")
+    other = write_checkpoint(tmp_path / "other.safetensors", {}, {"format": "someone-else/1"})
+    with pytest.raises(ValueError, match="format"):
+        DiffusionPolicy.load(other)
 
 
 def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
     """The shipped DP: plans start at the agent, move at the data's speed and spread over several modes.
 
-    Its collision rate from rest (0.32 on 100 starts x 32, ITPS's DP: 0.01) is far from the thesis's:
-    a 20x smaller net saw 1/13 of ITPS's training samples; the bound below only guards against regressions.
+    The bounds only guard against regressions (the measured rates are in docs/results.md).
     """
     policy = load_pretrained("dp")
     assert isinstance(policy, DiffusionPolicy) and policy.horizon == 64 and policy.n_obs_steps == 2
+    assert policy.config.obs_indices == (0, 1) and policy.config.relative
     record = checkpoint_record("dp")
     assert record["kind"] == "dp" and record["training"]["data"]["raw_steps"] == 1_000_000
     grid = MazeGrid(maze_map("large"))
@@ -367,6 +365,6 @@ def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
         steps.append(np.linalg.norm(np.diff(plans, axis=1), axis=-1).mean())
         spread.append(np.linalg.norm(plans[:, -1] - plans[:, -1].mean(axis=0), axis=-1).mean())
     assert np.median(first) < 0.1  # plan[0] re-states the current position (LeRobot layout)
-    assert 0.11 < np.mean(steps) < 0.18  # the data moves 0.144 cells per step
+    assert 0.11 < np.mean(steps) < 0.18  # the data moves about 0.14 cells per step
     assert np.median(spread) > 1.0  # cells: several modes per start, unlike ACT
-    assert np.mean(collided) < 0.45  # 0.21 for these 10 starts
+    assert np.mean(collided) < 0.45

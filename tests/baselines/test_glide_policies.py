@@ -9,17 +9,15 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401
+from steer_envs.baselines.glide.classifier import label_demonstrations
 from steer_envs.baselines.glide.mode_policies import (
-    BCConfig,
-    BCPolicy,
+    GlideBCConfig,
     GlideBCPolicy,
     GlidePlanningPolicy,
-    LearnedModeMap,
-    PlannerConfig,
     mode_entry_points,
-    rrt,
-    segment_demonstrations,
+    train_bc,
 )
+from steer_envs.baselines.glide.planners import LearnedModeMap, PlannerConfig, potential_field, rrt
 from steer_envs.bench.suites.glide.plots import plot_groundings
 from steer_envs.bench.suites.glide.protocol import (
     GlideSetup,
@@ -54,22 +52,35 @@ def test_bc_fits_a_velocity_field() -> None:
     rng = np.random.default_rng(0)
     states = rng.uniform(-1, 1, (400, 2))
     actions = -0.1 * states / np.maximum(np.linalg.norm(states, axis=1, keepdims=True), 1.0)
-    policy = BCPolicy(states, actions, max_speed=0.1, seed=0, config=BCConfig(steps=600))
+    policy = train_bc(states, actions, max_speed=0.1, seed=0, config=GlideBCConfig(steps=600))
+    assert policy.config.output_scale == 0.1 and policy.config.output == "clip"
     pred = policy.act(states)
     assert np.mean(np.linalg.norm(pred - actions, axis=1)) < 0.02
     assert np.all(np.linalg.norm(policy.act(rng.uniform(-9, 9, (50, 2))), axis=1) <= 0.1 + 1e-9)
     with pytest.raises(ValueError, match="states and actions"):
-        BCPolicy(states, actions[:-1], max_speed=0.1)
+        train_bc(states, actions[:-1], max_speed=0.1)
+    with pytest.raises(ValueError, match="max_speed"):
+        train_bc(states, actions, max_speed=0.0)
 
 
 def test_segmentation_and_entry_points(setting: tuple) -> None:
     model, demos = setting
-    modes = segment_demonstrations(_Oracle(model), [d.states for d in demos], 4)
+    modes = label_demonstrations(_Oracle(model), [d.states for d in demos], 4)
     agree = np.mean(np.concatenate([m == d.modes for d, m in zip(demos, modes, strict=True)]))
     assert agree > 0.99  # float32 observations vs float64 env state at the boundaries
     entries = mode_entry_points([d.states for d in demos], modes, 4)
     assert np.all(np.isnan(entries[0]))  # the demos start in free space: never *entered*
     np.testing.assert_array_equal(model.mode_of(entries[1:]), [1, 2, 3])
+    with pytest.raises(ValueError, match="outside"):
+        label_demonstrations(_Oracle(model), [d.states for d in demos], 2)
+
+
+def test_potential_field_pulls_to_the_goal_and_pushes_off_forbidden_modes(setting: tuple) -> None:
+    model, _ = setting
+    grid_map = LearnedModeMap(_Oracle(model), model.low, model.high, 0.1)
+    x = np.array([0.0, 0.0])
+    far = potential_field(grid_map, x, np.array([1.0, 0.0]), frozenset({0, 1, 2, 3}), k_att=2.0, k_rep=10.0, d0=0.8)
+    np.testing.assert_allclose(far, [2.0, 0.0])  # nothing forbidden: attraction only
 
 
 def test_rrt_goes_around_an_obstacle() -> None:
@@ -207,7 +218,7 @@ def test_glide_bc_runs_one_policy_per_mode(setting: tuple) -> None:
         4,
         max_speed=0.1,
         seed=0,
-        config=BCConfig(steps=200),
+        config=GlideBCConfig(steps=200),
     )
     assert sum(p is not None for p in policy.policies) >= 3
     assert np.all(np.isfinite(policy.attractors[:3]))

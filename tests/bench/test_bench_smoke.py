@@ -43,7 +43,7 @@ def test_quick_tours_every_suite_with_quick_settings():
     plan = plan_trials(quick, build_request(quick, envs=["ConvexMode-v0", "SoupScoop-v0"]))
     smoke_trials = [t for t in plan.trials if t.suite == "smoke"]  # other suites on these envs join the tour
     assert len(smoke_trials) == 2  # quick_seeds = 1
-    assert smoke_trials[0].params == {**smoke.params, **smoke.quick}
+    assert smoke_trials[0].params == {**smoke.defaults.to_json(), **smoke.quick}
     override = plan_trials(quick, build_request(quick, envs=["ConvexMode-v0"], seeds=2, params={"episodes": 5}))
     assert [t.params["episodes"] for t in override.trials if t.suite == "smoke"] == [5, 5]
     with pytest.raises(ValueError, match="no suite of the tour has parameter"):

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import ClassVar
 
 import pytest
 
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.runner import build_request, plan_trials
 from steer_envs.bench.suite import (
     Metric,
@@ -61,9 +64,10 @@ def test_suite_validation():
 
 def test_params_are_checked_and_coerced():
     suite = get_suite("selftest")
-    assert suite.resolve_params({"sleep": 1})["sleep"] == 1.0  # int -> float, so keys hash equally
-    assert isinstance(suite.resolve_params({"sleep": 1})["sleep"], float)
-    assert suite.resolve_params({}, trials=7)["samples"] == 7
+    assert suite.resolve_params({"sleep": 1}).sleep == 1.0  # int -> float, so keys hash equally
+    assert isinstance(suite.resolve_params({"sleep": 1}).sleep, float)
+    assert suite.resolve_params({}, trials=7).samples == 7
+    assert suite.resolve_params({"fail_seeds": [1, 2]}).to_json()["fail_seeds"] == [1, 2]  # JSON list, as stored
     with pytest.raises(ValueError, match="no parameter 'speed'"):
         suite.resolve_params({"speed": 1})
     with pytest.raises(ValueError, match="'samples' must be int"):
@@ -113,3 +117,72 @@ def test_metric_goal_direction():
     assert Metric("a", goal=20).meets_goal(19) is False
     assert Metric("a", goal=0.1, higher_is_better=False).meets_goal(0.05) is True
     assert Metric("a").meets_goal(1) is None
+
+
+@dataclass(frozen=True)
+class _CoinParams(SuiteParams):
+    suite_name: ClassVar[str] = "coin"
+    flips: int = 10
+    bias: float = 0.5
+    tag: str | None = None
+    skip: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "flips")
+        self.require("bias", 0.0 <= self.bias <= 1.0, "in [0, 1]")
+
+
+def test_typed_params_coerce_validate_and_round_trip_as_json():
+    p = _CoinParams.from_json({"flips": 4.0, "bias": 1, "skip": [3, 5]})
+    assert p == _CoinParams(flips=4, bias=1.0, skip=(3, 5)) and isinstance(p.bias, float)
+    assert p.to_json() == {"flips": 4, "bias": 1.0, "tag": None, "skip": [3, 5]}
+    assert _CoinParams.from_json(p.to_json()) == p and p.replace(flips=2).flips == 2
+    assert _CoinParams.field_names() == ("flips", "bias", "tag", "skip")
+    with pytest.raises(ValueError, match="suite 'coin' has no parameter 'flip'; parameters:"):
+        _CoinParams.from_json({"flip": 3})
+    with pytest.raises(ValueError, match=r"'flips' must be int, got 2\.5"):
+        _CoinParams.from_json({"flips": 2.5})
+    with pytest.raises(ValueError, match="'tag' must be str or null, got 3"):
+        _CoinParams.from_json({"tag": 3})
+    with pytest.raises(ValueError, match="'skip' must be a list of int"):
+        _CoinParams.from_json({"skip": ["a"]})
+    with pytest.raises(ValueError, match=r"coin: parameter 'bias' must be in \[0, 1\], got 2.0"):
+        _CoinParams.from_json({"bias": 2})
+    with pytest.raises(TypeError, match="mapping"):
+        _CoinParams.from_json([("flips", 1)])  # type: ignore[arg-type]
+
+
+def test_suite_with_typed_params_plans_json_trials_and_checks_values_early():
+    suite = Suite("coin", "d", (Metric("pi"),), run_selftest_trial, params=_CoinParams(), trials_param="flips")
+    assert suite.param_names == ("flips", "bias", "tag", "skip") and suite.defaults == _CoinParams()
+    plan = suite.plan(build_request(suite, seeds=2, trials=3, params={"bias": 1}))
+    assert [t.params for t in plan.trials] == [{"bias": 1.0, "flips": 3, "tag": None, "skip": []}] * 2
+    with pytest.raises(ValueError, match="coin: parameter 'flips' must be >= 1, got 0"):
+        suite.plan(build_request(suite, params={"flips": 0}))
+    with pytest.raises(TypeError, match="params must be _CoinParams"):
+        suite.trial(None, None, 0, get_suite("selftest").defaults)
+    with pytest.raises(ValueError, match="coin: parameter 'flips' must be >= 1"):
+        Suite("coin", "d", (), run_selftest_trial, params=_CoinParams(), quick={"flips": 0})
+    with pytest.raises(ValueError, match="quick overrides unknown params"):
+        Suite("coin", "d", (), run_selftest_trial, params=_CoinParams(), quick={"coins": 1})
+
+    @dataclass
+    class Mutable(SuiteParams):
+        n: int = 1
+
+    with pytest.raises(TypeError, match="frozen dataclass"):
+        Suite("coin", "d", (), run_selftest_trial, params=Mutable())
+
+    @dataclass(frozen=True)
+    class Shadowing(SuiteParams):
+        replace: int = 1
+
+    with pytest.raises(TypeError, match=r"'replace' shadows SuiteParams\.replace"):
+        Suite("coin", "d", (), run_selftest_trial, params=Shadowing())
+
+
+def test_a_mapping_of_defaults_still_declares_params(toy_suite):
+    assert toy_suite.param_names == ("scale", "sleep", "fail_flag")
+    assert toy_suite.resolve_params({"scale": 2}).to_json() == {"scale": 2.0, "sleep": 0.0, "fail_flag": ""}
+    with pytest.raises(ValueError, match="suite 'toy': parameter 'fail_flag' must be str"):
+        toy_suite.resolve_params({"fail_flag": 1})

@@ -16,6 +16,7 @@ from steer_envs.bench.executors import execute_trial  # noqa: E402
 from steer_envs.bench.runner import build_request, plan_trials  # noqa: E402
 from steer_envs.bench.suite import Trial, get_suite  # noqa: E402
 from steer_envs.bench.suites.itps import suite as suites_itps  # noqa: E402
+from steer_envs.bench.suites.itps.plots import plot_itps  # noqa: E402
 
 LOADER = f"{__name__}:load_test_policy"
 FAST = {"dp_loader": LOADER, "act_loader": LOADER, "batch": 8, "plot_seeds": 1}
@@ -147,7 +148,7 @@ def test_trials_report_table_2_1_metrics_on_shared_scenes(suite: Any, tmp_path: 
     assert "plans" not in by["DP-RS", 1]["extra"]  # only the first plot_seeds trials keep their plans
     assert by["DP-OP", 0]["extra"]["perturbed_state"] is not None
 
-    written = suites_itps.plot_itps(suite, records, str(tmp_path))
+    written = plot_itps(suite, records, str(tmp_path))
     assert sorted(Path(p).name for p in written) == ["itps-maze2d_qualitative.png", "itps-maze2d_tradeoff.png"]
     assert all(Path(p).stat().st_size > 10_000 for p in written)
 
@@ -156,21 +157,24 @@ def test_references_and_quick_settings(suite: Any) -> None:
     refs = suite.references_for(suites_itps.ENV_ID, "DP-SS")
     assert {k: v.value for k, v in refs.items()} == {"min_l2": 0.10, "avg_l2": 0.12, "collision": 0.01}
     assert suite.references_for(suites_itps.ENV_ID, "ACT-OP")["collision"].value == 0.35
-    assert suite.quick is not None and suite.default_seeds == 100 and suite.params["batch"] == 32
+    assert suite.quick is not None and suite.default_seeds == 100 and suite.defaults.batch == 32
     with pytest.raises(ValueError, match="unknown method"):
         suites_itps.split_method("DP-XX")
     with pytest.raises(ValueError, match="batch"):
         plan_trials(suite, build_request(suite, params={**FAST, "batch": 0}))
-    trial = Trial(suite.name, suites_itps.ENV_ID, "ACT-OP", 0, {**suite.params, **FAST}, suite.fn)
+    trial = Trial(suite.name, suites_itps.ENV_ID, "ACT-OP", 0, {**suite.defaults.to_json(), **FAST}, suite.fn)
     assert execute_trial(trial).record["metrics"]["collision"] >= 0.0  # type: ignore[index]
 
 
 def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Path) -> None:
-    """--param dp_checkpoint=FILE runs the suite on another train_maze checkpoint (e.g. a GPU run)."""
+    """--param dp_checkpoint=FILE runs the suite on another trained checkpoint (e.g. a GPU run)."""
     from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
 
-    tiny = DiffusionConfig(horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16)
-    path = DiffusionPolicy(tiny, (0.5, 0.5), (7.5, 10.5)).save(tmp_path / "dp.safetensors")
+    tiny = DiffusionConfig(
+        obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
+    )
+    bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
+    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
     params = {**FAST, "dp_loader": "steer_envs.no_such_module:f", "dp_checkpoint": str(path)}
     plan = plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params=params))
     outcome = execute_trial(plan.trials[0])
@@ -187,7 +191,7 @@ def _summary_record(method: str, seed: int, min_l2: float, avg_l2: float, collis
 
 
 def test_findings_check_table_2_1_claims() -> None:
-    """The report checks the Done-when claims: thesis-like numbers pass, last session's measured numbers fail two."""
+    """The report checks Table 2.1's claims: thesis-like numbers pass; BI colliding less than SS fails two."""
     from steer_envs.bench.report import render, render_markdown, summarize
 
     def verdicts(table_2_1: dict[str, tuple[float, float, float]]) -> list[bool | None]:

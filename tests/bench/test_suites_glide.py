@@ -12,6 +12,7 @@ from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
 from steer_envs.bench.suites.glide.suite import (
     ENV_IDS,
     EVAL_STARTS,
+    FREE_SPACE_PLANNERS,
     METHODS,
     THESIS_TABLE_4_1,
     VARIANTS,
@@ -31,7 +32,7 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
     grounding = get_suite("glide-polygon-grounding")
     assert grounding.env_list() == list(ENV_IDS) == list(glide_protocol.ENV_IDS)
     assert grounding.method_list() == list(VARIANTS) == list(glide_protocol.VARIANTS)
-    assert grounding.default_seeds == 5  # issue 6: mean over 5 layouts
+    assert grounding.default_seeds == 5  # the target is a mean over 5 layouts
     assert plan_trials(grounding, build_request(grounding)).trials.__len__() == 3 * 5 * 5
     assert grounding.references_for(ENV3, "full")["overlap"].value == 0.95
     assert "overlap" not in grounding.references_for(ENV3, "kmeans")
@@ -40,6 +41,9 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
     table = get_suite("glide-polygon")
     assert {m: dict(v) for m, v in THESIS_TABLE_4_1.items()} == glide_protocol.THESIS_TABLE_4_1
     assert EVAL_STARTS == glide_protocol.EVAL_STARTS  # kept twice so the suite imports no torch
+    from steer_envs.baselines.glide.planners import FREE_SPACE_PLANNERS as planners
+
+    assert FREE_SPACE_PLANNERS == planners
     refs = table.references_for("steer_envs/PolygonNav-4Mode-v0", "glide_planning")
     assert (refs["success"].value, refs["success_perturbed"].value) == (0.987, 0.966)
     assert table.references_for("steer_envs/PolygonNav-5Mode-v0", "bc")["success_perturbed"].value == 0.596
@@ -84,7 +88,7 @@ def test_grounding_suite_runs_tiny_through_the_runner_with_report_and_figure(tmp
     )
 
     text = render_markdown(summarize(summary.records))
-    assert "glide-polygon-grounding" in text and "overlap (ref)" in text and "issue 6 target" in text
+    assert "glide-polygon-grounding" in text and "overlap (ref)" in text and "target (full loss)" in text
     suite = get_suite("glide-polygon-grounding")
     assert suite.plot is not None
     (figure,) = suite.plot(suite, summary.records, str(tmp_path / "plots"))
@@ -133,7 +137,7 @@ def test_policy_suite_runs_tiny_through_the_runner(tmp_path: Path) -> None:
 
 def test_trials_reject_unknown_variants_and_envs() -> None:
     suite = get_suite("glide-polygon-grounding")
-    params = suite.resolve_params(TINY)
+    params = suite.resolve_params(TINY).to_json()
     with pytest.raises(ValueError, match="unknown variant"):
         run_grounding_trial(Trial(suite.name, ENV3, "oracle", 0, params, suite.fn))
     with pytest.raises(ValueError, match="unknown env"):
@@ -154,7 +158,7 @@ def _glide_record(suite: str, env: str, method: str, metrics: dict) -> dict:
     return {"config": config, "seed": 0, "metrics": metrics, "key": f"{env}-{method}"}
 
 
-def test_findings_check_issue_6_claims() -> None:
+def test_findings_check_the_grounding_and_table_4_1_claims() -> None:
     from steer_envs.bench.report import render_markdown, summarize
     from steer_envs.bench.suites.glide.suite import ENV_IDS, VARIANTS
 

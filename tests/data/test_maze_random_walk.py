@@ -1,4 +1,4 @@
-"""D4RL maze2d random walk: controller, determinism, collision-free data, file round trip, windows, CLI."""
+"""D4RL maze2d random walk: controller, determinism, collision-free data, file round trip, training view, CLI."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from steer_envs.data.maze_random_walk import (
-    PlanWindows,
     RandomWalkDataset,
     WaypointController,
     cell_path,
@@ -25,6 +24,7 @@ from steer_envs.data.maze_random_walk import (
     save_random_walk,
     to_minari,
 )
+from steer_envs.data.trajectories import PlanWindows, load_trajectories
 from steer_envs.envs.maze2d import AGENT_RADIUS, MazeGrid, maze_map
 
 LARGE = MazeGrid(maze_map("large"))
@@ -106,45 +106,27 @@ def test_save_load_round_trip(tmp_path: Path, walk: RandomWalkDataset) -> None:
         load_random_walk(tmp_path / "absent.npz")
 
 
-def _two_episodes(n: int = 30) -> RandomWalkDataset:
-    xy = np.stack([np.arange(n, dtype=np.float32), np.zeros(n, dtype=np.float32)], 1)
-    obs = np.concatenate([xy, np.zeros_like(xy)], 1)
-    actions = xy + np.array([1.0, 0.0], dtype=np.float32)  # each step moves one unit along x
-    return RandomWalkDataset(
-        observations=obs,
-        actions=actions,
-        waypoints=xy,
-        goals=xy,
-        wall_contact=np.zeros(n, dtype=bool),
-        episode_starts=np.array([0, 12]),
-        leg_starts=np.array([0]),
-    )
-
-
-def test_plan_windows_follow_the_itps_layout_and_respect_episodes() -> None:
-    ds = _two_episodes()
-    windows = PlanWindows(ds, n_obs=2, horizon=5)
-    # episode [0, 12): t in 1..7 (plan actions[t .. t+4] ends at 11); episode [12, 30): t in 13..25
-    assert windows.steps.tolist() == [*range(1, 8), *range(13, 26)]
-    obs, plan = windows[0]
-    np.testing.assert_array_equal(obs[:, 0], [0, 1])
-    np.testing.assert_array_equal(plan[:, 0], [2, 3, 4, 5, 6])  # the next 5 positions
-    lerobot = PlanWindows(ds, n_obs=2, horizon=5, action_start=-1)
-    obs, plan = lerobot[0]
-    np.testing.assert_array_equal(plan[:, 0], [1, 2, 3, 4, 5])  # starts at the current position
-    batch_obs, batch_plans = windows.gather(np.arange(len(windows)))
-    assert batch_obs.shape == (20, 2, 2) and batch_plans.shape == (20, 5, 2)
-    assert np.all(np.diff(batch_plans[..., 0], axis=1) == 1)  # never crosses the episode boundary
-    sizes = [len(p) for _, p in windows.batches(8, np.random.default_rng(0))]
-    assert sizes == [8, 8, 4]
-    with pytest.raises(IndexError):
-        windows[20]
-    with pytest.raises(ValueError, match="action_start"):
-        PlanWindows(ds, n_obs=2, action_start=-2)
+def test_training_view_declares_positions_and_pools_their_statistics(tmp_path: Path, walk: RandomWalkDataset) -> None:
+    """to_trajectories: observation = xy (entries 0, 1 of the env observation), action = next xy (a target for them)."""
+    traj = walk.to_trajectories()
+    np.testing.assert_array_equal(traj.observations, walk.xy)
+    np.testing.assert_array_equal(traj.actions, walk.actions)
+    assert traj.obs_indices == (0, 1) and traj.action_obs_indices == (0, 1)
+    assert traj.meta == walk.meta and traj.provenance()["seed"] == 3
+    stats = traj.stats()
+    lo, hi = walk.xy_bounds()
+    for feature in ("observation", "action"):  # positions and plans share one box (and one mean/std)
+        np.testing.assert_array_equal(stats[feature]["min"], lo)
+        np.testing.assert_array_equal(stats[feature]["max"], hi)
+    np.testing.assert_array_equal(stats["observation"]["mean"], stats["action"]["mean"])
+    # the training CLI's loader reads a random-walk file as this view
+    loaded = load_trajectories(save_random_walk(walk, tmp_path / "walk.npz"))
+    np.testing.assert_array_equal(loaded.observations, traj.observations)
+    assert loaded.action_obs_indices == (0, 1)
 
 
 def test_itps_windows_on_generated_data(walk: RandomWalkDataset) -> None:
-    windows = PlanWindows(walk, n_obs=2, horizon=64)
+    windows = PlanWindows(walk.to_trajectories(), n_obs=2, horizon=64)
     assert len(windows) == len(walk) - 64 - (2 - 1) + 1
     idx = np.arange(0, len(windows), 97)
     obs, plans = windows.gather(idx)

@@ -94,3 +94,20 @@ def test_bad_input_is_rejected() -> None:
         segment_demonstration(x, [0] * 5, min_length=0)
     with pytest.raises(TypeError, match="labels"):
         segment_demonstration(x, [[0], [0], [0], [0], [0]])
+
+
+def test_classifier_labels_segment_like_any_other_labels() -> None:
+    """GLiDE's classifier only provides per-step labels; the segmentation is this module's."""
+    from steer_envs.baselines.glide.classifier import label_demonstrations
+    from steer_envs.baselines.glide.mode_policies import mode_entry_points
+
+    class LeftRight:
+        def predict(self, states: np.ndarray) -> np.ndarray:
+            return (np.asarray(states)[:, 0] > 0).astype(np.int64)
+
+    demo = np.stack([np.linspace(-1.0, 1.0, 11), np.zeros(11)], axis=1)
+    labels = label_demonstrations(LeftRight(), [demo], 2)
+    seg = segment_demonstrations([(demo, labels[0])])
+    assert seg.order == (0, 1)
+    np.testing.assert_array_equal(seg[1].entry_states, demo[6:7])
+    np.testing.assert_array_equal(mode_entry_points([demo], labels, 2)[1], demo[6])

@@ -1,4 +1,4 @@
-"""SoupScoop-v0: geometry, scooping physics, sensors, vector path, scripted expert (tli.md, thesis §3.6)."""
+"""SoupScoop-v0: geometry, scooping physics, sensors, vector path, scripted expert (public TLI code, thesis §3.6)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ ENV_ID = "steer_envs/SoupScoop-v0"
 
 
 def _expected_label(p: np.ndarray) -> np.ndarray:
-    """The region rule of tli.md, written out independently of the module."""
+    """The region rule of the public TLI code, written out independently of the module."""
     x, y = p[:, 0], p[:, 1]
 
     def near(c: tuple[float, float]) -> np.ndarray:

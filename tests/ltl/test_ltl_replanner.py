@@ -28,7 +28,7 @@ def test_soup_scoop_mode_edges_are_the_thesis_figure(convention: str) -> None:
 
 
 def test_soup_scoop_table_matches_spots_automaton_of_the_public_code() -> None:
-    # reference/tli.md: a:{000:a, 100:b}; b:{000:a,100:b,010:c}; c:{011:d,000:a,100:b,010:c}; d:{011:d}
+    # the public TLI automaton table: a:{000:a, 100:b}; b:{000:a,100:b,010:c}; c:{011:d,000:a,100:b,010:c}; d:{011:d}
     table = TaskAutomaton(SOUP_TASK, S.soup_scoop("public")).transition_table()
     assert table == {
         "a": {"000": "a", "100": "b"},

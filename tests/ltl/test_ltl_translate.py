@@ -1,4 +1,4 @@
-"""LTL -> Büchi translation checked against the lasso semantics (the issue's property test).
+"""LTL -> Büchi translation checked against the lasso semantics.
 
 CI runs :func:`test_automaton_accepts_exactly_the_models` with 500 random
 formulas (depth <= 5, 3 APs, every operator) and 20 random lasso words each,

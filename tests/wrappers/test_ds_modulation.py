@@ -377,7 +377,7 @@ def test_info_plan_is_read_by_default(convex_ds) -> None:
 
 def test_composes_with_the_ltl_replanner_on_soup_scoop() -> None:
     """Around LTLReplanWrapper, the planned a -> b -> c -> d transitions of a demonstration are not failures."""
-    attractors = {0: [-6.47, -4.13], 1: [2.06, -6.98], 2: [4.69, 6.03]}  # tli.md's per-segment attractors
+    attractors = {0: [-6.47, -4.13], 1: [2.06, -6.98], 2: [4.69, 6.03]}  # the public demos' per-segment attractors
 
     def run(env: gym.Env, unwrap_obs: bool) -> tuple[int, set[int], bool]:
         expert = make_expert(env)

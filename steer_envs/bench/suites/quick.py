@@ -5,6 +5,9 @@ declares ``Suite.quick`` (its parameter overrides for the tour) and runs that
 suite with those settings and ``Suite.quick_seeds`` seeds. A domain joins the
 tour by declaring ``quick={...}`` on its suite; nothing here changes.
 Records keep their own suite name, so the report prints one table per suite.
+
+>>> "smoke" in [s.name for s in quick_sections()]
+True
 """
 
 from __future__ import annotations
@@ -22,7 +25,11 @@ QUICK_NAME = "quick"
 
 
 def quick_sections() -> list[Suite]:
-    """The suites that are part of the tour, by name."""
+    """The suites that are part of the tour, by name.
+
+    >>> "selftest" in [s.name for s in quick_sections()]  # selftest declares no quick settings
+    False
+    """
     return [s for s in suites() if s.quick is not None and s.name != QUICK_NAME]
 
 
@@ -45,7 +52,7 @@ def _quick_methods() -> list[str | None]:
 
 def _plan_quick(suite: Suite, request: TrialRequest) -> TrialPlan:
     sections = quick_sections()
-    declared = {p for s in sections for p in s.params}
+    declared = {p for s in sections for p in s.param_names}
     unknown = sorted(set(request.params) - declared)
     if unknown:
         raise ValueError(f"quick: no suite of the tour has parameter(s) {unknown}; parameters: {sorted(declared)}")
@@ -60,9 +67,9 @@ def _plan_quick(suite: Suite, request: TrialRequest) -> TrialPlan:
             envs=envs,
             methods=methods,
             seeds=request.seeds if request.seeds is not None else tuple(range(section.quick_seeds)),
-            params={k: v for k, v in request.params.items() if k in section.params},
+            params={k: v for k, v in request.params.items() if k in section.param_names},
             trials=request.trials if section.trials_param is not None else None,
-            base={**section.params, **(section.quick or {})},
+            base=section.quick,
         )
         plan = section.plan(sub)
         trials += plan.trials

@@ -8,20 +8,45 @@ suite to try an executor or a Ray cluster with
 (``steer-bench run selftest --executor ray --address auto``) and the one the
 runner's own tests use. ``sleep`` stretches trials (kill/resume tests);
 ``fail_seeds`` makes chosen seeds raise (failure handling).
+
+>>> from steer_envs.bench.suite import Trial
+>>> trial = Trial("selftest", None, "stratified", 0, SelftestParams(samples=400).to_json(), SELFTEST.fn)
+>>> round(run_selftest_trial(trial)["pi"], 2)
+3.13
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Metric, Reference, Suite, Trial, register_suite
 
 
+@dataclass(frozen=True)
+class SelftestParams(SuiteParams):
+    """Parameters of ``selftest``: points per estimate, a delay, seeds that fail on purpose."""
+
+    suite_name: ClassVar[str] = "selftest"
+    samples: int = 10_000
+    sleep: float = 0.0
+    fail_seeds: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "samples")
+
+
 def estimate_pi(method: str, samples: int, seed: int) -> float:
-    """Fraction of points in the quarter disc, times four."""
+    """Fraction of points in the quarter disc, times four.
+
+    >>> estimate_pi("stratified", 10_000, seed=0)
+    3.1404
+    """
     rng = np.random.default_rng(seed)
     if method == "mc":
         points = rng.random((samples, 2))
@@ -36,18 +61,15 @@ def estimate_pi(method: str, samples: int, seed: int) -> float:
 
 def run_selftest_trial(trial: Trial) -> dict[str, float]:
     """One pi estimate (sleeping ``sleep`` seconds first; raising on ``fail_seeds``)."""
-    params = trial.params
-    if params["sleep"] > 0:
-        time.sleep(params["sleep"])
-    if trial.seed in params["fail_seeds"]:
+    params = SelftestParams.from_json(trial.params)
+    if params.sleep > 0:
+        time.sleep(params.sleep)
+    if trial.seed in params.fail_seeds:
         raise RuntimeError(f"selftest: seed {trial.seed} is listed in fail_seeds")
-    samples = int(params["samples"])
-    if samples < 1:
-        raise ValueError(f"samples must be >= 1, got {samples}")
     t0 = time.perf_counter()
-    pi = estimate_pi(str(trial.method), samples, trial.seed)
+    pi = estimate_pi(str(trial.method), params.samples, trial.seed)
     elapsed = time.perf_counter() - t0
-    return {"pi": pi, "abs_error": abs(pi - math.pi), "samples_per_s": samples / max(elapsed, 1e-9)}
+    return {"pi": pi, "abs_error": abs(pi - math.pi), "samples_per_s": params.samples / max(elapsed, 1e-9)}
 
 
 SELFTEST = register_suite(
@@ -61,7 +83,7 @@ SELFTEST = register_suite(
         ),
         run_trial=run_selftest_trial,
         methods=("mc", "stratified"),
-        params={"samples": 10_000, "sleep": 0.0, "fail_seeds": []},
+        params=SelftestParams(),
         trials_param="samples",
         default_seeds=4,
         references=(Reference("pi", math.pi, source="pi = 3.14159..."),),

@@ -13,6 +13,9 @@ One trial = one env x one seed:
 
 Envs whose module does not exist yet are skipped with a note; an env whose
 expert module is missing still gets its throughput measured.
+
+>>> SmokeParams(episodes=3).to_json()
+{'episodes': 3, 'single_steps': 2000, 'num_envs': 1024, 'vec_steps': 50}
 """
 
 from __future__ import annotations
@@ -20,14 +23,31 @@ from __future__ import annotations
 import importlib.util
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Metric, Suite, Trial, TrialPlan, TrialRequest, TrialResult, register_suite
 
 EXPERT_PACKAGE = "steer_envs.data.experts"
+
+
+@dataclass(frozen=True)
+class SmokeParams(SuiteParams):
+    """Parameters of ``smoke``: expert episodes and the random-action step counts of the throughput runs."""
+
+    suite_name: ClassVar[str] = "smoke"
+    episodes: int = 10
+    single_steps: int = 2000
+    num_envs: int = 1024
+    vec_steps: int = 50
+
+    def __post_init__(self) -> None:
+        self.require_at_least(0, "episodes")
+        self.require_at_least(1, "single_steps", "num_envs", "vec_steps")
 
 
 def _registered_envs() -> list[str]:
@@ -56,9 +76,7 @@ def _missing_env_module(env_id: str) -> str | None:
 def _plan_smoke(suite: Suite, request: TrialRequest) -> TrialPlan:
     from steer_envs.data.experts import has_expert
 
-    params = suite.resolve_params(request.params, request.trials, base=request.base)
-    if params["num_envs"] < 1 or params["episodes"] < 0 or params["single_steps"] < 1 or params["vec_steps"] < 1:
-        raise ValueError(f"smoke: num_envs, single_steps, vec_steps must be >= 1 and episodes >= 0, got {params}")
+    params: SmokeParams = suite.resolve_params(request.params, request.trials, base=request.base)
     trials: list[Trial] = []
     notes: list[str] = []
     for env_id in request.envs:
@@ -70,7 +88,7 @@ def _plan_smoke(suite: Suite, request: TrialRequest) -> TrialPlan:
         if not has_expert(env_id):
             notes.append(f"{env_id}: no scripted expert; throughput only")
         for method in request.methods:
-            trials += [Trial(suite.name, env_id, method, seed, params, suite.fn) for seed in suite.seed_list(request)]
+            trials += [suite.trial(env_id, method, seed, params) for seed in suite.seed_list(request)]
     return TrialPlan(tuple(trials), tuple(notes))
 
 
@@ -145,14 +163,14 @@ def run_smoke_trial(trial: Trial) -> TrialResult:
     from steer_envs.data.experts import has_expert, make_expert
     from steer_envs.envs.registry import entry
 
-    params = trial.params
+    params = SmokeParams.from_json(trial.params)
     env_id = str(trial.env)
     metrics: dict[str, float | None] = {m.name: None for m in SMOKE.metrics}
     extra: dict[str, Any] = {}
     env = gym.make(env_id)
     try:
         expert = None
-        if has_expert(env_id) and params["episodes"] > 0:
+        if has_expert(env_id) and params.episodes > 0:
             try:
                 expert = make_expert(env)
             except ModuleNotFoundError as exc:
@@ -160,13 +178,13 @@ def run_smoke_trial(trial: Trial) -> TrialResult:
                     raise
                 extra["note"] = f"expert module {exc.name} does not exist (yet)"
         if expert is not None:
-            metrics.update(_expert_episodes(env, expert, trial.seed, int(params["episodes"])))
-        metrics["env_sps"] = _single_throughput(env, trial.seed, int(params["single_steps"]))
+            metrics.update(_expert_episodes(env, expert, trial.seed, params.episodes))
+        metrics["env_sps"] = _single_throughput(env, trial.seed, params.single_steps)
     finally:
         env.close()
     if entry(env_id).kinematic and entry(env_id).vector_entry_point:
-        num_envs = int(params["num_envs"])
-        metrics["vec_sps"] = _vector_throughput(env_id, trial.seed, num_envs, int(params["vec_steps"]))
+        num_envs = params.num_envs
+        metrics["vec_sps"] = _vector_throughput(env_id, trial.seed, num_envs, params.vec_steps)
         metrics["vec_speedup"] = metrics["vec_sps"] / metrics["env_sps"]  # type: ignore[operator]
         extra["num_envs"] = num_envs
     return TrialResult(metrics, extra)
@@ -224,7 +242,7 @@ SMOKE = register_suite(
         run_trial=run_smoke_trial,
         envs=_registered_envs,
         methods=("expert",),
-        params={"episodes": 10, "single_steps": 2000, "num_envs": 1024, "vec_steps": 50},
+        params=SmokeParams(),
         trials_param="episodes",
         default_seeds=3,
         generate=_plan_smoke,

@@ -13,13 +13,15 @@
   in a JSON record (one digit per grid point), so benchmark records can be
   plotted later without the classifiers.
 
-PNGs are drawn on matplotlib's Agg canvas and written atomically
-(:func:`steer_envs.io.atomic_write_bytes`).
+Figures come from :func:`steer_envs.bench.plots.new_figure` and are written
+with :func:`steer_envs.bench.plots.save_figure`.
+
+>>> decode_labels(encode_labels(np.array([0, 2, 1, 0])), resolution=2).tolist()
+[0, 2, 1, 0]
 """
 
 from __future__ import annotations
 
-import io
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.baselines.glide.classifier import ModePredictor, mode_overlap, workspace_grid
-from steer_envs.io import atomic_write_bytes
+from steer_envs.bench.plots import new_figure, save_figure
 
 #: mode colours (free space first), as in the thesis figures: light free space, saturated polygons.
 MODE_COLORS: tuple[str, ...] = (
@@ -46,7 +48,11 @@ MODE_COLORS: tuple[str, ...] = (
 
 
 def encode_labels(labels: np.ndarray) -> str:
-    """A labelling ``(N,)`` with modes in ``[0, 9]`` as a string of digits (JSON-friendly)."""
+    """A labelling ``(N,)`` with modes in ``[0, 9]`` as a string of digits (JSON-friendly).
+
+    >>> encode_labels(np.array([0, 1, 3]))
+    '013'
+    """
     arr = np.asarray(labels)
     if arr.ndim != 1 or (arr.size and (arr.min() < 0 or arr.max() > 9)):
         raise ValueError(f"labels must be a 1-D array of modes in [0, 9], got shape {arr.shape}")
@@ -86,15 +92,6 @@ class ModeMapRow:
     notes: Mapping[str, str] = field(default_factory=dict)
 
 
-def _figure(width: float, height: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
-
-
 def plot_mode_maps(
     rows: Sequence[ModeMapRow],
     path: str | os.PathLike[str],
@@ -107,7 +104,7 @@ def plot_mode_maps(
     """Write a PNG with one row per :class:`ModeMapRow`: ground truth, then each labelling.
 
     Each learned panel's title carries its overlap with the ground truth
-    (plus the row's ``notes`` for that panel, e.g. "mean over 5 layouts 0.97").
+    (plus the row's ``notes`` for that panel, e.g. the mean over several layouts).
     Rows may have different panel names; columns follow the first row's
     order, then any new names.
     """
@@ -127,7 +124,7 @@ def plot_mode_maps(
     from matplotlib.colors import ListedColormap
 
     n_cols = 1 + len(names)
-    fig = _figure(panel_size * n_cols, (panel_size + 0.45) * len(rows) + (0.4 if title else 0.0))
+    fig = new_figure(panel_size * n_cols, (panel_size + 0.45) * len(rows) + (0.4 if title else 0.0), layout="tight")
     axes = fig.subplots(len(rows), n_cols, squeeze=False)
     for row_axes, row in zip(axes, rows, strict=True):
         model = row.model
@@ -167,11 +164,7 @@ def plot_mode_maps(
             ax.set_aspect("equal")
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    atomic_write_bytes(path, buf.getvalue())
-    return path
+    return save_figure(fig, path)
 
 
 def plot_groundings(

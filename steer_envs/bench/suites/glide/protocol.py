@@ -6,9 +6,9 @@
   of the learned modes with the ground truth on a 200 x 200 grid.
 * :func:`policy_trial` -- success rate of BC, GLiDE+BC or GLiDE+Planning over
   ``n_rollouts`` episodes, with or without the evaluation perturbations
-  (glide.md: after the first mode change, with probability 0.03 per step, at
-  least 100 steps apart and at most 3 times per episode, the agent is
-  teleported to a uniform free-space point).
+  (:class:`PerturbationSchedule`: after the first mode change, with
+  probability 0.03 per step, at least 100 steps apart and at most 3 times per
+  episode, the agent is teleported to a uniform free-space point).
 
 The demonstrations of every method go on into the goal polygon for up to
 ``GlideSetup.demo_goal_steps`` steps (the expert walks to its centroid): the
@@ -48,13 +48,8 @@ from steer_envs.baselines.glide.classifier import (
     workspace_grid,
 )
 from steer_envs.baselines.glide.kmeans import KMeansSegmentation
-from steer_envs.baselines.glide.mode_policies import (
-    BCConfig,
-    BCPolicy,
-    GlideBCPolicy,
-    GlidePlanningPolicy,
-    PlannerConfig,
-)
+from steer_envs.baselines.glide.mode_policies import GlideBCConfig, GlideBCPolicy, GlidePlanningPolicy, train_bc
+from steer_envs.baselines.glide.planners import PlannerConfig
 from steer_envs.data.counterfactual_dataset import CounterfactualDataset, build_counterfactual_dataset
 from steer_envs.data.demos import Demonstration, collect_demonstrations
 
@@ -77,11 +72,12 @@ class GlideSetup:
     """Everything a trial depends on besides (env, layout, variant/method, seed).
 
     Replays and heads: a jump replay adds about one distinct state (its ``Z``) to the data, and
-    training time grows with the distinct states times the heads, so 1000 + 1000 replays with 5
-    heads (the best 2 kept after pruning) cost about what 500 + 500 with the public 10 heads did,
-    and cover the workspace twice as densely. Where no replay's ``Z`` landed, the learned modes
-    are guesses: on layout 0 (3 modes, seed 0) the old setting missed the goal polygon's tip by
-    1.4 units (Table 4.1 GLiDE+Planning 0.911/0.859 there; 0.998/0.997 with the new one).
+    training time grows with the distinct states times the heads, so many replays with few heads
+    (``train``: 5, the best 2 after pruning) cover the workspace densely at the cost of fewer
+    replays with more heads. Where no replay's ``Z`` landed, the learned modes are guesses.
+
+    >>> GlideSetup().train.n_heads, GlideSetup().bc.steps, GlideSetup(n_demos=3).n_demos
+    (5, 1500, 3)
     """
 
     n_demos: int = 7
@@ -94,12 +90,13 @@ class GlideSetup:
     kind: str = "segment"
     execution: str = "jump"
     feasibility_convention: str = "shortest_path"
-    #: L_fail x 10 instead of the public x 1: with x 1 the classifier settles, on our layouts, where the
-    #: first polygon swallows free space (free <-> p1 moves are free, so only failures can push back).
+    #: L_fail x 10 instead of the public x 1: with x 1 the classifier can settle where the first polygon
+    #: swallows free space (free <-> p1 moves are free, so only failures can push back).
     weights: GlideLossWeights = field(default_factory=lambda: GlideLossWeights(fail=10.0))
-    #: 5 heads (the best 2 train on after pruning) instead of the public 10 (see above)
-    train: GlideTrainConfig = field(default_factory=lambda: GlideTrainConfig(n_heads=5, prune_to=2))
-    bc: BCConfig = field(default_factory=BCConfig)
+    #: the classifier's training: the library defaults (5 heads, the best 2 after pruning)
+    train: GlideTrainConfig = field(default_factory=GlideTrainConfig)
+    #: BC and GLiDE+BC's per-mode policies
+    bc: GlideBCConfig = field(default_factory=GlideBCConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     grid_resolution: int = 200
 
@@ -133,7 +130,11 @@ class GlideSetup:
 
 @dataclass(frozen=True)
 class PerturbationSchedule:
-    """Evaluation perturbations (glide.md): teleports to uniform free-space points."""
+    """Evaluation perturbations: teleports to uniform free-space points (see the module docstring).
+
+    >>> PerturbationSchedule(), PerturbationSchedule(probability=0.1).min_gap
+    (PerturbationSchedule(probability=0.03, min_gap=100, max_count=3), 100)
+    """
 
     probability: float = 0.03
     min_gap: int = 100
@@ -319,6 +320,10 @@ def grounding_trial(
     ``keep_labels`` adds the predicted grid labels (``"labels"``, an int array
     on :func:`~steer_envs.baselines.glide.classifier.workspace_grid`'s grid) and the demos'
     states (``"demo_states"``) for plots.
+
+    >>> result = grounding_trial("steer_envs/PolygonNav-3Mode-v0", 0, "kmeans", 0, setup=GlideSetup(n_demos=2))
+    >>> result["variant"], 0.0 <= result["overlap"] <= 1.0, len(result["iou"])
+    ('kmeans', True, 3)
     """
     setup = setup or GlideSetup()
     k = _check_env_id(env_id)
@@ -371,7 +376,7 @@ def make_policy(
         states = np.concatenate([d.states[:-1] for d in demos])
         actions = np.concatenate([d.actions for d in demos])
         start = time.perf_counter()
-        policy = BCPolicy(states, actions, max_speed=max_speed, seed=seed, config=setup.bc)
+        policy = train_bc(states, actions, max_speed=max_speed, seed=seed, config=setup.bc)
         return policy, {"train_seconds": time.perf_counter() - start}
     grounding = learn_grounding(env_id, layout_seed, "full", seed, setup=setup, cache_dir=cache_dir)
     demos = grounding.demos
@@ -424,7 +429,9 @@ def evaluate_policy(
     if start not in EVAL_STARTS:
         raise ValueError(f"start must be one of {EVAL_STARTS}, got {start!r}")
     schedule = schedule or PerturbationSchedule()
-    horizon_kwargs = {} if max_steps is None else {"max_episode_steps": _check_int("max_steps", max_steps, 1)}
+    horizon_kwargs: dict[str, Any] = (
+        {} if max_steps is None else {"max_episode_steps": _check_int("max_steps", max_steps, 1)}
+    )
     venv = gym.make_vec(
         env_id, num_envs=n, vectorization_mode="vector_entry_point", layout_seed=int(layout_seed), **horizon_kwargs
     )
@@ -575,6 +582,12 @@ def policy_table_trial(
     ``train_seconds`` (the classifier's training for the GLiDE methods, the MLP's
     for BC; a cached classifier reports its original training time) and
     ``eval_seconds`` (both evaluations).
+
+    >>> from steer_envs.baselines.glide.mode_policies import GlideBCConfig
+    >>> setup = GlideSetup(n_demos=2, bc=GlideBCConfig(steps=20))
+    >>> cell = policy_table_trial("steer_envs/PolygonNav-3Mode-v0", 0, "bc", 2, 0, setup=setup, max_steps=20)
+    >>> sorted(k for k in cell if k.startswith("success")), cell["thesis_success"]
+    (['success', 'success_perturbed'], 0.967)
     """
     k = _check_env_id(env_id)
     seed = _check_int("seed", seed)

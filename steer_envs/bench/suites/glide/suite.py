@@ -4,17 +4,16 @@
   variant (``full`` loss; ablations ``no_counterfactuals``,
   ``wrong_feasibility`` (a plan one mode short), ``no_prediction_loss``
   (``L_succ`` and ``L_fail`` off) and the ``kmeans`` trajectory-segmentation
-  baseline) x one layout (the seed; issue 6: layouts 0-4), through
+  baseline) x one layout (the seed; layouts 0-4 by default), through
   :func:`~steer_envs.bench.suites.glide.protocol.grounding_trial`. Metrics: the
   overlap of the learned modes with the ground truth on a 200 x 200 grid (the
-  report's mean over the seeds is the mean over layouts; issue 6 target for
-  the full loss: >= 0.95), the mean per-mode IoU (stricter: free space
-  fills ~90 % of the grid, which ``free_only_overlap`` -- the overlap of
-  "everything is free space" -- shows), the classifier's training time
-  (issue target < 2 min on this CPU) and the data set's build time. The first
-  ``plot_seeds`` layouts keep their grid labels and demos for the
-  learned-boundaries figure (thesis Fig. 4.4: one row per env, ground truth
-  with demos, then each variant).
+  report's mean over the seeds is the mean over layouts; target for the full
+  loss: >= 0.95), the mean per-mode IoU (stricter: free space fills most of the
+  grid, as ``free_only_overlap`` -- the overlap of "everything is free space"
+  -- shows), the classifier's training time (goal < 2 min) and the data set's
+  build time. The first ``plot_seeds`` layouts keep their grid labels and
+  demos for the learned-boundaries figure (thesis Fig. 4.4: one row per env,
+  ground truth with demos, then each variant).
 * ``glide-polygon``: thesis Table 4.1. One trial = one env x one method
   (``bc``, ``glide_bc``, ``glide_planning``) x one training seed on layout
   ``layout_seed``: the trained policy is evaluated ``n_rollouts`` times
@@ -24,26 +23,33 @@
   (:func:`~steer_envs.bench.suites.glide.protocol.policy_table_trial`), and the
   report prints the thesis's success rates beside ours. The thesis averages BC
   over 10 seeds: ``bc_seeds`` (default 10) and ``glide_seeds`` (default 3: one
-  data set + classifier per seed; a single seed says as much about the draw
-  of replays as about the method -- with 500 + 500 replays one 3-mode
-  classifier in three missed a polygon tip, costing GLiDE+Planning 8 points)
-  set how many training seeds each method gets unless ``--seeds`` is given.
+  data set + classifier per seed, since one seed says as much about the draw
+  of replays as about the method) set how many training seeds each method
+  gets unless ``--seeds`` is given.
 
-Both suites take the data/training sizes as parameters (a tiny configuration
-runs in seconds; ``demo_goal_steps`` is how far the demos go on into the goal
-polygon, 0 for demos that end on entering it) and a ``cache_dir`` where data
-sets and classifiers are kept (safetensors / npz), so the grounding suite, the
-policy suite and a resumed run train each classifier once. Trials run with one BLAS and one torch
-thread.
+Both suites take the data/training sizes as parameters (:class:`GlideSetupParams`,
+shared by :class:`GroundingParams` and :class:`PolicyParams`; a tiny
+configuration runs in seconds; ``demo_goal_steps`` is how far the demos go on
+into the goal polygon, 0 for demos that end on entering it) and a
+``cache_dir`` where data sets and classifiers are kept (safetensors / npz), so
+the grounding suite, the policy suite and a resumed run train each classifier
+once. Trials run with one BLAS and one torch thread.
+
+>>> PolicyParams(n_rollouts=50).to_json()["n_rollouts"]
+50
+>>> GroundingParams(n_heads=0)
+Traceback (most recent call last):
+ValueError: glide-polygon-grounding: parameter 'n_heads' must be >= 1, got 0
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import (
     Finding,
     Metric,
@@ -55,7 +61,7 @@ from steer_envs.bench.suite import (
     TrialResult,
     register_suite,
 )
-from steer_envs.bench.suites.tli.suite import single_threaded
+from steer_envs.utils.threads import single_threaded
 
 GROUNDING_SUITE = "glide-polygon-grounding"
 POLICY_SUITE = "glide-polygon"
@@ -64,10 +70,13 @@ VARIANTS: tuple[str, ...] = ("full", "no_counterfactuals", "wrong_feasibility", 
 METHODS: tuple[str, ...] = ("bc", "glide_bc", "glide_planning")
 #: where evaluation episodes start: uniform in free space (the env's reset, the thesis's "starting in
 #: the free space") or uniform inside the first polygon (the public polygon env's default reset, which
-#: counts the agent as having just entered it); glide_protocol.EVAL_STARTS
+#: counts the agent as having just entered it); the same as ``protocol.EVAL_STARTS``
 EVAL_STARTS: tuple[str, ...] = ("free", "first_mode")
+#: how GLiDE+Planning crosses free space; the same as ``planners.FREE_SPACE_PLANNERS``
+#: (kept here, like the tables below, so declaring the suite imports no torch)
+FREE_SPACE_PLANNERS: tuple[str, ...] = ("costmap", "rrt")
 #: thesis Table 4.1: method -> modes -> (success, success +perturb); the same numbers as
-#: glide_protocol.THESIS_TABLE_4_1 (kept here so declaring the suite imports no torch).
+#: ``protocol.THESIS_TABLE_4_1``.
 THESIS_TABLE_4_1: Mapping[str, Mapping[int, tuple[float, float]]] = {
     "bc": {3: (0.967, 0.908), 4: (0.814, 0.614), 5: (0.810, 0.596)},
     "glide_bc": {3: (0.963, 0.887), 4: (0.892, 0.753), 5: (0.893, 0.753)},
@@ -75,67 +84,115 @@ THESIS_TABLE_4_1: Mapping[str, Mapping[int, tuple[float, float]]] = {
 }
 #: episode length of the Table 4.1 evaluation. The public evaluation loop (GLiDE's polygon code) runs
 #: 1000 policy iterations, a free-space iteration executing a whole RRT path, and its env never enforces
-#: its nominal 500-step limit; with 500 steps, three teleports (>= 100 steps apart) leave too little time
-#: on layouts where the chain of polygons is long (layout 0, 4 modes: 7.6 % of perturbed episodes time
-#: out). ``--param max_steps=500`` runs the env's own limit.
+#: its nominal 500-step limit; 500 steps leave three teleports (>= 100 steps apart) too little time on
+#: layouts with a long chain of polygons. ``--param max_steps=500`` runs the env's own limit.
 MAX_STEPS = 1000
-#: issue 6 'done when': full-loss overlap >= 0.95 (mean over 5 layouts); the thesis shows it only in figures.
+#: target: full-loss overlap >= 0.95 (mean over 5 layouts); the thesis shows it only in figures.
 OVERLAP_TARGET = 0.95
-#: issue 6: classifier training on a PolygonNav data set takes < 2 minutes on this CPU.
+#: goal: classifier training on a PolygonNav data set takes < 2 minutes.
 TRAIN_SECONDS_GOAL = 120.0
 
-#: parameters shared by both suites: what the GLiDE setup is built from
-_SETUP_PARAMS: dict[str, Any] = {
-    "n_demos": 7,
-    "demo_goal_steps": 30,
-    "n_success": 1000,
-    "n_failure": 1000,
-    "epochs": 2000,
-    "n_heads": 5,
-    "cache_dir": None,
-}
+
+@dataclass(frozen=True)
+class GlideSetupParams(SuiteParams):
+    """Parameters shared by both GLiDE suites: what the GLiDE setup (data set, classifier) is built from.
+
+    ``cache_dir`` (``None`` or ``""``: no cache) keeps data sets and classifiers between trials and runs.
+    """
+
+    n_demos: int = 7
+    demo_goal_steps: int = 30
+    n_success: int = 1000
+    n_failure: int = 1000
+    epochs: int = 2000
+    n_heads: int = 5
+    cache_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_demos", "n_success", "n_failure", "epochs", "n_heads")
+        self.require_at_least(0, "demo_goal_steps")
+
+    @property
+    def cache(self) -> str | None:
+        """:attr:`cache_dir`, with ``""`` read as no cache."""
+        return self.cache_dir or None
+
+    def setup(self, **extra: Any) -> Any:
+        """The :class:`~steer_envs.bench.suites.glide.protocol.GlideSetup` these parameters describe."""
+        from steer_envs.bench.suites.glide.protocol import GlideSetup
+
+        base = GlideSetup()
+        train = replace(base.train, epochs=self.epochs, n_heads=self.n_heads)
+        return replace(
+            base,
+            n_demos=self.n_demos,
+            demo_goal_steps=self.demo_goal_steps,
+            n_success=self.n_success,
+            n_failure=self.n_failure,
+            train=train,
+            **extra,
+        )
+
+
+@dataclass(frozen=True)
+class GroundingParams(GlideSetupParams):
+    """Parameters of ``glide-polygon-grounding``: the setup, the overlap grid's side, the classifier seed."""
+
+    suite_name: ClassVar[str] = GROUNDING_SUITE
+    grid_resolution: int = 200
+    train_seed: int = 0
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.require_at_least(2, "grid_resolution")
+        self.require_at_least(0, "train_seed", "plot_seeds")
+
+
+@dataclass(frozen=True)
+class PolicyParams(GlideSetupParams):
+    """Parameters of ``glide-polygon`` (thesis Table 4.1): the setup plus the evaluation.
+
+    ``n_rollouts`` episodes of ``max_steps`` on layout ``layout_seed``,
+    starting as ``start`` says (:data:`EVAL_STARTS`); ``bc_seeds`` /
+    ``glide_seeds`` training seeds per method; ``bc_steps`` of BC training;
+    ``free_space_planner`` of GLiDE+Planning (:data:`FREE_SPACE_PLANNERS`).
+    """
+
+    suite_name: ClassVar[str] = POLICY_SUITE
+    n_rollouts: int = 1000
+    layout_seed: int = 0
+    bc_seeds: int = 10
+    glide_seeds: int = 3
+    bc_steps: int = 1500
+    free_space_planner: str = "costmap"
+    max_steps: int = MAX_STEPS
+    start: str = "free"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.require_at_least(1, "n_rollouts", "bc_seeds", "glide_seeds", "bc_steps", "max_steps")
+        self.require_at_least(0, "layout_seed")
+        self.require_in("free_space_planner", FREE_SPACE_PLANNERS)
+        self.require_in("start", EVAL_STARTS)
+
+    def planner(self) -> Any:
+        """GLiDE+Planning's settings: the setup's defaults, with :attr:`free_space_planner`."""
+        from steer_envs.bench.suites.glide.protocol import GlideSetup
+
+        return replace(GlideSetup().planner, free_space_planner=self.free_space_planner)
+
+    def bc(self) -> Any:
+        """The BC training settings: the setup's defaults, with :attr:`bc_steps`."""
+        from steer_envs.bench.suites.glide.protocol import GlideSetup
+
+        return replace(GlideSetup().bc, steps=self.bc_steps)
 
 
 def _num_modes(env: str | None) -> int:
     if env not in ENV_IDS:
         raise ValueError(f"glide suites: unknown env {env!r}; expected one of {ENV_IDS}")
     return int(str(env).split("-")[1][0])
-
-
-def _check_int_param(suite: str, params: Mapping[str, Any], name: str, low: int) -> int:
-    value = params[name]
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ValueError(f"{suite}: parameter {name!r} must be an int >= {low}, got {value!r}")
-    return value
-
-
-def setup_from_params(suite: str, params: Mapping[str, Any], **extra: Any) -> Any:
-    """The :class:`~steer_envs.bench.suites.glide.protocol.GlideSetup` a trial's params describe."""
-    from steer_envs.bench.suites.glide.protocol import GlideSetup
-
-    for name, low in (("n_demos", 1), ("n_success", 1), ("n_failure", 1), ("epochs", 1), ("n_heads", 1)):
-        _check_int_param(suite, params, name, low)
-    goal_steps = _check_int_param(suite, params, "demo_goal_steps", 0) if "demo_goal_steps" in params else None
-    base = GlideSetup()
-    train = replace(base.train, epochs=int(params["epochs"]), n_heads=int(params["n_heads"]))
-    return replace(
-        base,
-        n_demos=int(params["n_demos"]),
-        demo_goal_steps=base.demo_goal_steps if goal_steps is None else goal_steps,
-        n_success=int(params["n_success"]),
-        n_failure=int(params["n_failure"]),
-        train=train,
-        **extra,
-    )
-
-
-def _cache_dir(params: Mapping[str, Any]) -> str | None:
-    value = params.get("cache_dir")
-    if value is None or value == "":
-        return None
-    if not isinstance(value, str):
-        raise ValueError(f"glide suites: cache_dir must be a directory path or null, got {value!r}")
-    return value
 
 
 # ------------------------------------------------------------ glide-polygon-grounding
@@ -147,20 +204,18 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
     _num_modes(trial.env)
     if trial.method not in VARIANTS:
         raise ValueError(f"{GROUNDING_SUITE}: unknown variant {trial.method!r}; expected one of {VARIANTS}")
-    params = trial.params
-    resolution = _check_int_param(GROUNDING_SUITE, params, "grid_resolution", 2)
-    train_seed = _check_int_param(GROUNDING_SUITE, params, "train_seed", 0)
-    plot_seeds = _check_int_param(GROUNDING_SUITE, params, "plot_seeds", 0)
-    setup = setup_from_params(GROUNDING_SUITE, params, grid_resolution=resolution)
-    keep = trial.seed < plot_seeds
+    params = GroundingParams.from_json(trial.params)
+    resolution = params.grid_resolution
+    setup = params.setup(grid_resolution=resolution)
+    keep = trial.seed < params.plot_seeds
     with single_threaded():
         res = grounding_trial(
             str(trial.env),
             trial.seed,
             str(trial.method),
-            train_seed,
+            params.train_seed,
             setup=setup,
-            cache_dir=_cache_dir(params),
+            cache_dir=params.cache,
             keep_labels=keep,
         )
     metrics = {
@@ -191,8 +246,8 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
 
 
 # ------------------------------------------------------------------ findings
-#: "measurably worse" (issue 6): a lower mean overlap and a mean IoU lower by at least this. Overlap alone
-#: cannot show a missed goal polygon: it covers under 1 % of the grid on the 5-mode layouts.
+#: "measurably worse": a lower mean overlap and a mean IoU lower by at least this. Overlap alone cannot
+#: show a missed goal polygon: it covers a tiny share of the grid.
 ABLATION_IOU_MARGIN = 0.05
 
 
@@ -201,7 +256,7 @@ def _modes_label(env: str) -> str:
 
 
 def grounding_findings(table: Any) -> list[Finding]:
-    """Issue 6 / thesis Fig. 4.4: the full loss finds the modes on every env and every ablation does worse."""
+    """Thesis Fig. 4.4: the full loss finds the modes on every env and every ablation does worse."""
     claims = (
         "the full loss labels >= 95 % of the grid with the true mode on every env",
         f"every ablation is worse than the full loss on every env (lower overlap, mean IoU >= {ABLATION_IOU_MARGIN} "
@@ -231,7 +286,7 @@ def grounding_findings(table: Any) -> list[Finding]:
 
 
 def policy_findings(table: Any) -> list[Finding]:
-    """Issue 6 / thesis Table 4.1: GLiDE+Planning >= 0.98 with and without perturbations, above BC perturbed."""
+    """Thesis Table 4.1: GLiDE+Planning >= 0.98 with and without perturbations, above BC perturbed."""
     claims = (
         "GLiDE+Planning succeeds in >= 98 % of rollouts with and without perturbations on every env",
         "GLiDE+Planning beats BC under perturbations on every env",
@@ -337,11 +392,10 @@ GLIDE_POLYGON_GROUNDING = register_suite(
         run_trial=run_grounding_trial,
         envs=ENV_IDS,
         methods=VARIANTS,
-        params={**_SETUP_PARAMS, "grid_resolution": 200, "train_seed": 0, "plot_seeds": 1},
+        params=GroundingParams(),
         default_seeds=5,
         references=tuple(
-            Reference("overlap", OVERLAP_TARGET, env=env, method="full", source="issue 6 target (full loss)")
-            for env in ENV_IDS
+            Reference("overlap", OVERLAP_TARGET, env=env, method="full", source="target (full loss)") for env in ENV_IDS
         ),
         plot=plot_grounding,
         findings=grounding_findings,
@@ -350,76 +404,40 @@ GLIDE_POLYGON_GROUNDING = register_suite(
 
 
 # ---------------------------------------------------------------------- glide-polygon
-def _planner(params: Mapping[str, Any]) -> Any:
-    """GLiDE+Planning's settings: the defaults, with the free-space planner the params name."""
-    from steer_envs.baselines.glide.mode_policies import FREE_SPACE_PLANNERS, PlannerConfig
-
-    name = params.get("free_space_planner", "costmap")
-    if name not in FREE_SPACE_PLANNERS:
-        raise ValueError(
-            f"{POLICY_SUITE}: parameter 'free_space_planner' must be one of {FREE_SPACE_PLANNERS}, got {name!r}"
-        )
-    return PlannerConfig(free_space_planner=name)
-
-
-def _check_start(params: Mapping[str, Any]) -> str:
-    """Where evaluation episodes start: ``free`` (default) or ``first_mode`` (the public env's reset)."""
-    value = params.get("start", "free")
-    if value not in EVAL_STARTS:
-        raise ValueError(f"{POLICY_SUITE}: parameter 'start' must be one of {EVAL_STARTS}, got {value!r}")
-    return str(value)
-
-
 def _plan_policy(suite: Suite, request: TrialRequest) -> TrialPlan:
-    params = suite.resolve_params(request.params, request.trials, base=request.base)
-    for name, low in (
-        ("n_rollouts", 1),
-        ("bc_seeds", 1),
-        ("glide_seeds", 1),
-        ("layout_seed", 0),
-        ("bc_steps", 1),
-        ("max_steps", 1),
-    ):
-        _check_int_param(POLICY_SUITE, params, name, low)
-    _check_start(params)
-    setup_from_params(POLICY_SUITE, params, planner=_planner(params))
+    params: PolicyParams = suite.resolve_params(request.params, request.trials, base=request.base)
+    params.setup(planner=params.planner())  # the protocol's own checks, before any trial runs
     trials = []
     for env in request.envs:
         for method in request.methods:
             if request.seeds is not None:
                 seeds: Sequence[int] = request.seeds
             else:
-                seeds = range(int(params["bc_seeds" if method == "bc" else "glide_seeds"]))
-            trials += [Trial(suite.name, env, method, int(s), params, suite.fn) for s in seeds]
+                seeds = range(params.bc_seeds if method == "bc" else params.glide_seeds)
+            trials += [suite.trial(env, method, int(s), params) for s in seeds]
     return TrialPlan(tuple(trials))
 
 
 def run_policy_trial(trial: Trial) -> TrialResult:
     """One env x method x training seed: success without and with perturbations (thesis Table 4.1)."""
-    from steer_envs.baselines.glide.mode_policies import BCConfig
     from steer_envs.bench.suites.glide.protocol import policy_table_trial
 
     _num_modes(trial.env)
     if trial.method not in METHODS:
         raise ValueError(f"{POLICY_SUITE}: unknown method {trial.method!r}; expected one of {METHODS}")
-    params = trial.params
-    n_rollouts = _check_int_param(POLICY_SUITE, params, "n_rollouts", 1)
-    layout = _check_int_param(POLICY_SUITE, params, "layout_seed", 0)
-    max_steps = _check_int_param(POLICY_SUITE, params, "max_steps", 1)
-    start = _check_start(params)
-    bc = BCConfig(steps=_check_int_param(POLICY_SUITE, params, "bc_steps", 1))
-    setup = setup_from_params(POLICY_SUITE, params, bc=bc, planner=_planner(params))
+    params = PolicyParams.from_json(trial.params)
+    setup = params.setup(bc=params.bc(), planner=params.planner())
     with single_threaded():
         res = policy_table_trial(
             str(trial.env),
-            layout,
+            params.layout_seed,
             str(trial.method),
-            n_rollouts,
+            params.n_rollouts,
             trial.seed,
             setup=setup,
-            cache_dir=_cache_dir(params),
-            max_steps=max_steps,
-            start=start,
+            cache_dir=params.cache,
+            max_steps=params.max_steps,
+            start=params.start,
         )
     metrics = {
         "success": res["success"],
@@ -478,17 +496,7 @@ GLIDE_POLYGON = register_suite(
         run_trial=run_policy_trial,
         envs=ENV_IDS,
         methods=METHODS,
-        params={
-            **_SETUP_PARAMS,
-            "n_rollouts": 1000,
-            "layout_seed": 0,
-            "bc_seeds": 10,
-            "glide_seeds": 3,
-            "bc_steps": 1500,
-            "free_space_planner": "costmap",
-            "max_steps": MAX_STEPS,
-            "start": "free",
-        },
+        params=PolicyParams(),
         trials_param="n_rollouts",
         default_seeds=1,
         generate=_plan_policy,

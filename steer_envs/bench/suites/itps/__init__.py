@@ -1,1 +1,6 @@
-"""TODO"""
+"""``itps-maze2d`` (thesis ch. 2, Table 2.1): inference-time steering of DP and ACT with sketches in Maze2D.
+
+``suite`` declares the suite (parameters, metrics, the thesis's numbers and
+findings), ``protocol`` runs one steering trial and loads the policies,
+``plots`` draws the trade-off and qualitative figures.
+"""

@@ -13,25 +13,27 @@
   modulation under pushes (red dashed jumps), invariance failures (red crosses)
   and the learned cuts.
 
-PNGs are rendered with matplotlib's Agg canvas (no pyplot state) and written
-atomically with :func:`steer_envs.io.atomic_open`.
+Figures come from :func:`steer_envs.bench.plots.new_figure` and are written
+with :func:`steer_envs.bench.plots.save_figure`.
+
+>>> plot_scoop(None, [], "unused")  # no record keeps figure data: nothing to draw
+[]
 """
 
 from __future__ import annotations
 
-import io
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from steer_envs.bench.plots import new_figure, save_figure
+
 __all__ = [
     "NOISE_LABELS",
     "plot_scoop",
     "plot_single_mode",
-    "save_png",
     "scoop_figure_data",
     "single_mode_figure_data",
 ]
@@ -42,12 +44,12 @@ _ROW_ORDER = ("bc", "bc+mod", "ds", "ds+mod")
 
 
 # ---------------------------------------------------------------------- data
-def _round(a: np.ndarray, digits: int = 3) -> list:
+def _round(a: np.ndarray, digits: int = 3) -> list[Any]:
     return np.round(np.asarray(a, dtype=np.float64), digits).tolist()
 
 
 def _trace(policy: Any, model: Any, starts: np.ndarray, n_steps: int, every: int) -> np.ndarray:
-    """States ``(N, n_steps // every + 1, 2)`` under ConvexMode's dynamics (as tli_protocol.rollout), thinned."""
+    """States ``(N, n_steps // every + 1, 2)`` under ConvexMode's dynamics (as ``protocol.rollout``), thinned."""
     from steer_envs.bench.suites.tli.protocol import DT, MAX_SPEED
 
     x = np.asarray(starts, dtype=np.float64).copy()
@@ -144,26 +146,6 @@ def scoop_figure_data(result: Mapping[str, Any], every: int = 5) -> dict[str, An
 
 
 # -------------------------------------------------------------------- drawing
-def save_png(fig: Any, path: str | os.PathLike[str]) -> Path:
-    """Render a matplotlib ``Figure`` (Agg) to PNG and write it atomically."""
-    from steer_envs.io import atomic_open
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    with atomic_open(path, "wb") as fh:
-        fh.write(buf.getvalue())
-    return Path(path)
-
-
-def _figure(width: float, height: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
 def _draw_cut(ax: Any, point: Sequence[float], normal: Sequence[float], half: float, **style: Any) -> None:
     p, n = np.asarray(point, dtype=np.float64), np.asarray(normal, dtype=np.float64)
     t = np.array([-n[1], n[0]])
@@ -213,7 +195,7 @@ def plot_single_mode(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: 
     for layout, per_method in sorted(by_layout.items()):
         methods = [m for m in _ROW_ORDER if m in per_method] + sorted(set(per_method) - set(_ROW_ORDER))
         noises = sorted({k for m in methods for k in per_method[m]}, key=float)
-        fig = _figure(2.6 * len(noises), 2.5 * len(methods))
+        fig = new_figure(2.6 * len(noises), 2.5 * len(methods))
         axes = fig.subplots(len(methods), len(noises), squeeze=False)
         for i, method in enumerate(methods):
             for j, noise in enumerate(noises):
@@ -231,7 +213,7 @@ def plot_single_mode(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: 
             fontsize=8,
         )
         name = f"{getattr(suite, 'name', 'tli-single-mode')}_rollouts_layout{layout}.png"
-        written.append(str(save_png(fig, Path(out_dir) / name)))
+        written.append(str(save_figure(fig, Path(out_dir) / name)))
     return written
 
 
@@ -245,7 +227,16 @@ def _draw_scoop_regions(ax: Any) -> None:
     for name, (x0, y0, x1, y1) in model.rects.items():
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=colors[name], edgecolor="0.5", zorder=0))
     for att in model.region_attractors.values():
-        ax.add_patch(Circle(att, model.attractor_radius, facecolor="none", edgecolor="0.5", linestyle=":", zorder=1))
+        ax.add_patch(
+            Circle(
+                (float(att[0]), float(att[1])),
+                model.attractor_radius,
+                facecolor="none",
+                edgecolor="0.5",
+                linestyle=":",
+                zorder=1,
+            )
+        )
     ax.set_xlim(model.low[0], model.high[0])
     ax.set_ylim(model.low[1], model.high[1])
     ax.set_aspect("equal")
@@ -264,7 +255,7 @@ def plot_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -
         return []
     seeds = sorted({s for s, _ in cells})
     methods = sorted({m for _, m in cells}, key=lambda m: (m.endswith("+mod"), m))
-    fig = _figure(3.2 * len(methods), 3.2 * len(seeds))
+    fig = new_figure(3.2 * len(methods), 3.2 * len(seeds))
     axes = fig.subplots(len(seeds), len(methods), squeeze=False)
     for i, seed in enumerate(seeds):
         for j, method in enumerate(methods):
@@ -296,4 +287,4 @@ def plot_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -
         "cuts blue, attractors orange",
         fontsize=8,
     )
-    return [str(save_png(fig, Path(out_dir) / f"{getattr(suite, 'name', 'tli-scoop')}_rollouts.png"))]
+    return [str(save_figure(fig, Path(out_dir) / f"{getattr(suite, 'name', 'tli-scoop')}_rollouts.png"))]

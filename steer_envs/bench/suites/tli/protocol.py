@@ -1,4 +1,4 @@
-"""The TLI single-mode study (thesis §3.7.1, appendix "Single-mode Experiments", tli.md) as a pure function.
+"""The TLI single-mode study (thesis §3.7.1, appendix "Single-mode Experiments") as a pure function.
 
 One trial = one random convex mode (ConvexMode-v0 with ``layout_seed``), 1-3
 demonstrations, one policy kind (``"bc"``,
@@ -15,8 +15,8 @@ demonstrations, one policy kind (``"bc"``,
   straight-line flow to the attractor, run for 200 steps; the first demo
   starts at ``demo_start``, further ones at ``demo_start + N(0, 0.5^2 I)``).
 * **Policies**: :class:`~steer_envs.baselines.lpv_ds.lpvds.LPVDS` with the mode's
-  attractor, or :class:`~steer_envs.baselines.bc.modeling.BCPolicy` (2x100 ReLU, tanh x 50,
-  Adam 1e-3, batch 512, ``bc_epochs`` = 4000).
+  attractor, or :class:`~steer_envs.baselines.bc.modeling.BCPolicy` with its
+  defaults (2x100 ReLU, tanh x 50, Adam 1e-3, batch 512) for ``bc_epochs`` (4000).
 * **Starts**: a random demonstration point + ``N(0, noise_sigma^2 I)``,
   redrawn until inside the mode; ``noise_sigma`` in {0, 1, 5} is the thesis's
   0 / 5 / 30 % of the workspace.
@@ -31,7 +31,7 @@ demonstrations, one policy kind (``"bc"``,
   ``max_cuts`` (4) cuts exist; the last round is the result, each round's
   success is reported (the thesis's success-vs-cuts curve). With
   ``cut_sigma`` set, the cut rounds use fresh batches with that noise instead
-  (tli.md's public-code variant, sigma 5) and the evaluation batch is held out.
+  (the public code's variant, sigma 5) and the evaluation batch is held out.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from steer_envs.baselines.bc.modeling import BCPolicy
+from steer_envs.baselines.bc.modeling import BCConfig, BCPolicy
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
@@ -66,8 +66,8 @@ N_STEPS = 1000
 DEMO_STEPS = 200
 SUCCESS_RADIUS = 0.4
 #: LPV-DS stability margin of the single-mode study. The library default (1e-3) lets the LMI fit return
-#: nearly marginal A_k on some layouts (measured: 3 of 50 layouts stall short of the attractor within
-#: N_STEPS); eps = 1.0 makes every flow contract at a rate the rollout length can resolve.
+#: nearly marginal A_k on some layouts, whose flows stall short of the attractor within N_STEPS;
+#: eps = 1.0 makes every flow contract at a rate the rollout length can resolve.
 DS_EPS = 1.0
 
 
@@ -80,7 +80,12 @@ def _make_env(layout_seed: int) -> gym.Env:
 def convex_mode_demos(
     layout_seed: int, n_demos: int, steps: int = DEMO_STEPS, demos: str = "drawn"
 ) -> tuple[list[np.ndarray], list[np.ndarray], Any]:
-    """``n_demos`` demonstrations of a ConvexMode layout: (states list, velocities list, model); see module doc."""
+    """``n_demos`` demonstrations of a ConvexMode layout: (states list, velocities list, model); see module doc.
+
+    >>> xs, vs, model = convex_mode_demos(0, 2)
+    >>> len(xs), xs[0].shape, bool(model.inside(xs[0]).all())
+    (2, (200, 2), True)
+    """
     if not isinstance(n_demos, int) or n_demos < 1:
         raise ValueError(f"n_demos must be a positive int, got {n_demos!r}")
     if demos == "drawn":
@@ -90,7 +95,7 @@ def convex_mode_demos(
     from steer_envs.data.experts import make_expert
 
     env = _make_env(layout_seed)
-    base = env.unwrapped
+    base: Any = env.unwrapped
     model = base.model
     expert = make_expert(env)
     rng = np.random.default_rng([layout_seed, 7919])
@@ -119,7 +124,7 @@ def convex_mode_demos(
 def _drawn_demos(layout_seed: int, n_demos: int, steps: int) -> tuple[list[np.ndarray], list[np.ndarray], Any]:
     """Simulated hand-drawn demos: cubic Bezier curves inside the mode (see the module docstring)."""
     env = _make_env(layout_seed)
-    model = env.unwrapped.model
+    model: Any = env.unwrapped.model  # type: ignore[attr-defined]
     env.close()
     rng = np.random.default_rng([layout_seed, 104729])
     lo, hi = model.vertices.min(axis=0), model.vertices.max(axis=0)
@@ -129,7 +134,7 @@ def _drawn_demos(layout_seed: int, n_demos: int, steps: int) -> tuple[list[np.nd
     ds_dt = 2.0 * (1.0 - tau) / duration
     xs, vs = [], []
     for _ in range(n_demos):
-        ctrl = []
+        ctrl: list[np.ndarray] = []
         while len(ctrl) < 2:
             cand = rng.uniform(lo, hi)
             if model.inside(cand[None])[0]:
@@ -155,8 +160,8 @@ def fitted_policy(
     if kind == "ds":
         policy: Any = LPVDS(eps=ds_eps, random_state=seed).fit(xs, vs, attractor=model.attractor)
     else:
-        policy = BCPolicy(2, seed=seed)
-        policy.fit(np.concatenate(xs), np.concatenate(vs), epochs=bc_epochs)
+        policy = BCPolicy(BCConfig(epochs=bc_epochs), seed=seed)
+        policy.fit(np.concatenate(xs), np.concatenate(vs))
     return policy, model, tuple(xs)
 
 
@@ -286,7 +291,7 @@ def single_mode_trial(
         n_starts: starts per batch (thesis: 100).
         seed: seed of start sampling and of the policy fit.
         n_demos: 1-3 demonstrations; default drawn from ``layout_seed``.
-        bc_epochs: BC training epochs (tli.md: 4000).
+        bc_epochs: BC training epochs.
         max_cuts: most cuts the cut loop may add (``+mod`` only).
         cut_sigma: None: learn cuts on the evaluation batch (thesis); a float: on
             separate batches with this noise (held-out evaluation).
@@ -299,6 +304,10 @@ def single_mode_trial(
     ``cuts_until_invariant`` (cuts after which a cut round had no failure; None
     if never), ``cut_round_success`` (success of each cut round), ``n_demos``,
     ``fit_seconds``, ``seconds`` and the inputs.
+
+    >>> result = single_mode_trial(0, 1.0, "ds+mod", n_starts=4, n_demos=1, n_steps=200)
+    >>> result["policy_kind"], 0.0 <= result["success_rate"] <= 1.0, result["num_cuts"] <= 4
+    ('ds+mod', True, True)
     """
     if policy_kind not in POLICY_KINDS:
         raise ValueError(f"policy_kind must be one of {POLICY_KINDS}, got {policy_kind!r}")

@@ -9,8 +9,7 @@ One *experiment* (``scoop_trial``) of the thesis's ten:
   ``demos="expert"``: the scripted expert
   (:func:`~steer_envs.data.demos.collect_demonstrations`). The expert moves in
   straight lines through the middle of each region, and the per-mode DSs fitted
-  to it hardly ever leave a mode (3 invariance failures in 10 experiments with
-  5 pushes, none repeated even without modulation): too few to test the claim.
+  to it hardly ever leave a mode: too few invariance failures to test the claim.
 * **Policy**: :class:`~steer_envs.baselines.lpv_ds.ltl_ds.LTLDSPolicy` - one LPV-DS
   per mode, the soup-scooping GR(1) automaton choosing the mode from the
   sensors, with or without modulation by cuts learned from invariance failures.
@@ -73,6 +72,11 @@ def perturbation_schedule(
     """``n`` pushes ``(step, displacement)`` at distinct steps in ``[1, push_window]``, sorted by step.
 
     Directions are uniform on the circle (sphere), magnitudes uniform in ``[0, magnitude]``.
+
+    >>> pushes = perturbation_schedule(np.random.default_rng(0), 3, 600, WORKSPACE_SIZE)
+    >>> [step for step, _ in pushes] == sorted(step for step, _ in pushes), all(
+    ...     np.linalg.norm(d) <= WORKSPACE_SIZE for _, d in pushes)
+    (True, True)
     """
     if not isinstance(n, int) or n < 0:
         raise ValueError(f"n must be an int >= 0, got {n!r}")
@@ -142,7 +146,7 @@ def _in_rect(model: Any, name: str, x: np.ndarray) -> bool:
 
 
 def drawn_scoop_demos(seed: int, n: int, *, max_tries: int = 200) -> list[Any]:
-    """``n`` hand-drawn-like SoupScoop demonstrations (the thesis's were drawn by hand; tli.md: 2 demos).
+    """``n`` hand-drawn-like SoupScoop demonstrations (the thesis's were drawn by hand).
 
     Each is three cubic Bezier curves (reach: start box -> just inside the
     soup; scoop: through the soup -> just inside the pink column; transport:
@@ -163,7 +167,7 @@ def drawn_scoop_demos(seed: int, n: int, *, max_tries: int = 200) -> list[Any]:
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"n must be a positive int, got {n!r}")
     env = gym.make(ENV_ID)
-    base = env.unwrapped
+    base: Any = env.unwrapped
     task = base.task
     rng = np.random.default_rng([int(seed), 4409])
     demos: list[Any] = []
@@ -272,6 +276,10 @@ def scoop_trial(
     ``fit_seconds``, ``seconds`` and the inputs (+ ``trajectory``, ``push_log``,
     ``cuts``, ``attractors``, ``events`` with ``record``; the trajectory is a list of
     segments, split at pushes).
+
+    >>> result = scoop_trial(0, True, 1, n_demos=1, max_steps=400)
+    >>> result["pushes"] <= 1, result["steps"] <= 400, result["success"] in (0.0, 1.0)
+    (True, True, True)
     """
     import gymnasium as gym
 

@@ -16,27 +16,39 @@
   :func:`~steer_envs.bench.suites.tli.robustness.scoop_trial`: eventual success
   (%), invariance failures (= discrete loop iterations), cuts, steps.
 * ``tli-ds-fit``: wall time of an LPV-DS fit of 3 demos x 200 points in 2D
-  (issue target < 5 s, :func:`~steer_envs.baselines.lpv_ds.lpvds.benchmark_fit_time`).
+  (goal < 5 s, :func:`~steer_envs.baselines.lpv_ds.lpvds.benchmark_fit_time`).
 
-Trials run with one BLAS and one torch thread (the fits and rollouts are tiny;
-extra threads only add contention on a shared machine).
+Each suite's parameters are a dataclass here (:class:`SingleModeParams`,
+:class:`ScoopParams`, :class:`DsFitParams`). Trials run with one BLAS and one
+torch thread (the fits and rollouts are tiny; extra threads only add
+contention on a shared machine).
+
+>>> SingleModeParams(n_starts=30).to_json()["n_starts"]
+30
+>>> ScoopParams(demos="typed")
+Traceback (most recent call last):
+ValueError: tli-scoop: parameter 'demos' must be one of ('drawn', 'expert'), got 'typed'
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator, Mapping
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
+from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.utils.threads import single_threaded
 
 CONVEX_ENV = "steer_envs/ConvexMode-v0"
 SCOOP_ENV = "steer_envs/SoupScoop-v0"
 SINGLE_MODE_METHODS: tuple[str, ...] = ("bc", "bc+mod", "ds", "ds+mod")
 SCOOP_METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
-#: metric suffix -> start-noise sigma (workspace units; tli.md: 0 / 1 / 5 of a 16-wide workspace).
+#: metric suffix (% of the workspace) -> start-noise sigma in workspace units (the workspace is 16 wide).
 NOISE_LEVELS: Mapping[str, float] = {"0": 0.0, "5": 1.0, "30": 5.0}
-#: thesis Fig. 3.5 table (success %, noise 0 / 5 / 30 %); the same numbers as tli_protocol.THESIS_SUCCESS.
+#: where demonstrations come from: hand-drawn-like curves or the scripted expert
+DEMO_SOURCES: tuple[str, ...] = ("drawn", "expert")
+#: thesis Fig. 3.5 table (success %, noise 0 / 5 / 30 %); the same numbers as ``protocol.THESIS_SUCCESS``.
 THESIS_SINGLE_MODE: Mapping[str, tuple[float, float, float]] = {
     "bc": (88.9, 72.4, 58.6),
     "bc+mod": (91.9, 83.6, 76.0),
@@ -45,36 +57,29 @@ THESIS_SINGLE_MODE: Mapping[str, tuple[float, float, float]] = {
 }
 
 
-@contextlib.contextmanager
-def single_threaded() -> Iterator[None]:
-    """One BLAS thread and one torch intra-op thread inside the block (restored after)."""
-    from threadpoolctl import threadpool_limits
-
-    torch_threads = None
-    try:
-        import torch
-
-        torch_threads = torch.get_num_threads()
-        torch.set_num_threads(1)
-    except ImportError:  # pragma: no cover - torch is a core dependency
-        torch = None  # type: ignore[assignment]
-    try:
-        with threadpool_limits(limits=1):
-            yield
-    finally:
-        if torch is not None and torch_threads is not None:
-            torch.set_num_threads(torch_threads)
-
-
 # ------------------------------------------------------------ tli-single-mode
-def _check_single_params(params: Mapping[str, Any]) -> None:
-    for name in ("n_starts", "bc_epochs"):
-        if int(params[name]) < 1:
-            raise ValueError(f"tli-single-mode: {name} must be >= 1, got {params[name]}")
-    if int(params["max_cuts"]) < 0 or int(params["plot_seeds"]) < 0:
-        raise ValueError(f"tli-single-mode: max_cuts and plot_seeds must be >= 0, got {dict(params)}")
-    if params["demos"] not in ("drawn", "expert"):
-        raise ValueError(f"tli-single-mode: demos must be 'drawn' or 'expert', got {params['demos']!r}")
+@dataclass(frozen=True)
+class SingleModeParams(SuiteParams):
+    """Parameters of ``tli-single-mode``.
+
+    ``n_starts`` starts per noise level; ``max_cuts`` cuts the cut loop may add
+    (+mod); ``bc_epochs`` of BC training; ``demos`` from :data:`DEMO_SOURCES`;
+    ``cut_sigma`` a separate start noise for the cut loop (``None``: the
+    level's own); the first ``plot_seeds`` layouts keep their rollouts.
+    """
+
+    suite_name: ClassVar[str] = "tli-single-mode"
+    n_starts: int = 100
+    max_cuts: int = 4
+    bc_epochs: int = 4000
+    demos: str = "drawn"
+    cut_sigma: float | None = None
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_starts", "bc_epochs")
+        self.require_at_least(0, "max_cuts", "plot_seeds")
+        self.require_in("demos", DEMO_SOURCES)
 
 
 def run_single_mode_trial(trial: Trial) -> TrialResult:
@@ -83,10 +88,9 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
 
     if trial.method not in POLICY_KINDS:
         raise ValueError(f"tli-single-mode: unknown method {trial.method!r}; expected one of {POLICY_KINDS}")
-    params = trial.params
-    _check_single_params(params)
+    params = SingleModeParams.from_json(trial.params)
     kind = str(trial.method)
-    cut_sigma = params.get("cut_sigma")
+    cut_sigma = params.cut_sigma
     metrics: dict[str, float | None] = {}
     per_noise: dict[str, Any] = {}
     figures: dict[str, Any] = {}
@@ -96,12 +100,12 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
                 trial.seed,
                 sigma,
                 kind,
-                n_starts=int(params["n_starts"]),
+                n_starts=params.n_starts,
                 seed=trial.seed,
-                bc_epochs=int(params["bc_epochs"]),
-                max_cuts=int(params["max_cuts"]),
-                cut_sigma=None if cut_sigma is None else float(cut_sigma),
-                demos=str(params["demos"]),
+                bc_epochs=params.bc_epochs,
+                max_cuts=params.max_cuts,
+                cut_sigma=cut_sigma,
+                demos=params.demos,
             )
             metrics[f"success_{label}"] = 100.0 * res["success_rate"]
             per_noise[label] = {
@@ -109,7 +113,7 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
                 for k in ("invariance_failure_rate", "reachability_failure_rate", "num_cuts", "cuts_until_invariant")
             }
             per_noise[label]["cut_round_success"] = res["cut_round_success"]
-            if trial.seed < int(params["plot_seeds"]) and cut_sigma is None:
+            if trial.seed < params.plot_seeds and cut_sigma is None:
                 from steer_envs.bench.suites.tli.plots import single_mode_figure_data
 
                 figures[str(sigma)] = single_mode_figure_data(
@@ -117,11 +121,11 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
                     sigma,
                     kind,
                     res["n_demos"],
-                    n_starts=int(params["n_starts"]),
+                    n_starts=params.n_starts,
                     seed=trial.seed,
-                    bc_epochs=int(params["bc_epochs"]),
-                    max_cuts=int(params["max_cuts"]),
-                    demos=str(params["demos"]),
+                    bc_epochs=params.bc_epochs,
+                    max_cuts=params.max_cuts,
+                    demos=params.demos,
                 )
     mod = kind.endswith("+mod")
     metrics["cuts_5"] = float(per_noise["5"]["num_cuts"]) if mod else None
@@ -198,14 +202,7 @@ TLI_SINGLE_MODE = register_suite(
         run_trial=run_single_mode_trial,
         envs=(CONVEX_ENV,),
         methods=SINGLE_MODE_METHODS,
-        params={
-            "n_starts": 100,
-            "max_cuts": 4,
-            "bc_epochs": 4000,
-            "demos": "drawn",
-            "cut_sigma": None,
-            "plot_seeds": 1,
-        },
+        params=SingleModeParams(),
         trials_param="n_starts",
         default_seeds=50,
         references=_single_mode_references(),
@@ -218,24 +215,49 @@ TLI_SINGLE_MODE = register_suite(
 
 
 # ------------------------------------------------------------------ tli-scoop
+@dataclass(frozen=True)
+class ScoopParams(SuiteParams):
+    """Parameters of ``tli-scoop``.
+
+    ``n_perturbations`` pushes at steps ``1..push_window`` of an episode of at
+    most ``max_steps``, each up to ``magnitude`` long; ``demos`` from
+    :data:`DEMO_SOURCES`; ``ds_eps`` the LPV-DS stability margin; the first
+    ``plot_seeds`` experiments keep their rollouts.
+    """
+
+    suite_name: ClassVar[str] = "tli-scoop"
+    n_perturbations: int = 5
+    push_window: int = 800
+    max_steps: int = 5000
+    magnitude: float = 16.0
+    demos: str = "drawn"
+    ds_eps: float = 1.0
+    plot_seeds: int = 2
+
+    def __post_init__(self) -> None:
+        self.require_at_least(0, "n_perturbations", "plot_seeds")
+        self.require_at_least(1, "max_steps")
+        self.require_in("demos", DEMO_SOURCES)
+
+
 def run_scoop_trial(trial: Trial) -> TrialResult:
     """One soup-scooping experiment under pushes, without or with modulation."""
     from steer_envs.bench.suites.tli.robustness import scoop_trial
 
     if trial.method not in SCOOP_METHODS:
         raise ValueError(f"tli-scoop: unknown method {trial.method!r}; expected one of {SCOOP_METHODS}")
-    params = trial.params
-    record = trial.seed < int(params["plot_seeds"])
+    params = ScoopParams.from_json(trial.params)
+    record = trial.seed < params.plot_seeds
     with single_threaded():
         res = scoop_trial(
             trial.seed,
             trial.method == "ltl-ds+mod",
-            int(params["n_perturbations"]),
-            max_steps=int(params["max_steps"]),
-            push_window=int(params["push_window"]),
-            magnitude=float(params["magnitude"]),
-            demos=str(params["demos"]),
-            ds_eps=float(params["ds_eps"]),
+            params.n_perturbations,
+            max_steps=params.max_steps,
+            push_window=params.push_window,
+            magnitude=params.magnitude,
+            demos=params.demos,
+            ds_eps=params.ds_eps,
             record=record,
         )
     metrics = {
@@ -278,15 +300,7 @@ TLI_SCOOP = register_suite(
         run_trial=run_scoop_trial,
         envs=(SCOOP_ENV,),
         methods=SCOOP_METHODS,
-        params={
-            "n_perturbations": 5,
-            "push_window": 800,
-            "max_steps": 5000,
-            "magnitude": 16.0,
-            "demos": "drawn",
-            "ds_eps": 1.0,
-            "plot_seeds": 2,
-        },
+        params=ScoopParams(),
         trials_param="n_perturbations",
         default_seeds=10,
         references=(Reference("success", 100.0, env=SCOOP_ENV, method="ltl-ds+mod", source="thesis 3.7.2 (10/10)"),),
@@ -298,19 +312,32 @@ TLI_SCOOP = register_suite(
 
 
 # ----------------------------------------------------------------- tli-ds-fit
+@dataclass(frozen=True)
+class DsFitParams(SuiteParams):
+    """Parameters of ``tli-ds-fit``: the size of the fitted data set."""
+
+    suite_name: ClassVar[str] = "tli-ds-fit"
+    n_demos: int = 3
+    n_points: int = 200
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_demos", "n_points")
+
+
 def run_ds_fit_trial(trial: Trial) -> dict[str, float]:
     """Wall time of one LPV-DS fit of ``n_demos`` x ``n_points`` curved 2D demonstrations."""
     from steer_envs.baselines.lpv_ds.lpvds import benchmark_fit_time
 
+    params = DsFitParams.from_json(trial.params)
     with single_threaded():
-        out = benchmark_fit_time(int(trial.params["n_demos"]), int(trial.params["n_points"]), seed=trial.seed)
+        out = benchmark_fit_time(params.n_demos, params.n_points, seed=trial.seed)
     return {k: float(out[k]) for k in ("fit_seconds", "n_components", "worst_margin")}
 
 
 TLI_DS_FIT = register_suite(
     Suite(
         name="tli-ds-fit",
-        description="LPV-DS fit time of 3 demos x 200 points in 2D (issue target < 5 s) and its stability margin.",
+        description="LPV-DS fit time of 3 demos x 200 points in 2D (goal < 5 s) and its stability margin.",
         metrics=(
             Metric(
                 "fit_seconds", "LPV-DS fit wall time (s)", kind="timing", higher_is_better=False, fmt=".2f", goal=5.0
@@ -319,7 +346,7 @@ TLI_DS_FIT = register_suite(
             Metric("worst_margin", "max eig of A_k^T P + P A_k (must be < 0)", higher_is_better=False, fmt=".2g"),
         ),
         run_trial=run_ds_fit_trial,
-        params={"n_demos": 3, "n_points": 200},
+        params=DsFitParams(),
         default_seeds=3,
         quick={"n_points": 200},
         quick_seeds=1,

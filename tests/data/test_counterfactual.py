@@ -1,4 +1,4 @@
-"""CounterfactualPerturbationWrapper and the GLiDE counterfactual data set."""
+"""CounterfactualReplayer (GLiDE's perturbed demo replays) and the counterfactual data set."""
 
 from __future__ import annotations
 
@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401
-from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset, build_counterfactual_dataset
-from steer_envs.data.demos import collect_demonstrations
-from steer_envs.wrappers import CounterfactualPerturbationWrapper
-from steer_envs.wrappers.counterfactual import (
+from steer_envs.data.counterfactual import (
+    CounterfactualReplayer,
     PerturbedReference,
     gripper_toggle,
     kernel_perturbation,
     segment_perturbation,
 )
+from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset, build_counterfactual_dataset
+from steer_envs.data.demos import collect_demonstrations
 
 ENV_ID = "steer_envs/PolygonNav-4Mode-v0"
 
@@ -82,29 +82,31 @@ def test_perturbations_reject_bad_input(call: object, match: str) -> None:
         call()  # type: ignore[operator]
 
 
-# ------------------------------------------------------------------------- wrapper
-def test_wrapper_validates_its_arguments() -> None:
+# ------------------------------------------------------------------------ replayer
+def test_replayer_validates_its_arguments() -> None:
     env = _env()
     with pytest.raises(ValueError, match="unknown perturbation kind"):
-        CounterfactualPerturbationWrapper(env, "teleport")
+        CounterfactualReplayer(env, "teleport")
     with pytest.raises(ValueError, match="gripper"):
-        CounterfactualPerturbationWrapper(env, "gripper")
+        CounterfactualReplayer(env, "gripper")
     with pytest.raises(ValueError, match="execution"):
-        CounterfactualPerturbationWrapper(env, execution="fly")  # type: ignore[arg-type]
+        CounterfactualReplayer(env, execution="fly")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="execution"):
+        build_counterfactual_dataset(ENV_ID, [np.zeros((3, 2))], execution="fly", layout_seed=0)
     with pytest.raises(TypeError, match=r"gymnasium\.Env"):
-        CounterfactualPerturbationWrapper("env")  # type: ignore[arg-type]
-    wrapper = CounterfactualPerturbationWrapper(env, {"segment": 1.0, "kernel": 3.0})
-    assert wrapper.kind_weights == {"segment": 0.25, "kernel": 0.75}
+        CounterfactualReplayer("env")  # type: ignore[arg-type]
+    replayer = CounterfactualReplayer(env, {"segment": 1.0, "kernel": 3.0})
+    assert replayer.kind_weights == {"segment": 0.25, "kernel": 0.75}
     with pytest.raises(TypeError, match="PerturbedReference"):
-        wrapper.replay_batch([np.zeros((3, 2))])  # type: ignore[list-item]
+        replayer.replay_batch([np.zeros((3, 2))])  # type: ignore[list-item]
 
 
 @pytest.mark.parametrize("execution", ["tracking", "jump"])
 def test_replays_follow_the_reference_and_are_labelled_by_the_env(demos: list[np.ndarray], execution: str) -> None:
     env = _env()
     model = env.unwrapped.model
-    wrapper = CounterfactualPerturbationWrapper(env, ["segment", "kernel"], execution=execution)  # type: ignore[arg-type]
-    replays = wrapper.rollouts(demos, 60, seed=0, batch_size=30)
+    replayer = CounterfactualReplayer(env, ["segment", "kernel"], execution=execution)  # type: ignore[arg-type]
+    replays = replayer.rollouts(demos, 60, seed=0, batch_size=30)
     assert len(replays) == 60
     labels = np.array([r.success for r in replays])
     assert 0 < labels.mean() < 1  # both outcomes occur
@@ -124,11 +126,11 @@ def test_replays_follow_the_reference_and_are_labelled_by_the_env(demos: list[np
 
 
 def test_vectorized_and_single_env_replays_agree(demos: list[np.ndarray]) -> None:
-    wrapper = CounterfactualPerturbationWrapper(_env(), "segment")
+    replayer = CounterfactualReplayer(_env(), "segment")
     rng = np.random.default_rng(5)
-    refs = [wrapper.sample(demos[i % len(demos)], rng, source=i % len(demos)) for i in range(12)]
-    batched = wrapper.replay_batch(refs)
-    single = [wrapper.replay(r) for r in refs]
+    refs = [replayer.sample(demos[i % len(demos)], rng, source=i % len(demos)) for i in range(12)]
+    batched = replayer.replay_batch(refs)
+    single = [replayer.replay(r) for r in refs]
     for a, b in zip(batched, single, strict=True):
         assert a.success == b.success and a.violation_step == b.violation_step
         assert a.states.shape == b.states.shape
@@ -136,20 +138,20 @@ def test_vectorized_and_single_env_replays_agree(demos: list[np.ndarray]) -> Non
 
 
 def test_unperturbed_demos_succeed_and_rollouts_are_seeded(demos: list[np.ndarray]) -> None:
-    wrapper = CounterfactualPerturbationWrapper(_env(), "kernel")
-    assert all(r.success for r in wrapper.replay_batch([wrapper.unperturbed(d) for d in demos]))
-    a = wrapper.rollouts(demos, 8, seed=4)
-    b = wrapper.rollouts(demos, 8, seed=4)
+    replayer = CounterfactualReplayer(_env(), "kernel")
+    assert all(r.success for r in replayer.replay_batch([replayer.unperturbed(d) for d in demos]))
+    a = replayer.rollouts(demos, 8, seed=4)
+    b = replayer.rollouts(demos, 8, seed=4)
     assert [r.success for r in a] == [r.success for r in b]
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x.reference.waypoints, y.reference.waypoints)
 
 
 def test_gripper_references_need_a_gripper_controller(demos: list[np.ndarray]) -> None:
-    wrapper = CounterfactualPerturbationWrapper(_env(), "segment")
+    replayer = CounterfactualReplayer(_env(), "segment")
     ref = PerturbedReference(demos[0], "gripper", 0, (0, 5), np.full(2, np.nan), np.ones(len(demos[0])))
     with pytest.raises(ValueError, match="gripper"):
-        wrapper.replay(ref)
+        replayer.replay(ref)
 
 
 # ------------------------------------------------------------------------- data set

@@ -1,4 +1,4 @@
-"""Counterfactual perturbations of demonstration replays (GLiDE, thesis §4.2).
+"""Counterfactual replays of demonstrations: GLiDE's training data generator (thesis §4.2).
 
 GLiDE learns where the modes of a task are from a few successful
 demonstrations plus *perturbed replays* labelled only by task success.
@@ -16,12 +16,27 @@ Three perturbation kinds, each a pure function of a reference path:
 * ``"gripper"``: the gripper command is toggled (or forced) for 5-20 steps
   while the path is kept (only for envs whose replays carry a gripper).
 
-:class:`CounterfactualPerturbationWrapper` replays a perturbed reference in
-the wrapped env with a trajectory-following controller and records the visited
-states, the env's own ground-truth modes (for evaluation only) and the env's
-own success flag (the training label). Replays are batched through the env's
-vector entry point when it has one (the 2D kinematic envs), which is what
-makes the thousands of replays GLiDE needs take seconds.
+:class:`CounterfactualReplayer` replays a perturbed reference in an env with a
+trajectory-following controller and records the visited states, the env's own
+ground-truth modes (for evaluation only) and the env's own success flag (the
+training label). Replays are batched through the env's vector entry point when
+it has one (the 2D kinematic envs), which keeps the thousands of replays GLiDE needs cheap.
+:func:`steer_envs.data.counterfactual_dataset.build_counterfactual_dataset`
+packs them into a data set.
+
+>>> import gymnasium as gym
+>>> import numpy as np
+>>> import steer_envs
+>>> from steer_envs.data.demos import collect_demonstrations
+>>> env_id = "steer_envs/PolygonNav-3Mode-v0"
+>>> demos = [d.states for d in collect_demonstrations(env_id, n=1, seed=0, layout_seed=0)]
+>>> env = gym.make(env_id, layout_seed=0, terminate_on_violation=False, max_episode_steps=5000)
+>>> replayer = CounterfactualReplayer(env, "segment", execution="jump")
+>>> replays = replayer.rollouts(demos, 4, seed=0)
+>>> [r.reference.kind for r in replays]
+['segment', 'segment', 'segment', 'segment']
+>>> all(isinstance(r.success, bool) for r in replays)
+True
 """
 
 from __future__ import annotations
@@ -38,6 +53,9 @@ from steer_envs.envs.kinematic import Kinematic2DEnv, Kinematic2DVectorEnv
 
 PerturbationKind = Literal["segment", "kernel", "gripper"]
 PERTURBATION_KINDS: tuple[str, ...] = ("segment", "kernel", "gripper")
+#: how a reference is executed (see :class:`CounterfactualReplayer`).
+Execution = Literal["tracking", "jump"]
+EXECUTIONS: tuple[str, ...] = ("tracking", "jump")
 #: a waypoint closer than this (in state units) counts as reached by the tracking controller.
 WAYPOINT_TOLERANCE = 1e-4
 
@@ -279,11 +297,13 @@ class _Track:
         )
 
 
-# ---------------------------------------------------------------------- wrapper
-class CounterfactualPerturbationWrapper(gym.Wrapper):
-    """Perturbs demonstration replays and labels them with the env's success check.
+# --------------------------------------------------------------------- replayer
+class CounterfactualReplayer:
+    """Perturbs demonstration replays in ``env`` and labels them with the env's success check.
 
-    ``step``/``reset`` pass through unchanged; the wrapper adds
+    A data generator, not a wrapper: it never changes what ``env`` observes or
+    does. Its replays run on ``env`` itself, on the registered vector env of
+    ``env.spec``, or on a one-step-per-waypoint copy of the task model. It offers
     :meth:`sample` (a perturbed reference from a demo), :meth:`replay` (run one
     reference with the tracking controller), :meth:`replay_batch` (many at
     once, through the env's vector entry point when it has one) and
@@ -298,7 +318,7 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
 
     Two ways to execute a reference:
 
-    * ``execution="tracking"``: the wrapped env's own dynamics; each step
+    * ``execution="tracking"``: the env's own dynamics; each step
       moves at most ``max_speed * dt`` toward the next waypoint, so a replay
       passes through every mode between two far-apart waypoints (a real
       robot's replay).
@@ -329,15 +349,15 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
         env: gym.Env,
         kind: PerturbationKind | Sequence[str] | Mapping[str, float] = "segment",
         *,
-        execution: Literal["tracking", "jump"] = "tracking",
+        execution: Execution = "tracking",
         controller: Controller | None = None,
         gripper: bool = False,
         kernel_sharpness: float = 5.0,
         kernel_min_window: int = 2,
     ) -> None:
         if not isinstance(env, gym.Env):
-            raise TypeError(f"env must be a gymnasium.Env, got {type(env).__name__}")
-        super().__init__(env)
+            raise TypeError(f"CounterfactualReplayer: `env` must be a gymnasium.Env, got {type(env).__name__}")
+        self.env = env
         self.kind_weights = _kind_weights(kind)
         if "gripper" in self.kind_weights and not gripper:
             raise ValueError("kind 'gripper' needs an env whose replays carry a gripper command (gripper=True)")
@@ -346,13 +366,13 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
         self.kernel_min_window = int(kernel_min_window)
         space = env.observation_space
         if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1:
-            raise TypeError("CounterfactualPerturbationWrapper needs a flat Box observation space (the state)")
+            raise TypeError("CounterfactualReplayer needs a flat Box observation space (the state)")
         self.low = np.asarray(space.low, dtype=np.float64)
         self.high = np.asarray(space.high, dtype=np.float64)
         if not (np.all(np.isfinite(self.low)) and np.all(np.isfinite(self.high))):
             raise ValueError("the observation space must be bounded (Z is drawn uniformly inside it)")
         base = env.unwrapped
-        if execution not in ("tracking", "jump"):
+        if execution not in EXECUTIONS:
             raise ValueError(f"execution must be 'tracking' or 'jump', got {execution!r}")
         self.execution = execution
         self._replay_env: gym.Env = self.env
@@ -440,7 +460,7 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
 
     # -------------------------------------------------------------- replays
     def replay(self, reference: PerturbedReference) -> Replay:
-        """Replay one reference in the wrapped env with the tracking controller."""
+        """Replay one reference in ``env`` with the tracking controller."""
         return self.replay_batch([reference], vectorized=False)[0]
 
     def _vector_env(self, num_envs: int) -> gym.vector.VectorEnv | None:
@@ -471,7 +491,7 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
         violations (PolygonNav); envs with richer task memory should replay
         references that end at the goal. Without a vector entry point (or with a custom
         controller, or ``vectorized=False``) the references are replayed one
-        by one on the wrapped env; both paths give the same replays.
+        by one on ``env``; both paths give the same replays.
         """
         refs = list(references)
         for r in refs:
@@ -570,8 +590,9 @@ class CounterfactualPerturbationWrapper(gym.Wrapper):
 
 
 __all__ = [
+    "EXECUTIONS",
     "PERTURBATION_KINDS",
-    "CounterfactualPerturbationWrapper",
+    "CounterfactualReplayer",
     "PerturbedReference",
     "Replay",
     "gripper_toggle",

@@ -1,0 +1,118 @@
+"""ACT's config and its training presets.
+
+:class:`ACTConfig` holds the features (from the dataset), the chunk length,
+the transformer sizes and the CVAE loss weight. :data:`PRESETS`:
+
+* ``cpu``: the shipped Maze2D checkpoint (d_model 128, 2/1/1 layers), sized for a CPU.
+* ``itps``: the public ITPS Maze2D config (d_model 512, 8 heads, 4/1/4 layers), a GPU job.
+
+>>> cfg = ACTConfig(obs_dim=7, action_dim=4, chunk_size=16)
+>>> cfg.horizon, cfg.window_layout
+(16, {'n_obs': 1, 'horizon': 16, 'action_start': 0})
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from steer_envs.baselines.common.configuration import PolicyConfig, Preset, TrainSettings, check_int
+
+__all__ = ["PRESETS", "ACTConfig"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ACTConfig(PolicyConfig):
+    """Features, chunk and networks of an :class:`~steer_envs.baselines.act.ACTPolicy`.
+
+    ACT conditions on the current observation only and predicts the next
+    ``chunk_size`` actions (all executed). Observations and actions are
+    standardized (``normalization="mean_std"``) by default, as in ACT.
+
+    Attributes:
+        chunk_size: actions per chunk (the plan horizon).
+        d_model, n_heads, dim_feedforward: transformer width, heads, FFN width.
+        n_encoder_layers, n_decoder_layers, n_vae_encoder_layers: layer counts.
+        latent_dim: size of the CVAE latent ``z``.
+        dropout: transformer dropout.
+        kl_weight: weight of KL(q(z | s, a) || N(0, I)) in the loss.
+    """
+
+    normalization: str = "mean_std"
+    chunk_size: int = 64
+    d_model: int = 128
+    n_heads: int = 4
+    dim_feedforward: int = 256
+    n_encoder_layers: int = 2
+    n_decoder_layers: int = 1
+    n_vae_encoder_layers: int = 1
+    latent_dim: int = 32
+    dropout: float = 0.1
+    kl_weight: float = 10.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in (
+            "chunk_size",
+            "d_model",
+            "n_heads",
+            "dim_feedforward",
+            "n_encoder_layers",
+            "n_decoder_layers",
+            "n_vae_encoder_layers",
+            "latent_dim",
+        ):
+            check_int(getattr(self, name), name)
+        if self.d_model % self.n_heads:
+            raise ValueError(f"d_model ({self.d_model}) must be a multiple of n_heads ({self.n_heads})")
+        if self.d_model % 2:
+            raise ValueError(f"d_model must be even (sinusoidal positions), got {self.d_model}")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout!r}")
+        if not (np.isfinite(self.kl_weight) and self.kl_weight >= 0):
+            raise ValueError(f"kl_weight must be a finite float >= 0, got {self.kl_weight!r}")
+
+    @property
+    def horizon(self) -> int:
+        """Waypoints per plan (the chunk size)."""
+        return self.chunk_size
+
+    @property
+    def n_obs_steps(self) -> int:
+        """ACT conditions on the current observation only."""
+        return 1
+
+    @property
+    def exec_start(self) -> int:
+        """Every waypoint of a chunk is executed."""
+        return 0
+
+    @property
+    def window_layout(self) -> dict[str, int]:
+        """``PlanWindows`` arguments: the current observation and the next ``chunk_size`` actions."""
+        return {"n_obs": 1, "horizon": self.chunk_size, "action_start": 0}
+
+
+_ACT_TRAIN = TrainSettings(lr=3e-4, weight_decay=1e-4, betas=(0.9, 0.999))
+
+#: named (config, training) presets; the feature fields are taken from the dataset.
+PRESETS: dict[str, Preset[ACTConfig]] = {
+    "cpu": Preset(
+        ACTConfig(),
+        _ACT_TRAIN.replace(steps=3_000),
+        "the shipped Maze2D checkpoint: d_model 128, 2 encoder / 1 decoder / 1 VAE-encoder layers",
+    ),
+    "itps": Preset(
+        ACTConfig(
+            d_model=512,
+            n_heads=8,
+            dim_feedforward=3200,
+            n_encoder_layers=4,
+            n_decoder_layers=1,
+            n_vae_encoder_layers=4,
+        ),
+        _ACT_TRAIN.replace(steps=100_000, batch_size=256, lr=1e-5),
+        "ITPS's Maze2D ACT at full size (a GPU job)",
+    ),
+}
