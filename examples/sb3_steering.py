@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.bench.suites.itps.suite import load_policy
+from steer_envs.bench.suites.itps.protocol import load_policy
 from steer_envs.io import atomic_open
 from steer_envs.wrappers import SteeringWrapper, make_sampler
 
@@ -36,7 +36,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
     )
     parser.add_argument(
-        "--checkpoint", default="", help="a train_maze checkpoint file of --policy (default: the shipped one)"
+        "--checkpoint",
+        default="",
+        help="a checkpoint of --policy from python -m steer_envs.baselines.training (default: the shipped one)",
     )
     parser.add_argument("--sampler", choices=("RS", "PR", "OP", "BI", "GD", "SS"), default="PR", help="default: PR")
     parser.add_argument("--batch", type=int, default=8, help="plans per steering call (default: 8)")

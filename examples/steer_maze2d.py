@@ -21,7 +21,7 @@ import gymnasium as gym
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.bench.plots import new_figure, save_figure
-from steer_envs.bench.suites.itps.suite import load_policy
+from steer_envs.bench.suites.itps.protocol import load_policy
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.users.sketcher import SketchUser
 from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler
@@ -38,7 +38,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
     )
     parser.add_argument(
-        "--checkpoint", default="", help="a train_maze checkpoint file of --policy (default: the shipped one)"
+        "--checkpoint",
+        default="",
+        help="a checkpoint of --policy from python -m steer_envs.baselines.training (default: the shipped one)",
     )
     parser.add_argument("--sampler", choices=sorted(SAMPLERS), default="SS", help="steering sampler (default: SS)")
     parser.add_argument("--batch", type=int, default=32, help="plans sampled per call (default: 32)")
