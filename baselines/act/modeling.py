@@ -134,17 +134,17 @@ class ACTPolicy(TorchPolicy):
     @property
     def horizon(self) -> int:
         """Waypoints per plan (the chunk size)."""
-        return self.config.chunk_size
+        return self.config.horizon
 
     @property
     def n_obs_steps(self) -> int:
         """ACT conditions on the current observation only."""
-        return 1
+        return self.config.n_obs_steps
 
     @property
     def exec_start(self) -> int:
         """Every waypoint of a chunk is executed."""
-        return 0
+        return self.config.exec_start
 
     @property
     def window_layout(self) -> dict[str, int]:

@@ -204,13 +204,17 @@ class Normalizer:
             self._cache[key] = (a, b)
         return self._cache[key]
 
+    def _operands(self, x: Any) -> tuple[Any, Any, Any]:
+        """``x`` checked (an array or tensor of shape ``(..., dim)``) and the mode's two parameters in its kind."""
+        if isinstance(x, torch.Tensor):
+            return (x, *self._torch(x))
+        return (as_coords(x, self.dim, self.name), *self.params)
+
     def normalize(self, x: Any) -> Any:
         """Data units -> network units, elementwise over ``(..., dim)``."""
         if self.mode == "identity":
             return x if isinstance(x, torch.Tensor) else as_coords(x, self.dim, self.name)
-        a, b = self._torch(x) if isinstance(x, torch.Tensor) else self.params
-        if not isinstance(x, torch.Tensor):
-            x = as_coords(x, self.dim, self.name)
+        x, a, b = self._operands(x)
         if self.mode == "min_max":
             return 2 * (x - a) / (b - a) - 1
         return (x - a) / b
@@ -219,9 +223,7 @@ class Normalizer:
         """Inverse of :meth:`normalize`."""
         if self.mode == "identity":
             return x if isinstance(x, torch.Tensor) else as_coords(x, self.dim, self.name)
-        a, b = self._torch(x) if isinstance(x, torch.Tensor) else self.params
-        if not isinstance(x, torch.Tensor):
-            x = as_coords(x, self.dim, self.name)
+        x, a, b = self._operands(x)
         if self.mode == "min_max":
             return (x + 1) / 2 * (b - a) + a
         return x * b + a

@@ -32,15 +32,6 @@ BOX = {"min": (0.5, 0.5), "max": (7.5, 10.5)}
 STATS = {"observation": BOX, "action": BOX}
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """One torch thread: on a shared 2-core machine, two spinning OpenMP threads make these tests ~10x slower."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
 @pytest.fixture(scope="module")
 def walk():
     return generate_random_walk("large", 20_000, seed=3, progress=False).to_trajectories()

@@ -30,14 +30,6 @@ from steer_envs.data.trajectories import TrajectoryDataset
 DP_TINY = {"horizon": 8, "down_dims": (8, 16), "step_embed_dim": 16, "obs_embed_dim": 8, "kernel_size": 3}
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
 def _data(obs_dim: int = 5, action_dim: int = 3, **declared) -> TrajectoryDataset:
     rng = np.random.default_rng(0)
     return TrajectoryDataset(rng.normal(size=(60, obs_dim)), rng.normal(size=(60, action_dim)) * 2, **declared)

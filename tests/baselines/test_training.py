@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from steer_envs.baselines.act import ACTPolicy
 from steer_envs.baselines.common import Preset, TrainSettings
@@ -27,15 +26,6 @@ TINY_DP += ["--model", "obs_embed_dim=16", "--model", "kernel_size=3"]
 TINY_ACT = ["--model", "chunk_size=8", "--model", "d_model=16", "--model", "n_heads=2"]
 TINY_ACT += ["--model", "dim_feedforward=16", "--model", "n_encoder_layers=1", "--model", "latent_dim=4"]
 TINY = {"dp": TINY_DP, "act": TINY_ACT}
-
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """One torch thread: on a shared 2-core machine, two spinning OpenMP threads make these tests ~10x slower."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 @pytest.fixture(scope="module")
