@@ -29,10 +29,11 @@ import torch
 from steer_envs.baselines.act import PRESETS as ACT_PRESETS
 from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.common.configuration import PolicyConfig, Preset
-from steer_envs.baselines.common.torch_policy import CHECKPOINT_FORMAT, TorchPolicy, read_checkpoint
+from steer_envs.baselines.common.torch_policy import CHECKPOINT_FORMAT, TorchPolicy, check_device, read_checkpoint
 from steer_envs.baselines.diffusion import PRESETS as DP_PRESETS
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.data.trajectories import TrajectoryDataset
+from steer_envs.io import CheckpointError
 
 __all__ = [
     "POLICIES",
@@ -207,18 +208,22 @@ def load_policy(
 ) -> TorchPolicy:
     """The policy saved at ``path``, of whichever registered kind it holds (``name``: require that kind).
 
-    ``ValueError`` when the file is missing, not a checkpoint, or of another kind than ``name``.
+    :class:`~steer_envs.io.CheckpointError` (a ``ValueError``, naming the file)
+    when the file is missing, truncated, not a checkpoint, of another kind than
+    ``name``, or inconsistent (see :meth:`TorchPolicy.from_checkpoint`); an
+    unknown ``name`` or a bad ``device`` is a ``ValueError`` / ``TypeError``.
     """
     if name is not None:
         _spec(name)
+    check_device(device)
     tensors, header = read_checkpoint(path)
     fmt = header.get("format")
     if fmt == CHECKPOINT_FORMAT:
         found = header.get("policy")
     else:
         found = next((n for n, s in POLICIES.items() if s.policy_class.legacy_format == fmt), None)
-    if found is None or found not in POLICIES:
-        raise ValueError(f"{path} holds format {fmt!r} / policy {header.get('policy')!r}, not a registered policy")
+    if not isinstance(found, str) or found not in POLICIES:
+        raise CheckpointError(f"{path} holds format {fmt!r} / policy {header.get('policy')!r}, not a registered policy")
     if name is not None and found != name:
-        raise ValueError(f"{path} holds a {found!r} policy, expected {name!r}")
+        raise CheckpointError(f"{path} holds a {found!r} policy, expected {name!r}")
     return POLICIES[found].policy_class.from_checkpoint(tensors, header, device=device, source=str(path))

@@ -12,7 +12,6 @@ record beside it has the loss curve and wall time.
 
 from __future__ import annotations
 
-import json
 import os
 from importlib import resources
 from pathlib import Path
@@ -20,10 +19,20 @@ from typing import Any
 
 import torch
 
+from steer_envs.baselines.common.checkpoint import read_record
 from steer_envs.baselines.common.torch_policy import TorchPolicy
 from steer_envs.baselines.factory import load_policy
+from steer_envs.core.validation import one_of
+from steer_envs.io import CheckpointError
 
-__all__ = ["CHECKPOINTS", "checkpoint_path", "checkpoint_record", "load_checkpoint", "load_pretrained"]
+__all__ = [
+    "CHECKPOINTS",
+    "CheckpointError",
+    "checkpoint_path",
+    "checkpoint_record",
+    "load_checkpoint",
+    "load_pretrained",
+]
 
 #: kind (a policy name of :mod:`steer_envs.baselines.factory`) -> file in ``steer_envs.baselines/checkpoints``.
 CHECKPOINTS: dict[str, str] = {
@@ -33,8 +42,7 @@ CHECKPOINTS: dict[str, str] = {
 
 
 def _check_kind(kind: str) -> None:
-    if kind not in CHECKPOINTS:
-        raise ValueError(f"kind must be one of {sorted(CHECKPOINTS)}, got {kind!r}")
+    one_of(kind, "kind", tuple(CHECKPOINTS))
 
 
 def checkpoint_path(kind: str) -> Path:
@@ -59,8 +67,10 @@ def checkpoint_record(kind: str) -> dict[str, Any]:
 
     >>> checkpoint_record("dp")["training"]["settings"]["steps"]
     30000
+
+    :class:`~steer_envs.io.CheckpointError` when the record is missing, too large or not a JSON object.
     """
-    return json.loads(checkpoint_path(kind).with_suffix(".json").read_text(encoding="utf-8"))
+    return read_record(checkpoint_path(kind).with_suffix(".json"))
 
 
 def load_pretrained(kind: str, device: str | torch.device = "cpu") -> TorchPolicy:
@@ -71,7 +81,8 @@ def load_pretrained(kind: str, device: str | torch.device = "cpu") -> TorchPolic
 def load_checkpoint(kind: str, path: str | os.PathLike[str], device: str | torch.device = "cpu") -> TorchPolicy:
     """A policy of ``kind`` (``"dp"`` or ``"act"``) from a checkpoint file, e.g. a GPU training run.
 
-    ``ValueError`` when the file is missing or holds another kind of policy.
+    :class:`~steer_envs.io.CheckpointError` (a ``ValueError`` naming the file)
+    when the file is missing, damaged, inconsistent or holds another kind of policy.
     """
     _check_kind(kind)
     return load_policy(path, name=kind, device=device)

@@ -69,6 +69,7 @@ from scipy.optimize import minimize
 
 from steer_envs.core.env import HasTask, perturbable_env
 from steer_envs.core.policy import VelocityPolicy
+from steer_envs.core.validation import boolean, describe, integer, real_array, real_scalar
 
 __all__ = [
     "Cut",
@@ -87,6 +88,8 @@ __all__ = [
 ATTRACTOR_MARGIN = 0.4
 #: slack of the feasibility tests of candidate normals.
 FEAS_TOL = 1e-9
+#: most SLSQP starts of the ``d > 2`` cut solver (each start is one bounded local solve).
+MAX_RESTARTS = 10_000
 
 
 @dataclass(frozen=True)
@@ -105,8 +108,10 @@ class Cut:
     relaxed: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        p = np.asarray(self.point, dtype=np.float64)
-        n = np.asarray(self.normal, dtype=np.float64)
+        p = real_array(self.point, "point", finite=False, owner="Cut")
+        n = real_array(self.normal, "normal", finite=False, owner="Cut")
+        if not isinstance(self.relaxed, tuple) or not all(isinstance(r, str) for r in self.relaxed):
+            raise TypeError(f"Cut: relaxed must be a tuple of str, got {describe(self.relaxed)}")
         if p.ndim != 1 or n.shape != p.shape or not (np.all(np.isfinite(p)) and np.all(np.isfinite(n))):
             raise ValueError(f"Cut: point and normal must be finite vectors of equal length, got {p.shape}, {n.shape}")
         norm = np.linalg.norm(n)
@@ -160,12 +165,13 @@ def solve_cut(
     fail = _vec(failure, "failure", d)
     x0 = _vec(entry, "entry", d)
     att = _vec(attractor, "attractor", d)
-    vis = np.zeros((0, d)) if visited is None else np.asarray(visited, dtype=np.float64).reshape(-1, d)
-    extra = np.zeros((0, d)) if also_keep is None else np.asarray(also_keep, dtype=np.float64).reshape(-1, d)
+    vis = np.zeros((0, d)) if visited is None else _states(visited, "visited", d)
+    extra = np.zeros((0, d)) if also_keep is None else _states(also_keep, "also_keep", d)
     if not (np.all(np.isfinite(vis)) and np.all(np.isfinite(extra))):
         raise ValueError("visited and also_keep must be finite")
-    if not (np.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
+    margin = real_scalar(margin, "margin", low=0.0)
+    restarts = integer(restarts, "restarts", low=1, high=MAX_RESTARTS)
+    seed = integer(seed, "seed")
     if np.linalg.norm(fail - f) == 0:
         raise ValueError("failure must differ from last_in_mode (the cut separates them)")
     a_star = att - f
@@ -363,15 +369,16 @@ def modulate(x: ArrayLike, velocity: ArrayLike, cuts: CutSet, max_speed: float |
     module docstring. Rows that approach no cut they are inside of (a state on
     a cut counts as inside) keep ``v``.
     """
+    if not isinstance(cuts, CutSet):
+        raise TypeError(f"cuts must be a CutSet, got {describe(cuts)}")
     xb = _batch(x, cuts.dim)
-    v = np.asarray(velocity, dtype=np.float64)
+    v = _reals(velocity, "velocity")
     if v.shape != xb.shape:
         raise ValueError(f"velocity must have the shape of x {xb.shape}, got {v.shape}")
     if not np.all(np.isfinite(v)):
         raise ValueError("velocity must be finite (got NaN or inf)")
     if max_speed is not None:
-        if not (np.isfinite(max_speed) and max_speed > 0):
-            raise ValueError(f"max_speed must be None or a positive float, got {max_speed!r}")
+        max_speed = _speed(max_speed)
         v = _clip(v, max_speed)
     if len(cuts) == 0:
         return v.copy()
@@ -430,13 +437,13 @@ class ModulatedPolicy:
             raise TypeError(f"cuts must be a CutSet, got {type(cuts).__name__}")
         self.policy = policy
         self.cuts = cuts
-        self.max_speed = max_speed
+        self.max_speed = None if max_speed is None else _speed(max_speed)
 
     def __call__(self, x: ArrayLike) -> np.ndarray:
-        arr = np.asarray(x, dtype=np.float64)
+        arr = _reals(x, "x", owner="ModulatedPolicy")
         single = arr.ndim == 1
         xb = _batch(arr[None] if single else arr, self.cuts.dim)
-        v = np.asarray(self.policy(xb), dtype=np.float64)
+        v = _reals(self.policy(xb), "policy(x)", owner="ModulatedPolicy")
         if v.shape != xb.shape:
             raise ValueError(f"policy returned shape {v.shape} for states of shape {xb.shape}")
         out = modulate(xb, v, self.cuts, self.max_speed)
@@ -499,14 +506,18 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
     ``info`` gains ``invariance_failure``, ``cut_added``, ``num_cuts`` and ``modulated``.
 
     Args:
-        env: a steer-envs kinematic env (possibly wrapped).
-        attractor: one point, or a mapping mode index -> point.
+        env: a steer-envs kinematic env (possibly wrapped) whose action is a
+            velocity of the state's dimension ``d``.
+        attractor: one point ``(d,)``, or a mapping mode index -> point.
         plan: optional ``(mode, info) -> allowed next modes`` (mode indices).
         home_mode: the mode a single ``attractor`` belongs to (default: the
             task's initial mode).
-        margin: radius around each attractor every cut keeps inside.
-        learn: add cuts on failures (``False``: only apply the given ``cuts``).
+        margin: radius around each attractor every cut keeps inside (a real number >= 0).
+        learn: add cuts on failures (``False``: only apply the given ``cuts``); a bool.
         cuts: optional initial ``{mode: CutSet}`` (extended in place as cuts are learned).
+
+    Arguments that could never work are refused here: an attractor or cut set of
+    another dimension than the state, a mode index (int) the task does not have.
 
     The constructor arguments are recorded (``env.spec``) as given, ``cuts`` as
     a copy taken before any learning.
@@ -545,30 +556,53 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
             _disable_deepcopy=True,  # `plan` may be a bound method: record it, do not copy its owner
         )
         gym.ActionWrapper.__init__(self, env)
-        base = perturbable_env(env, who="DSModulationWrapper")
+        who = "DSModulationWrapper"
+        base = perturbable_env(env, who=who)
         self._base = base
         if plan is not None and not callable(plan):
             raise TypeError(f"plan must be None or a callable (mode, info) -> modes, got {type(plan).__name__}")
-        if not (np.isfinite(margin) and margin >= 0):
-            raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
+        margin = real_scalar(margin, "margin", low=0.0, owner=who)
+        learn = boolean(learn, "learn", owner=who)
         self.max_speed: float | None = getattr(base, "max_speed", None)
         self.dt: float | None = getattr(base, "dt", None)
         task = base.task if isinstance(base, HasTask) else None
         self._task = task
+        # the velocity is a state derivative: attractors, cuts and actions live in the state's space
+        self.dim = int(np.asarray(base.state).reshape(-1).size)
+        space = env.action_space
+        if isinstance(space, gym.spaces.Box) and space.shape != (self.dim,):
+            raise ValueError(
+                f"{who}: the env's action must be a velocity of the state's dimension ({self.dim},), "
+                f"got an action space of shape {space.shape}"
+            )
+        num_modes = len(task.modes) if task is not None else None
+
+        def mode_index(value: Any, name: str) -> int:
+            return integer(value, name, low=0, high=None if num_modes is None else num_modes - 1, owner=who)
+
         if isinstance(attractor, Mapping):
-            self.attractors = {int(m): _vec(a, f"attractor[{m}]") for m, a in attractor.items()}
+            if not attractor:
+                raise ValueError(f"{who}: attractor must map at least one mode index to a point")
+            self.attractors = {
+                mode_index(m, "attractor key (mode index)"): self._point(a, f"attractor[{m!r}]")
+                for m, a in attractor.items()
+            }
         else:
             if home_mode is None:
                 home_mode = task.mode_index(task.initial or task.modes[0]) if task is not None else 0
-            self.attractors = {int(home_mode): _vec(attractor, "attractor")}
+            self.attractors = {mode_index(home_mode, "home_mode"): self._point(attractor, "attractor")}
         self.plan_fn = plan
-        self.margin = float(margin)
-        self.learn = bool(learn)
+        self.margin = margin
+        self.learn = learn
         self.cut_sets: dict[int, CutSet] = {}
+        if cuts is not None and not isinstance(cuts, Mapping):
+            raise TypeError(f"{who}: cuts must be None or a mapping mode index -> CutSet, got {describe(cuts)}")
         for m, cs in (cuts or {}).items():
             if not isinstance(cs, CutSet):
                 raise TypeError(f"cuts[{m}] must be a CutSet, got {type(cs).__name__}")
-            self.cut_sets[int(m)] = cs
+            if cs.dim != self.dim:
+                raise ValueError(f"{who}: cuts[{m!r}] has dimension {cs.dim}, the state has {self.dim}")
+            self.cut_sets[mode_index(m, "cuts key (mode index)")] = cs
         self.failures: dict[int, list[FailureRecord]] = {}
         self._mode: int | None = None
         self._entry: np.ndarray | None = None
@@ -578,6 +612,13 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
         self._warned_plan = False
 
     # ------------------------------------------------------------ helpers
+    def _point(self, value: Any, name: str) -> np.ndarray:
+        """An attractor: a finite point of the state's dimension."""
+        arr = _vec(value, f"DSModulationWrapper: {name}")
+        if arr.shape != (self.dim,):
+            raise ValueError(f"DSModulationWrapper: {name} must have the state's shape ({self.dim},), got {arr.shape}")
+        return arr
+
     def attractor_of(self, mode: int) -> np.ndarray | None:
         """The attractor of ``mode`` (None: that mode is not modulated and learns no cuts)."""
         return self.attractors.get(int(mode))
@@ -596,7 +637,13 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
         """Modes the plan allows after ``mode`` (None: no plan, every exit is a failure)."""
         if self.plan_fn is not None:
             nxt = self.plan_fn(mode, info)
-            return None if nxt is None else {int(m) for m in nxt}
+            if nxt is None:
+                return None
+            if isinstance(nxt, (str, bytes)) or not isinstance(nxt, Iterable):
+                raise TypeError(
+                    f"DSModulationWrapper: plan(mode, info) must return mode indices or None, got {describe(nxt)}"
+                )
+            return {integer(m, "plan(mode, info) entry", owner="DSModulationWrapper") for m in nxt}
         plan = info.get("plan")
         if plan is None:
             return None
@@ -642,12 +689,17 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
         return info
 
     def action(self, action: Any) -> np.ndarray:
-        """The modulated velocity for the current state and mode (float32)."""
-        v = np.asarray(action, dtype=np.float64)
+        """The modulated velocity for the current state and mode (float32).
+
+        ``action`` is a finite real velocity of the state's shape ``(d,)`` (a list, a
+        numpy array or a torch tensor, detached); strings, complex numbers, booleans,
+        NaN/inf and other shapes are refused (``TypeError``/``ValueError``).
+        """
+        v = real_array(action, "action", shape=(self.dim,), owner="DSModulationWrapper")
         self._modulated = False
         cuts = self.cut_sets.get(self._mode) if self._mode is not None else None
-        if cuts is None or len(cuts) == 0 or v.shape != (cuts.dim,) or not np.all(np.isfinite(v)):
-            return v.astype(np.float32)  # nothing to modulate (bad actions are the env's to reject)
+        if cuts is None or len(cuts) == 0:
+            return v.astype(np.float32)  # nothing to modulate
         x = np.asarray(self._base.state, dtype=np.float64)
         out = modulate(x[None], v[None], cuts, self.max_speed)[0]
         nominal = _clip(v[None], self.max_speed)[0] if self.max_speed is not None else v
@@ -696,11 +748,20 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
 
 
 # ------------------------------------------------------------------------ helpers
+def _reals(value: Any, name: str, owner: str | None = None) -> np.ndarray:
+    """``value`` as a float64 array of real numbers (NaN/inf allowed; the callers check finiteness).
+
+    A float numpy array is read as is (the hot path of the modulation inside rollouts);
+    anything else goes through :func:`~steer_envs.core.validation.real_array`, which refuses
+    strings, complex numbers, booleans and objects instead of converting them.
+    """
+    if type(value) is np.ndarray and value.dtype.kind == "f":
+        return value.astype(np.float64, copy=False)
+    return real_array(value, name, finite=False, owner=owner)
+
+
 def _vec(value: ArrayLike, name: str, d: int | None = None) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a float vector, got {type(value).__name__}") from None
+    arr = _reals(value, name)
     if arr.ndim != 1 or len(arr) < 1 or (d is not None and len(arr) != d):
         raise ValueError(f"{name} must have shape ({d if d is not None else 'd'},), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -709,12 +770,24 @@ def _vec(value: ArrayLike, name: str, d: int | None = None) -> np.ndarray:
 
 
 def _batch(x: ArrayLike, d: int) -> np.ndarray:
-    arr = np.asarray(x, dtype=np.float64)
+    arr = _reals(x, "x")
     if arr.ndim != 2 or arr.shape[1] != d:
         raise ValueError(f"x must have shape (N, {d}), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError("x must be finite (got NaN or inf)")
     return arr
+
+
+def _states(value: ArrayLike, name: str, d: int) -> np.ndarray:
+    """``(m, d)`` states (a flat vector of ``m * d`` numbers is read row by row)."""
+    arr = real_array(value, name, finite=False)
+    if arr.size % d:
+        raise ValueError(f"{name} must hold states of dimension {d} (shape (m, {d})), got shape {arr.shape}")
+    return arr.reshape(-1, d)
+
+
+def _speed(max_speed: Any) -> float:
+    return real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False)
 
 
 def _clip(v: np.ndarray, max_speed: float) -> np.ndarray:

@@ -52,6 +52,7 @@ identity). Guidance always acts on the whole denoised tensor, as in ITPS.
 
 from __future__ import annotations
 
+import inspect
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
@@ -64,8 +65,12 @@ import torch
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
 from steer_envs.core.objectives import alignment_cost_np, point_cost, resample_path_torch, sketch_cost
 from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
+from steer_envs.core.validation import describe, integer, real_scalar
 
 __all__ = [
+    "MAX_BATCH",
+    "MAX_DENOISING_STEPS",
+    "MAX_MCMC_STEPS",
     "SAMPLERS",
     "BiasedInitialization",
     "GuidedDiffusion",
@@ -110,10 +115,20 @@ class SteeringResult:
         return self.plans[self.chosen]
 
 
+#: the most plans one steering call samples (a batch beyond this cannot fit in memory next to a policy).
+MAX_BATCH = 1 << 20
+#: the most MCMC iterations per noise level of SS (ITPS: 4).
+MAX_MCMC_STEPS = 1000
+#: the most denoising steps a diffusion sampler runs (``policy.num_inference_steps``; DP: 10-100).
+MAX_DENOISING_STEPS = 10_000
+
+
 # --------------------------------------------------------------------- helpers
 def _check_n(n: Any) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"`n` must be a positive integer (the batch size), got {n!r}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise TypeError(f"`n` must be a positive integer (the batch size), got {describe(n)}")
+    if not 1 <= n <= MAX_BATCH:
+        raise ValueError(f"`n` must be a positive integer (the batch size) <= {MAX_BATCH}, got {n!r}")
     return int(n)
 
 
@@ -319,8 +334,7 @@ class OutputPerturbation(Sampler):
         collides: Callable[[np.ndarray], np.ndarray] | None = None,
         obs_at: Callable[[Any, np.ndarray], Any] | None = None,
     ) -> None:
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or index < 1:
-            raise ValueError(f"`index` must be a positive integer, got {index!r}")
+        index = integer(index, "`index`", low=1)
         if collides is not None and not callable(collides):
             raise TypeError(f"`collides` must be callable or None, got {type(collides).__name__}")
         if obs_at is not None and not callable(obs_at):
@@ -365,7 +379,13 @@ class _DiffusionSampler(Sampler):
         objective = _ObjectiveInNormalizedSpace(policy, interaction, dtype)
         with torch.no_grad():
             cond = policy.encode_obs(obs)
-        policy.scheduler.set_timesteps(int(policy.num_inference_steps))
+        steps = integer(policy.num_inference_steps, "policy.num_inference_steps", low=1, high=MAX_DENOISING_STEPS)
+        policy.scheduler.set_timesteps(steps)
+        if len(policy.scheduler.timesteps) > MAX_DENOISING_STEPS:
+            raise ValueError(
+                f"{type(self).__name__}: policy.scheduler has {len(policy.scheduler.timesteps)} timesteps, "
+                f"more than {MAX_DENOISING_STEPS} denoising steps"
+            )
         return objective, cond, horizon, dtype
 
     @staticmethod
@@ -393,11 +413,7 @@ class _DiffusionSampler(Sampler):
 
 
 def _check_ratio(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"`{name}` must be a real number, got {type(value).__name__}")
-    if not np.isfinite(value) or value < 0:
-        raise ValueError(f"`{name}` must be a finite number >= 0, got {value!r}")
-    return float(value)
+    return real_scalar(value, f"`{name}`", low=0.0)
 
 
 class GuidedDiffusion(_DiffusionSampler):
@@ -416,9 +432,7 @@ class GuidedDiffusion(_DiffusionSampler):
 
     def __init__(self, guide_ratio: float = 20.0, min_guided_t: int = 0) -> None:
         self.guide_ratio = _check_ratio(guide_ratio, "guide_ratio")
-        if isinstance(min_guided_t, bool) or not isinstance(min_guided_t, (int, np.integer)):
-            raise TypeError(f"`min_guided_t` must be an int, got {type(min_guided_t).__name__}")
-        self.min_guided_t = int(min_guided_t)
+        self.min_guided_t = integer(min_guided_t, "`min_guided_t`")
 
     def _guided_eps(self, policy: Any, objective: Any, x: torch.Tensor, t: Any, cond: Any) -> torch.Tensor:
         eps = self._eps(policy, x, t, cond)
@@ -475,9 +489,7 @@ class StochasticSampling(GuidedDiffusion):
 
     def __init__(self, guide_ratio: float = 60.0, mcmc_steps: int = 4, min_guided_t: int = 0) -> None:
         super().__init__(guide_ratio, min_guided_t)
-        if isinstance(mcmc_steps, bool) or not isinstance(mcmc_steps, (int, np.integer)) or mcmc_steps < 1:
-            raise ValueError(f"`mcmc_steps` must be a positive integer, got {mcmc_steps!r}")
-        self.mcmc_steps = int(mcmc_steps)
+        self.mcmc_steps = integer(mcmc_steps, "`mcmc_steps`", low=1, high=MAX_MCMC_STEPS)
 
 
 class BiasedInitialization(_DiffusionSampler):
@@ -491,9 +503,7 @@ class BiasedInitialization(_DiffusionSampler):
     name = "BI"
 
     def __init__(self, start_t: int = 50, init_std: float = 0.5) -> None:
-        if isinstance(start_t, bool) or not isinstance(start_t, (int, np.integer)) or start_t < 0:
-            raise ValueError(f"`start_t` must be an integer >= 0, got {start_t!r}")
-        self.start_t = int(start_t)
+        self.start_t = integer(start_t, "`start_t`", low=0)
         self.init_std = _check_ratio(init_std, "init_std")
 
     def _run(self, policy: Any, obs: Any, interaction: Any, n: int, rng: np.random.Generator) -> Any:
@@ -541,9 +551,22 @@ def make_sampler(name: str, **kwargs: Any) -> Sampler:
     >>> make_sampler("GD", guide_ratio=10.0)
     GuidedDiffusion(guide_ratio=10.0, min_guided_t=0)
     """
-    if not isinstance(name, str) or name.upper() not in SAMPLERS:
-        raise ValueError(f"`name` must be one of {sorted(SAMPLERS)}, got {name!r}")
-    return SAMPLERS[name.upper()](**kwargs)
+    if not isinstance(name, str):
+        raise TypeError(f"make_sampler: `name` must be a str, one of {sorted(SAMPLERS)}, got {describe(name)}")
+    if name.upper() not in SAMPLERS:
+        raise ValueError(f"make_sampler: `name` must be one of {sorted(SAMPLERS)}, got {name!r}")
+    cls = SAMPLERS[name.upper()]
+    accepted = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+    unknown = sorted(set(kwargs) - set(accepted))
+    if unknown:
+        raise TypeError(
+            f"make_sampler: {cls.__name__} ({name.upper()}) takes {accepted or 'no arguments'}, got {unknown}"
+        )
+    return cls(**kwargs)
+
+
+#: the most timed (and warm-up) rounds of :func:`benchmark_latency`.
+MAX_TIMING_ROUNDS = 10_000
 
 
 def benchmark_latency(
@@ -568,10 +591,8 @@ def benchmark_latency(
     for key, sampler in samplers.items():
         if not isinstance(sampler, Sampler):
             raise TypeError(f"`samplers[{key!r}]` must be a Sampler, got {type(sampler).__name__}")
-    if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
-        raise ValueError(f"`repeats` must be a positive integer, got {repeats!r}")
-    if isinstance(warmup, bool) or not isinstance(warmup, (int, np.integer)) or warmup < 0:
-        raise ValueError(f"`warmup` must be an integer >= 0, got {warmup!r}")
+    repeats = integer(repeats, "`repeats`", low=1, high=MAX_TIMING_ROUNDS)
+    warmup = integer(warmup, "`warmup`", low=0, high=MAX_TIMING_ROUNDS)
     batch = _check_n(batch)
     times: dict[str, list[float]] = {key: [] for key in samplers}
     for round_ in range(int(warmup) + int(repeats)):

@@ -43,12 +43,15 @@ from gymnasium import spaces
 from steer_envs.core.env import HasInteractionKinds, perturbable_env
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
 from steer_envs.core.policy import TrajectoryPolicy
+from steer_envs.core.validation import describe, integer, real_array
 
-from .samplers import OutputPerturbation, RandomSampling, Sampler, place_observation
+from .samplers import MAX_BATCH, OutputPerturbation, RandomSampling, Sampler, place_observation
 
 __all__ = ["InteractionSpace", "SteeringWrapper", "policy_observation"]
 
 _KIND_CLASSES: dict[str, type] = {"point": Point, "sketch": Sketch, "nudge": Nudge}
+#: the most points of a flattened sketch action (``sketch_points``).
+MAX_SKETCH_POINTS = 100_000
 
 
 def policy_observation(policy: Any, history: Sequence[Any]) -> Any:
@@ -86,15 +89,20 @@ class InteractionSpace(spaces.Space[Any]):
         sketch_points: int = 16,
         seed: int | None = None,
     ) -> None:
-        lo, hi = np.asarray(low, dtype=np.float64).reshape(-1), np.asarray(high, dtype=np.float64).reshape(-1)
+        lo = real_array(low, "`low`", finite=False, owner="InteractionSpace").reshape(-1)
+        hi = real_array(high, "`high`", finite=False, owner="InteractionSpace").reshape(-1)
         if lo.shape != hi.shape or lo.size < 1 or not np.all(np.isfinite(lo)) or not np.all(hi >= lo):
             raise ValueError(f"`low`/`high` must be finite vectors of one shape with low <= high, got {lo}, {hi}")
+        if isinstance(kinds, str) or not all(isinstance(k, str) for k in kinds):
+            raise ValueError(f"`kinds` must be a non-empty subset of {sorted(_KIND_CLASSES)}, got {kinds!r}")
         unknown = set(kinds) - set(_KIND_CLASSES)
         if not kinds or unknown:
             raise ValueError(f"`kinds` must be a non-empty subset of {sorted(_KIND_CLASSES)}, got {kinds!r}")
         self.low, self.high = lo, hi
         self.kinds = tuple(kinds)
-        self.sketch_points = int(sketch_points)
+        self.sketch_points = integer(
+            sketch_points, "sketch_points", low=2, high=MAX_SKETCH_POINTS, owner="InteractionSpace"
+        )
         super().__init__(shape=None, dtype=None, seed=seed)
 
     @property
@@ -146,6 +154,12 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         execute: waypoints of the chosen plan executed per step (default: all).
         sketch_points: use a ``Box`` action of ``sketch_points * d`` numbers (a flattened sketch).
         unsteered: sampler for ``None`` actions (default :class:`RandomSampling`).
+
+    Arguments that can never work are refused here: a diffusion sampler (BI/GD/SS)
+    with a policy that is not ``DiffusionPolicyLike``, ``batch`` outside
+    ``[1, MAX_BATCH]``, ``sketch_points`` outside ``[2, MAX_SKETCH_POINTS]``, and
+    sampler knobs are checked by the samplers' constructors. What an action may be
+    is said in :meth:`interaction`.
 
     An :class:`OutputPerturbation` without a collision check gets the env's
     ``is_wall`` (when it has one), so the agent stops before the sketch's first wall.
@@ -199,12 +213,29 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
             raise TypeError(f"`sampler` must be a Sampler (RS, PR, OP, BI, GD, SS), got {type(sampler).__name__}")
         if unsteered is not None and not isinstance(unsteered, Sampler):
             raise TypeError(f"`unsteered` must be a Sampler or None, got {type(unsteered).__name__}")
-        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
-            raise ValueError(f"`batch` must be a positive integer, got {batch!r}")
+        # a diffusion sampler given a policy that is no DiffusionPolicyLike would fail at every step
+        sampler._check_policy(policy)
+        if unsteered is not None:
+            unsteered._check_policy(policy)
+        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)):
+            raise TypeError(f"SteeringWrapper: `batch` must be a positive integer, got {describe(batch)}")
+        if not 1 <= batch <= MAX_BATCH:
+            raise ValueError(f"SteeringWrapper: `batch` must be a positive integer <= {MAX_BATCH}, got {batch!r}")
         if execute is not None and (isinstance(execute, bool) or not isinstance(execute, (int, np.integer))):
             raise TypeError(f"`execute` must be a positive int or None, got {execute!r}")
         if execute is not None and execute < 1:
             raise ValueError(f"`execute` must be >= 1, got {execute!r}")
+        if sketch_points is not None and (
+            isinstance(sketch_points, bool) or not isinstance(sketch_points, (int, np.integer))
+        ):
+            raise TypeError(
+                f"SteeringWrapper: `sketch_points` must be an integer >= 2 or None, got {describe(sketch_points)}"
+            )
+        if sketch_points is not None and not 2 <= sketch_points <= MAX_SKETCH_POINTS:
+            raise ValueError(
+                f"SteeringWrapper: `sketch_points` must be an integer in [2, {MAX_SKETCH_POINTS}] or None, "
+                f"got {sketch_points!r}"
+            )
         inner = env.action_space
         if not isinstance(inner, spaces.Box) or inner.shape != (int(policy.action_dim),):
             raise ValueError(
@@ -223,8 +254,6 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         self.sketch_points = None if sketch_points is None else int(sketch_points)
         d = int(policy.action_dim)
         if self.sketch_points is not None:
-            if self.sketch_points < 2:
-                raise ValueError(f"`sketch_points` must be an integer >= 2 or None, got {sketch_points!r}")
             self.action_space = spaces.Box(
                 np.tile(inner.low, self.sketch_points), np.tile(inner.high, self.sketch_points), dtype=np.float32
             )
@@ -232,6 +261,8 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
             declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
             kinds = tuple(k for k in declared if k in _KIND_CLASSES)
             self.action_space = InteractionSpace(inner.low, inner.high, kinds or tuple(_KIND_CLASSES))
+        declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
+        self._kinds: tuple[str, ...] = tuple(k for k in declared if k in _KIND_CLASSES) or tuple(_KIND_CLASSES)
         start = getattr(policy, "exec_start", 0)
         if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < int(policy.horizon):
             raise ValueError(f"policy.exec_start must be an int in [0, horizon), got {start!r}")
@@ -252,20 +283,34 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         return obs, info
 
     def interaction(self, action: Any) -> Interaction | None:
-        """The interaction an action stands for (``None``: unsteered); ``TypeError``/``ValueError`` otherwise."""
+        """The interaction an action stands for (``None``: unsteered); ``TypeError``/``ValueError`` otherwise.
+
+        Accepted: ``None``, or a :class:`Point`, :class:`Sketch` or :class:`Nudge` of the
+        env's action dimension whose kind the env declares (``env.unwrapped.interaction_kinds``).
+        With ``sketch_points=G`` also a raw array of ``G * d`` finite real numbers (a list,
+        numpy array or torch tensor), clipped to the action box and read as a ``(G, d)`` sketch;
+        strings, complex numbers, booleans and NaN/inf are refused, not converted.
+        """
         if self.sketch_points is not None and action is not None and not isinstance(action, Point | Sketch | Nudge):
-            arr = np.asarray(action, dtype=np.float64)
-            if arr.shape != self.action_space.shape:
-                raise ValueError(
-                    f"`action` must have shape {self.action_space.shape} (a flattened sketch), got {arr.shape}"
-                )
             box = self.action_space
             assert isinstance(box, spaces.Box)
-            return Sketch(np.clip(arr, box.low, box.high).reshape(self.sketch_points, self._dim))
+            shape = box.shape
+            raw = real_array(action, "`action`", finite=False, owner="SteeringWrapper")
+            if raw.shape != shape:
+                raise ValueError(
+                    f"SteeringWrapper: `action` must have shape {shape} (a flattened sketch), got {raw.shape}"
+                )
+            if not np.all(np.isfinite(raw)):
+                raise ValueError("SteeringWrapper: `action` (a flattened sketch) must be finite (no NaN or inf)")
+            return Sketch(np.clip(raw, box.low, box.high).reshape(self.sketch_points, self._dim))
         if action is None:
             return None
         if not isinstance(action, Point | Sketch | Nudge):
             raise TypeError(f"`action` must be a Point, Sketch, Nudge or None, got {type(action).__name__}")
+        if action.kind not in self._kinds:
+            raise ValueError(
+                f"SteeringWrapper: the env takes interactions of kinds {list(self._kinds)}, got a {action.kind}"
+            )
         return action.validate(self._dim)
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:

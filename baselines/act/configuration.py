@@ -15,11 +15,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from steer_envs.baselines.common.configuration import PolicyConfig, Preset, TrainSettings, check_int
+from steer_envs.core.validation import real_scalar
 
-__all__ = ["PRESETS", "ACTConfig"]
+__all__ = ["MAX_CHUNK", "MAX_LAYERS", "PRESETS", "ACTConfig"]
+
+#: the most transformer layers of each stack, and the longest chunk
+MAX_LAYERS = 256
+MAX_CHUNK = 2**16
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -37,6 +40,9 @@ class ACTConfig(PolicyConfig):
         latent_dim: size of the CVAE latent ``z``.
         dropout: transformer dropout.
         kl_weight: weight of KL(q(z | s, a) || N(0, I)) in the loss.
+
+    Bounds beyond those of :class:`PolicyConfig`: at most :data:`MAX_LAYERS`
+    layers per stack and a ``chunk_size`` of at most :data:`MAX_CHUNK`.
     """
 
     normalization: str = "mean_std"
@@ -63,15 +69,39 @@ class ACTConfig(PolicyConfig):
             "n_vae_encoder_layers",
             "latent_dim",
         ):
-            check_int(getattr(self, name), name)
+            object.__setattr__(self, name, check_int(getattr(self, name), name))
+        for name in ("n_encoder_layers", "n_decoder_layers", "n_vae_encoder_layers"):
+            if getattr(self, name) > MAX_LAYERS:
+                raise ValueError(f"{name} must be <= {MAX_LAYERS}, got {getattr(self, name)}")
+        if self.chunk_size > MAX_CHUNK:
+            raise ValueError(f"chunk_size must be <= {MAX_CHUNK}, got {self.chunk_size}")
         if self.d_model % self.n_heads:
             raise ValueError(f"d_model ({self.d_model}) must be a multiple of n_heads ({self.n_heads})")
         if self.d_model % 2:
             raise ValueError(f"d_model must be even (sinusoidal positions), got {self.d_model}")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"dropout must be in [0, 1), got {self.dropout!r}")
-        if not (np.isfinite(self.kl_weight) and self.kl_weight >= 0):
-            raise ValueError(f"kl_weight must be a finite float >= 0, got {self.kl_weight!r}")
+        dropout = real_scalar(self.dropout, "dropout", low=0.0, high=1.0, high_inclusive=False)
+        object.__setattr__(self, "dropout", dropout)
+        object.__setattr__(self, "kl_weight", real_scalar(self.kl_weight, "kl_weight", low=0.0))
+
+    def parameter_count(self) -> int | None:
+        """Numbers in the network's state dict, from the config alone (see :class:`ACTModel`).
+
+        >>> ACTConfig(obs_dim=2, action_dim=2).parameter_count()
+        618690
+        """
+        self.require_features()
+        assert self.obs_dim is not None and self.action_dim is not None
+        d, ff, lat = self.d_model, self.dim_feedforward, self.latent_dim
+        attention = 4 * d * d + 4 * d
+        feedforward = 2 * d * ff + ff + d
+        encoder_layer = attention + feedforward + 4 * d
+        decoder_layer = 2 * attention + feedforward + 6 * d
+        total = d + (self.obs_dim * d + d) + (self.action_dim * d + d)  # CLS token, VAE input projections
+        total += self.n_vae_encoder_layers * encoder_layer + d * 2 * lat + 2 * lat
+        total += (lat * d + d) + (self.obs_dim * d + d) + 2 * d  # latent / state projections, positions
+        total += self.n_encoder_layers * encoder_layer + self.chunk_size * d
+        total += self.n_decoder_layers * decoder_layer + d * self.action_dim + self.action_dim
+        return total
 
     @property
     def horizon(self) -> int:

@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from steer_envs.baselines.act.configuration import ACTConfig
-from steer_envs.baselines.common.torch_policy import TorchPolicy, check_sample_args
+from steer_envs.baselines.common.torch_policy import TorchPolicy
 
 __all__ = ["ACTModel", "ACTPolicy"]
 
@@ -159,9 +159,11 @@ class ACTPolicy(TorchPolicy):
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         """``n`` chunks ``(n, horizon, action_dim)`` in data units, one latent ``z ~ N(0, I)`` each from ``generator``.
 
-        ``obs`` is the env observation (or a history, of which the last entry counts).
+        ``obs`` is the env observation (or a history, of which the last entry counts): finite
+        real numbers (see :func:`~steer_envs.baselines.common.torch_policy.observation_history`);
+        ``n`` an int in ``[1, max_samples]``; ``generator`` a numpy ``Generator`` or ``None``.
         """
-        rng = check_sample_args(n, generator)
+        rng = self._sample_args(n, generator)
         state = self.observation_history(obs)[-1]
         z = rng.standard_normal((int(n), self.config.latent_dim), dtype=np.float32)
         with torch.no_grad():
@@ -173,13 +175,11 @@ class ACTPolicy(TorchPolicy):
 
     # ------------------------------------------------------------ training
     def loss(self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """L1 + ``kl_weight`` x KL on a batch: ``obs (B, 1, obs_dim)``, ``plans (B, chunk, action_dim)``."""
-        b, d = plans.shape[0], self.action_dim
-        if obs.shape != (b, 1, self.obs_dim) or plans.shape[1:] != (self.horizon, d):
-            raise ValueError(
-                f"expected obs (B, 1, {self.obs_dim}) and plans (B, {self.horizon}, {d}), "
-                f"got {tuple(obs.shape)} and {tuple(plans.shape)}"
-            )
+        """L1 + ``kl_weight`` x KL on a batch: ``obs (B, 1, obs_dim)``, ``plans (B, chunk, action_dim)``.
+
+        Both real finite tensors; ``generator`` a ``torch.Generator`` or ``None``.
+        """
+        self._check_batch(obs, plans, generator)
         state = self.obs_normalizer.normalize(obs[:, -1].to(self._device, torch.float32))
         target = self.normalize(plans.to(self._device, torch.float32))
         if self.config.relative:

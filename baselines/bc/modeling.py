@@ -35,7 +35,11 @@ import torch
 from numpy.typing import ArrayLike
 from torch import nn
 
+from steer_envs.baselines.common.checkpoint import check_parameter_count, check_state
+from steer_envs.baselines.common.configuration import int_tuple
 from steer_envs.baselines.common.torch_policy import read_checkpoint, write_checkpoint
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
+from steer_envs.io import CheckpointError
 
 __all__ = ["BC_OUTPUTS", "BCConfig", "BCOutput", "BCPolicy", "clip_speed"]
 
@@ -43,20 +47,8 @@ BCOutput = Literal["tanh", "clip"]
 #: how :class:`BCPolicy` bounds its output (see :attr:`BCConfig.output`)
 BC_OUTPUTS: tuple[str, ...] = ("tanh", "clip")
 _FORMAT = "steer_envs.baselines.bc/2"
-
-
-def _check_int(name: str, value: Any, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
-
-
-def _check_positive(name: str, value: Any) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.number))
-        or not (np.isfinite(value) and value > 0)
-    ):
-        raise ValueError(f"{name} must be a positive finite float, got {value!r}")
+#: the most hidden layers of a BC MLP
+_MAX_LAYERS = 256
 
 
 @dataclass(frozen=True)
@@ -99,31 +91,33 @@ class BCConfig:
     num_threads: int = 1
 
     def __post_init__(self) -> None:
-        _check_int("state_dim", self.state_dim, 1)
-        _check_int("action_dim", self.action_dim, 1)
-        try:
-            hidden = tuple(int(h) for h in self.hidden)
-        except (TypeError, ValueError):
-            raise TypeError(f"hidden must be a sequence of ints, got {self.hidden!r}") from None
-        if not hidden or min(hidden) < 1:
-            raise ValueError(f"hidden must be a non-empty tuple of positive ints, got {self.hidden!r}")
+        object.__setattr__(self, "state_dim", integer(self.state_dim, "state_dim", low=1))
+        object.__setattr__(self, "action_dim", integer(self.action_dim, "action_dim", low=1))
+        hidden = int_tuple(self.hidden, "hidden", 1)
+        if not hidden or len(hidden) > _MAX_LAYERS:
+            raise ValueError(f"hidden must hold 1 to {_MAX_LAYERS} positive ints, got {describe(self.hidden)}")
         object.__setattr__(self, "hidden", hidden)
-        if self.output not in BC_OUTPUTS:
-            raise ValueError(f"output must be one of {BC_OUTPUTS}, got {self.output!r}")
-        _check_positive("output_scale", self.output_scale)
-        _check_positive("lr", self.lr)
-        object.__setattr__(self, "output_scale", float(self.output_scale))
-        object.__setattr__(self, "lr", float(self.lr))
-        if not isinstance(self.standardize, (bool, np.bool_)):
-            raise TypeError(f"standardize must be a bool, got {type(self.standardize).__name__}")
-        _check_int("batch_size", self.batch_size, 1)
+        one_of(self.output, "output", BC_OUTPUTS)
+        for name in ("output_scale", "lr"):
+            object.__setattr__(self, name, real_scalar(getattr(self, name), name, low=0.0, low_inclusive=False))
+        object.__setattr__(self, "standardize", boolean(self.standardize, "standardize"))
+        object.__setattr__(self, "batch_size", integer(self.batch_size, "batch_size", low=1))
         if (self.epochs is None) == (self.steps is None):
             raise ValueError(f"set exactly one of epochs and steps, got epochs={self.epochs!r}, steps={self.steps!r}")
         if self.epochs is not None:
-            _check_int("epochs", self.epochs, 0)
+            object.__setattr__(self, "epochs", integer(self.epochs, "epochs", low=0))
         if self.steps is not None:
-            _check_int("steps", self.steps, 0)
-        _check_int("num_threads", self.num_threads, 1)
+            object.__setattr__(self, "steps", integer(self.steps, "steps", low=0))
+        object.__setattr__(self, "num_threads", integer(self.num_threads, "num_threads", low=1))
+
+    def parameter_count(self) -> int:
+        """Weights and biases of the MLP, from the config alone.
+
+        >>> BCConfig().parameter_count()
+        10602
+        """
+        widths = (self.state_dim, *self.hidden, self.action_dim)
+        return sum(a * b + b for a, b in itertools.pairwise(widths))
 
 
 def clip_speed(v: np.ndarray, max_speed: float) -> np.ndarray:
@@ -178,8 +172,7 @@ class BCPolicy:
     def __init__(self, config: BCConfig | None = None, *, seed: int = 0) -> None:
         if config is not None and not isinstance(config, BCConfig):
             raise TypeError(f"config must be a BCConfig or None, got {type(config).__name__}")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-            raise TypeError(f"seed must be an int, got {type(seed).__name__}")
+        integer(seed, "seed", owner="BCPolicy")
         self.config = config if config is not None else BCConfig()
         self.seed = int(seed)
         self._generator = torch.Generator().manual_seed(self.seed)
@@ -198,7 +191,8 @@ class BCPolicy:
     def fit(self, states: ArrayLike, actions: ArrayLike) -> list[float]:
         """Train on pairs ``(N, d)`` / ``(N, a)``; returns the loss per epoch (or per step with ``steps``).
 
-        Each call trains ``config.epochs`` (or ``config.steps``) more from the current
+        Both are finite real arrays (or tensors) with ``N >= 1`` rows. Each call
+        trains ``config.epochs`` (or ``config.steps``) more from the current
         weights, with a fresh Adam optimiser.
         """
         cfg = self.config
@@ -265,8 +259,13 @@ class BCPolicy:
 
     # ----------------------------------------------------------------- inference
     def __call__(self, states: ArrayLike) -> np.ndarray:
-        """Actions for states ``(N, d) -> (N, a)`` (a single ``(d,)`` state gives ``(a,)``), float64."""
-        arr = np.asarray(states, dtype=np.float64)
+        """Actions for states ``(N, d) -> (N, a)`` (a single ``(d,)`` state gives ``(a,)``), float64.
+
+        ``states``: finite real numbers (a sequence, numpy array or torch tensor);
+        strings, complex numbers and bools are a ``TypeError``, NaN/inf and
+        other shapes a ``ValueError``.
+        """
+        arr = real_array(states, "states", owner="BCPolicy")
         single = arr.ndim == 1
         s = _as_batch(arr[None] if single else arr, "states", self.config.state_dim)
         x = torch.from_numpy(self._standardized(s.astype(np.float32)))
@@ -298,28 +297,51 @@ class BCPolicy:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:
-        """A policy from a file written by :meth:`save` (safetensors: no code is executed)."""
+        """A policy from a file written by :meth:`save` (safetensors: no code is executed).
+
+        :class:`~steer_envs.io.CheckpointError` (naming the file) for a file
+        that is missing, truncated or foreign, a malformed config, tensors that
+        do not fit the config's MLP (checked before it is built), non-finite
+        weights and invalid input statistics.
+        """
         tensors, meta = read_checkpoint(path)
         if meta.get("format") != _FORMAT:
-            raise ValueError(f"{path} holds format {meta.get('format')!r}, expected a BCPolicy file ({_FORMAT!r})")
-        known = {f.name for f in fields(BCConfig)}
-        policy = cls(BCConfig(**{k: v for k, v in meta["config"].items() if k in known}), seed=int(meta["seed"]))
+            raise CheckpointError(f"{path} holds format {meta.get('format')!r}, expected a BCPolicy file ({_FORMAT!r})")
+        try:
+            values = meta["config"]
+            if not isinstance(values, dict):
+                raise TypeError(f"config must be a JSON object, got {describe(values)}")
+            known = {f.name for f in fields(BCConfig)}
+            kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+            kwargs = {k: v for k, v in kwargs.items() if k in known}
+            config = BCConfig(**kwargs)
+            seed = integer(meta["seed"], "seed")
+            trained_for = integer(meta["trained_for"], "trained_for", low=0)
+        except (KeyError, TypeError, ValueError) as err:
+            raise CheckpointError(f"{path}: malformed BCPolicy header ({type(err).__name__}: {err})") from None
         mean, scale = tensors.pop("input_mean", None), tensors.pop("input_scale", None)
+        check_parameter_count(config.parameter_count(), tensors, str(path))
+        if (mean is None) != (scale is None):
+            raise CheckpointError(f"{path}: holds only one of input_mean and input_scale")
+        for name, t in (("input_mean", mean), ("input_scale", scale)):
+            if t is not None and (tuple(t.shape) != (config.state_dim,) or t.dtype != torch.float32):
+                raise CheckpointError(
+                    f"{path}: {name} must be float32 of shape ({config.state_dim},), got {t.dtype} {tuple(t.shape)}"
+                )
+        if scale is not None and not bool((scale > 0).all()):
+            raise CheckpointError(f"{path}: input_scale must be > 0, got {scale.tolist()}")
+        policy = cls(config, seed=seed)
+        check_state(policy.net.state_dict(), tensors, str(path))
         policy.net.load_state_dict(tensors)
         policy.net.eval()
         if mean is not None and scale is not None:
             policy.input_mean, policy.input_scale = mean.numpy(), scale.numpy()
-        policy.trained_for = int(meta["trained_for"])
+        policy.trained_for = trained_for
         return policy
 
 
 def _as_batch(value: ArrayLike, name: str, d: int) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a float array of shape (N, {d}), got {type(value).__name__}") from None
+    arr = real_array(value, name, owner="BCPolicy")
     if arr.ndim != 2 or arr.shape[1] != d or len(arr) == 0:
-        raise ValueError(f"{name} must have shape (N>=1, {d}), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (got NaN or inf)")
+        raise ValueError(f"BCPolicy: {name} must have shape (N>=1, {d}), got {arr.shape}")
     return np.ascontiguousarray(arr)

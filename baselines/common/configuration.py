@@ -15,35 +15,48 @@ registered per policy (``steer_envs.baselines.factory.register_preset``).
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any, Generic, Self, TypeVar
 
 import numpy as np
 
-from steer_envs.baselines.common.normalize import NORMALIZATION_MODES
+from steer_envs.baselines.common.normalize import MAX_FEATURE_DIM, NORMALIZATION_MODES
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_scalar
 
-__all__ = ["PolicyConfig", "Preset", "TrainSettings", "check_int"]
+__all__ = ["PolicyConfig", "Preset", "TrainSettings", "check_int", "int_tuple"]
+
+#: the longest tuple field of a config (``down_dims``, index lists)
+_MAX_TUPLE = 4096
 
 
 def check_int(value: Any, name: str, minimum: int = 1) -> int:
-    """``value`` as an int ``>= minimum``; ``ValueError`` naming ``name`` otherwise (bools are not ints).
+    """``value`` as an int ``>= minimum``: ``TypeError`` for another kind (bools and floats are not ints),
+    ``ValueError`` naming ``name`` when it is too small.
 
     >>> check_int(3, "horizon")
     3
     """
-    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
-        raise ValueError(f"{name} must be an int >= {minimum}, got {value!r}")
-    return int(value)
+    return integer(value, name, low=minimum)
+
+
+def int_tuple(value: Any, name: str, minimum: int = 0) -> tuple[int, ...]:
+    """``value`` (a list or tuple of ints ``>= minimum``, not a string) as a tuple of ints.
+
+    >>> int_tuple([8, 16], "down_dims", 1)
+    (8, 16)
+    """
+    if not isinstance(value, (list, tuple, range, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim != 1):
+        raise TypeError(f"{name} must be a list or tuple of ints, got {describe(value)}")
+    if len(value) > _MAX_TUPLE:
+        raise ValueError(f"{name} may have at most {_MAX_TUPLE} entries, got {len(value)}")
+    return tuple(integer(v, f"{name} entry", low=minimum) for v in value)
 
 
 def _indices(value: Any, name: str) -> tuple[int, ...] | None:
     if value is None:
         return None
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-        raise TypeError(f"{name} must be a sequence of ints or None, got {type(value).__name__}")
-    out = tuple(check_int(v, f"{name} entry", 0) for v in value)
+    out = int_tuple(value, name, 0)
     if not out or len(set(out)) != len(out):
         raise ValueError(f"{name} must be non-empty and without repeats, got {list(out)}")
     return out
@@ -71,6 +84,11 @@ class PolicyConfig:
             Those observation entries must be normalized with the same
             statistics as the actions (datasets that declare
             ``action_obs_indices`` pool them).
+
+    Every field is checked without coercion: ints must be ints (not floats,
+    bools or strings; sizes at most :data:`MAX_FEATURE_DIM`), index fields
+    lists or tuples of ints, ``relative`` a bool; ``TypeError`` for the wrong
+    kind, ``ValueError`` for a wrong value, naming the field.
     """
 
     obs_dim: int | None = None
@@ -83,13 +101,11 @@ class PolicyConfig:
     def __post_init__(self) -> None:
         for name in ("obs_dim", "action_dim"):
             if getattr(self, name) is not None:
-                object.__setattr__(self, name, check_int(getattr(self, name), name))
-        if self.normalization not in NORMALIZATION_MODES:
-            raise ValueError(f"normalization must be one of {NORMALIZATION_MODES}, got {self.normalization!r}")
+                object.__setattr__(self, name, integer(getattr(self, name), name, low=1, high=MAX_FEATURE_DIM))
+        one_of(self.normalization, "normalization", NORMALIZATION_MODES)
         for name in ("obs_indices", "action_obs_indices"):
             object.__setattr__(self, name, _indices(getattr(self, name), name))
-        if not isinstance(self.relative, bool):
-            raise TypeError(f"relative must be a bool, got {type(self.relative).__name__}")
+        object.__setattr__(self, "relative", boolean(self.relative, "relative"))
         if self.obs_indices is not None and self.obs_dim is not None and len(self.obs_indices) != self.obs_dim:
             raise ValueError(f"obs_indices must have obs_dim={self.obs_dim} entries, got {list(self.obs_indices)}")
         if self.action_obs_indices is not None:
@@ -116,6 +132,15 @@ class PolicyConfig:
                 "relative=True needs action_obs_indices (the observation entries the actions set); "
                 "the dataset declares none: set relative=False or declare them"
             )
+
+    def parameter_count(self) -> int | None:
+        """Numbers in the state dict of the network this config builds, computed without building it.
+
+        Loaders compare it with a checkpoint's tensors before allocating
+        anything; ``None`` where a config class cannot tell (the check is then
+        skipped). The features must be set.
+        """
+        return None
 
     def replace(self, **changes: Any) -> Self:
         """A copy with ``changes`` (validated); ``ValueError`` naming an unknown field."""
@@ -146,6 +171,11 @@ class PolicyConfig:
         return cls(**kwargs)
 
 
+#: the most optimizer steps and the largest batch :class:`TrainSettings` accepts
+MAX_TRAIN_STEPS = 10**9
+MAX_BATCH_SIZE = 2**20
+
+
 @dataclass(frozen=True)
 class TrainSettings:
     """Optimization settings of one training run (AdamW, linear warm-up then cosine decay to 0).
@@ -155,6 +185,13 @@ class TrainSettings:
     (only matters with ``n_obs_steps > 1``). ``ema_power > 0`` keeps an
     exponential moving average of the weights (Diffusion Policy's warm-up
     decay ``1 - (1 + step) ** -power``) and saves it instead of the raw weights.
+
+    Accepted: ints for ``steps`` (at most :data:`MAX_TRAIN_STEPS`),
+    ``batch_size`` (at most :data:`MAX_BATCH_SIZE`), ``log_every`` (>= 1),
+    ``warmup_steps`` and ``seed`` (>= 0); finite reals for ``lr`` and
+    ``grad_clip`` (> 0), ``weight_decay`` (>= 0), ``betas`` (two in [0, 1)),
+    ``static_history_prob`` and ``ema_power`` (in [0, 1]). Strings, bools
+    and NaN are refused (``TypeError`` / ``ValueError`` naming the field).
 
     >>> TrainSettings(steps=100, lr=1e-4).batch_size
     64
@@ -173,30 +210,24 @@ class TrainSettings:
     log_every: int = 50
 
     def __post_init__(self) -> None:
-        for name in ("steps", "batch_size", "warmup_steps", "seed", "log_every"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-        if self.steps < 1 or self.batch_size < 1 or self.log_every < 1:
-            raise ValueError(
-                f"steps, batch_size and log_every must be >= 1, got {self.steps}, {self.batch_size}, {self.log_every}"
-            )
-        if self.warmup_steps < 0 or self.seed < 0:
-            raise ValueError(f"warmup_steps and seed must be >= 0, got {self.warmup_steps} and {self.seed}")
+        for name, low, high in (
+            ("steps", 1, MAX_TRAIN_STEPS),
+            ("batch_size", 1, MAX_BATCH_SIZE),
+            ("log_every", 1, None),
+            ("warmup_steps", 0, None),
+            ("seed", 0, None),
+        ):
+            object.__setattr__(self, name, integer(getattr(self, name), name, low=low, high=high))
         for name in ("lr", "grad_clip"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite float, got {value!r}")
-        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
-            raise ValueError(f"weight_decay must be a finite float >= 0, got {self.weight_decay!r}")
-        betas = tuple(float(b) for b in self.betas)
-        if len(betas) != 2 or not all(0 <= b < 1 for b in betas):
-            raise ValueError(f"betas must be two floats in [0, 1), got {self.betas!r}")
+            object.__setattr__(self, name, real_scalar(getattr(self, name), name, low=0.0, low_inclusive=False))
+        object.__setattr__(self, "weight_decay", real_scalar(self.weight_decay, "weight_decay", low=0.0))
+        if not isinstance(self.betas, (list, tuple)) or len(self.betas) != 2:
+            raise ValueError(f"betas must be two floats in [0, 1), got {describe(self.betas)}")
+        betas = tuple(real_scalar(b, "betas entry", low=0.0, high=1.0, high_inclusive=False) for b in self.betas)
         object.__setattr__(self, "betas", betas)
-        if not 0 <= self.static_history_prob <= 1:
-            raise ValueError(f"static_history_prob must be in [0, 1], got {self.static_history_prob!r}")
-        if not (math.isfinite(self.ema_power) and 0 <= self.ema_power <= 1):
-            raise ValueError(f"ema_power must be in [0, 1] (0 = no EMA), got {self.ema_power!r}")
+        prob = real_scalar(self.static_history_prob, "static_history_prob", low=0.0, high=1.0)
+        object.__setattr__(self, "static_history_prob", prob)
+        object.__setattr__(self, "ema_power", real_scalar(self.ema_power, "ema_power", low=0.0, high=1.0))
 
     def replace(self, **changes: Any) -> TrainSettings:
         """A copy with ``changes``; ``ValueError`` naming an unknown field."""
@@ -217,6 +248,8 @@ class TrainSettings:
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> TrainSettings:
         """Inverse of :meth:`to_dict`; ``ValueError`` naming an unknown key."""
+        if not isinstance(values, Mapping):
+            raise TypeError(f"values must be a mapping, got {type(values).__name__}")
         unknown = set(values) - cls.field_names()
         if unknown:
             raise ValueError(f"{sorted(unknown)} not fields of TrainSettings")

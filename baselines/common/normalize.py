@@ -26,6 +26,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from steer_envs.core.validation import real_array
+
 __all__ = ["FEATURES", "NORMALIZATION_MODES", "FeatureStats", "Normalizer", "as_coords", "parse_stats"]
 
 #: how a feature is mapped to the network's units: ``min_max`` -> [-1, 1]; ``mean_std`` -> zero mean, unit std.
@@ -33,18 +35,20 @@ NORMALIZATION_MODES = ("min_max", "mean_std", "identity")
 #: the features a trajectory policy normalizes.
 FEATURES = ("observation", "action")
 _NEEDS = {"min_max": ("min", "max"), "mean_std": ("mean", "std"), "identity": ()}
+#: the most dimensions a feature's statistics may have
+MAX_FEATURE_DIM = 2**20
 
 
 def as_coords(value: Any, d: int, name: str) -> np.ndarray:
     """``value`` as a float64 array of ``d``-dimensional points ``(..., d)``; raises naming ``name``.
 
+    Real numbers only (``TypeError`` for strings, complex numbers, bools,
+    objects); NaN and inf pass through (they map to NaN / inf).
+
     >>> as_coords([1, 2], 2, "point").dtype
     dtype('float64')
     """
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a numeric array or torch tensor, got {type(value).__name__}") from None
+    arr = real_array(value, name, finite=False)
     if arr.ndim == 0 or arr.shape[-1] != d:
         raise ValueError(f"{name} must have shape (..., {d}), got {arr.shape}")
     return arr
@@ -53,11 +57,8 @@ def as_coords(value: Any, d: int, name: str) -> np.ndarray:
 def _vector(value: Any, name: str) -> np.ndarray | None:
     if value is None:
         return None
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a sequence of floats, got {type(value).__name__}") from None
-    if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)):
+    arr = real_array(value, name, max_size=MAX_FEATURE_DIM)
+    if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"{name} must be a non-empty 1-D array of finite floats, got shape {arr.shape}")
     arr.setflags(write=False)
     return arr
@@ -107,7 +108,7 @@ class FeatureStats:
     @classmethod
     def from_data(cls, data: Any) -> FeatureStats:
         """All four statistics of ``data`` ``(N, d)`` along its first axis (float64)."""
-        arr = np.asarray(data, dtype=np.float64)
+        arr = real_array(data, "data")
         if arr.ndim != 2 or len(arr) == 0:
             raise ValueError(f"data must have shape (N, d) with N >= 1, got {arr.shape}")
         return cls(min=arr.min(axis=0), max=arr.max(axis=0), mean=arr.mean(axis=0), std=arr.std(axis=0))
@@ -190,6 +191,10 @@ class Normalizer:
             a, b = stats.mean, np.where(stats.std == 0, 1.0, stats.std)
         else:
             a = b = np.zeros(self.dim)
+        with np.errstate(over="ignore"):
+            span = np.asarray(b, np.float64) - np.asarray(a, np.float64) if mode == "min_max" else np.asarray(b)
+        if not np.all(np.isfinite(span)):
+            raise ValueError(f"{name} statistics span more than a float64 can hold, got {stats.to_dict()}")
         #: the two parameters of the affine map: (low, high) for min-max, (mean, std) for mean/std
         self.params: tuple[np.ndarray, np.ndarray] = (np.array(a, np.float64), np.array(b, np.float64))
         self._cache: dict[tuple[torch.device, torch.dtype], tuple[torch.Tensor, torch.Tensor]] = {}

@@ -13,7 +13,6 @@ written atomically through :mod:`steer_envs.io`.
 
 from __future__ import annotations
 
-import json
 import os
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
@@ -22,17 +21,26 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 import torch
-from safetensors.torch import load as st_load
-from safetensors.torch import save as st_save
 
+from steer_envs.baselines.common.checkpoint import (
+    check_parameter_count,
+    check_state,
+    read_safetensors,
+    write_safetensors,
+)
 from steer_envs.baselines.common.configuration import PolicyConfig
 from steer_envs.baselines.common.normalize import FEATURES, FeatureStats, Normalizer, parse_stats
-from steer_envs.io import atomic_write_bytes
+from steer_envs.core.validation import describe, integer, real_array
+from steer_envs.io import CheckpointError
 
 __all__ = [
     "CHECKPOINT_FORMAT",
+    "MAX_SAMPLES",
+    "CheckpointError",
     "TorchPolicy",
+    "check_device",
     "check_sample_args",
+    "check_tensor",
     "observation_history",
     "read_checkpoint",
     "write_checkpoint",
@@ -40,47 +48,90 @@ __all__ = [
 
 #: the ``format`` of the checkpoint header written by :meth:`TorchPolicy.save`.
 CHECKPOINT_FORMAT = "steer_envs.baselines.policy/2"
+#: the most plans one ``sample`` call draws (the batch goes through the network at once)
+MAX_SAMPLES = 65536
 
 
-def observation_history(obs: Any, n_obs: int, obs_dim: int, obs_indices: tuple[int, ...] | None = None) -> np.ndarray:
+def observation_history(
+    obs: Any, n_obs: int, obs_dim: int, obs_indices: tuple[int, ...] | None = None, *, owner: str | None = None
+) -> np.ndarray:
     """The last ``n_obs`` policy observations ``(n_obs, obs_dim)`` float32 from an env observation or history.
 
-    ``obs`` is one observation ``(D,)`` or a history ``(k, D)``, oldest first.
-    With ``obs_indices`` the policy's observation is those entries of each
-    (``D`` may be larger); without, ``D`` must be ``obs_dim``. A history
-    shorter than ``n_obs`` is padded by repeating its oldest entry, as LeRobot
-    fills its observation queue after a reset (one observation = at rest).
+    ``obs`` is one observation ``(D,)`` or a history ``(k, D)``, oldest first:
+    finite real numbers (a sequence, numpy array or torch tensor; strings,
+    complex numbers and bools are a ``TypeError``, NaN/inf and other shapes a
+    ``ValueError``, naming ``owner``). With ``obs_indices`` the policy's
+    observation is those entries of each (``D`` may be larger); without, ``D``
+    must be ``obs_dim``. A history shorter than ``n_obs`` is padded by
+    repeating its oldest entry, as LeRobot fills its observation queue after a
+    reset (one observation = at rest).
 
     >>> observation_history([1.0, 2.0, 0.5, 0.5], 2, 2, (0, 1)).tolist()
     [[1.0, 2.0], [1.0, 2.0]]
     """
-    try:
-        arr = np.asarray(obs, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"obs must be a numeric array, got {type(obs).__name__}") from None
+    arr = real_array(obs, "obs", owner=owner)
     if arr.ndim == 1:
         arr = arr[None]
     if obs_indices is None:
         ok, want = arr.ndim == 2 and arr.shape[1] == obs_dim, f"D = obs_dim = {obs_dim}"
     else:
         ok, want = arr.ndim == 2 and arr.shape[1] > max(obs_indices), f"D > {max(obs_indices)} (obs_indices)"
+    where = f"{owner}: obs" if owner else "obs"
     if not ok or arr.shape[0] < 1:
-        raise ValueError(f"obs must have shape (D,) or (k, D) with {want}, got {np.shape(obs)}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("obs must be finite")
+        raise ValueError(f"{where} must have shape (D,) or (k, D) with {want}, got {np.shape(arr)}")
     hist = arr[-n_obs:] if obs_indices is None else arr[-n_obs:, list(obs_indices)]
     if len(hist) < n_obs:
         hist = np.concatenate([np.repeat(hist[:1], n_obs - len(hist), axis=0), hist])
     return hist.astype(np.float32)
 
 
-def check_sample_args(n: Any, generator: Any) -> np.random.Generator:
-    """Validate ``sample``'s ``n`` and ``generator``; returns the generator to draw from."""
-    if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-        raise ValueError(f"n must be a positive int, got {n!r}")
+def check_sample_args(
+    n: Any, generator: Any, *, owner: str | None = None, max_samples: int = MAX_SAMPLES
+) -> np.random.Generator:
+    """Validate ``sample``'s ``n`` (an int in ``[1, max_samples]``) and ``generator`` (a numpy ``Generator``
+    or ``None``); returns the generator to draw from."""
+    integer(n, "n", low=1, high=max_samples, owner=owner)
     if generator is not None and not isinstance(generator, np.random.Generator):
-        raise TypeError(f"generator must be a numpy Generator or None, got {type(generator).__name__}")
+        where = f"{owner}: generator" if owner else "generator"
+        raise TypeError(f"{where} must be a numpy Generator or None, got {describe(generator)}")
     return generator if generator is not None else np.random.default_rng()
+
+
+def check_tensor(
+    value: Any, name: str, shape: tuple[int | None, ...], *, owner: str | None = None, finite: bool = True
+) -> torch.Tensor:
+    """``value`` if it is a real (floating or integer, not bool or complex) torch tensor of ``shape``.
+
+    ``None`` in ``shape`` matches any length. ``TypeError`` for another kind,
+    ``ValueError`` for another shape or (with ``finite``) NaN / inf entries.
+    """
+    where = f"{owner}: {name}" if owner else name
+    if not isinstance(value, torch.Tensor):
+        raise TypeError(f"{where} must be a torch.Tensor, got {describe(value)}")
+    if value.is_complex() or value.dtype == torch.bool:
+        raise TypeError(f"{where} must hold real numbers, got dtype {value.dtype}")
+    if value.ndim != len(shape) or any(w is not None and w != g for w, g in zip(shape, value.shape, strict=False)):
+        want = "(" + ", ".join("N" if w is None else str(w) for w in shape) + ")"
+        raise ValueError(f"{where} must have shape {want}, got {tuple(value.shape)}")
+    if finite and value.is_floating_point() and not bool(torch.isfinite(value.detach()).all()):
+        raise ValueError(f"{where} must be finite (no NaN or inf)")
+    return value
+
+
+def check_device(device: Any, name: str = "device") -> torch.device:
+    """``device`` (a ``torch.device`` or a string such as ``"cpu"``, ``"cuda:0"``) as a ``torch.device``."""
+    if not isinstance(device, (str, torch.device)):
+        raise TypeError(f"{name} must be a torch.device or a str such as 'cpu', got {describe(device)}")
+    if isinstance(device, str):
+        try:
+            device = torch.device(device)
+        except (RuntimeError, ValueError):
+            raise ValueError(f"{name} must name a torch device such as 'cpu' or 'cuda:0', got {device!r}") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"{name} is {str(device)!r} but CUDA is not available (torch {torch.__version__})")
+    if device.type == "cuda" and device.index is not None and device.index >= torch.cuda.device_count():
+        raise ValueError(f"{name} is {str(device)!r} but only {torch.cuda.device_count()} CUDA devices exist")
+    return device
 
 
 def _default_stats(mode: str, dim: int) -> FeatureStats:
@@ -157,9 +208,8 @@ class TorchPolicy(ABC):
             )
 
     def _init_network(self, build: Callable[[], torch.nn.Module], seed: Any, device: str | torch.device) -> None:
-        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-            raise ValueError(f"seed must be a non-negative int, got {seed!r}")
-        self._device = torch.device(device)
+        seed = integer(seed, "seed", low=0, owner=type(self).__name__)
+        self._device = check_device(device)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(int(seed))
             self.model = build()
@@ -210,9 +260,29 @@ class TorchPolicy(ABC):
     def loss(self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         """Training loss on a batch ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, horizon, action_dim)``."""
 
+    #: the most plans one :meth:`sample` call draws (raise it on a class or an instance for a large GPU)
+    max_samples: int = MAX_SAMPLES
+
     def observation_history(self, obs: Any) -> np.ndarray:
-        """The policy's observation history ``(n_obs_steps, obs_dim)`` from an env observation or history."""
-        return observation_history(obs, self.n_obs_steps, self.obs_dim, self.config.obs_indices)
+        """The policy's observation history ``(n_obs_steps, obs_dim)`` from an env observation or history.
+
+        See :func:`observation_history` for what ``obs`` may be.
+        """
+        return observation_history(
+            obs, self.n_obs_steps, self.obs_dim, self.config.obs_indices, owner=f"{type(self).__name__}"
+        )
+
+    def _sample_args(self, n: Any, generator: Any) -> np.random.Generator:
+        return check_sample_args(n, generator, owner=f"{type(self).__name__}.sample", max_samples=self.max_samples)
+
+    def _check_batch(self, obs: Any, plans: Any, generator: Any) -> None:
+        """``loss``'s arguments: real finite tensors ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, horizon,
+        action_dim)``, and a ``torch.Generator`` or ``None``."""
+        owner = f"{type(self).__name__}.loss"
+        plans = check_tensor(plans, "plans", (None, self.horizon, self.action_dim), owner=owner)
+        check_tensor(obs, "obs", (plans.shape[0], self.n_obs_steps, self.obs_dim), owner=owner)
+        if generator is not None and not isinstance(generator, torch.Generator):
+            raise TypeError(f"{owner}: generator must be a torch.Generator or None, got {describe(generator)}")
 
     def normalize(self, traj: Any) -> Any:
         """Plans / actions in data units -> network units, over ``(..., action_dim)``; numpy or torch."""
@@ -230,7 +300,7 @@ class TorchPolicy(ABC):
 
     def to(self, device: str | torch.device) -> Self:
         """Move the network to ``device``; returns self."""
-        self._device = torch.device(device)
+        self._device = check_device(device)
         self.model.to(self._device)
         return self
 
@@ -252,7 +322,12 @@ class TorchPolicy(ABC):
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], device: str | torch.device = "cpu") -> Self:
-        """A policy from a file written by :meth:`save` (safetensors: loading runs no code)."""
+        """A policy from a file written by :meth:`save` (safetensors: loading runs no code).
+
+        :class:`~steer_envs.io.CheckpointError` (naming the file) for anything
+        wrong with the file: see :meth:`from_checkpoint`.
+        """
+        check_device(device)
         tensors, header = read_checkpoint(path)
         return cls.from_checkpoint(tensors, header, device=device, source=str(path))
 
@@ -265,20 +340,50 @@ class TorchPolicy(ABC):
         device: str | torch.device = "cpu",
         source: str = "checkpoint",
     ) -> Self:
-        """A policy from the contents of a checkpoint (see :func:`read_checkpoint`)."""
+        """A policy from the contents of a checkpoint (see :func:`read_checkpoint`).
+
+        Everything is checked before the network is built: the header's format
+        and policy name, the config and statistics, the network size the
+        config implies (at most
+        :data:`~steer_envs.baselines.common.checkpoint.MAX_PARAMETERS`, and
+        equal to the numbers the tensors hold), then the tensors' names, shapes
+        and dtypes against the built network. Any mismatch is a
+        :class:`~steer_envs.io.CheckpointError` naming ``source``.
+        """
+        check_device(device)
+        if not isinstance(header, Mapping):
+            raise CheckpointError(f"{source}: the checkpoint header must be a JSON object, got {describe(header)}")
         fmt = header.get("format")
-        if fmt == CHECKPOINT_FORMAT:
-            if header.get("policy") != cls.name:
-                raise ValueError(f"{source} holds a {header.get('policy')!r} policy, expected {cls.name!r}")
-            config, stats = cls.config_class.from_dict(header["config"]), header["stats"]
-        elif cls.legacy_format is not None and fmt == cls.legacy_format:
-            config, stats = cls.upgrade_legacy(header)
-        else:
-            raise ValueError(f"{source} holds format {fmt!r}, expected {CHECKPOINT_FORMAT!r} ({cls.name})")
-        policy = cls(config, stats, device=device)
+        try:
+            if fmt == CHECKPOINT_FORMAT:
+                if header.get("policy") != cls.name:
+                    raise CheckpointError(f"{source} holds a {header.get('policy')!r} policy, expected {cls.name!r}")
+                config, stats = cls.config_class.from_dict(header["config"]), header["stats"]
+            elif cls.legacy_format is not None and fmt == cls.legacy_format:
+                config, stats = cls.upgrade_legacy(header)
+            else:
+                raise CheckpointError(f"{source} holds format {fmt!r}, expected {CHECKPOINT_FORMAT!r} ({cls.name})")
+            config.require_features()
+            expected = config.parameter_count()
+        except CheckpointError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as err:
+            raise CheckpointError(
+                f"{source}: malformed {cls.name} checkpoint header ({type(err).__name__}: {err})"
+            ) from None
+        if expected is not None:
+            check_parameter_count(expected, tensors, source)
+        extra = header.get("extra", {})
+        if not isinstance(extra, Mapping):
+            raise CheckpointError(f"{source}: the header's 'extra' must be a JSON object, got {describe(extra)}")
+        try:
+            policy = cls(config, stats, device=device)
+        except (TypeError, ValueError) as err:
+            raise CheckpointError(f"{source}: {err}") from None
+        check_state(policy.model.state_dict(), tensors, source)
         policy.model.load_state_dict(dict(tensors))
         policy.model.to(policy.device).eval()
-        policy.checkpoint_info = dict(header.get("extra", {}))
+        policy.checkpoint_info = dict(extra)
         return policy
 
     @classmethod
@@ -293,30 +398,18 @@ class TorchPolicy(ABC):
 
 
 def write_checkpoint(path: str | os.PathLike[str], tensors: Mapping[str, torch.Tensor], header: dict[str, Any]) -> Path:
-    """Write ``tensors`` with ``header`` (JSON-serializable) as a safetensors file, atomically."""
-    out = Path(path)
-    if out.suffix != ".safetensors":
-        raise ValueError(f"path must end with .safetensors, got {str(out)!r}")
-    data = st_save(
-        {k: v.detach().to("cpu").contiguous() for k, v in tensors.items()},
-        metadata={"config": json.dumps(header)},
-    )
-    atomic_write_bytes(out, data)
-    return out
+    """Write ``tensors`` with ``header`` (JSON-serializable) as a safetensors file, atomically.
+
+    ``ValueError`` for a path not ending in ``.safetensors`` or tensors holding NaN / inf.
+    """
+    return write_safetensors(path, tensors, "config", header)
 
 
 def read_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """Tensors and header of a file written by :func:`write_checkpoint` (``ValueError`` for other files)."""
-    src = Path(path)
-    if not src.is_file():
-        raise ValueError(f"no checkpoint file at {str(src)!r}")
-    raw = src.read_bytes()
-    try:
-        n = int.from_bytes(raw[:8], "little")
-        header = json.loads(raw[8 : 8 + n])
-        config = json.loads(header["__metadata__"]["config"])
-    except (ValueError, KeyError, TypeError):
-        raise ValueError(f"{src} is not a steer-envs safetensors checkpoint (no config metadata)") from None
-    if not isinstance(config, dict):
-        raise ValueError(f"{src} is not a steer-envs safetensors checkpoint (header is not a JSON object)")
-    return st_load(raw), config
+    """Tensors and header of a file written by :func:`write_checkpoint`, checked before loading.
+
+    :class:`~steer_envs.io.CheckpointError` (a ``ValueError``) naming the file
+    for a missing, truncated, corrupt or foreign file and for non-finite
+    weights (see :func:`~steer_envs.baselines.common.checkpoint.read_safetensors`).
+    """
+    return read_safetensors(path, "config")

@@ -20,16 +20,21 @@ layout, the U-Net and the DDIM settings. :data:`PRESETS` are named
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
-import numpy as np
+from steer_envs.baselines.common.configuration import PolicyConfig, Preset, TrainSettings, check_int, int_tuple
+from steer_envs.core.validation import boolean, one_of, real_scalar
 
-from steer_envs.baselines.common.configuration import PolicyConfig, Preset, TrainSettings, check_int
-
-__all__ = ["PREDICTIONS", "PRESETS", "DiffusionConfig"]
+__all__ = ["BETA_SCHEDULES", "MAX_HORIZON", "MAX_TIMESTEPS", "PREDICTIONS", "PRESETS", "DiffusionConfig"]
 
 #: the network's target: the noise (Chi et al.) or the velocity v = sqrt(abar) eps - sqrt(1 - abar) x0.
 PREDICTIONS = ("epsilon", "v")
+#: the longest plan and the most diffusion steps a config may have (ITPS: 64 and 100)
+MAX_HORIZON = 2**16
+MAX_TIMESTEPS = 100_000
+#: the noise schedules of diffusers' ``DDIMScheduler``.
+BETA_SCHEDULES = ("linear", "scaled_linear", "squaredcos_cap_v2")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,7 +58,12 @@ class DiffusionConfig(PolicyConfig):
         time_channel: append the plan index (in [-1, 1]) as an input channel.
         obs_embed_dim: width of an MLP over Fourier features of the normalized
             observation history (0: the history enters FiLM directly).
-        obs_octaves: Fourier frequencies ``pi * 2**k``, ``k < obs_octaves``.
+        obs_octaves: Fourier frequencies ``pi * 2**k``, ``k < obs_octaves`` (at most 30).
+
+    Bounds beyond those of :class:`PolicyConfig`: ``horizon`` at most
+    :data:`MAX_HORIZON`, ``num_train_timesteps`` at most :data:`MAX_TIMESTEPS`,
+    at most 32 U-Net levels, ``beta_schedule`` one of :data:`BETA_SCHEDULES`
+    (a loaded checkpoint is also limited by the network size its config implies).
     """
 
     horizon: int = 64
@@ -73,18 +83,21 @@ class DiffusionConfig(PolicyConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        try:
-            object.__setattr__(self, "down_dims", tuple(int(d) for d in self.down_dims))
-        except (TypeError, ValueError):
-            raise TypeError(f"down_dims must be a sequence of ints, got {self.down_dims!r}") from None
+        object.__setattr__(self, "down_dims", int_tuple(self.down_dims, "down_dims", 1))
         for name in ("horizon", "n_obs_steps", "kernel_size", "n_groups", "step_embed_dim", "num_train_timesteps"):
-            check_int(getattr(self, name), name)
-        if not self.down_dims or any(d < 1 or d % self.n_groups for d in self.down_dims):
+            object.__setattr__(self, name, check_int(getattr(self, name), name))
+        for name, top in (("horizon", MAX_HORIZON), ("num_train_timesteps", MAX_TIMESTEPS)):
+            if getattr(self, name) > top:
+                raise ValueError(f"{name} must be <= {top}, got {getattr(self, name)}")
+        object.__setattr__(self, "num_inference_steps", check_int(self.num_inference_steps, "num_inference_steps"))
+        if not self.down_dims or any(d % self.n_groups for d in self.down_dims):
             raise ValueError(f"down_dims must be positive multiples of n_groups={self.n_groups}, got {self.down_dims}")
         if self.kernel_size % 2 == 0:
             raise ValueError(f"kernel_size must be odd, got {self.kernel_size}")
         if self.step_embed_dim % 2:
             raise ValueError(f"step_embed_dim must be even, got {self.step_embed_dim}")
+        if len(self.down_dims) > 32:
+            raise ValueError(f"down_dims may have at most 32 U-Net levels, got {len(self.down_dims)}")
         stride = 2 ** (len(self.down_dims) - 1)
         if self.horizon % stride:
             raise ValueError(
@@ -95,14 +108,47 @@ class DiffusionConfig(PolicyConfig):
                 f"num_inference_steps must be in [1, num_train_timesteps={self.num_train_timesteps}], "
                 f"got {self.num_inference_steps}"
             )
-        if self.prediction not in PREDICTIONS:
-            raise ValueError(f"prediction must be one of {PREDICTIONS}, got {self.prediction!r}")
+        one_of(self.beta_schedule, "beta_schedule", BETA_SCHEDULES)
+        one_of(self.prediction, "prediction", PREDICTIONS)
         for name in ("obs_embed_dim", "obs_octaves"):
-            check_int(getattr(self, name), name, 0)
-        if not (np.isfinite(self.clip_sample_range) and self.clip_sample_range > 0):
-            raise ValueError(f"clip_sample_range must be a positive float, got {self.clip_sample_range!r}")
-        if not isinstance(self.time_channel, bool):
-            raise TypeError(f"time_channel must be a bool, got {type(self.time_channel).__name__}")
+            object.__setattr__(self, name, check_int(getattr(self, name), name, 0))
+        if self.obs_octaves > 30:
+            raise ValueError(f"obs_octaves must be <= 30 (frequencies pi * 2**k), got {self.obs_octaves}")
+        clip = real_scalar(self.clip_sample_range, "clip_sample_range", low=0.0, low_inclusive=False)
+        object.__setattr__(self, "clip_sample_range", clip)
+        object.__setattr__(self, "time_channel", boolean(self.time_channel, "time_channel"))
+
+    def parameter_count(self) -> int | None:
+        """Numbers in the network's state dict, from the config alone (see :class:`DiffusionNet`).
+
+        >>> DiffusionConfig(obs_dim=2, action_dim=2).parameter_count()
+        707250
+        """
+        self.require_features()
+        assert self.obs_dim is not None and self.action_dim is not None
+        cond = self.n_obs_steps * self.obs_dim
+        total = 0
+        if self.obs_embed_dim:
+            e = self.obs_embed_dim
+            total += cond * (1 + 2 * self.obs_octaves) * e + e + 2 * (e * e + e)
+            cond = e
+        s, k = self.step_embed_dim, self.kernel_size
+        total += s * 4 * s + 4 * s + 4 * s * s + s  # step MLP
+        film_in = s + cond
+
+        def block(a: int, b: int) -> int:  # two conv + GroupNorm blocks, FiLM, residual 1x1 conv
+            return (a * b * k + b) + 2 * b + (b * b * k + b) + 2 * b + film_in * 2 * b + 2 * b + (a * b + b) * (a != b)
+
+        dims = [self.action_dim + int(self.time_channel), *self.down_dims]
+        levels = list(itertools.pairwise(dims))
+        for i, (a, b) in enumerate(levels):
+            total += block(a, b) + block(b, b) + (0 if i == len(levels) - 1 else b * b * 3 + b)
+        total += 2 * block(self.down_dims[-1], self.down_dims[-1])
+        for a, b in reversed(levels[1:]):
+            total += block(2 * b, a) + block(a, a) + a * a * 4 + a
+        d0 = self.down_dims[0]
+        total += d0 * d0 * k + d0 + 2 * d0 + d0 * self.action_dim + self.action_dim
+        return total
 
     @property
     def exec_start(self) -> int:

@@ -35,8 +35,9 @@ from diffusers import DDIMScheduler
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from steer_envs.baselines.common.torch_policy import TorchPolicy, check_sample_args
+from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
 from steer_envs.baselines.diffusion.configuration import DiffusionConfig
+from steer_envs.core.validation import describe, real_array
 
 __all__ = ["ConditionalUnet1D", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
 
@@ -289,27 +290,52 @@ class DiffusionPolicy(TorchPolicy):
     def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
         """``eps(x_t, t | cond)`` for normalized plans ``x_t (n, H, d)``; differentiable in ``x_t``.
 
-        ``t`` is an int, a 0-d tensor or ``(n,)`` timesteps; ``cond`` (from
-        :meth:`encode_obs`) has 1 or ``n`` rows.
+        ``x_t`` is a finite floating-point tensor; ``t`` an int, a 0-d integer
+        tensor or ``(n,)`` integer timesteps in ``[0, num_train_timesteps)``;
+        ``cond`` (from :meth:`encode_obs`) a finite ``(1 or n, n_obs_steps *
+        obs_dim)`` tensor. ``TypeError`` / ``ValueError`` naming the argument otherwise.
         """
-        if not isinstance(x_t, torch.Tensor) or x_t.ndim != 3 or x_t.shape[1:] != (self.horizon, self.action_dim):
-            shape = tuple(x_t.shape) if isinstance(x_t, torch.Tensor) else type(x_t).__name__
-            raise ValueError(f"x_t must be a tensor of shape (n, {self.horizon}, {self.action_dim}), got {shape}")
+        owner = "DiffusionPolicy.predict_noise"
+        if not isinstance(x_t, torch.Tensor) or not x_t.is_floating_point():
+            what = f"dtype {x_t.dtype}" if isinstance(x_t, torch.Tensor) else describe(x_t)
+            raise TypeError(f"{owner}: x_t must be a floating-point torch.Tensor, got {what}")
+        check_tensor(x_t, "x_t", (None, self.horizon, self.action_dim), owner=owner)
         n = x_t.shape[0]
-        t = torch.as_tensor(t, device=x_t.device).reshape(-1)
-        if t.numel() not in (1, n):
-            raise ValueError(f"t must be a scalar or have {n} entries, got {t.numel()}")
-        cond = torch.as_tensor(cond, device=x_t.device, dtype=x_t.dtype)
+        t = self._timesteps(t, n, x_t.device)
+        if isinstance(cond, np.ndarray):
+            cond = torch.from_numpy(real_array(cond, "cond", owner=owner))
+        if not isinstance(cond, torch.Tensor):
+            raise TypeError(f"{owner}: cond must be a torch.Tensor (from encode_obs), got {describe(cond)}")
         width = self.n_obs_steps * self.obs_dim
         if cond.ndim != 2 or cond.shape[0] not in (1, n) or cond.shape[1] != width:
-            raise ValueError(f"cond must have shape (1 or {n}, {width}), got {tuple(cond.shape)}")
-        cond = cond.expand(n, -1)
+            raise ValueError(f"{owner}: cond must have shape (1 or {n}, {width}), got {tuple(cond.shape)}")
+        check_tensor(cond, "cond", (None, width), owner=owner)
+        cond = cond.to(device=x_t.device, dtype=x_t.dtype).expand(n, -1)
         abar = self.scheduler.alphas_cumprod.to(x_t.device)[t.long()].to(x_t.dtype).reshape(-1, 1, 1)
         x_rel = self._centered(x_t, abar, cond)
         out = self.model(x_rel, t.expand(n), cond)
         if self.config.prediction == "epsilon":
             return out
         return (1 - abar).sqrt() * x_rel + abar.sqrt() * out  # epsilon implied by v (exact, no division)
+
+    def _timesteps(self, t: Any, n: int, device: torch.device) -> torch.Tensor:
+        """``t`` as a 1-D integer tensor of 1 or ``n`` diffusion steps in ``[0, num_train_timesteps)``."""
+        owner = "DiffusionPolicy.predict_noise"
+        if isinstance(t, torch.Tensor):
+            if t.is_floating_point() or t.is_complex() or t.dtype == torch.bool:
+                raise TypeError(f"{owner}: t must hold integer timesteps, got dtype {t.dtype}")
+        elif isinstance(t, np.ndarray):
+            if t.dtype.kind not in "iu":
+                raise TypeError(f"{owner}: t must hold integer timesteps, got dtype {t.dtype}")
+        elif not isinstance(t, (int, np.integer)) or isinstance(t, (bool, np.bool_)):
+            raise TypeError(f"{owner}: t must be an int or an integer tensor, got {describe(t)}")
+        steps = torch.as_tensor(t, device=device).reshape(-1)
+        if steps.numel() not in (1, n):
+            raise ValueError(f"{owner}: t must be a scalar or have {n} entries, got {steps.numel()}")
+        top = self.config.num_train_timesteps
+        if bool(((steps < 0) | (steps >= top)).any()):
+            raise ValueError(f"{owner}: t must be in [0, {top}), got {steps.tolist()[:8]}")
+        return steps
 
     def _centered(self, x: torch.Tensor, abar: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
         """``x - sqrt(abar) * p`` with ``p`` the current values of ``action_obs_indices`` when ``relative``.
@@ -326,12 +352,15 @@ class DiffusionPolicy(TorchPolicy):
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         """``n`` plans ``(n, horizon, action_dim)`` in data units by DDIM, the initial noise from ``generator``.
 
-        ``obs`` is an env observation or a history of them, oldest first.
+        ``obs`` is an env observation or a history of them, oldest first (finite
+        real numbers, see :func:`~steer_envs.baselines.common.torch_policy.observation_history`);
+        ``n`` an int in ``[1, max_samples]``; ``generator`` a numpy ``Generator`` or ``None``.
         """
-        rng = check_sample_args(n, generator)
-        noise = rng.standard_normal((int(n), self.horizon, self.action_dim), dtype=np.float32)
+        rng = self._sample_args(n, generator)
         with torch.no_grad():
             cond = self.encode_obs(obs)
+        noise = rng.standard_normal((int(n), self.horizon, self.action_dim), dtype=np.float32)
+        with torch.no_grad():
             x = self.denoise(torch.from_numpy(noise).to(self._device), cond)
             return self.unnormalize(x).cpu().numpy().astype(np.float64)
 
@@ -344,13 +373,12 @@ class DiffusionPolicy(TorchPolicy):
 
     # ------------------------------------------------------------ training
     def loss(self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Denoising MSE (epsilon or v target): ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, H, action_dim)``."""
+        """Denoising MSE (epsilon or v target): ``obs (B, n_obs_steps, obs_dim)``, ``plans (B, H, action_dim)``.
+
+        Both real finite tensors; ``generator`` a ``torch.Generator`` or ``None``.
+        """
+        self._check_batch(obs, plans, generator)
         b = plans.shape[0]
-        if obs.shape != (b, self.n_obs_steps, self.obs_dim) or plans.shape[1:] != (self.horizon, self.action_dim):
-            raise ValueError(
-                f"expected obs (B, {self.n_obs_steps}, {self.obs_dim}) and plans (B, {self.horizon}, "
-                f"{self.action_dim}), got {tuple(obs.shape)} and {tuple(plans.shape)}"
-            )
         x0 = self.normalize(plans.to(self._device, torch.float32))
         cond = self.obs_normalizer.normalize(obs.to(self._device, torch.float32)).reshape(b, -1)
         gen_device = generator.device if generator is not None else self._device

@@ -39,7 +39,6 @@ Once trained, the classifier only provides labels:
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Sequence
@@ -49,11 +48,17 @@ from typing import Any, Protocol
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save
 from torch import nn
 from tqdm.auto import tqdm
 
-from steer_envs.io import atomic_write_bytes
+from steer_envs.baselines.common.checkpoint import (
+    check_parameter_count,
+    check_state,
+    read_safetensors,
+    write_safetensors,
+)
+from steer_envs.core.validation import integer, real_array
+from steer_envs.io import CheckpointError
 
 LOSS_TERMS: tuple[str, ...] = ("succ", "fail", "init", "final", "dyn")
 
@@ -260,9 +265,9 @@ class ModeClassifier(nn.Module):
         return torch.baddbmm(self.b2, hid, self.w2)
 
     def _check_states(self, states: Any) -> torch.Tensor:
-        arr = np.asarray(states, dtype=np.float32)
+        arr = real_array(states, "states", owner="ModeClassifier").astype(np.float32)
         if arr.ndim != 2 or arr.shape[1] != self.state_dim:
-            raise ValueError(f"states must have shape (N, {self.state_dim}), got {arr.shape}")
+            raise ValueError(f"ModeClassifier: states must have shape (N, {self.state_dim}), got {arr.shape}")
         return torch.from_numpy(arr)
 
     @torch.no_grad()
@@ -282,10 +287,6 @@ class ModeClassifier(nn.Module):
     # ----------------------------------------------------------------- files
     def save(self, path: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> Path:
         """Write weights + architecture to a ``.safetensors`` file atomically."""
-        path = Path(path)
-        if path.suffix != ".safetensors":
-            raise ValueError(f"path must end in .safetensors, got {str(path)!r}")
-        path.parent.mkdir(parents=True, exist_ok=True)
         meta = {
             "state_dim": self.state_dim,
             "num_modes": self.num_modes,
@@ -295,24 +296,51 @@ class ModeClassifier(nn.Module):
             "extra": extra or {},
         }
         tensors = {k: v.detach().contiguous() for k, v in self.state_dict().items()}
-        atomic_write_bytes(path, save(tensors, metadata={"glide_classifier": json.dumps(meta, sort_keys=True)}))
-        return path
+        return write_safetensors(path, tensors, _META_KEY, meta, sort_keys=True)
+
+    @staticmethod
+    def parameter_count(state_dim: int, num_modes: int, hidden: int, n_heads: int) -> int:
+        """Numbers in the state dict of a classifier of that size (weights, biases, input statistics).
+
+        >>> ModeClassifier.parameter_count(2, 3, 128, 1)
+        775
+        """
+        return n_heads * (state_dim * hidden + hidden + hidden * num_modes + num_modes) + 2 * state_dim
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> ModeClassifier:
-        """Read a classifier written by :meth:`save` (safetensors: no code execution)."""
-        from safetensors import safe_open
+        """Read a classifier written by :meth:`save` (safetensors: no code execution).
 
-        with safe_open(str(path), framework="pt") as fh:
-            meta_text = (fh.metadata() or {}).get("glide_classifier")
-        if meta_text is None:
-            raise ValueError(f"{path} is not a GLiDE classifier file (no 'glide_classifier' metadata)")
-        meta = json.loads(meta_text)
-        model = cls(meta["state_dim"], meta["num_modes"], hidden=meta["hidden"], n_heads=meta["n_heads"])
-        model.load_state_dict(load_file(str(path)))
-        model.head = int(meta["head"])
+        :class:`~steer_envs.io.CheckpointError` (naming the file) for a file
+        that is missing, truncated or foreign, malformed metadata, tensors that
+        do not fit the metadata's network (checked before it is built),
+        non-finite weights and a non-positive input scale.
+        """
+        tensors, meta = read_safetensors(path, _META_KEY)
+        try:
+            sizes = {
+                "state_dim": integer(meta["state_dim"], "state_dim", low=1),
+                "num_modes": integer(meta["num_modes"], "num_modes", low=2),
+                "hidden": integer(meta["hidden"], "hidden", low=1),
+                "n_heads": integer(meta["n_heads"], "n_heads", low=1),
+            }
+            head = integer(meta["head"], "head", low=0, high=sizes["n_heads"] - 1)
+        except (KeyError, TypeError, ValueError) as err:
+            raise CheckpointError(
+                f"{path}: malformed GLiDE classifier metadata ({type(err).__name__}: {err})"
+            ) from None
+        check_parameter_count(cls.parameter_count(**sizes), tensors, str(path))
+        model = cls(sizes["state_dim"], sizes["num_modes"], hidden=sizes["hidden"], n_heads=sizes["n_heads"])
+        check_state(model.state_dict(), tensors, str(path))
+        if not bool((tensors["scale"] > 0).all()):
+            raise CheckpointError(f"{path}: the input scale must be > 0, got {tensors['scale'].tolist()}")
+        model.load_state_dict(tensors)
+        model.head = head
         model.eval()
         return model
+
+
+_META_KEY = "glide_classifier"
 
 
 class ForwardModel(nn.Module):

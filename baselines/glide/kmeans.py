@@ -15,6 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 from sklearn.cluster import KMeans
 
+from steer_envs.core.validation import integer, real_array
+
 
 class KMeansSegmentation:
     """k-means++ clusters of demonstration states, numbered in temporal order.
@@ -32,13 +34,10 @@ class KMeansSegmentation:
     """
 
     def __init__(self, num_modes: int, *, seed: int = 0, n_init: int = 10) -> None:
-        if isinstance(num_modes, bool) or not isinstance(num_modes, (int, np.integer)) or num_modes < 2:
-            raise ValueError(f"num_modes must be an int >= 2, got {num_modes!r}")
-        if isinstance(n_init, bool) or not isinstance(n_init, (int, np.integer)) or n_init < 1:
-            raise ValueError(f"n_init must be a positive int, got {n_init!r}")
-        self.num_modes = int(num_modes)
-        self.seed = int(seed)
-        self.n_init = int(n_init)
+        owner = "KMeansSegmentation"
+        self.num_modes = integer(num_modes, "num_modes", low=2, owner=owner)
+        self.seed = integer(seed, "seed", low=0, high=2**32 - 1, owner=owner)
+        self.n_init = integer(n_init, "n_init", low=1, high=10_000, owner=owner)
         self.centers: np.ndarray | None = None  # (K, d), row m is mode m's centre
 
     def fit(self, demonstrations: Sequence[np.ndarray]) -> KMeansSegmentation:
@@ -47,7 +46,7 @@ class KMeansSegmentation:
             raise ValueError("demonstrations must not be empty")
         states, phase = [], []
         for i, demo in enumerate(demonstrations):
-            arr = np.asarray(demo, dtype=np.float64)
+            arr = real_array(demo, f"demonstrations[{i}]", owner="KMeansSegmentation")
             if arr.ndim != 2 or len(arr) < 1:
                 raise ValueError(f"demonstrations[{i}] must have shape (T >= 1, d), got {arr.shape}")
             states.append(arr)
@@ -66,7 +65,7 @@ class KMeansSegmentation:
         """Mode of each state ``(N, d) -> (N,)``: the temporal rank of its nearest centre."""
         if self.centers is None:
             raise RuntimeError("KMeansSegmentation.predict called before fit")
-        x = np.asarray(states, dtype=np.float64)
+        x = real_array(states, "states", owner="KMeansSegmentation")
         if x.ndim != 2 or x.shape[1] != self.centers.shape[1]:
             raise ValueError(f"states must have shape (N, {self.centers.shape[1]}), got {x.shape}")
         d2 = ((x[:, None, :] - self.centers[None, :, :]) ** 2).sum(-1)

@@ -36,6 +36,9 @@ import numpy as np
 
 from steer_envs.core.task import TaskSpec
 
+#: the longest LLM response :func:`parse_plan_response` reads (a plan is a few kB)
+MAX_RESPONSE_CHARS = 1_000_000
+
 #: the thesis appendix's instructions (the "clean the plate" example), sent before the task.
 SYSTEM_PROMPT = """You are an expert in generating robot action plans and features.
 
@@ -141,8 +144,12 @@ def build_prompt(task: str, available_features: Sequence[str]) -> str:
     >>> prompt.startswith(SYSTEM_PROMPT), "available_features = ['cube_pos', 'gripper_state']" in prompt
     (True, True)
     """
-    if not isinstance(task, str) or not task.strip():
+    if not isinstance(task, str):
+        raise TypeError(f"task must be a str, got {type(task).__name__}")
+    if not task.strip():
         raise ValueError("task must be a non-empty description")
+    if isinstance(available_features, (str, bytes)):
+        raise TypeError("available_features must be a sequence of feature names, not one string")
     feats = list(available_features)
     if not all(isinstance(f, str) and f for f in feats):
         raise TypeError("available_features must be non-empty strings")
@@ -237,8 +244,8 @@ def _literal(body: str, tag: str) -> Any:
         code = code[m.end() :]
     try:
         return ast.literal_eval(code)
-    except (ValueError, SyntaxError) as err:
-        raise ValueError(f"<{tag}> does not hold a Python literal: {err}") from None
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError) as err:
+        raise ValueError(f"<{tag}> does not hold a Python literal: {type(err).__name__}: {err}") from None
 
 
 def _as_int(value: Any, what: str) -> int:
@@ -269,6 +276,8 @@ def parse_plan_response(text: str) -> GlidePlan:
     """
     if not isinstance(text, str):
         raise TypeError(f"text must be a str, got {type(text).__name__}")
+    if len(text) > MAX_RESPONSE_CHARS:
+        raise ValueError(f"response has {len(text)} characters, more than the {MAX_RESPONSE_CHARS} accepted")
     bodies: dict[str, str | None] = {}
     for key, names in _TAGS.items():
         bodies[key] = next((b for b in (extract_tag(text, n) for n in names) if b is not None), None)
@@ -343,6 +352,7 @@ def request_plan(provider: LLMProvider, task: str, available_features: Iterable[
 
 
 __all__ = [
+    "MAX_RESPONSE_CHARS",
     "SYSTEM_PROMPT",
     "GlidePlan",
     "LLMProvider",

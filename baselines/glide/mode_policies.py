@@ -36,6 +36,7 @@ import numpy as np
 from steer_envs.baselines.bc import modeling as bc
 from steer_envs.baselines.glide.classifier import ModePredictor, label_demonstrations
 from steer_envs.baselines.glide.planners import LearnedModeMap, PlannerConfig, potential_field, rrt
+from steer_envs.core.validation import integer, real_array, real_scalar
 from steer_envs.data.segmentation import segment_demonstration
 
 __all__ = [
@@ -91,8 +92,9 @@ def train_bc(
     >>> bool(np.all(np.linalg.norm(policy.act(10 * s), axis=1) <= 0.1 + 1e-12))
     True
     """
-    if not (np.isfinite(max_speed) and max_speed > 0):
-        raise ValueError(f"max_speed must be a positive float, got {max_speed!r}")
+    max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner="train_bc")
+    real_array(states, "states", owner="train_bc")  # real, finite numbers; the data keep their own dtype
+    real_array(actions, "actions", owner="train_bc")
     s, a = np.asarray(states), np.asarray(actions)
     if s.ndim != 2 or a.ndim != 2:
         raise ValueError(f"states and actions must be (N, d) and (N, a) arrays, got shapes {s.shape} and {a.shape}")
@@ -101,6 +103,11 @@ def train_bc(
     policy = bc.BCPolicy(cfg, seed=seed)
     policy.fit(s, a)
     return policy
+
+
+def _check_predictor(classifier: object, who: str) -> None:
+    if not callable(getattr(classifier, "predict", None)):
+        raise TypeError(f"{who}: classifier must have predict(states) -> modes, got {type(classifier).__name__}")
 
 
 # ----------------------------------------------------------------- demo statistics
@@ -189,13 +196,16 @@ class GlideBCPolicy:
             raise ValueError(
                 f"demos and actions must be non-empty and of equal length, got {len(demos)} and {len(actions)}"
             )
-        if not 0 <= attractor_weight <= 1:
-            raise ValueError(f"attractor_weight must be in [0, 1], got {attractor_weight!r}")
-        if not 0 < attractor_quantile <= 1:
-            raise ValueError(f"attractor_quantile must be in (0, 1], got {attractor_quantile!r}")
+        who = "GlideBCPolicy"
+        attractor_weight = real_scalar(attractor_weight, "attractor_weight", low=0.0, high=1.0, owner=who)
+        attractor_quantile = real_scalar(
+            attractor_quantile, "attractor_quantile", low=0.0, high=1.0, low_inclusive=False, owner=who
+        )
+        _check_predictor(classifier, who)
         self.classifier = classifier
-        self.num_modes = int(num_modes)
-        self.max_speed = float(max_speed)
+        self.num_modes = integer(num_modes, "num_modes", low=1, owner=who)
+        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner=who)
+        seed = integer(seed, "seed", owner=who)
         self.attractor_weight = float(attractor_weight)
         modes = label_demonstrations(classifier, demos, self.num_modes)
         entries = mode_entry_points(demos, modes, self.num_modes)
@@ -288,11 +298,18 @@ class GlidePlanningPolicy:
         seed: int = 0,
         config: PlannerConfig | None = None,
     ) -> None:
+        who = "GlidePlanningPolicy"
+        if config is not None and not isinstance(config, PlannerConfig):
+            raise TypeError(f"{who}: config must be a PlannerConfig or None, got {type(config).__name__}")
+        _check_predictor(classifier, who)
+        if len(demos) == 0:
+            raise ValueError(f"{who}: demos must not be empty")
         self.config = config or PlannerConfig()
-        self.num_modes = int(num_modes)
-        self.max_speed = float(max_speed)
-        self.low = np.asarray(low, dtype=np.float64)
-        self.high = np.asarray(high, dtype=np.float64)
+        self.num_modes = integer(num_modes, "num_modes", low=1, owner=who)
+        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner=who)
+        self.low = real_array(low, "low", shape=(2,), owner=who)
+        self.high = real_array(high, "high", shape=(2,), owner=who)
+        seed = integer(seed, "seed", owner=who)
         self.map = LearnedModeMap(classifier, self.low, self.high, self.config.grid_resolution)
         modes = label_demonstrations(classifier, demos, self.num_modes)
         self.waypoints = mode_entry_points(demos, modes, self.num_modes)

@@ -26,11 +26,19 @@ from scipy import ndimage, sparse
 from scipy.sparse.csgraph import dijkstra
 
 from steer_envs.baselines.glide.classifier import ModePredictor
+from steer_envs.core.validation import BoundExceeded, integer, real_array, real_scalar
 
 __all__ = ["FREE_SPACE_PLANNERS", "LearnedModeMap", "PlannerConfig", "potential_field", "rrt"]
 
 #: how GLiDE+Planning crosses free space: the exposure-weighted grid path (default) or the thesis's RRT
 FREE_SPACE_PLANNERS: tuple[str, ...] = ("costmap", "rrt")
+#: the most cells of a :class:`LearnedModeMap` (a finer grid than this cannot be labelled in memory).
+MAX_GRID_CELLS = 25_000_000
+#: the most RRT iterations (per restart) and restarts (each iteration is bounded work).
+MAX_RRT_ITERATIONS = 10_000_000
+MAX_RRT_RESTARTS = 1000
+#: the most points that check one segment against the map.
+MAX_SEGMENT_POINTS = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -80,26 +88,19 @@ class PlannerConfig:
     exposure_radius: float = 2.0
 
     def __post_init__(self) -> None:
-        if self.free_space_planner not in FREE_SPACE_PLANNERS:
+        who = "PlannerConfig"
+        if not isinstance(self.free_space_planner, str) or self.free_space_planner not in FREE_SPACE_PLANNERS:
             raise ValueError(
                 f"free_space_planner must be one of {FREE_SPACE_PLANNERS}, got {self.free_space_planner!r}"
             )
-        for name in ("exposure_weight", "exposure_radius"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite float >= 0, got {v!r}")
+        for name in ("exposure_weight", "exposure_radius", "k_rep", "clearance"):
+            real_scalar(getattr(self, name), name, low=0.0, owner=who)
         for name in ("grid_resolution", "rrt_step", "rrt_tolerance", "k_att", "d0", "check_spacing"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive float, got {v!r}")
-        if self.rrt_iterations < 1 or self.rrt_restarts < 1:
-            raise ValueError(
-                f"rrt_iterations and rrt_restarts must be positive, got {self.rrt_iterations!r}, {self.rrt_restarts!r}"
-            )
-        if not 0 <= self.rrt_goal_bias <= 1:
-            raise ValueError(f"rrt_goal_bias must be in [0, 1], got {self.rrt_goal_bias!r}")
-        if not (np.isfinite(self.clearance) and self.clearance >= 0):
-            raise ValueError(f"clearance must be a float >= 0, got {self.clearance!r}")
+            real_scalar(getattr(self, name), name, low=0.0, low_inclusive=False, owner=who)
+        real_scalar(self.waypoint_tolerance, "waypoint_tolerance", low=0.0, owner=who)
+        integer(self.rrt_iterations, "rrt_iterations", low=1, high=MAX_RRT_ITERATIONS, owner=who)
+        integer(self.rrt_restarts, "rrt_restarts", low=1, high=MAX_RRT_RESTARTS, owner=who)
+        real_scalar(self.rrt_goal_bias, "rrt_goal_bias", low=0.0, high=1.0, owner=who)
 
 
 class LearnedModeMap:
@@ -122,11 +123,22 @@ class LearnedModeMap:
     """
 
     def __init__(self, classifier: ModePredictor, low: np.ndarray, high: np.ndarray, resolution: float) -> None:
-        if not (np.isfinite(resolution) and resolution > 0):
-            raise ValueError(f"resolution must be a positive float, got {resolution!r}")
-        self.low = np.asarray(low, dtype=np.float64)
-        self.high = np.asarray(high, dtype=np.float64)
+        resolution = real_scalar(resolution, "resolution", low=0.0, low_inclusive=False, owner="LearnedModeMap")
+        if not callable(getattr(classifier, "predict", None)):
+            raise TypeError(
+                f"LearnedModeMap: classifier must have predict(states) -> modes, got {type(classifier).__name__}"
+            )
+        self.low = real_array(low, "low", shape=(2,), owner="LearnedModeMap")
+        self.high = real_array(high, "high", shape=(2,), owner="LearnedModeMap")
+        if not np.all(self.low < self.high):
+            raise ValueError(f"LearnedModeMap: need low < high, got {self.low.tolist()}, {self.high.tolist()}")
         self.resolution = float(resolution)
+        cells = np.prod([np.ceil((h - lo) / self.resolution) + 1 for lo, h in zip(self.low, self.high, strict=True)])
+        if cells > MAX_GRID_CELLS:
+            raise ValueError(
+                f"LearnedModeMap: resolution={self.resolution!r} over [{self.low.tolist()}, {self.high.tolist()}] "
+                f"needs {cells:.3g} cells, more than {MAX_GRID_CELLS}"
+            )
         self.shape = tuple(
             int(np.ceil((h - lo) / self.resolution)) + 1 for lo, h in zip(self.low, self.high, strict=True)
         )
@@ -164,6 +176,11 @@ class LearnedModeMap:
     ) -> bool:
         """Whether the segment ``a -> b`` stays in ``allowed`` at least ``min_clearance`` from its outside."""
         n = max(2, int(np.ceil(np.linalg.norm(b - a) / spacing)) + 1)
+        if n > MAX_SEGMENT_POINTS:
+            raise ValueError(
+                f"LearnedModeMap.segment_ok: spacing={spacing!r} needs {n} points on a segment of length "
+                f"{np.linalg.norm(b - a):.3g}, more than {MAX_SEGMENT_POINTS}"
+            )
         t = np.linspace(0.0, 1.0, n)[:, None]
         pts = a + t * (b - a)
         if min_clearance <= 0:
@@ -257,10 +274,21 @@ class LearnedModeMap:
         cell = int(si[0] * w + sj[0])
         if not np.isfinite(dist[cell]):
             return None
-        cells = []
-        while cell != source:
+        cells: list[int] = []
+        for _ in range(len(pred)):  # a predecessor chain visits every cell at most once
+            if cell == source:
+                break
             cell = int(pred[cell])
+            if cell < 0:
+                raise BoundExceeded(
+                    f"LearnedModeMap.shortest_path: the predecessor chain broke off at cell {cells[-1:]}"
+                )
             cells.append(cell)
+        else:
+            if cell != source:
+                raise BoundExceeded(
+                    f"LearnedModeMap.shortest_path: no way back to the goal cell within {len(pred)} predecessor steps"
+                )
         # every 4th cell is enough to pull the string through (and 16x fewer segment checks)
         cells_ij = np.stack(np.divmod(np.asarray(cells[:-1][::4], dtype=np.int64), w), axis=1)
         ends = np.asarray([start, goal], dtype=np.float64)
@@ -316,6 +344,14 @@ def rrt(
     >>> path[-1].tolist(), min(p[1] for p in path) < -3
     ([3.0, 2.0], True)
     """
+    start = real_array(start, "start", ndim=1, owner="rrt")
+    goal = real_array(goal, "goal", shape=start.shape, owner="rrt")
+    iterations = integer(iterations, "iterations", low=1, high=MAX_RRT_ITERATIONS, owner="rrt")
+    goal_bias = real_scalar(goal_bias, "goal_bias", low=0.0, high=1.0, owner="rrt")
+    step = real_scalar(step, "step", low=0.0, low_inclusive=False, owner="rrt")
+    tolerance = real_scalar(tolerance, "tolerance", low=0.0, owner="rrt")
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rrt: rng must be a numpy Generator, got {type(rng).__name__}")
     nodes = [np.asarray(start, dtype=np.float64)]
     parents = [-1]
     pts = np.empty((iterations + 1, len(start)))

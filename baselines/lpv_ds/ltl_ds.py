@@ -56,10 +56,12 @@ from numpy.typing import ArrayLike
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS, MIN_POINTS_PER_DIM
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import boolean, real_array, real_scalar
 from steer_envs.data.segmentation import segment_demonstrations
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
 from steer_envs.wrappers.ds_modulation import ATTRACTOR_MARGIN, CutSet, FailureRecord, modulate, resolve_cuts
+from steer_envs.wrappers.ltl_replan import sensor_reading
 
 __all__ = ["AttractorRule", "LTLDSPolicy", "ModeDynamics", "ModeEvent", "fit_mode_dynamics", "hold_beyond_cuts"]
 
@@ -166,8 +168,7 @@ def fit_mode_dynamics(
         raise ValueError(f"attractor_rule must be 'guard' or 'last', got {attractor_rule!r}")
     if not isinstance(demos, Sequence) or len(demos) == 0:
         raise ValueError("demos must be a non-empty sequence of demonstrations")
-    if not (np.isfinite(overshoot) and overshoot >= 0):
-        raise ValueError(f"overshoot must be a finite float >= 0, got {overshoot!r}")
+    overshoot = real_scalar(overshoot, "overshoot", low=0.0)
     parsed = [_as_demo(d, i) for i, d in enumerate(demos)]
     # the last state has no velocity: it only serves as the transition state of the final segment
     seg = segment_demonstrations([(x[:-1], lab[:-1], v) for x, lab, v in parsed], task=task)
@@ -330,12 +331,13 @@ class LTLDSPolicy:
         for m in self.modes:
             if not isinstance(dynamics[m], ModeDynamics):
                 raise TypeError(f"dynamics[{m!r}] must be a ModeDynamics, got {type(dynamics[m]).__name__}")
-        if max_speed is not None and not (np.isfinite(max_speed) and max_speed > 0):
-            raise ValueError(f"max_speed must be None or a positive float, got {max_speed!r}")
-        if not (np.isfinite(margin) and margin >= 0):
-            raise ValueError(f"margin must be a finite float >= 0, got {margin!r}")
-        if dt is not None and not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be None or a positive float, got {dt!r}")
+        if max_speed is not None:
+            max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner="LTLDSPolicy")
+        margin = real_scalar(margin, "margin", low=0.0, owner="LTLDSPolicy")
+        if dt is not None:
+            dt = real_scalar(dt, "dt", low=0.0, low_inclusive=False, owner="LTLDSPolicy")
+        modulation = boolean(modulation, "modulation", owner="LTLDSPolicy")
+        hold_outside = boolean(hold_outside, "hold_outside", owner="LTLDSPolicy")
         self.task = task
         self.spec = spec
         self.dynamics = {m: dynamics[m] for m in self.modes}
@@ -412,7 +414,7 @@ class LTLDSPolicy:
         """Velocities of ``mode``'s policy at states ``(N, d)``, modulated by its cuts when ``modulation`` is on."""
         if mode not in self.dynamics:
             raise ValueError(f"mode must be one of {self.modes}, got {mode!r}")
-        xb = np.asarray(x, dtype=np.float64)
+        xb = real_array(x, "x", finite=False, owner="LTLDSPolicy.flow")
         if xb.ndim != 2 or xb.shape[1] != self.dim or not np.all(np.isfinite(xb)):
             raise ValueError(f"x must be a finite array of shape (N, {self.dim}), got {xb.shape}")
         v = np.asarray(self.dynamics[mode].policy(xb), dtype=np.float64)
@@ -430,16 +432,14 @@ class LTLDSPolicy:
 
     # ----------------------------------------------------------- acting
     def _state(self, obs: Any) -> np.ndarray:
-        x = np.asarray(obs["observation"] if isinstance(obs, Mapping) else obs, dtype=np.float64).reshape(-1)
+        raw = obs["observation"] if isinstance(obs, Mapping) else obs
+        x = real_array(raw, "obs", finite=False, owner="LTLDSPolicy").reshape(-1)
         if x.shape != (self.dim,) or not np.all(np.isfinite(x)):
             raise ValueError(f"obs must be a finite state of shape ({self.dim},), got {x.shape}")
         return x
 
-    @staticmethod
-    def _sensors(info: Mapping[str, Any]) -> Any:
-        if not isinstance(info, Mapping) or "sensors" not in info:
-            raise KeyError("LTLDSPolicy needs info['sensors'] (AP -> bool) from the env")
-        return info["sensors"]
+    def _sensors(self, info: Mapping[str, Any]) -> dict[str, bool]:
+        return sensor_reading(info, self.replanner.automaton.sensors, owner="LTLDSPolicy")
 
     def reset(self, obs: Any, info: Mapping[str, Any]) -> None:
         """Start an episode: locate the automaton from the first reading (cuts are kept)."""
@@ -465,7 +465,7 @@ class LTLDSPolicy:
         if self._mode is None:
             self.reset(obs, info)
         x = self._state(obs)
-        pushed = bool(info.get("perturbed", False)) or self._jumped(x)
+        pushed = boolean(info.get("perturbed", False), "info['perturbed']", owner="LTLDSPolicy") or self._jumped(x)
         prev_mode, prev_next, prev_x = self._mode, self._next, self._x
         mode: str | None
         try:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -46,11 +47,20 @@ from typing import Any
 import numpy as np
 import torch
 
+from steer_envs.baselines.common.checkpoint import MAX_PARAMETERS
+from steer_envs.baselines.common.checkpoint import read_record as read_record_file
 from steer_envs.baselines.common.configuration import PolicyConfig, TrainSettings
 from steer_envs.baselines.common.torch_policy import TorchPolicy
-from steer_envs.baselines.factory import get_policy_class, get_preset, make_policy, policy_names
+from steer_envs.baselines.factory import (
+    get_policy_class,
+    get_preset,
+    make_policy,
+    policy_names,
+    with_dataset_features,
+)
+from steer_envs.core.validation import integer
 from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
-from steer_envs.io import atomic_write_text
+from steer_envs.io import CheckpointError, atomic_write_text
 from steer_envs.utils.cli import parse_key_value
 
 __all__ = [
@@ -63,6 +73,10 @@ __all__ = [
 ]
 
 PROG = "python -m steer_envs.baselines.training"
+#: the most torch threads a run (or a recorded run) may ask for
+MAX_THREADS = 1024
+#: the most logged loss points a training record may hold
+_MAX_LOSSES = 10**7
 
 
 def train_policy(
@@ -96,10 +110,8 @@ def train_policy(
             f"dataset has obs_dim={dataset.obs_dim}, action_dim={dataset.action_dim}; "
             f"the policy expects {policy.obs_dim}, {policy.action_dim}"
         )
-    if stop_after is not None and not (isinstance(stop_after, int) and 1 <= stop_after <= settings.steps):
-        raise ValueError(
-            f"stop_after must be None or an int in [1, settings.steps={settings.steps}], got {stop_after!r}"
-        )
+    if stop_after is not None:
+        integer(stop_after, "stop_after", low=1, high=settings.steps)
     last = settings.steps if stop_after is None else stop_after
     windows = PlanWindows(dataset, **policy.window_layout)
     if len(windows) == 0:
@@ -193,19 +205,55 @@ def read_record(summary: Mapping[str, Any]) -> tuple[str, PolicyConfig, TrainSet
 
     Reads the records of this CLI (``policy``/``config``) and those written
     before the policy factory (``kind``/``model``, upgraded by the policy class).
+    ``ValueError`` when a field is missing or malformed: the policy must be a
+    registered one, the config and settings valid, ``losses`` a list of
+    ``[step, finite loss]`` pairs with increasing steps, ``threads`` (if
+    present) an int in ``[1, MAX_THREADS]``, ``data`` (if present) an object.
     """
+    if not isinstance(summary, Mapping):
+        raise ValueError(f"not a training record (a JSON object), got {type(summary).__name__}")
     try:
-        record = dict(summary["training"])
+        record = summary["training"]
+        if not isinstance(record, Mapping):
+            raise TypeError(f"'training' must be an object, got {type(record).__name__}")
+        record = dict(record)
         settings = TrainSettings.from_dict(record["settings"])
         if "policy" in summary:
-            name = str(summary["policy"])
+            name = summary["policy"]
+            if not isinstance(name, str):
+                raise TypeError(f"'policy' must be a string, got {type(name).__name__}")
             config = get_policy_class(name).config_class.from_dict(summary["config"])
         else:
-            name = str(summary["kind"])
+            name = summary["kind"]
+            if not isinstance(name, str):
+                raise TypeError(f"'kind' must be a string, got {type(name).__name__}")
             config = get_policy_class(name).upgrade_legacy_config(summary["model"])
-    except (KeyError, TypeError) as err:
-        raise ValueError(f"not a training record (missing or malformed {err})") from None
+        record["losses"] = _check_losses(record["losses"])
+        if "threads" in record:
+            record["threads"] = integer(record["threads"], "threads", low=1, high=MAX_THREADS)
+        if record.get("data") is not None and not isinstance(record["data"], Mapping):
+            raise TypeError(f"'data' must be an object, got {type(record['data']).__name__}")
+    except (KeyError, TypeError, ValueError) as err:
+        what = f"missing {err}" if isinstance(err, KeyError) else f"malformed: {err}"
+        raise ValueError(f"not a training record ({what})") from None
     return name, config, settings, record
+
+
+def _check_losses(value: Any) -> list[list[float]]:
+    if not isinstance(value, list) or len(value) > _MAX_LOSSES:
+        raise TypeError(f"'losses' must be a list of [step, loss] pairs, got {type(value).__name__}")
+    out: list[list[float]] = []
+    for item in value:
+        if not (isinstance(item, list) and len(item) == 2):
+            raise TypeError(f"'losses' entries must be [step, loss] pairs, got {item!r}")
+        step = integer(item[0], "losses step", low=1)
+        loss = item[1]
+        if isinstance(loss, bool) or not isinstance(loss, (int, float)) or not math.isfinite(loss):
+            raise ValueError(f"'losses' values must be finite numbers, got {loss!r} at step {step}")
+        if out and step <= out[-1][0]:
+            raise ValueError(f"'losses' steps must increase, got {step} after {out[-1][0]}")
+        out.append([step, float(loss)])
+    return out
 
 
 def check_record(
@@ -225,20 +273,22 @@ def check_record(
     recorded, rerun], ...], "max_rel_diff", "wall_s"}``. Bit-identical on the
     same torch version, thread count and CPU kind; another CPU's kernels give
     rounding-level differences that grow slowly.
+
+    A record that is missing, not JSON or malformed (see :func:`read_record`),
+    or whose network would exceed
+    :data:`~steer_envs.baselines.common.checkpoint.MAX_PARAMETERS`, is a
+    :class:`~steer_envs.io.CheckpointError` naming the file; a dataset that
+    cannot be read is a :class:`~steer_envs.io.DatasetError`.
     """
     path = Path(record_path)
-    try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as err:
-        raise ValueError(f"cannot read the record {str(path)!r}: {err}") from None
+    summary = read_record_file(path)
     try:
         name, config, settings, record = read_record(summary)
     except ValueError as err:
-        raise ValueError(f"{path}: {err}") from None
+        raise CheckpointError(f"{path}: {err}") from None
     if policy is not None and policy != name:
         raise ValueError(f"--policy is {policy!r} but {path} records a {name!r} run")
-    if not isinstance(steps, int) or isinstance(steps, bool) or not 1 <= steps <= settings.steps:
-        raise ValueError(f"steps must be an int in [1, {settings.steps}], got {steps!r}")
+    steps = integer(steps, "steps", low=1, high=settings.steps)
     dataset = data if isinstance(data, TrajectoryDataset) else load_trajectories(data)
     recorded_data = {k: v for k, v in dict(record.get("data") or {}).items() if k != "file"}
     for key, value in recorded_data.items():
@@ -247,6 +297,14 @@ def check_record(
                 f"the dataset has {key}={dataset.meta.get(key)!r}; the record was trained on {value!r} "
                 "(regenerate the data with the recorded command)"
             )
+    try:
+        size = with_dataset_features(config, dataset).parameter_count()
+    except ValueError as err:
+        raise ValueError(f"{path}: the record's config does not fit the dataset ({err})") from None
+    if size is not None and size > MAX_PARAMETERS:
+        raise CheckpointError(
+            f"{path}: its config implies {size:,} parameters, more than the {MAX_PARAMETERS:,} allowed"
+        )
     threads = torch.get_num_threads()
     torch.set_num_threads(int(record.get("threads", threads)))
     try:
@@ -358,6 +416,22 @@ def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> in
     return 0 if ok else 1
 
 
+def _unwritable(out: Path) -> str | None:
+    """Why ``out`` cannot be written (checked before training, so a long run is not lost), or ``None``."""
+    if out.is_dir():
+        return "is a folder"
+    folder = out.parent
+    while not folder.exists():
+        if folder.is_symlink():
+            return f"{folder} is a broken link"
+        folder = folder.parent
+    if not folder.is_dir():
+        return f"{folder} is not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{folder} is not writable"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see the module docstring); exit 0 done, 1 ``--check`` differs, 2 usage error."""
     parser = _parser()
@@ -371,9 +445,12 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     if out.suffix != ".safetensors":
         parser.error(f"--out must end with .safetensors, got {args.out!r}")
+    problem = _unwritable(out)
+    if problem:
+        parser.error(f"--out {args.out!r}: {problem}")
     if args.threads is not None:
-        if args.threads < 1:
-            parser.error(f"--threads must be >= 1, got {args.threads}")
+        if not 1 <= args.threads <= MAX_THREADS:
+            parser.error(f"--threads must be in [1, {MAX_THREADS}], got {args.threads}")
         torch.set_num_threads(args.threads)
     try:
         preset = get_preset(args.policy, args.preset)
@@ -403,14 +480,17 @@ def main(argv: list[str] | None = None) -> int:
     record["data"]["file"] = Path(args.dataset).name
     record["preset"] = args.preset
     record["command"] = f"{PROG} " + " ".join(argv if argv is not None else sys.argv[1:])
-    policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})
     summary = {
         "policy": args.policy,
         "config": policy.config.to_dict(),
         "stats": {k: v.to_dict() for k, v in policy.stats.items()},
         "training": record,
     }
-    atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
+    try:
+        policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})
+        atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
+    except OSError as err:
+        parser.error(f"cannot write --out {args.out!r}: {err}")
     print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
     print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")
     return 0

@@ -18,11 +18,11 @@ Python API:
 suite,env,method,params,metric,kind,trials,n,mean,std,min,max,reference,diff,source,goal,meets_goal
 """
 
-from steer_envs.bench.executors import Executor, Outcome, execute_trial, make_executor
+from steer_envs.bench.executors import Executor, ExecutorStartError, Outcome, execute_trial, make_executor
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.report import render, summarize
-from steer_envs.bench.runner import RunSummary, build_request, plan_trials, run_suite
-from steer_envs.bench.store import ResultStore, load_results, read_jsonl
+from steer_envs.bench.runner import MAX_PLANNED_TRIALS, RunSummary, build_request, plan_trials, run_suite
+from steer_envs.bench.store import ResultsDirError, ResultStore, StoreLockedError, load_results, read_jsonl
 from steer_envs.bench.suite import (
     Finding,
     Metric,
@@ -39,13 +39,17 @@ from steer_envs.bench.suite import (
 )
 
 __all__ = [
+    "MAX_PLANNED_TRIALS",
     "Executor",
+    "ExecutorStartError",
     "Finding",
     "Metric",
     "Outcome",
     "Reference",
     "ResultStore",
+    "ResultsDirError",
     "RunSummary",
+    "StoreLockedError",
     "Suite",
     "SuiteParams",
     "Trial",

@@ -1,9 +1,18 @@
 """``steer-bench``: list suites, run them (resumably), report results.
 
 Exit status: 0 success; 1 some trials failed (they are logged in
-``failures.jsonl`` and re-run by the next ``run``); 2 bad usage or
-configuration (unknown suite/env/method/parameter, wrong ``--out``, missing
-optional dependency); 130 interrupted (finished trials are on disk).
+``failures.jsonl`` and re-run by the next ``run``), or a suite's own figures
+could not be drawn (``report --plots``); 2 bad usage or configuration, as one
+line on stderr: an unknown suite/env/method/parameter or a bad value, a
+plugin that fails to import, more than
+:data:`~steer_envs.bench.runner.MAX_PLANNED_TRIALS` planned trials, an
+``--out`` / ``DIR`` / ``--plots-dir`` that is empty, a file, under a file,
+unwritable, or not a steer-bench directory (a ``manifest.json`` that is not
+a manifest, a ``results.jsonl`` that is a folder), a directory locked by
+another run, a missing optional dependency or an executor that cannot start;
+130 interrupted (finished trials are on disk). Bad lines of
+``results.jsonl`` never stop ``run`` or ``report``: they are skipped with a
+note (``run`` moves them to ``discarded.jsonl``).
 Set ``STEER_BENCH_DEBUG=1`` to get tracebacks instead of one-line errors.
 
 >>> main(["list", "selftest"])
@@ -25,15 +34,43 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
-from steer_envs.bench.executors import EXECUTORS
+from steer_envs.bench.executors import EXECUTORS, ExecutorStartError
 from steer_envs.bench.report import FORMATS, render, render_markdown, summarize
-from steer_envs.bench.store import StoreLockedError, atomic_write_text, load_results
+from steer_envs.bench.store import (
+    DISCARDED_FILE,
+    RESULTS_FILE,
+    SUMMARY_FILE,
+    StoreLockedError,
+    atomic_write_text,
+    check_output_dir,
+    load_results,
+)
 from steer_envs.bench.suite import Suite, get_suite, load_plugins, suites
 from steer_envs.utils.cli import parse_key_value
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse`` with usage errors as one line on stderr (exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
+def _one_line(message: str) -> str:
+    return " | ".join(line.strip() for line in str(message).splitlines() if line.strip())
+
+
+def _path(text: str) -> Path:
+    """argparse type for a folder option: a non-empty path (``''`` would silently mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a folder path, got an empty string")
+    if "\x00" in text:
+        raise argparse.ArgumentTypeError("a path must not contain NUL characters")
+    return Path(text)
 
 
 def _param(text: str) -> tuple[str, Any]:
@@ -62,7 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     """
     from steer_envs import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="steer-bench",
         description="Benchmark runner of steer-envs: suites of trials over the registered envs, "
         "results as resumable JSON lines, reports beside the thesis's numbers.",
@@ -70,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"steer-bench (steer-envs {__version__})")
     sub = parser.add_subparsers(dest="command", metavar="{list,run,report}", required=True)
 
-    plugin = argparse.ArgumentParser(add_help=False)
+    plugin = _Parser(add_help=False)
     plugin.add_argument(
         "--plugin",
         action="append",
@@ -116,14 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument(
         "--address", metavar="ADDR", help="Ray cluster address ('auto', 'ray://host:10001'); default: start a local Ray"
     )
-    p_run.add_argument("--out", type=Path, metavar="DIR", help="results directory (default: runs/SUITE)")
+    p_run.add_argument("--out", type=_path, metavar="DIR", help="results directory (default: runs/SUITE)")
     p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     p_report = sub.add_parser("report", parents=[plugin], help="tables (and plots) from a results directory")
-    p_report.add_argument("dir", type=Path, help="a --out directory of `steer-bench run`")
+    p_report.add_argument("dir", type=_path, help="a --out directory of `steer-bench run`")
     p_report.add_argument("--format", choices=FORMATS, default="md", help="output format (default: md)")
     p_report.add_argument("--plots", action="store_true", help="also write PNG figures")
-    p_report.add_argument("--plots-dir", type=Path, metavar="DIR", help="where the PNGs go (default: DIR/plots)")
+    p_report.add_argument("--plots-dir", type=_path, metavar="DIR", help="where the PNGs go (default: DIR/plots)")
     return parser
 
 
@@ -210,7 +247,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     tables = summarize(summary.records)
     title = f"steer-bench {suite.name}: {len(summary.records)} trials in {out}"
     text = render_markdown(tables, title=title, notes=summary.notes)
-    atomic_write_text(out / "summary.md", text)
+    atomic_write_text(out / SUMMARY_FILE, text)
     print(text)
     print(
         f"{summary.planned} trials planned: {summary.skipped} already done, {summary.completed} run now, "
@@ -232,19 +269,30 @@ def cmd_report(args: argparse.Namespace) -> int:
     """Render the tables of a results directory; optionally write the plots."""
     load_plugins(args.plugin)
     manifest, records, read = load_results(args.dir)
-    if read.torn_tail:
-        print(f"note: ignored a torn last line in {args.dir} (a run was killed mid-write)", file=sys.stderr)
-    if read.corrupt_lines:
-        print(f"note: ignored corrupt lines {read.corrupt_lines} in {args.dir}", file=sys.stderr)
+    plots_dir = None
+    if args.plots:
+        plots_dir = check_output_dir(
+            args.plots_dir if args.plots_dir is not None else args.dir / "plots", "--plots-dir"
+        )
+    elif args.plots_dir is not None:
+        print("note: --plots-dir is ignored without --plots", file=sys.stderr)
+    for note in read.describe(RESULTS_FILE):
+        print(f"note: {args.dir}: {note}", file=sys.stderr)
+    if read.torn_tail or read.bad_lines:
+        print(f"note: the next `steer-bench run` into {args.dir} moves them to {DISCARDED_FILE}", file=sys.stderr)
     tables = summarize(records)
     title = f"steer-bench {manifest.get('suite')}: {len(records)} trials in {args.dir}"
     print(render(tables, args.format, title=title), end="")
-    if args.plots:
+    if plots_dir is not None:
         from steer_envs.bench.plots import write_plots
 
-        plots_dir = args.plots_dir if args.plots_dir is not None else args.dir / "plots"
-        for path in write_plots(records, plots_dir):
+        problems: list[str] = []
+        for path in write_plots(records, plots_dir, problems=problems):
             print(f"wrote {path}", file=sys.stderr)
+        for problem in problems:
+            print(f"warning: {problem}", file=sys.stderr)
+        if problems:
+            return EXIT_FAILED
     return EXIT_OK
 
 
@@ -260,6 +308,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     >>> status, err.getvalue().strip()
     (2, "steer-bench: error: selftest: parameter 'samples' must be >= 1, got 0")
     """
+    if argv is not None and (isinstance(argv, (str, bytes)) or not all(isinstance(a, str) for a in argv)):
+        raise TypeError(f"argv must be a list of strs, got {argv!r}")
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -272,12 +322,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except (KeyError, ValueError, TypeError, ImportError, FileNotFoundError, StoreLockedError) as exc:
+    except (
+        KeyError,
+        ValueError,
+        TypeError,
+        ImportError,
+        OSError,
+        StoreLockedError,
+        ExecutorStartError,
+    ) as exc:
         if os.environ.get("STEER_BENCH_DEBUG"):
             raise
-        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        print(f"steer-bench: error: {message}", file=sys.stderr)
+        print(f"steer-bench: error: {_one_line(_message(exc))}", file=sys.stderr)
         return EXIT_USAGE
+
+
+def _message(exc: BaseException) -> str:
+    """The user-facing text of an error (a ``KeyError``'s own message, an ``OSError``'s reason and file)."""
+    if isinstance(exc, KeyError) and exc.args:
+        return str(exc.args[0])
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f": {exc.filename}" if exc.filename else ""
+        return f"{exc.strerror}{where}"
+    return str(exc) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,11 +21,15 @@ the Ray executor is created.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
 import math
 import multiprocessing
 import numbers
 import os
 import signal
+import socket
+import sys
+import threading
 import time
 import traceback
 from abc import ABC, abstractmethod
@@ -33,9 +37,12 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from steer_envs.bench.provenance import host, versions
-from steer_envs.bench.store import SCHEMA_VERSION, utc_now
+from steer_envs.bench.store import SCHEMA_VERSION, encode_record, utc_now
 from steer_envs.bench.suite import Trial, TrialResult, resolve_function
+from steer_envs.core.validation import describe
 
 EXECUTORS: tuple[str, ...] = ("local", "ray")
 
@@ -53,18 +60,36 @@ class Outcome:
         return self.record is not None
 
 
+class ExecutorStartError(RuntimeError):
+    """An executor that cannot start (Ray not reachable or failing to initialise); the message says why."""
+
+
 def _as_metric(name: str, value: Any) -> float | None:
+    """A metric as a float: real numbers, bools and one-element arrays/tensors (``.item()``); ``None`` passes.
+
+    Complex numbers, strings and other objects raise ``TypeError``; NaN and
+    inf ``ValueError`` (a metric that does not apply is ``None``).
+    """
     if value is None:
         return None
-    if isinstance(value, (bool, numbers.Real)) or hasattr(value, "item"):
+    if isinstance(value, (bool, np.bool_)):
+        return float(value)
+    if not isinstance(value, numbers.Real) and hasattr(value, "item"):
         try:
-            number = float(value)
-        except (TypeError, ValueError):
-            number = math.nan
-        if math.isfinite(number):
-            return number
-        raise ValueError(f"metric {name!r} is {value!r}; return a finite number, or None when it does not apply")
-    raise TypeError(f"metric {name!r} must be a number or None, got {type(value).__name__}")
+            value = value.item()
+        except Exception:  # an array of several numbers, a tensor that cannot be read
+            raise TypeError(f"metric {name!r} must be a number or None, got {describe(value)}") from None
+        if isinstance(value, bool):
+            return float(value)
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"metric {name!r} must be a real number or None, got {describe(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if math.isfinite(number):
+        return number
+    raise ValueError(f"metric {name!r} is {value!r}; return a finite number, or None when it does not apply")
 
 
 def execute_trial(trial: Trial, executor: str = "local") -> Outcome:
@@ -95,7 +120,7 @@ def execute_trial(trial: Trial, executor: str = "local") -> Outcome:
         else:
             raise TypeError(f"{trial.fn} must return a mapping of metrics or a TrialResult, got {type(out).__name__}")
         metrics = {str(k): _as_metric(str(k), v) for k, v in raw_metrics.items()}
-    except Exception as exc:  # a failing trial must not take the run down
+    except (Exception, SystemExit) as exc:  # a failing trial must not take the run down
         detail = "".join(traceback.format_exception(exc)).rstrip()
         return Outcome(trial, None, f"{type(exc).__name__}: {exc}\n{detail}")
     record: dict[str, Any] = {
@@ -112,6 +137,10 @@ def execute_trial(trial: Trial, executor: str = "local") -> Outcome:
     }
     if extra:
         record["extra"] = extra
+    try:
+        encode_record(record)  # the record must be strict JSON before it leaves the worker
+    except (TypeError, ValueError) as exc:
+        return Outcome(trial, None, f"{type(exc).__name__}: the trial's result is not JSON: {exc}")
     return Outcome(trial, record)
 
 
@@ -123,6 +152,9 @@ class Executor(ABC):
     @abstractmethod
     def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
         """Outcomes of ``trials`` in completion order."""
+
+    def start(self) -> None:  # noqa: B027 - optional hook
+        """Acquire what :meth:`map` needs (idempotent); :class:`ExecutorStartError` when it cannot."""
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release workers (idempotent)."""
@@ -144,39 +176,103 @@ class SequentialExecutor(Executor):
             yield execute_trial(trial, self.name)
 
 
-def _ignore_sigint() -> None:
-    # Ctrl-C is handled by the parent, which cancels the pool; workers just stop.
+#: seconds between two checks of the parent by a worker's watchdog thread
+WATCHDOG_INTERVAL_S = 0.5
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Initializer of a pool worker: ignore Ctrl-C (the parent cancels the pool) and die with the parent."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent_pid)
+
+
+def die_with_parent(parent_pid: int, interval: float = WATCHDOG_INTERVAL_S) -> None:
+    """Make this process end as soon as ``parent_pid`` (its parent) does, however the parent ends.
+
+    On Linux the kernel sends ``SIGKILL`` on the parent's death
+    (``prctl(PR_SET_PDEATHSIG)``); everywhere a daemon thread also checks
+    ``os.getppid()`` every ``interval`` seconds and exits the process when the
+    parent is gone (a portable fallback, and a guard for a parent that died
+    before the ``prctl`` call). Orphaned workers would otherwise keep the
+    multiprocessing resource tracker alive too.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no libc prctl: the watchdog still runs
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the prctl call
+        os._exit(1)
+    threading.Thread(
+        target=_watch_parent, args=(parent_pid, interval), name="steer-bench-parent-watchdog", daemon=True
+    ).start()
+
+
+def _watch_parent(parent_pid: int, interval: float) -> None:
+    while True:
+        time.sleep(interval)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def _pool_failure(trial: Trial, exc: BaseException) -> Outcome:
+    if isinstance(exc, cf.process.BrokenProcessPool):
+        return Outcome(trial, None, f"BrokenProcessPool: a worker process died (crash or kill) while {trial.label} "
+                       f"was in flight; it is re-run on resume: {exc}")  # fmt: skip
+    return Outcome(trial, None, f"{type(exc).__name__}: {exc}")
 
 
 class ProcessPoolExecutor(Executor):
-    """``workers`` local processes (spawned, so workers start clean on every platform)."""
+    """``workers`` local processes (spawned, so workers start clean on every platform).
+
+    Workers die with this process (:func:`die_with_parent`), also after a
+    ``kill -9``. A worker that dies mid-trial fails the trials in flight (they
+    are re-run on resume) and the pool is restarted for the rest.
+    """
 
     name = "process"
 
     def __init__(self, workers: int) -> None:
-        self.workers = _check_workers(workers)
+        self.workers = _check_workers(workers, high=max_local_workers())
         self._pool: cf.ProcessPoolExecutor | None = None
 
-    def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
+    def start(self) -> None:
         if self._pool is None:
             self._pool = cf.ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint
+                max_workers=self.workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_init_worker,
+                initargs=(os.getpid(),),
             )
+
+    def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
         queue = list(trials)[::-1]
         pending: dict[cf.Future[Outcome], Trial] = {}
         max_in_flight = 2 * self.workers
         while queue or pending:
+            self.start()
+            assert self._pool is not None
             while queue and len(pending) < max_in_flight:
                 trial = queue.pop()
                 pending[self._pool.submit(execute_trial, trial, self.name)] = trial
             done, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+            broken = False
             for future in done:
                 trial = pending.pop(future)
                 try:
-                    yield future.result()
-                except cf.process.BrokenProcessPool as exc:
-                    raise RuntimeError(f"a worker process died while running {trial.label}: {exc}") from exc
+                    outcome = future.result()
+                except Exception as exc:  # a result that cannot be unpickled, a dead worker
+                    broken |= isinstance(exc, cf.process.BrokenProcessPool)
+                    outcome = _pool_failure(trial, exc)
+                yield outcome
+            if broken:  # every trial in flight is lost with the pool: fail them, start a new pool
+                for trial in list(pending.values()):
+                    yield _pool_failure(trial, cf.process.BrokenProcessPool("the pool was broken by a dead worker"))
+                pending.clear()
+                self._pool.shutdown(wait=False, cancel_futures=True)
+                self._pool = None
 
     def close(self) -> None:
         if self._pool is not None:
@@ -206,24 +302,37 @@ class RayExecutor(Executor):
 
     def __init__(self, workers: int | None = None, address: str | None = None) -> None:
         self.workers = None if workers is None else _check_workers(workers)
+        if address is not None and (not isinstance(address, str) or not address.strip()):
+            raise ValueError(f"address must be a non-empty str ('auto', 'ray://host:10001') or None, got {address!r}")
         self.address = address
         self._ray = import_ray()
         self._started = False
         self._remote: Any = None
 
-    def _ensure_started(self) -> None:
+    def start(self) -> None:
         ray = self._ray
         if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"address": self.address, "include_dashboard": False, "logging_level": "WARNING"}
-            if self.address is None and not os.environ.get("RAY_ADDRESS"):
-                kwargs["num_cpus"] = self.workers or os.cpu_count() or 1
-            ray.init(**kwargs)
-            self._started = True
-        if self._remote is None:
-            self._remote = ray.remote(num_cpus=1, max_retries=0)(execute_trial)
+            _check_reachable(self.address or os.environ.get("RAY_ADDRESS"))
+        try:
+            if not ray.is_initialized():
+                kwargs: dict[str, Any] = {
+                    "address": self.address,
+                    "include_dashboard": False,
+                    "logging_level": "WARNING",
+                }
+                if self.address is None and not os.environ.get("RAY_ADDRESS"):
+                    kwargs["num_cpus"] = self.workers or os.cpu_count() or 1
+                ray.init(**kwargs)
+                self._started = True
+            if self._remote is None:
+                self._remote = ray.remote(num_cpus=1, max_retries=0)(execute_trial)
+        except Exception as exc:  # Ray raises ConnectionError, RuntimeError, ValueError, ... when it cannot start
+            where = f"the Ray cluster at {self.address}" if self.address else "a local Ray instance"
+            detail = " ".join(str(exc).split())[:300] or type(exc).__name__
+            raise ExecutorStartError(f"cannot start {where}: {type(exc).__name__}: {detail}") from exc
 
     def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
-        self._ensure_started()
+        self.start()
         ray = self._ray
         in_flight = 2 * (self.workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
         queue = list(trials)[::-1]
@@ -247,10 +356,43 @@ class RayExecutor(Executor):
         self._remote = None
 
 
-def _check_workers(workers: Any) -> int:
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be a positive int, got {workers!r}")
-    return workers
+#: seconds to wait for the TCP connection to a Ray cluster's address before giving up
+RAY_CONNECT_TIMEOUT_S = 10.0
+
+
+def _check_reachable(address: str | None, timeout: float = RAY_CONNECT_TIMEOUT_S) -> None:
+    """:class:`ExecutorStartError` unless ``host:port`` (or ``ray://host:port``) accepts a TCP connection.
+
+    ``ray.init`` retries an unreachable address for minutes; this check
+    fails within ``timeout`` seconds instead. ``None``, ``"auto"`` and
+    ``"local"`` are left to Ray (which answers those at once).
+    """
+    if not address or address in ("auto", "local"):
+        return
+    target = address.removeprefix("ray://")
+    host, sep, port = target.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except (OSError, ValueError, OverflowError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise ExecutorStartError(f"cannot reach the Ray cluster at {address}: {reason}") from None
+
+
+def max_local_workers() -> int:
+    """The most processes a local pool may start: ``max(256, 4 x CPUs)`` (a typo must not fork-bomb the machine)."""
+    return max(256, 4 * (os.cpu_count() or 1))
+
+
+def _check_workers(workers: Any, high: int | None = None) -> int:
+    if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)):
+        raise TypeError(f"workers must be a positive int, got {describe(workers)}")
+    if workers < 1 or (high is not None and workers > high):
+        span = "a positive int" if high is None else f"an int in [1, {high}] for a local pool"
+        raise ValueError(f"workers must be {span}, got {workers!r}")
+    return int(workers)
 
 
 def make_executor(kind: str = "local", workers: int | None = None, address: str | None = None) -> Executor:
@@ -262,7 +404,7 @@ def make_executor(kind: str = "local", workers: int | None = None, address: str 
     >>> make_executor().name, make_executor("local", workers=2).name
     ('sequential', 'process')
     """
-    if kind not in EXECUTORS:
+    if not isinstance(kind, str) or kind not in EXECUTORS:
         raise ValueError(f"executor must be one of {EXECUTORS}, got {kind!r}")
     if workers is not None:
         workers = _check_workers(workers)

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import types
 import typing
 from collections.abc import Collection, Mapping
@@ -105,6 +106,11 @@ class SuiteParams:
         for name in names:
             self.require(name, getattr(self, name) >= low, f">= {low}")
 
+    def require_at_most(self, high: float, *names: str) -> None:
+        """Each parameter in ``names`` must be ``<= high`` (a bound on counts that would exhaust memory or time)."""
+        for name in names:
+            self.require(name, getattr(self, name) <= high, f"<= {high}")
+
     def require_in(self, name: str, choices: Collection[Any]) -> None:
         """Parameter ``name`` must be one of ``choices``."""
         self.require(name, getattr(self, name) in choices, f"one of {tuple(choices)}")
@@ -166,18 +172,27 @@ def _type_name(annotation: Any) -> str:
         return " or ".join("null" if a is type(None) else _type_name(a) for a in args)
     if origin in (tuple, list):
         return f"a list of {_type_name(args[0])}" if args else "a list"
+    if annotation is float:
+        return "finite float"
     return getattr(annotation, "__name__", str(annotation))
+
+
+def _short_repr(value: Any, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _coerce(suite: str, name: str, value: Any, annotation: Any) -> Any:
     """``value`` as an instance of ``annotation`` (``ValueError`` naming suite and parameter otherwise)."""
     try:
         return _convert(value, annotation)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         if annotation is bool:
-            raise ValueError(f"suite {suite!r}: parameter {name!r} must be true/false, got {value!r}") from None
+            raise ValueError(
+                f"suite {suite!r}: parameter {name!r} must be true/false, got {_short_repr(value)}"
+            ) from None
         raise ValueError(
-            f"suite {suite!r}: parameter {name!r} must be {_type_name(annotation)}, got {value!r}"
+            f"suite {suite!r}: parameter {name!r} must be {_type_name(annotation)}, got {_short_repr(value)}"
         ) from None
 
 
@@ -216,7 +231,9 @@ def _convert(value: Any, annotation: Any) -> Any:
         raise TypeError(value)
     if annotation is float:
         if isinstance(value, (int, float)):
-            return float(value)
+            number = float(value)  # OverflowError (an ArithmeticError) for a huge int
+            if math.isfinite(number):
+                return number
         raise TypeError(value)
     if isinstance(annotation, type):
         if isinstance(value, annotation):

@@ -22,9 +22,10 @@ b'\x89PNG'
 from __future__ import annotations
 
 import io
+import math
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -97,12 +98,12 @@ def metric_bar_chart(table: Table, metric: str, path: str | os.PathLike[str]) ->
     m = next((x for x in table.metrics if x.name == metric), None)
     if m is None:
         raise ValueError(f"table {table.suite!r} has no metric {metric!r}")
-    rows = [r for r in table.rows if r.stats.get(metric) is not None]
+    rows = [r for r in table.rows if r.stats.get(metric) is not None and math.isfinite(r.stats[metric].mean)]  # type: ignore[union-attr]
     if not rows:
         return None
     labels = [r.label(table.varying_params) for r in rows]
     means = [r.stats[metric].mean for r in rows]  # type: ignore[union-attr]
-    stds = [r.stats[metric].std for r in rows]  # type: ignore[union-attr]
+    stds = [s if math.isfinite(s) else 0.0 for s in (r.stats[metric].std for r in rows)]  # type: ignore[union-attr]
     fig = new_figure(max(5.0, 0.9 * len(rows) + 2.5), 4.2)
     ax = fig.add_subplot()
     xs = list(range(len(rows)))
@@ -141,8 +142,14 @@ def _lookup(name: str) -> Suite | None:
         return None
 
 
-def write_plots(records: Sequence[Mapping[str, Any]], out_dir: str | os.PathLike[str]) -> list[Path]:
+def write_plots(
+    records: Sequence[Mapping[str, Any]], out_dir: str | os.PathLike[str], *, problems: list[str] | None = None
+) -> list[Path]:
     """All figures for ``records``: a bar chart per (suite, metric) plus each suite's own plots.
+
+    A suite's own plot hook that raises does not stop the others: with a
+    ``problems`` list, a line naming the suite and the error is added to it
+    and the figures go on; without one the error propagates.
 
     >>> import tempfile
     >>> records = [{"config": {"suite": "selftest", "env": None, "method": "mc", "params": {}}, "seed": 0,
@@ -153,13 +160,26 @@ def write_plots(records: Sequence[Mapping[str, Any]], out_dir: str | os.PathLike
     """
     out_dir = Path(out_dir)
     written: list[Path] = []
+
+    def attempt(what: str, draw: Callable[..., Any], *args: Any) -> Any:
+        try:
+            return draw(*args)
+        except Exception as exc:
+            if problems is None:
+                raise
+            detail = " ".join(str(exc).split())[:300]
+            problems.append(f"{what} could not be drawn: {type(exc).__name__}: {detail}")
+            return None
+
     for table in summarize(records):
         for m in table.metrics:
-            path = metric_bar_chart(table, m.name, out_dir / f"{safe_name(table.suite)}_{safe_name(m.name)}.png")
-            if path is not None:
-                written.append(path)
+            path = out_dir / f"{safe_name(table.suite)}_{safe_name(m.name)}.png"
+            drawn = attempt(path.name, metric_bar_chart, table, m.name, path)
+            if drawn is not None:
+                written.append(drawn)
         suite = _lookup(table.suite)
         if suite is not None and suite.plot is not None:
             suite_records = [r for r in records if r["config"]["suite"] == table.suite]
-            written += [Path(p) for p in suite.plot(suite, suite_records, str(out_dir))]
+            paths = attempt(f"the figures of suite {table.suite!r}", suite.plot, suite, suite_records, str(out_dir))
+            written += [Path(p) for p in paths or ()]
     return written

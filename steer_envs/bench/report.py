@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from steer_envs.bench.store import record_problem
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, get_suite
 
 FORMATS: tuple[str, ...] = ("md", "csv", "json")
@@ -44,8 +45,15 @@ class Stat:
     def of(cls, values: Sequence[float]) -> Stat:
         if not values:
             raise ValueError("Stat.of needs at least one value")
-        std = statistics.stdev(values) if len(values) > 1 else 0.0
-        return cls(len(values), statistics.fmean(values), std, min(values), max(values))
+        try:
+            mean = statistics.fmean(values)
+        except OverflowError:  # a sum beyond the float range
+            mean = math.fsum(v / len(values) for v in values)
+        try:
+            std = statistics.stdev(values) if len(values) > 1 else 0.0
+        except OverflowError:  # a spread beyond the float range
+            std = math.inf
+        return cls(len(values), mean, std, min(values), max(values))
 
 
 @dataclass
@@ -132,15 +140,22 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
     """Tables (one per suite found in ``records``) of per-cell statistics.
 
     Suites that are not registered in this process still get a table, with
-    metric names taken from the records and no references.
+    metric names taken from the records and no references. Each record must
+    pass :func:`~steer_envs.bench.store.record_problem` (``key`` not needed);
+    ``ValueError`` names the first one that does not.
 
     >>> rec = {"config": {"suite": "mine", "env": None, "method": "a", "params": {}}, "seed": 0, "metrics": {"x": 2.0}}
     >>> (table,) = summarize([rec])
     >>> table.suite, table.mean("x", "a")
     ('mine', 2.0)
     """
+    if isinstance(records, (str, bytes, Mapping)) or not isinstance(records, Iterable):
+        raise TypeError(f"records must be an iterable of record mappings, got {type(records).__name__}")
     by_suite: dict[str, list[Mapping[str, Any]]] = {}
-    for rec in records:
+    for i, rec in enumerate(records):
+        problem = record_problem(rec, require_key=False)
+        if problem is not None:
+            raise ValueError(f"records[{i}] is not a trial record: {problem}")
         by_suite.setdefault(rec["config"]["suite"], []).append(rec)
     tables: list[Table] = []
     for suite_name in sorted(by_suite):
@@ -175,9 +190,20 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
             suite_name, description, metrics, rows, varying, default_seeds=suite.default_seeds if suite else None
         )
         if suite is not None and suite.findings is not None:
-            table.findings = list(suite.findings(table))
+            table.findings = _checked_findings(suite, table)
         tables.append(table)
     return tables
+
+
+def _checked_findings(suite: Suite, table: Table) -> list[Finding]:
+    """The suite's findings on ``table``; a hook that fails on unusual records becomes one unchecked finding."""
+    assert suite.findings is not None
+    try:
+        findings = list(suite.findings(table))
+    except Exception as exc:
+        detail = " ".join(str(exc).split())[:200]
+        return [Finding(f"the findings of {suite.name} could not be checked ({type(exc).__name__}: {detail})", None)]
+    return findings
 
 
 def _order(suite: Suite | None, axis: str, value: str | None) -> tuple[int, str]:

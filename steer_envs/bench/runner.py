@@ -21,9 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from steer_envs.bench.executors import Executor, Outcome, make_executor
-from steer_envs.bench.store import ResultStore
+import numpy as np
+
+from steer_envs.bench.executors import EXECUTORS, Executor, Outcome, make_executor
+from steer_envs.bench.store import ResultStore, check_output_dir
 from steer_envs.bench.suite import Suite, Trial, TrialPlan, TrialRequest, get_suite
+from steer_envs.core.validation import boolean, describe, integer
 from steer_envs.envs.registry import NAMESPACE
 
 
@@ -47,10 +50,16 @@ class RunSummary:
         return not self.failures and not self.interrupted
 
 
+#: the most trials one run may plan (a bound that keeps a typo in ``--seeds`` from exhausting memory)
+MAX_PLANNED_TRIALS = 100_000
+
+
 def _pick(axis: str, wanted: Iterable[str] | None, available: Sequence[str | None]) -> tuple[str | None, ...]:
     """The requested subset of an axis, in the suite's order (ValueError on unknown names)."""
     if wanted is None:
         return tuple(available)
+    if isinstance(wanted, (str, bytes)) or not isinstance(wanted, Iterable):
+        raise TypeError(f"{axis}s must be a list of names, got {describe(wanted)}")
     wanted = list(wanted)
     if not wanted:
         raise ValueError(f"--{axis} needs at least one name")
@@ -78,35 +87,65 @@ def build_request(
 ) -> TrialRequest:
     """Validate the ``run`` options against ``suite``.
 
-    ``seeds`` is a count (seeds ``0..N-1``) or an explicit list of seeds.
-    Env names may omit the ``steer_envs/`` namespace.
+    ``seeds`` is a count (seeds ``0..N-1``) or an explicit list of distinct
+    non-negative ints; ``trials`` a positive int; ``params`` a mapping of
+    parameter names. Env names may omit the ``steer_envs/`` namespace. A
+    request of more than :data:`MAX_PLANNED_TRIALS` trials (envs x methods x
+    seeds) is refused. ``TypeError`` / ``ValueError`` name the argument.
 
     >>> from steer_envs.bench.suite import get_suite
     >>> request = build_request(get_suite("smoke"), envs=["ConvexMode-v0"], seeds=[5, 9])
     >>> request.envs, request.seeds
     (('steer_envs/ConvexMode-v0',), (5, 9))
     """
-    if isinstance(seeds, bool):
-        raise TypeError("seeds must be an int count or a sequence of ints")
-    if isinstance(seeds, int):
-        if seeds < 1:
-            raise ValueError(f"seeds must be >= 1, got {seeds}")
-        seed_tuple: tuple[int, ...] | None = tuple(range(seeds))
-    elif seeds is None:
+    if not isinstance(suite, Suite):
+        raise TypeError(f"suite must be a Suite, got {describe(suite)}")
+    seed_tuple: tuple[int, ...] | None
+    if seeds is None:
         seed_tuple = None
+    elif isinstance(seeds, (int, np.integer)) and not isinstance(seeds, (bool, np.bool_)):
+        count = integer(seeds, "seeds", low=1)
+        if count > MAX_PLANNED_TRIALS:
+            raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run, got {count} seeds; split the run")
+        seed_tuple = tuple(range(count))
+    elif isinstance(seeds, (str, bytes, Mapping)) or not isinstance(seeds, Iterable):
+        raise TypeError(f"seeds must be an int count or a sequence of ints, got {describe(seeds)}")
     else:
-        seed_tuple = tuple(seeds)
-        if not seed_tuple or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed_tuple):
-            raise ValueError(f"seeds must be a non-empty sequence of ints, got {seeds!r}")
-    if trials is not None and (isinstance(trials, bool) or not isinstance(trials, int) or trials < 1):
-        raise ValueError(f"trials must be a positive int, got {trials!r}")
-    return TrialRequest(
+        seed_list: list[int] = []
+        for i, s in enumerate(seeds):
+            seed_list.append(integer(s, f"seeds[{i}]", low=0))
+            if len(seed_list) > MAX_PLANNED_TRIALS:
+                raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run; split the run")
+        if not seed_list:
+            raise ValueError("seeds must not be empty")
+        if len(set(seed_list)) != len(seed_list):
+            raise ValueError(f"seeds must be distinct, got {describe(seeds)}")
+        seed_tuple = tuple(seed_list)
+    if trials is not None:
+        trials = integer(trials, "trials", low=1)
+    if params is None:
+        params = {}
+    if not isinstance(params, Mapping):
+        raise TypeError(f"params must be a mapping of parameter names to values, got {describe(params)}")
+    for name in params:
+        if not isinstance(name, str):
+            raise TypeError(f"params names must be strs, got {describe(name)}")
+    request = TrialRequest(
         envs=_pick("env", envs, suite.env_list()),
         methods=_pick("method", methods, suite.method_list()),
         seeds=seed_tuple,
-        params=dict(params or {}),
+        params=dict(params),
         trials=trials,
     )
+    n_seeds = len(seed_tuple) if seed_tuple is not None else suite.default_seeds
+    planned = len(request.envs) * len(request.methods) * n_seeds
+    if planned > MAX_PLANNED_TRIALS:
+        raise ValueError(
+            f"at most {MAX_PLANNED_TRIALS} trials per run, the request makes up to {planned} "
+            f"({len(request.envs)} envs x {len(request.methods)} methods x {n_seeds} seeds); "
+            "use fewer --seeds or split the run by --env / --method"
+        )
+    return request
 
 
 def plan_trials(suite: Suite, request: TrialRequest) -> TrialPlan:
@@ -118,6 +157,18 @@ def plan_trials(suite: Suite, request: TrialRequest) -> TrialPlan:
     6
     """
     plan = suite.plan(request)
+    if not isinstance(plan, TrialPlan):
+        raise TypeError(f"suite {suite.name!r}: plan must be a TrialPlan, got {describe(plan)}")
+    if len(plan.trials) > MAX_PLANNED_TRIALS:
+        raise ValueError(
+            f"suite {suite.name!r} planned {len(plan.trials)} trials, at most {MAX_PLANNED_TRIALS} per run; "
+            "use fewer --seeds or split the run by --env / --method"
+        )
+    for t in plan.trials:
+        if not isinstance(t, Trial):
+            raise TypeError(f"suite {suite.name!r} generated {describe(t)}, not a Trial")
+        if not suite.accepts_records_of(t.suite):
+            raise ValueError(f"suite {suite.name!r} generated a trial of suite {t.suite!r}, which it does not hold")
     keys = [t.key for t in plan.trials]
     if len(set(keys)) != len(keys):
         raise ValueError(f"suite {suite.name!r} generated duplicate trials (same config and seed)")
@@ -162,7 +213,12 @@ def run_suite(
     """Run (or resume) ``suite`` into ``out_dir``; see the module docstring.
 
     ``KeyboardInterrupt`` is caught: the summary comes back with
-    ``interrupted=True`` and every finished trial is on disk.
+    ``interrupted=True`` and every finished trial is on disk. A trial that
+    raises (or whose record cannot be stored) is a failure in the summary and
+    in ``failures.jsonl``; the run goes on. Bad requests raise ``TypeError`` /
+    ``ValueError`` before anything is written; an unusable ``out_dir``
+    :class:`~steer_envs.bench.store.ResultsDirError`; an executor that cannot
+    start :class:`~steer_envs.bench.executors.ExecutorStartError`.
 
     >>> import tempfile
     >>> with tempfile.TemporaryDirectory() as out:
@@ -173,16 +229,24 @@ def run_suite(
     suite = get_suite(suite) if isinstance(suite, str) else suite
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a name or a Suite, got {type(suite).__name__}")
+    out = check_output_dir(out_dir)
+    progress = boolean(progress, "progress")
+    if argv is not None and (isinstance(argv, (str, bytes)) or not all(isinstance(a, str) for a in argv)):
+        raise TypeError(f"argv must be a list of strs or None, got {describe(argv)}")
+    if not isinstance(executor, (str, Executor)):
+        raise TypeError(f"executor must be a name {EXECUTORS} or an Executor, got {describe(executor)}")
     request = build_request(suite, envs=envs, methods=methods, seeds=seeds, trials=trials, params=params)
     plan = plan_trials(suite, request)
     runner = make_executor(executor, workers, address) if isinstance(executor, str) else executor
-    summary = RunSummary(suite.name, Path(out_dir), planned=len(plan.trials), skipped=0, completed=0)
+    summary = RunSummary(suite.name, out, planned=len(plan.trials), skipped=0, completed=0)
     summary.notes.extend(plan.notes)
-    with ResultStore(out_dir, suite.name) as store:
+    with ResultStore(out, suite.name, accepts_suite=suite.accepts_records_of) as store:
         summary.notes.extend(store.notes)
         done = store.finished_keys
         todo: list[Trial] = [t for t in plan.trials if t.key not in done]
         summary.skipped = len(plan.trials) - len(todo)
+        if todo:
+            runner.start()  # an executor that cannot start fails here, before the session is recorded
         store.start_session(
             {
                 "argv": list(argv) if argv is not None else None,
@@ -205,9 +269,8 @@ def run_suite(
         try:
             with runner:
                 for outcome in runner.map(todo):
-                    outcome = check_metrics(outcome)
+                    outcome = _store_outcome(store, check_metrics(outcome))
                     if outcome.ok:
-                        store.append(outcome.record)  # type: ignore[arg-type]
                         summary.completed += 1
                     else:
                         summary.failures.append(outcome)
@@ -231,6 +294,17 @@ def run_suite(
                 bar.close()
         summary.records = list(store.records)
     return summary
+
+
+def _store_outcome(store: ResultStore, outcome: Outcome) -> Outcome:
+    """Append a finished trial's record; a record the store refuses turns the outcome into a failure."""
+    if outcome.record is None:
+        return outcome
+    try:
+        store.append(outcome.record)
+    except (TypeError, ValueError) as exc:
+        return Outcome(outcome.trial, None, f"{type(exc).__name__}: the trial's record cannot be stored: {exc}")
+    return outcome
 
 
 def _progress_bar(name: str, total: int, *, enabled: bool) -> Any:

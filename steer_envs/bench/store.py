@@ -5,47 +5,103 @@ Layout of ``--out DIR``::
     results.jsonl   one finished trial per line, appended as each trial finishes
     failures.jsonl  trials that raised (they are re-run on resume)
     manifest.json   which suite the directory holds and one entry per session
-    discarded.jsonl bytes dropped while repairing (a torn last line), for forensics
+    discarded.jsonl the quarantine: every line moved out of results.jsonl while repairing it, with the reason
+    summary.md      the last run's table (written by ``steer-bench run``)
 
 Every line is written with one ``os.write`` on an ``O_APPEND`` descriptor and
-``fsync``-ed before the next trial is recorded. A writer killed mid-write can
-still leave a torn last line; :func:`read_jsonl` ignores it and
-:meth:`ResultStore.open` rewrites the file without it (temp file +
-``os.replace``) and says so in :attr:`ResultStore.notes`, so a resumed run
-appends after the last complete record.
-Records are keyed by :attr:`Trial.key`; duplicates are dropped on read.
+``fsync``-ed before the next trial is recorded, so the good lines of
+``results.jsonl`` are never rewritten in place. A line that is not a valid
+record of this directory (a torn last line of a killed writer, garbage,
+valid JSON that is not a record: wrong types, missing fields, a key that does
+not match its config, a foreign suite, a duplicate key) is skipped by every
+reader, and :meth:`ResultStore.open` (the start of ``steer-bench run``) moves
+it to ``discarded.jsonl`` with the reason, rewrites ``results.jsonl`` with the
+good lines byte for byte (temp file + ``os.replace``) and says so in
+:attr:`ResultStore.notes`. A valid last line that misses only its newline is a
+finished trial: it is kept and the newline appended. A resumed run therefore
+appends after the last good record, and no finished trial is run twice.
 
 >>> import tempfile
+>>> from steer_envs.bench.suite import Trial
+>>> trial = Trial("selftest", None, "mc", 0, {}, "math:sqrt")
+>>> record = {"key": trial.key, "config": trial.config, "seed": 0, "metrics": {"pi": 3.1}}
 >>> with tempfile.TemporaryDirectory() as out:
 ...     with ResultStore(out, suite="selftest") as store:
-...         store.append({"key": "k1", "config": {"suite": "selftest"}, "seed": 0, "metrics": {"pi": 3.1}})
+...         store.append(record)
+...     with open(Path(out) / RESULTS_FILE, "ab") as fh:  # a line that is JSON but no record
+...         _ = fh.write(b'{"key": "x"}\\n')
 ...     manifest, records, report = load_results(out)
->>> manifest["suite"], [r["key"] for r in records], report.clean
-('selftest', ['k1'], True)
+...     with ResultStore(out, suite="selftest") as store:  # quarantines the bad line
+...         notes = store.notes
+>>> manifest["suite"], [r["key"] for r in records] == [trial.key], report.corrupt_lines
+('selftest', True, [2])
+>>> notes
+["quarantined 1 line of results.jsonl in discarded.jsonl: line 2: 'config' is missing"]
 """
 
 from __future__ import annotations
 
+import base64
 import json
+import math
 import os
-from collections.abc import Mapping
+import stat
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
+from steer_envs.bench.suite import get_suite, trial_key
+from steer_envs.core.validation import describe
 from steer_envs.io import atomic_write_bytes, atomic_write_text, fsync_dir
+
+__all__ = [
+    "DISCARDED_FILE",
+    "FAILURES_FILE",
+    "MANIFEST_FILE",
+    "RESULTS_FILE",
+    "SUMMARY_FILE",
+    "BadLine",
+    "ReadReport",
+    "ResultStore",
+    "ResultsDirError",
+    "StoreLockedError",
+    "atomic_write_text",
+    "check_output_dir",
+    "encode_record",
+    "load_results",
+    "read_jsonl",
+    "record_problem",
+    "trial_key",
+]
 
 RESULTS_FILE = "results.jsonl"
 FAILURES_FILE = "failures.jsonl"
 MANIFEST_FILE = "manifest.json"
 DISCARDED_FILE = "discarded.jsonl"
+SUMMARY_FILE = "summary.md"
 LOCK_FILE = ".lock"
 SCHEMA_VERSION = 1
+#: files of a results directory that must be regular files when they exist
+_DIR_FILES = (RESULTS_FILE, FAILURES_FILE, MANIFEST_FILE, DISCARDED_FILE, SUMMARY_FILE, LOCK_FILE)
+#: bad lines named one by one in a note (the rest are counted)
+_NOTE_LINES = 5
 
 
 class StoreLockedError(RuntimeError):
     """Another ``steer-bench run`` is writing to the same directory."""
+
+
+class ResultsDirError(ValueError):
+    """A results directory that cannot be used; the message names the path and what is wrong.
+
+    Raised for a path that is (or lies under) a regular file, a folder that
+    cannot be created or written, a ``manifest.json`` that is not a
+    steer-bench manifest (garbage, ``[]``, no ``suite``), a directory of
+    another suite, and a ``results.jsonl`` (or any other file of the layout)
+    that is a folder, a FIFO or a broken link.
+    """
 
 
 def utc_now() -> str:
@@ -69,28 +125,228 @@ def encode_record(record: Mapping[str, Any]) -> bytes:
         text = json.dumps(record, sort_keys=True, allow_nan=False, separators=(",", ":"))
     except ValueError as exc:
         raise ValueError(f"record is not strict JSON (NaN or inf?): {exc}") from None
+    except RecursionError:
+        raise ValueError("record is nested too deeply to be written as JSON") from None
     return (text + "\n").encode("utf-8")
+
+
+def _finite_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def record_problem(
+    record: Any, *, accepts_suite: Callable[[str], bool] | None = None, require_key: bool = True
+) -> str | None:
+    """What makes ``record`` not a valid trial record, or ``None`` when it is one.
+
+    A record is a JSON object with ``config`` (``suite``: a non-empty string,
+    ``env`` and ``method``: a string or null, ``params``: an object), an int
+    ``seed``, ``metrics`` (names -> finite numbers or null), optionally an
+    ``extra`` object and ``schema`` 1, and (with ``require_key``) the ``key``
+    :func:`trial_key` gives for its config and seed. ``accepts_suite`` says
+    which ``config.suite`` values belong (default: any). Never raises.
+
+    >>> from steer_envs.bench.suite import Trial
+    >>> t = Trial("selftest", None, "mc", 3, {}, "math:sqrt")
+    >>> record_problem({"key": t.key, "config": t.config, "seed": 3, "metrics": {"pi": 3.1}}) is None
+    True
+    >>> record_problem({"key": t.key, "config": t.config, "seed": "3", "metrics": {}})
+    "'seed' must be an int, got str '3'"
+    >>> record_problem({"key": "x"})
+    "'config' is missing"
+    """
+    if not isinstance(record, Mapping):
+        return f"not a JSON object, got {type(record).__name__}"
+    if "schema" in record and (not isinstance(record["schema"], int) or record["schema"] != SCHEMA_VERSION):
+        return f"'schema' must be {SCHEMA_VERSION}, got {describe(record['schema'])}"
+    if "config" not in record:
+        return "'config' is missing"
+    config = record["config"]
+    if not isinstance(config, Mapping):
+        return f"'config' must be an object, got {describe(config)}"
+    for name in ("suite", "env", "method", "params"):
+        if name not in config:
+            return f"'config.{name}' is missing"
+    suite = config["suite"]
+    if not isinstance(suite, str) or not suite:
+        return f"'config.suite' must be a non-empty string, got {describe(suite)}"
+    for name in ("env", "method"):
+        if config[name] is not None and not isinstance(config[name], str):
+            return f"'config.{name}' must be a string or null, got {describe(config[name])}"
+    if not isinstance(config["params"], Mapping):
+        return f"'config.params' must be an object, got {describe(config['params'])}"
+    if accepts_suite is not None and not accepts_suite(suite):
+        return f"a record of suite {suite!r}, which does not belong in this directory"
+    seed = record.get("seed")
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        return "'seed' is missing" if "seed" not in record else f"'seed' must be an int, got {describe(seed)}"
+    metrics = record.get("metrics")
+    if not isinstance(metrics, Mapping):
+        return (
+            "'metrics' is missing"
+            if "metrics" not in record
+            else f"'metrics' must be an object, got {describe(metrics)}"
+        )
+    for name, value in metrics.items():
+        if value is not None and not _finite_number(value):
+            return f"metric {name!r} must be a finite number or null, got {describe(value)}"
+    if "extra" in record and not isinstance(record["extra"], Mapping):
+        return f"'extra' must be an object, got {describe(record['extra'])}"
+    if require_key:
+        key = record.get("key")
+        if not isinstance(key, str):
+            return "'key' is missing" if "key" not in record else f"'key' must be a string, got {describe(key)}"
+        try:
+            expected = trial_key(config, seed)
+        except (TypeError, ValueError, RecursionError):  # pragma: no cover - parsed JSON always serialises
+            return "'config' cannot be hashed"
+        if key != expected:
+            return f"'key' {key!r} does not match its config and seed (expected {expected!r})"
+    return None
+
+
+# ------------------------------------------------------------------ reading
+BadKind = Literal["corrupt", "invalid", "duplicate"]
+
+
+@dataclass(frozen=True)
+class BadLine:
+    """A complete line that a reader skipped: ``corrupt`` (not JSON), ``invalid`` (no record) or ``duplicate``."""
+
+    line: int  # 1-based
+    kind: BadKind
+    reason: str
+    raw: bytes = field(repr=False)
 
 
 @dataclass
 class ReadReport:
-    """What :func:`read_jsonl` had to skip."""
+    """What :func:`read_jsonl` had to skip or fix."""
 
-    torn_tail: bytes = b""  # bytes after the last newline (a writer killed mid-line)
-    corrupt_lines: list[int] = field(default_factory=list)  # 1-based numbers of unparsable complete lines
-    duplicates: int = 0  # records whose key was already seen (first one kept)
+    torn_tail: bytes = b""  # bytes after the last newline that are not a record (a writer killed mid-line)
+    bad_lines: list[BadLine] = field(default_factory=list)  # complete lines that were skipped
+    missing_newline: bool = False  # the last line was a valid record without its newline (it is kept)
+
+    @property
+    def corrupt_lines(self) -> list[int]:
+        """1-based numbers of the lines that are not a valid record (unparsable or invalid)."""
+        return [b.line for b in self.bad_lines if b.kind != "duplicate"]
+
+    @property
+    def duplicates(self) -> int:
+        """Records whose key was already seen (the first one is kept)."""
+        return sum(b.kind == "duplicate" for b in self.bad_lines)
 
     @property
     def clean(self) -> bool:
-        return not self.torn_tail and not self.corrupt_lines and not self.duplicates
+        return not self.torn_tail and not self.bad_lines and not self.missing_newline
+
+    def describe(self, filename: str = RESULTS_FILE) -> list[str]:
+        """One line per kind of problem (the bad lines named up to five, then counted).
+
+        >>> ReadReport(torn_tail=b'{"ke', missing_newline=False).describe()
+        ['a torn last line of results.jsonl (4 bytes; a writer was killed mid-line)']
+        """
+        notes = []
+        if self.torn_tail:
+            notes.append(f"a torn last line of {filename} ({len(self.torn_tail)} bytes; a writer was killed mid-line)")
+        if self.bad_lines:
+            notes.append(f"{_count_lines(self.bad_lines)} of {filename} skipped: {_name_lines(self.bad_lines)}")
+        if self.missing_newline:
+            notes.append(f"the last record of {filename} had no newline (kept: the trial had finished)")
+        return notes
 
 
-def read_jsonl(path: str | os.PathLike[str], *, key: str | None = "key") -> tuple[list[dict[str, Any]], ReadReport]:
-    r"""Records of a JSON-lines file, tolerating a torn last line.
+def _count_lines(bad: list[BadLine]) -> str:
+    return f"{len(bad)} line" + ("" if len(bad) == 1 else "s")
 
-    Complete lines that do not parse as a JSON object (with ``key``, when
-    given) are skipped and listed in the report; with ``key``, later
-    duplicates of a key are dropped. A missing file reads as empty.
+
+def _name_lines(bad: list[BadLine]) -> str:
+    named = "; ".join(f"line {b.line}: {b.reason}" for b in bad[:_NOTE_LINES])
+    return named + (f"; and {len(bad) - _NOTE_LINES} more" if len(bad) > _NOTE_LINES else "")
+
+
+class _NotStrict(ValueError):
+    pass
+
+
+def _no_constant(name: str) -> Any:
+    raise _NotStrict(name)
+
+
+def _parse_line(raw: bytes) -> tuple[Any, str | None]:
+    """``(value, None)`` for a line of strict JSON, ``(None, reason)`` otherwise."""
+    try:
+        return json.loads(raw, parse_constant=_no_constant), None
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except json.JSONDecodeError as exc:
+        return None, f"not JSON ({exc.msg} at column {exc.colno})"
+    except _NotStrict as exc:
+        return None, f"not strict JSON ({exc} is no JSON number)"
+    except RecursionError:
+        return None, "JSON nested too deeply"
+
+
+def _scan(
+    data: bytes, *, key: str | None, validate: Callable[[dict[str, Any]], str | None] | None
+) -> tuple[list[dict[str, Any]], list[bytes], ReadReport]:
+    """Records, the raw bytes of their lines (no newline) and the report for the content of a JSON-lines file."""
+    report = ReadReport()
+    records: list[dict[str, Any]] = []
+    kept: list[bytes] = []
+    seen: dict[str, int] = {}
+    lines = data.split(b"\n")
+    tail = lines.pop()  # after the last newline: b"" for a complete file
+    if tail and not tail.strip():
+        tail = b""
+    for lineno, raw in enumerate([*lines, tail], start=1):
+        last = lineno == len(lines) + 1
+        if not raw.strip():
+            continue
+        value, reason = _parse_line(raw)
+        kind: BadKind = "corrupt"
+        if reason is None:
+            kind = "invalid"
+            if not isinstance(value, dict):
+                reason = f"not a JSON object, got {type(value).__name__}"
+            elif key is not None and not isinstance(value.get(key), str):
+                reason = f"no string {key!r}"
+            elif validate is not None:
+                reason = validate(value)
+        if reason is None and key is not None and value[key] in seen:
+            kind, reason = "duplicate", f"duplicate of line {seen[value[key]]} (key {value[key]})"
+        if reason is not None:
+            if last and kind == "corrupt":
+                report.torn_tail = raw
+            else:
+                report.bad_lines.append(
+                    BadLine(lineno, kind, reason + (" (last line, no newline)" if last else ""), raw)
+                )
+            continue
+        if key is not None:
+            seen[value[key]] = lineno
+        if last:
+            report.missing_newline = True
+        records.append(value)
+        kept.append(raw)
+    return records, kept, report
+
+
+def read_jsonl(
+    path: str | os.PathLike[str],
+    *,
+    key: str | None = "key",
+    validate: Callable[[dict[str, Any]], str | None] | None = None,
+) -> tuple[list[dict[str, Any]], ReadReport]:
+    r"""Records of a JSON-lines file, tolerating a torn last line and bad lines.
+
+    A line is kept when it parses as a JSON object, carries a string ``key``
+    (when given) and passes ``validate`` (a function returning what is wrong,
+    or ``None``); with ``key``, later duplicates of a key are dropped. Skipped
+    lines are listed in the report. A last line without its newline is kept
+    when it is a valid record, else reported as the torn tail. A missing file
+    reads as empty; anything but a regular file raises :class:`ResultsDirError`.
 
     >>> import tempfile
     >>> with tempfile.TemporaryDirectory() as tmp:
@@ -101,60 +357,128 @@ def read_jsonl(path: str | os.PathLike[str], *, key: str | None = "key") -> tupl
     (['a'], 1, [3], b'{"key": "b", "tor')
     """
     path = Path(path)
-    report = ReadReport()
-    if not path.exists():
-        return [], report
-    data = path.read_bytes()
-    body, sep, tail = data.rpartition(b"\n")
-    if not sep:  # no newline at all: everything is a torn line
-        body, tail = b"", data
-    report.torn_tail = tail
-    records: list[dict[str, Any]] = []
-    seen: set[str] = set()
-    if body or sep:
-        for lineno, raw in enumerate(body.split(b"\n"), start=1):
-            if not raw.strip():
-                continue
-            try:
-                rec = json.loads(raw)
-            except (json.JSONDecodeError, UnicodeDecodeError):
-                report.corrupt_lines.append(lineno)
-                continue
-            if not isinstance(rec, dict) or (key is not None and not isinstance(rec.get(key), str)):
-                report.corrupt_lines.append(lineno)
-                continue
-            if key is not None:
-                if rec[key] in seen:
-                    report.duplicates += 1
-                    continue
-                seen.add(rec[key])
-            records.append(rec)
+    if not os.path.lexists(path):
+        return [], ReadReport()
+    records, _, report = _scan(_read_regular(path), key=key, validate=validate)
     return records, report
+
+
+def _read_regular(path: Path) -> bytes:
+    _require_regular(path)
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise ResultsDirError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def _require_regular(path: Path) -> None:
+    """``ResultsDirError`` unless ``path`` is missing or a regular file (a link to one is fine)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if os.path.islink(path):
+            raise ResultsDirError(f"{path} is a broken symbolic link") from None
+        return
+    except OSError as exc:
+        raise ResultsDirError(f"cannot use {path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "not a regular file"
+        raise ResultsDirError(f"{path} is {kind}; a steer-bench directory holds a regular file there")
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    data = _read_regular(path)
+    value, reason = _parse_line(data)
+    if reason is not None:
+        raise ResultsDirError(f"{path} is {reason}; is this a steer-bench --out directory?")
+    if not isinstance(value, dict) or not isinstance(value.get("suite"), str) or not value["suite"]:
+        got = "no 'suite'" if isinstance(value, dict) else f"a JSON {type(value).__name__}"
+        raise ResultsDirError(
+            f"{path} is not a steer-bench manifest (a JSON object with a 'suite' name), got {got}; "
+            "is this a steer-bench --out directory?"
+        )
+    if "sessions" in value and not isinstance(value["sessions"], list):
+        raise ResultsDirError(f"{path}: 'sessions' must be a list, got {describe(value['sessions'])}")
+    if "schema" in value and value["schema"] != SCHEMA_VERSION:
+        raise ResultsDirError(f"{path}: schema {value['schema']!r} is not {SCHEMA_VERSION} (another steer-bench?)")
+    return value
+
+
+def check_output_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
+    """``path`` as a :class:`Path` if it is, or can become, a folder (nothing is created).
+
+    ``TypeError`` for a non-path, :class:`ResultsDirError` for an empty path,
+    a path that is a file or lies under one, and an existing folder that
+    cannot be written; ``what`` names the option in the message.
+
+    >>> check_output_dir("")
+    Traceback (most recent call last):
+    steer_envs.bench.store.ResultsDirError: --out must not be empty (it would write into the current folder)
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"{what} must be a str or os.PathLike path, got {describe(path)}")
+    text = os.fspath(path)
+    if not isinstance(text, str):
+        raise TypeError(f"{what} must be a str path, got bytes")
+    if not text.strip():
+        raise ResultsDirError(f"{what} must not be empty (it would write into the current folder)")
+    if "\x00" in text:
+        raise ResultsDirError(f"{what} must not contain NUL characters")
+    target = Path(text)
+    probe = target
+    while True:
+        try:
+            mode = os.stat(probe).st_mode
+        except (FileNotFoundError, NotADirectoryError):  # missing, or a parent is a file: look further up
+            if probe.parent == probe:
+                break
+            probe = probe.parent
+            continue
+        except OSError as exc:
+            raise ResultsDirError(f"{what} {target}: cannot use {probe} ({exc.strerror or exc})") from None
+        if not stat.S_ISDIR(mode):
+            where = "exists and is not a folder" if probe == target else f"lies under {probe}, which is not a folder"
+            raise ResultsDirError(f"{what} {target} {where}")
+        if not os.access(probe, os.W_OK | os.X_OK):
+            raise ResultsDirError(f"{what} {target}: {probe} is not writable")
+        break
+    return target
 
 
 class ResultStore:
     """Exclusive, append-only access to one results directory.
 
     Use as a context manager (it locks the directory; a second writer gets
-    :class:`StoreLockedError`):
+    :class:`StoreLockedError`; an unusable directory :class:`ResultsDirError`).
+    ``accepts_suite`` says which ``config.suite`` a record may carry (default:
+    only ``suite``; a tour such as ``quick`` holds records of other suites).
 
     >>> import tempfile
+    >>> from steer_envs.bench.suite import Trial
+    >>> trial = Trial("smoke", "steer_envs/ConvexMode-v0", "expert", 0, {}, "math:sqrt")
     >>> with tempfile.TemporaryDirectory() as out:
     ...     with ResultStore(out, suite="smoke") as store:
-    ...         if "k1" not in store.finished_keys:
-    ...             store.append({"key": "k1", "metrics": {}})
+    ...         if trial.key not in store.finished_keys:
+    ...             store.append({"key": trial.key, "config": trial.config, "seed": 0, "metrics": {}})
     ...     with ResultStore(out, suite="smoke") as resumed:
-    ...         sorted(resumed.finished_keys)
-    ['k1']
+    ...         resumed.finished_keys == {trial.key}
+    True
     """
 
-    def __init__(self, out_dir: str | os.PathLike[str], suite: str) -> None:
+    def __init__(
+        self, out_dir: str | os.PathLike[str], suite: str, *, accepts_suite: Callable[[str], bool] | None = None
+    ) -> None:
         if not isinstance(suite, str) or not suite:
             raise ValueError(f"suite must be a non-empty string, got {suite!r}")
-        self.out_dir = Path(out_dir)
+        if accepts_suite is not None and not callable(accepts_suite):
+            raise TypeError(f"accepts_suite must be a function str -> bool, got {describe(accepts_suite)}")
+        self.out_dir = check_output_dir(out_dir)
         self.suite = suite
+        self.accepts_suite: Callable[[str], bool] = accepts_suite or suite.__eq__
         self.records: list[dict[str, Any]] = []
         self.notes: list[str] = []
+        self._keys: set[str] = set()
+        self._manifest: dict[str, Any] = {}
         self._fd: int | None = None
         self._lock_fd: int | None = None
 
@@ -165,20 +489,30 @@ class ResultStore:
     @property
     def finished_keys(self) -> set[str]:
         """Keys of the trials already recorded."""
-        return {r["key"] for r in self.records}
+        return set(self._keys)
+
+    def problem(self, record: Any) -> str | None:
+        """What makes ``record`` not a valid record of this directory (``None`` when it is one)."""
+        return record_problem(record, accepts_suite=self.accepts_suite)
 
     # -------------------------------------------------------------- lifecycle
     def open(self) -> ResultStore:
-        """Lock the directory, check the manifest, repair a torn tail, load the records."""
-        if self.out_dir.exists() and not self.out_dir.is_dir():
-            raise ValueError(f"--out {self.out_dir} exists and is not a directory")
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        """Lock the directory, check the manifest, quarantine bad lines, load the records."""
+        check_output_dir(self.out_dir)
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ResultsDirError(f"--out {self.out_dir}: cannot create it ({exc.strerror or exc})") from None
+        for name in _DIR_FILES:
+            _require_regular(self.out_dir / name)
         self._lock()
         try:
             self._check_manifest()
             self._repair_and_load()
-            self._fd = os.open(self.results_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-            fsync_dir(self.out_dir)
+            self._fd = _open_append(self.results_path)
+        except OSError as exc:
+            self.close()
+            raise ResultsDirError(f"--out {self.out_dir}: {exc.strerror or exc} ({exc.filename or ''})") from None
         except BaseException:
             self.close()
             raise
@@ -204,7 +538,10 @@ class ResultStore:
             import fcntl
         except ImportError:  # pragma: no cover - non-POSIX: no inter-process lock
             return
-        fd = os.open(self.out_dir / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fd = _open_append(self.out_dir / LOCK_FILE, write=False)
+        except OSError as exc:
+            raise ResultsDirError(f"--out {self.out_dir}: cannot create {LOCK_FILE} ({exc.strerror or exc})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -214,71 +551,97 @@ class ResultStore:
 
     def _check_manifest(self) -> None:
         path = self.out_dir / MANIFEST_FILE
-        if path.exists():
-            try:
-                manifest = json.loads(path.read_text())
-            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-                raise ValueError(f"{path} is not valid JSON ({exc}); is --out a steer-bench directory?") from None
-            if manifest.get("suite") != self.suite:
-                raise ValueError(
-                    f"{self.out_dir} holds results of suite {manifest.get('suite')!r}, not {self.suite!r}; "
+        if os.path.lexists(path):
+            manifest = _read_manifest(path)
+            if manifest["suite"] != self.suite:
+                raise ResultsDirError(
+                    f"{self.out_dir} holds results of suite {manifest['suite']!r}, not {self.suite!r}; "
                     "choose another --out"
                 )
         elif any(self.out_dir.glob("*.jsonl")):
-            raise ValueError(f"{self.out_dir} has JSON lines but no {MANIFEST_FILE}; not a steer-bench directory")
+            raise ResultsDirError(f"{self.out_dir} has JSON lines but no {MANIFEST_FILE}; not a steer-bench directory")
         else:
             manifest = {"schema": SCHEMA_VERSION, "suite": self.suite, "created": utc_now(), "sessions": []}
             atomic_write_text(path, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        self._manifest = manifest
 
     def _repair_and_load(self) -> None:
-        self.records, report = read_jsonl(self.results_path)
+        data = _read_regular(self.results_path) if self.results_path.exists() else b""
+        self.records, kept, report = _scan(data, key="key", validate=self.problem)
+        self._keys = {r["key"] for r in self.records}
         if report.clean:
             return
-        discarded: list[dict[str, Any]] = []
+        quarantined: list[tuple[int | None, str, bytes]] = [(b.line, b.reason, b.raw) for b in report.bad_lines]
         if report.torn_tail:
-            discarded.append(
-                {"at": utc_now(), "reason": "torn last line", "bytes": report.torn_tail.decode("utf-8", "replace")}
-            )
-            self.notes.append(f"dropped a torn last line ({len(report.torn_tail)} bytes) from {RESULTS_FILE}")
-        if report.corrupt_lines:
-            lines = self.results_path.read_bytes().split(b"\n")
-            for n in report.corrupt_lines:
-                discarded.append(
-                    {"at": utc_now(), "reason": f"corrupt line {n}", "bytes": lines[n - 1].decode("utf-8", "replace")}
+            quarantined.append((None, "torn last line", report.torn_tail))
+        if quarantined:
+            at = utc_now()
+            _append(self.out_dir / DISCARDED_FILE, b"".join(_quarantine_entry(at, *q) for q in quarantined))
+            if report.torn_tail:
+                self.notes.append(f"dropped a torn last line ({len(report.torn_tail)} bytes) from {RESULTS_FILE}")
+            if report.bad_lines:
+                bad = report.bad_lines
+                self.notes.append(
+                    f"quarantined {_count_lines(bad)} of {RESULTS_FILE} in {DISCARDED_FILE}: {_name_lines(bad)}"
                 )
-            self.notes.append(f"dropped corrupt lines {report.corrupt_lines} from {RESULTS_FILE}")
-        if report.duplicates:
-            self.notes.append(f"dropped {report.duplicates} duplicate records from {RESULTS_FILE}")
-        for item in discarded:
-            _append_line(self.out_dir / DISCARDED_FILE, encode_record(item))
-        atomic_write_bytes(self.results_path, b"".join(encode_record(r) for r in self.records))
+            atomic_write_bytes(self.results_path, b"".join(raw + b"\n" for raw in kept))
+        else:  # only the newline of a finished last record is missing
+            _append(self.results_path, b"\n")
+        if report.missing_newline:
+            self.notes.append(f"the last record of {RESULTS_FILE} had no newline: kept, newline appended")
 
     # ---------------------------------------------------------------- writing
     def append(self, record: Mapping[str, Any]) -> None:
-        """Append one finished trial (flushed and fsync-ed before returning)."""
+        """Append one finished trial (flushed and fsync-ed before returning).
+
+        ``ValueError`` for a record that :func:`record_problem` refuses (it
+        would be quarantined on the next open) or whose key is recorded already.
+        """
         if self._fd is None:
             raise RuntimeError("ResultStore is not open")
-        if not isinstance(record.get("key"), str):
-            raise ValueError("record must carry a string 'key'")
-        if record["key"] in self.finished_keys:
-            raise ValueError(f"trial {record['key']} is already recorded in {self.results_path}")
         data = encode_record(record)
+        problem = self.problem(json.loads(data))
+        if problem is not None:
+            raise ValueError(f"not a valid record of {self.results_path}: {problem}")
+        if record["key"] in self._keys:
+            raise ValueError(f"trial {record['key']} is already recorded in {self.results_path}")
         _write_all(self._fd, data)
         os.fsync(self._fd)
         self.records.append(dict(record))
+        self._keys.add(record["key"])
 
     def append_failure(self, record: Mapping[str, Any]) -> None:
         """Log a failed trial to ``failures.jsonl`` (informational; the trial is re-run on resume)."""
-        _append_line(self.out_dir / FAILURES_FILE, encode_record(record))
+        _append(self.out_dir / FAILURES_FILE, encode_record(record))
 
     def start_session(self, info: Mapping[str, Any]) -> None:
         """Record one ``run`` invocation in ``manifest.json`` (atomic rewrite)."""
         if self._fd is None:
             raise RuntimeError("ResultStore is not open")
-        path = self.out_dir / MANIFEST_FILE
-        manifest = json.loads(path.read_text())
-        manifest.setdefault("sessions", []).append({"started": utc_now(), **dict(info)})
-        atomic_write_text(path, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        manifest = dict(self._manifest)
+        manifest["sessions"] = [*manifest.get("sessions", []), {"started": utc_now(), **dict(info)}]
+        atomic_write_text(self.out_dir / MANIFEST_FILE, json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        self._manifest = manifest
+
+
+def _quarantine_entry(at: str, line: int | None, reason: str, raw: bytes) -> bytes:
+    entry: dict[str, Any] = {"at": at, "file": RESULTS_FILE, "line": line, "reason": reason}
+    try:
+        entry["bytes"] = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        entry["bytes"] = raw.decode("utf-8", "replace")
+        entry["base64"] = base64.b64encode(raw).decode("ascii")
+    return encode_record(entry)
+
+
+def _open_append(path: Path, *, write: bool = True) -> int:
+    """An ``O_APPEND`` descriptor of ``path`` (created with the usual ``0o666 & ~umask`` mode)."""
+    created = not os.path.lexists(path)
+    flags = (os.O_WRONLY | os.O_APPEND if write else os.O_RDWR) | os.O_CREAT
+    fd = os.open(path, flags, 0o666)
+    if created:
+        fsync_dir(path.parent)
+    return fd
 
 
 def _write_all(fd: int, data: bytes) -> None:
@@ -288,8 +651,8 @@ def _write_all(fd: int, data: bytes) -> None:
         view = view[written:]
 
 
-def _append_line(path: Path, data: bytes) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+def _append(path: Path, data: bytes) -> None:
+    fd = _open_append(path)
     try:
         _write_all(fd, data)
         os.fsync(fd)
@@ -297,21 +660,39 @@ def _append_line(path: Path, data: bytes) -> None:
         os.close(fd)
 
 
-def load_results(out_dir: str | os.PathLike[str]) -> tuple[dict[str, Any], list[dict[str, Any]], ReadReport]:
-    """Manifest and records of a results directory, read-only (no lock, no repair).
+def _lookup_acceptor(suite: str) -> Callable[[str], bool] | None:
+    """Which record suites a directory of ``suite`` holds (``None``: any, the suite is not registered here)."""
+    try:
+        return get_suite(suite).accepts_records_of
+    except KeyError:
+        return None
 
-    ``FileNotFoundError`` when ``out_dir`` is not a steer-bench directory.
+
+def load_results(
+    out_dir: str | os.PathLike[str],
+) -> tuple[dict[str, Any], list[dict[str, Any]], ReadReport]:
+    """Manifest and valid records of a results directory, read-only (no lock, no repair).
+
+    Bad lines are skipped and listed in the report (:meth:`ReadReport.describe`);
+    the next :meth:`ResultStore.open` quarantines them. ``FileNotFoundError``
+    when ``out_dir`` is not a steer-bench directory, :class:`ResultsDirError`
+    when its manifest or results file cannot be read.
 
     >>> load_results("/nonexistent/steer-bench-dir")
     Traceback (most recent call last):
     FileNotFoundError: no results directory at /nonexistent/steer-bench-dir
     """
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise TypeError(f"out_dir must be a str or os.PathLike path, got {describe(out_dir)}")
     out_dir = Path(out_dir)
-    if not out_dir.is_dir():
+    if not str(out_dir).strip() or not out_dir.is_dir():
         raise FileNotFoundError(f"no results directory at {out_dir}")
     manifest_path = out_dir / MANIFEST_FILE
-    if not manifest_path.exists():
+    if not os.path.lexists(manifest_path):
         raise FileNotFoundError(f"{out_dir} has no {MANIFEST_FILE}; is it a steer-bench --out directory?")
-    manifest = json.loads(manifest_path.read_text())
-    records, report = read_jsonl(out_dir / RESULTS_FILE)
+    manifest = _read_manifest(manifest_path)
+    accepts = _lookup_acceptor(manifest["suite"])
+    records, report = read_jsonl(
+        out_dir / RESULTS_FILE, validate=lambda rec: record_problem(rec, accepts_suite=accepts)
+    )
     return manifest, records, report

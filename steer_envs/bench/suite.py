@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from steer_envs.bench.params import NoParams, SuiteParams, params_from_defaults
+from steer_envs.core.validation import describe
 
 #: modules whose import registers the built-in suites (later domains append theirs)
 BUILTIN_SUITE_MODULES: tuple[str, ...] = (
@@ -131,14 +132,28 @@ class Trial:
     fn: str
 
     def __post_init__(self) -> None:
+        if not isinstance(self.suite, str):
+            raise TypeError(f"Trial.suite must be a str, got {describe(self.suite)}")
+        if not self.suite:
+            raise ValueError("Trial.suite must not be empty")
+        for name in ("env", "method"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, str):
+                raise TypeError(f"Trial.{name} must be a str or None, got {describe(value)}")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool):
             raise TypeError(f"Trial.seed must be an int, got {type(self.seed).__name__}")
+        if not isinstance(self.fn, str):
+            raise TypeError(f"Trial.fn must be a 'module:function' str, got {describe(self.fn)}")
         if ":" not in self.fn:
             raise ValueError(f"Trial.fn must be 'module:function', got {self.fn!r}")
+        if not isinstance(self.params, Mapping):
+            raise TypeError(f"Trial.params must be a mapping of parameter names to values, got {describe(self.params)}")
         try:
             canonical = json.dumps(dict(self.params), sort_keys=True, allow_nan=False)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"Trial.params must be JSON-serialisable with finite numbers: {exc}") from None
+        except RecursionError:
+            raise ValueError("Trial.params is nested too deeply") from None
         object.__setattr__(self, "params", json.loads(canonical))
 
     @property
@@ -148,9 +163,8 @@ class Trial:
 
     @property
     def key(self) -> str:
-        """Stable id of the trial (hash of config + seed; ``fn`` excluded so code can move)."""
-        blob = json.dumps({**self.config, "seed": self.seed}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()[:20]
+        """Stable id of the trial (:func:`trial_key` of config + seed; ``fn`` excluded so code can move)."""
+        return trial_key(self.config, self.seed)
 
     @property
     def label(self) -> str:
@@ -223,6 +237,16 @@ class Finding:
     detail: str = ""
 
 
+def trial_key(config: Mapping[str, Any], seed: int) -> str:
+    """The key of the trial with ``config`` and ``seed``: the first 20 hex digits of a SHA-256 of both.
+
+    >>> trial_key({"suite": "selftest", "env": None, "method": "mc", "params": {}}, 0)
+    '399724341019f45b6202'
+    """
+    blob = json.dumps({**config, "seed": seed}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
 TrialGenerator = Callable[["Suite", TrialRequest], "TrialPlan | Iterable[Trial]"]
 PlotHook = Callable[["Suite", Sequence[Mapping[str, Any]], str], Sequence[str]]
 #: ``report.Table -> findings`` (typed ``Any`` here: report.py imports this module)
@@ -283,6 +307,10 @@ class Suite:
         findings: optional hook ``report.Table -> [Finding]``: the thesis's
             qualitative claims (orderings, "within x of"), checked on the
             summary and listed under the table.
+        members: for a suite without ``run_trial`` whose ``generate`` builds
+            other suites' trials (a tour), the names of those suites: records
+            of any other registered suite do not belong in its directory
+            (see :meth:`accepts_records_of`).
 
     >>> from steer_envs.bench.suites.selftest import SelftestParams, run_selftest_trial
     >>> demo = Suite("pi-demo", "pi by sampling", (Metric("pi"),), run_selftest_trial,
@@ -308,6 +336,7 @@ class Suite:
     quick_seeds: int = 1
     plot: PlotHook | None = None
     findings: FindingsHook | None = None
+    members: Callable[[], Iterable[str]] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or any(c.isspace() for c in self.name):
@@ -373,6 +402,26 @@ class Suite:
         if self.run_trial is None:
             raise ValueError(f"suite {self.name!r} has no run_trial")
         return function_path(self.run_trial)
+
+    def accepts_records_of(self, suite: str) -> bool:
+        """Whether a record of ``suite`` belongs in a results directory of this suite.
+
+        A suite with ``run_trial`` holds only its own records; a tour holds
+        those of its :attr:`members` (any suite when it declares none) and of
+        suites not registered in this process (which cannot be judged here).
+
+        >>> get_suite("selftest").accepts_records_of("selftest"), get_suite("selftest").accepts_records_of("smoke")
+        (True, False)
+        >>> get_suite("quick").accepts_records_of("smoke"), get_suite("quick").accepts_records_of("selftest")
+        (True, False)
+        """
+        if suite == self.name:
+            return True
+        if self.run_trial is not None:
+            return False
+        if self.members is None:
+            return True
+        return suite in set(self.members()) or suite not in _SUITES
 
     def metric(self, name: str) -> Metric:
         """The metric called ``name``."""
@@ -517,19 +566,27 @@ def _load_builtins() -> None:
 def load_plugins(modules: Iterable[str]) -> list[str]:
     """Import suite modules: ``modules`` plus those in ``$STEER_BENCH_PLUGINS``.
 
-    Returns the module names imported. An unimportable module raises
-    ``ImportError`` naming it.
+    Returns the module names imported. A module that cannot be imported
+    (missing, a syntax error, an exception at import, a suite it registers
+    that is invalid) raises ``ImportError`` naming it and the cause.
 
     >>> load_plugins(["steer_envs.bench.suites.selftest"])[-1]
     'steer_envs.bench.suites.selftest'
     """
     names = [m.strip() for m in os.environ.get(PLUGINS_ENV_VAR, "").split(",") if m.strip()]
+    if isinstance(modules, (str, bytes)):
+        raise TypeError(f"modules must be a list of module names, not a single {type(modules).__name__}")
     names += [m for m in modules if m not in names]
     for name in names:
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"plugin module names must be non-empty strs, got {describe(name)}")
         try:
             importlib.import_module(name)
-        except ImportError as exc:
-            raise ImportError(f"cannot import steer-bench plugin module {name!r}: {exc}") from exc
+        except Exception as exc:  # a plugin that fails in any way is one clear error, not a traceback
+            detail = " ".join(str(exc).split()) or type(exc).__name__
+            raise ImportError(
+                f"cannot import steer-bench plugin module {name!r}: {type(exc).__name__}: {detail}"
+            ) from exc
     return names
 
 
@@ -539,6 +596,8 @@ def get_suite(name: str) -> Suite:
     >>> get_suite("selftest").default_seeds
     4
     """
+    if not isinstance(name, str):
+        raise TypeError(f"suite name must be a str, got {describe(name)}")
     _load_builtins()
     if name not in _SUITES:
         raise KeyError(f"unknown suite {name!r}; known suites: {', '.join(sorted(_SUITES))}")

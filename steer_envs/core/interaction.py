@@ -8,7 +8,8 @@ Three validated, immutable value objects:
 * :class:`Nudge` - a physical correction: ``(k, d)`` states, ``k >= 1``, that overwrite
   the first ``k`` states of a plan.
 
-Each stores its data as a read-only ``float64`` numpy array, validates on
+Each stores its data as a read-only ``float64`` numpy array (one that cannot
+be made writable again, so the object's hash is stable), validates on
 construction (finite numbers, right rank, minimum length, optional expected
 dimension ``dim``) and raises ``TypeError``/``ValueError`` naming the argument.
 The classes import no torch; :meth:`as_tensor` imports it on demand.
@@ -31,6 +32,8 @@ from typing import Any, ClassVar, Literal, Self, TypeAlias
 
 import numpy as np
 
+from steer_envs.core.validation import _from_tensor, _holds_bools, frozen_array, integer
+
 InteractionKind = Literal["point", "sketch", "nudge"]
 
 
@@ -39,8 +42,12 @@ def as_finite_array(
 ) -> np.ndarray:
     """Validate ``value`` as a finite real array of rank ``ndim``; return a read-only float64 copy.
 
+    The copy cannot be made writable again (``setflags(write=True)`` raises), so
+    value objects built on it keep their hash.
+
     Args:
-        value: array-like of real numbers (lists, numpy arrays, CPU torch tensors).
+        value: array-like of real numbers (lists, numpy arrays, torch tensors; a
+            tensor that requires grad is read detached).
         name: argument name used in error messages.
         ndim: required rank (1 for a state, 2 for a sequence of states).
         min_len: minimum size of the first axis.
@@ -48,20 +55,24 @@ def as_finite_array(
         owner: optional prefix for error messages (e.g. the class being built).
 
     Raises:
-        TypeError: non-numeric, boolean or complex input.
+        TypeError: non-numeric (also numeric strings such as ``"1"``), boolean, complex or object input.
         ValueError: ragged input, wrong rank, too short, wrong dimension, NaN/inf.
     """
     where = f"{owner}: " if owner else ""
-    if hasattr(value, "detach") and callable(value.detach):  # torch.Tensor without importing torch
-        value = value.detach().cpu().numpy()
+    value = _from_tensor(value, f"{where}`{name}`")  # a torch tensor (also one that requires grad), read detached
     if isinstance(value, (str, bytes)):
         raise TypeError(f"{where}`{name}` must be an array of real numbers, got {type(value).__name__}")
     try:
         raw = np.asarray(value)
     except ValueError as exc:  # ragged nested sequences
         raise ValueError(f"{where}`{name}` must be a rectangular array of real numbers: {exc}") from None
-    if raw.dtype.kind not in "iuf":
-        raise TypeError(f"{where}`{name}` must hold real numbers (int or float), got dtype {raw.dtype}")
+    except (TypeError, RuntimeError):  # odd objects; a sequence of torch tensors that require grad
+        raise TypeError(
+            f"{where}`{name}` must be one array or tensor of real numbers, got {type(value).__name__}"
+        ) from None
+    if raw.dtype.kind not in "iuf" or (isinstance(value, (list, tuple)) and _holds_bools(value)):
+        kind = raw.dtype if raw.dtype.kind not in "iuf" else "bool"  # numpy reads [1.0, True] as floats
+        raise TypeError(f"{where}`{name}` must hold real numbers (int or float), got dtype {kind}")
     if raw.ndim != ndim:
         expected = "(d,)" if ndim == 1 else "(T, d)"
         raise ValueError(f"{where}`{name}` must have shape {expected} ({ndim}-D), got shape {raw.shape}")
@@ -74,8 +85,7 @@ def as_finite_array(
     arr = np.array(raw, dtype=np.float64, copy=True)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{where}`{name}` must be finite (no NaN or inf)")
-    arr.setflags(write=False)
-    return arr
+    return frozen_array(arr)
 
 
 def resample_path(path: Any, n: int) -> np.ndarray:
@@ -137,7 +147,8 @@ class _Interaction:
         return int(self._data.shape[-1])
 
     def validate(self, dim: int) -> Self:
-        """Check the state dimension against an environment's; return ``self``."""
+        """Check the state dimension against an environment's (a positive int); return ``self``."""
+        dim = integer(dim, "dim", low=1, owner=type(self).__name__)
         if self.dim != dim:
             raise ValueError(f"{type(self).__name__}: expected state dimension {dim}, got {self.dim}")
         return self

@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from steer_envs.core.interaction import Sketch, as_finite_array, resample_path
+from steer_envs.core.validation import _from_tensor, real_scalar
 
 __all__ = [
     "MotionAlignment",
@@ -60,7 +61,9 @@ def sketch_distances(trajs: Any, sketch: Sketch | Any, *, scale: float = 1.0) ->
         sketch: a :class:`Sketch` or a ``(G, d)`` array, ``G >= 2``.
         scale: positive divisor applied to the distances (e.g. the maze extent).
     """
-    arr = np.asarray(trajs.detach().cpu().numpy() if hasattr(trajs, "detach") else trajs)
+    if isinstance(trajs, (str, bytes)):
+        raise TypeError(f"`trajs` must be an array of real numbers of shape (B, T, d), got {type(trajs).__name__}")
+    arr = np.asarray(_from_tensor(trajs, "`trajs`"))
     if arr.ndim != 3:
         raise ValueError(f"`trajs` must have shape (B, T, d), got shape {arr.shape}")
     if arr.shape[0] == 0 or arr.shape[1] == 0:
@@ -68,7 +71,8 @@ def sketch_distances(trajs: Any, sketch: Sketch | Any, *, scale: float = 1.0) ->
     flat = as_finite_array(arr.reshape(-1, arr.shape[-1]), name="trajs", ndim=2).reshape(arr.shape)
     points = sketch.points if isinstance(sketch, Sketch) else sketch
     path = as_finite_array(points, name="sketch", ndim=2, min_len=2, dim=flat.shape[-1])
-    if isinstance(scale, bool) or not np.isfinite(scale) or scale <= 0:
+    scale = real_scalar(scale, "`scale`", finite=False)
+    if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"`scale` must be a positive finite number, got {scale!r}")
     goal = resample_path(path, flat.shape[1])
     dist = np.linalg.norm(flat - goal[None], axis=-1).mean(axis=-1) / float(scale)

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch, as_finite_array
+from steer_envs.core.validation import real_scalar
 
 Reduction = Literal["mean", "sum"]
 ArrayOrTensor = TypeVar("ArrayOrTensor", np.ndarray, torch.Tensor)
@@ -63,6 +64,8 @@ def _as_like(value: Any, tau: torch.Tensor, *, name: str, ndim: int, min_len: in
     if isinstance(value, Point | Sketch | Nudge):
         value = value.array
     if isinstance(value, torch.Tensor):
+        if value.dtype == torch.bool or value.is_complex():
+            raise TypeError(f"`{name}` must hold real numbers, got a tensor of dtype {value.dtype}")
         if value.ndim != ndim or value.shape[0] < min_len or value.shape[-1] != d:
             raise ValueError(f"`{name}` must have {ndim}-D shape with state dimension {d}, got {tuple(value.shape)}")
         if not bool(torch.isfinite(value).all()):
@@ -140,6 +143,7 @@ def apply_nudge(tau: ArrayOrTensor, nudge: Nudge | torch.Tensor | Any) -> ArrayO
 def nudge_cost(tau: torch.Tensor, nudge: Nudge | torch.Tensor | Any, *, atol: float = 1e-6) -> torch.Tensor:
     """Nudge objective: ``0`` where the first ``k`` states match within ``atol`` (max-norm), else ``inf``."""
     tau = _check_tau(tau)
+    atol = real_scalar(atol, "`atol`", finite=False)
     if not atol >= 0.0:
         raise ValueError(f"`atol` must be >= 0, got {atol!r}")
     states = _as_like(nudge, tau, name="nudge", ndim=2, min_len=1)

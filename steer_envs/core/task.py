@@ -17,15 +17,55 @@ from typing import Any, Literal
 import networkx as nx
 import numpy as np
 
+from steer_envs.core.validation import boolean, describe
+
 SensorKey = frozenset[str]
 
 
-def _as_sensor_key(sensors: Mapping[str, bool] | Iterable[str]) -> SensorKey:
+def _as_sensor_key(sensors: Mapping[str, bool] | Iterable[str], what: str = "sensors") -> SensorKey:
+    """The set of true APs of a reading: a mapping AP -> bool (real bools only), AP names, or one name."""
     if isinstance(sensors, str):  # one AP name, not an iterable of characters
         return frozenset((sensors,))
     if isinstance(sensors, Mapping):
-        return frozenset(name for name, value in sensors.items() if bool(value))
-    return frozenset(sensors)
+        return frozenset(_ap_name(name, what) for name, value in sensors.items() if boolean(value, f"{what}[{name!r}]"))
+    try:
+        names = list(sensors)
+    except TypeError:
+        raise TypeError(
+            f"{what} must be a mapping AP -> bool or an iterable of true AP names, got {describe(sensors)}"
+        ) from None
+    return frozenset(_ap_name(name, what) for name in names)
+
+
+def _ap_name(name: object, what: str) -> str:
+    if not isinstance(name, str):
+        raise TypeError(f"{what}: AP names must be str, got {describe(name)}")
+    return name
+
+
+def _names(value: Any, what: str) -> tuple[str, ...]:
+    """A tuple of non-empty str names (a single str is refused: it is not a tuple of its characters)."""
+    if isinstance(value, (str, bytes, Mapping, set, frozenset)):  # one name, or no order
+        raise TypeError(f"TaskSpec: `{what}` must be a tuple of names, got {describe(value)}")
+    try:
+        items = list(value)
+    except TypeError:
+        raise TypeError(f"TaskSpec: `{what}` must be a tuple of names, got {describe(value)}") from None
+    names: list[str] = []
+    for name in items:
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"TaskSpec: `{what}` must hold non-empty str names, got {describe(name)}")
+        names.append(name)
+    return tuple(names)
+
+
+def _transition(pair: object) -> tuple[str, str]:
+    if isinstance(pair, (str, bytes)) or not isinstance(pair, (tuple, list)) or len(pair) != 2:
+        raise TypeError(f"TaskSpec: `transitions` must hold (from, to) pairs of mode names, got {describe(pair)}")
+    a, b = pair
+    if not (isinstance(a, str) and isinstance(b, str)):
+        raise TypeError(f"TaskSpec: `transitions` must hold (from, to) pairs of mode names, got {describe(pair)}")
+    return a, b
 
 
 @dataclass(frozen=True)
@@ -48,7 +88,10 @@ class TaskSpec:
         ltl_variants: optional named alternative specifications (e.g. the
             cooking re-taskings ``phi_cb``, ``phi_bc``...).
 
-    Bad input (duplicate or unknown modes, unknown APs) raises ``ValueError``.
+    Bad input (duplicate or unknown modes, unknown APs) raises ``ValueError``;
+    names that are not non-empty strings raise ``TypeError``. A ``goal`` given
+    as one string is that one mode. Sensor readings (``mode_of``) must hold
+    real bools: ``"False"`` or NaN is a ``TypeError``, not a true AP.
 
     >>> task = TaskSpec(
     ...     name="scoop",
@@ -76,17 +119,23 @@ class TaskSpec:
     ltl_variants: Mapping[str, str] = field(default_factory=dict, hash=False)
 
     def __post_init__(self) -> None:
-        modes = tuple(self.modes)
+        if not isinstance(self.name, str):
+            raise TypeError(f"TaskSpec: `name` must be a str, got {describe(self.name)}")
+        modes = _names(self.modes, "modes")
         if len(modes) == 0:
             raise ValueError("TaskSpec: `modes` must name at least one mode")
         if len(set(modes)) != len(modes):
             raise ValueError(f"TaskSpec: `modes` has duplicates: {modes}")
-        sensors = tuple(self.sensors)
+        sensors = _names((), "sensors") if self.sensors is None else _names(self.sensors, "sensors")
         if len(set(sensors)) != len(sensors):
             raise ValueError(f"TaskSpec: `sensors` has duplicates: {sensors}")
         object.__setattr__(self, "modes", modes)
         object.__setattr__(self, "sensors", sensors)
-        sensor_modes = {_as_sensor_key(k): v for k, v in dict(self.sensor_modes).items()}
+        if self.sensor_modes is None:
+            object.__setattr__(self, "sensor_modes", {})
+        if not isinstance(self.sensor_modes, Mapping):
+            raise TypeError(f"TaskSpec: `sensor_modes` must be a mapping, got {describe(self.sensor_modes)}")
+        sensor_modes = {_as_sensor_key(k, "sensor_modes key"): v for k, v in dict(self.sensor_modes).items()}
         for key, mode in sensor_modes.items():
             if mode not in modes:
                 raise ValueError(f"TaskSpec: `sensor_modes` maps to unknown mode {mode!r}")
@@ -94,7 +143,12 @@ class TaskSpec:
             if unknown:
                 raise ValueError(f"TaskSpec: `sensor_modes` uses unknown sensor APs {sorted(unknown)}")
         object.__setattr__(self, "sensor_modes", sensor_modes)
-        transitions = frozenset((str(a), str(b)) for a, b in self.transitions)
+        raw_transitions = () if self.transitions is None else self.transitions
+        if isinstance(raw_transitions, (str, bytes)) or not isinstance(raw_transitions, Iterable):
+            raise TypeError(
+                f"TaskSpec: `transitions` must be a set of (from, to) pairs, got {describe(raw_transitions)}"
+            )
+        transitions = frozenset(_transition(t) for t in raw_transitions)
         for a, b in transitions:
             if a not in modes or b not in modes:
                 raise ValueError(f"TaskSpec: transition ({a!r}, {b!r}) names an unknown mode")
@@ -103,11 +157,18 @@ class TaskSpec:
         if initial not in modes:
             raise ValueError(f"TaskSpec: `initial` must be one of {modes}, got {initial!r}")
         object.__setattr__(self, "initial", initial)
-        goal = (modes[-1],) if not self.goal else tuple(self.goal)
+        if self.goal is None or (isinstance(self.goal, (tuple, list)) and not self.goal):
+            goal: tuple[str, ...] = (modes[-1],)
+        elif isinstance(self.goal, str):
+            goal = (self.goal,)
+        else:
+            goal = _names(self.goal, "goal")
         for g in goal:
             if g not in modes:
                 raise ValueError(f"TaskSpec: `goal` mode {g!r} is not one of {modes}")
         object.__setattr__(self, "goal", goal)
+        if self.ltl is not None and not isinstance(self.ltl, str):
+            raise TypeError(f"TaskSpec: `ltl` must be LTL text (str) or None, got {describe(self.ltl)}")
         object.__setattr__(self, "ltl_variants", dict(self.ltl_variants))
 
     # ------------------------------------------------------------------ modes

@@ -31,8 +31,10 @@ import numpy as np
 
 __all__ = [
     "BoundExceeded",
+    "bool_array",
     "boolean",
     "describe",
+    "frozen_array",
     "integer",
     "one_of",
     "real_array",
@@ -100,7 +102,10 @@ def real_scalar(
         value = value[()]
     if not _is_real_number(value):
         raise TypeError(f"{where} must be a real number, got {describe(value)}")
-    out = float(value)
+    try:
+        out = float(value)  # an int becomes its nearest float
+    except OverflowError:
+        raise ValueError(f"{where} is too large for a float, got {describe(value)}") from None
     if finite and not math.isfinite(out):
         raise ValueError(f"{where} must be a finite real number, got {describe(value)}")
     if math.isnan(out):
@@ -179,11 +184,13 @@ def real_array(
     """``value`` as a new float64 array of real numbers, checked before anything is converted.
 
     Accepts nested sequences, numpy arrays and torch tensors (detached, moved
-    to the CPU). Refuses strings (also inside a sequence), complex numbers,
+    to the CPU, so a tensor that requires grad is read, never differentiated
+    through). Refuses strings (also inside a sequence), complex numbers,
     booleans, objects, ragged input, NaN/inf (unless ``finite=False``) and
     arrays larger than ``max_size``. ``shape`` may use ``-1`` for "any
     length" on an axis. ``readonly=True`` returns an array that cannot be
-    written (for value objects that are hashed).
+    written, nor made writable again (see :func:`frozen_array`; for value
+    objects that are hashed).
 
     >>> real_array((1, 2), "delta", shape=(2,))
     array([1., 2.])
@@ -196,8 +203,7 @@ def real_array(
     """
     where = _where(name, owner)
     original = value
-    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):  # a torch tensor
-        value = value.detach().cpu().numpy()
+    value = _from_tensor(value, where)
     if value is None or isinstance(value, (str, bytes, dict, set)):
         raise TypeError(f"{where} must be an array of real numbers, got {describe(original)}")
     try:
@@ -206,20 +212,99 @@ def real_array(
         raise ValueError(
             f"{where} must be a rectangular array of real numbers ({exc}), got {describe(original)}"
         ) from None
-    if raw.dtype.kind not in "iuf":
-        raise TypeError(f"{where} must hold real numbers, got dtype {raw.dtype} ({describe(original)})")
+    except RuntimeError:  # a sequence of torch tensors that require grad
+        raise TypeError(f"{where} must be one array or tensor of real numbers, got {describe(original)}") from None
+    if raw.dtype.kind not in "iuf" or (isinstance(value, (list, tuple)) and _holds_bools(value)):
+        kind = raw.dtype if raw.dtype.kind not in "iuf" else "bool"  # numpy reads [1.0, True] as floats
+        raise TypeError(f"{where} must hold real numbers, got dtype {kind} ({describe(original)})")
     if max_size is not None and raw.size > max_size:
         raise ValueError(f"{where} may hold at most {max_size} numbers, got shape {raw.shape}")
     if ndim is not None and raw.ndim != ndim:
         raise ValueError(f"{where} must be {ndim}-D, got shape {raw.shape}")
     if shape is not None:
-        shape = tuple(shape)
-        if raw.ndim != len(shape) or any(want not in (-1, got) for want, got in zip(shape, raw.shape, strict=True)):
-            wanted = "(" + ", ".join("N" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
-            raise ValueError(f"{where} must have shape {wanted}, got {raw.shape}")
+        _check_shape(raw, tuple(shape), where)
     arr = np.array(raw, dtype=np.float64, copy=True)
     if finite and not np.all(np.isfinite(arr)):
         raise ValueError(f"{where} must be finite (no NaN or inf)")
-    if readonly:
-        arr.setflags(write=False)
-    return arr
+    return frozen_array(arr) if readonly else arr
+
+
+def bool_array(value: Any, name: str, *, shape: Sequence[int] | None = None, owner: str | None = None) -> np.ndarray:
+    """``value`` as a new bool array: ``True``/``False`` entries only (Python or numpy bools).
+
+    Numbers (``0``/``1``), strings (``"no"``) and objects are refused, so a
+    mask can never be read from something that merely looks true. ``shape``
+    may use ``-1`` for "any length" on an axis.
+
+    >>> bool_array([True, False], "mask", shape=(2,))
+    array([ True, False])
+    >>> bool_array([1, 0], "mask")
+    Traceback (most recent call last):
+    TypeError: mask must hold bools (True/False), got dtype int64 (list [1, 0])
+    """
+    where = _where(name, owner)
+    original = value
+    value = _from_tensor(value, where)
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise TypeError(f"{where} must be an array of bools, got {describe(original)}")
+    try:
+        raw = np.asarray(value)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{where} must be a rectangular array of bools ({exc}), got {describe(original)}") from None
+    except RuntimeError:  # a sequence of torch tensors that require grad
+        raise TypeError(f"{where} must be one array or tensor of bools, got {describe(original)}") from None
+    if raw.dtype.kind != "b":
+        raise TypeError(f"{where} must hold bools (True/False), got dtype {raw.dtype} ({describe(original)})")
+    if shape is not None:
+        _check_shape(raw, tuple(shape), where)
+    return np.array(raw, dtype=bool, copy=True)
+
+
+def frozen_array(arr: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``arr`` that cannot be made writable again (``setflags(write=True)`` fails).
+
+    The copy's memory is an immutable ``bytes`` object, so value objects that
+    hash their array keep a stable hash.
+
+    >>> a = frozen_array(np.arange(3.0))
+    >>> a.flags.writeable
+    False
+    >>> a.setflags(write=True)
+    Traceback (most recent call last):
+    ValueError: cannot set WRITEABLE flag to True of this array
+    """
+    src = np.ascontiguousarray(arr)
+    return np.frombuffer(src.tobytes(), dtype=src.dtype).reshape(src.shape)
+
+
+def _from_tensor(value: Any, where: str) -> Any:
+    """A torch tensor as a numpy array (detached, on the CPU; ``requires_grad`` is fine); other values unchanged."""
+    if not (hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu")):
+        return value
+    tensor = value.detach().cpu()
+    if callable(getattr(tensor, "is_complex", None)) and tensor.is_complex():
+        raise TypeError(f"{where} must hold real numbers, got a complex tensor ({tensor.dtype})")
+    try:
+        return tensor.numpy()
+    except TypeError:  # float dtypes numpy lacks (bfloat16): widen, the values are exact in float64
+        return tensor.double().numpy()
+
+
+def _holds_bools(value: list[Any] | tuple[Any, ...]) -> bool:
+    """Whether a nested list/tuple holds a bool anywhere (``np.asarray`` would silently read it as 0/1)."""
+    stack: list[Any] = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, (bool, np.bool_)):
+            return True
+        if isinstance(item, (list, tuple)):
+            stack.extend(item)
+        elif isinstance(item, np.ndarray) and item.dtype.kind == "b":
+            return True
+    return False
+
+
+def _check_shape(raw: np.ndarray, shape: tuple[int, ...], where: str) -> None:
+    if raw.ndim != len(shape) or any(want not in (-1, got) for want, got in zip(shape, raw.shape, strict=True)):
+        wanted = "(" + ", ".join("N" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+        raise ValueError(f"{where} must have shape {wanted}, got {raw.shape}")

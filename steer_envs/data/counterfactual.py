@@ -49,35 +49,43 @@ import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
+from steer_envs.core.validation import BoundExceeded, boolean, integer, real_array, real_scalar
 from steer_envs.envs.kinematic import Kinematic2DEnv, Kinematic2DVectorEnv
 
 PerturbationKind = Literal["segment", "kernel", "gripper"]
 PERTURBATION_KINDS: tuple[str, ...] = ("segment", "kernel", "gripper")
+#: the kinds a :class:`PerturbedReference` may have (``"demo"``: the unperturbed demonstration).
+REFERENCE_KINDS: tuple[str, ...] = ("demo", *PERTURBATION_KINDS)
 #: how a reference is executed (see :class:`CounterfactualReplayer`).
 Execution = Literal["tracking", "jump"]
 EXECUTIONS: tuple[str, ...] = ("tracking", "jump")
 #: a waypoint closer than this (in state units) counts as reached by the tracking controller.
 WAYPOINT_TOLERANCE = 1e-4
+#: the most env steps one replay may take with a custom controller (whose reach is unknown) when
+#: ``max_steps`` is not given; with the default controller the bound is derived from the reference.
+DEFAULT_MAX_REPLAY_STEPS = 100_000
+#: the most waypoints one reference may hold (a guard against arrays that can never be replayed).
+MAX_WAYPOINTS = 1_000_000
 
 Controller = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 # ---------------------------------------------------------------- pure perturbations
 def _check_path(path: Any, name: str = "path") -> np.ndarray:
-    try:
-        arr = np.asarray(path, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a (T, d) array of floats, got {type(path).__name__}") from None
-    if arr.ndim != 2 or len(arr) < 2 or arr.shape[1] < 1:
+    arr = real_array(path, name, ndim=2)
+    if len(arr) < 2 or arr.shape[1] < 1:
         raise ValueError(f"{name} must have shape (T >= 2, d >= 1), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
     return arr
 
 
 def _check_bounds(low: Any, high: Any, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    lo = np.broadcast_to(np.asarray(low, dtype=np.float64), (dim,))
-    hi = np.broadcast_to(np.asarray(high, dtype=np.float64), (dim,))
+    lo_in, hi_in = real_array(low, "low", finite=False), real_array(high, "high", finite=False)
+    try:
+        lo, hi = np.broadcast_to(lo_in, (dim,)), np.broadcast_to(hi_in, (dim,))
+    except ValueError:
+        raise ValueError(
+            f"low/high must be scalars or ({dim},) vectors, got shapes {lo_in.shape}, {hi_in.shape}"
+        ) from None
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)):
         raise ValueError(f"low/high must be finite with low < high, got low={lo.tolist()}, high={hi.tolist()}")
     return lo, hi
@@ -101,6 +109,10 @@ def segment_perturbation(
     return waypoints, (x, y), z
 
 
+#: draws of :func:`kernel_perturbation`'s rejection sampling of its window before it gives up.
+_MAX_WINDOW_DRAWS = 1_000_000
+
+
 def kernel_perturbation(
     path: np.ndarray,
     rng: np.random.Generator,
@@ -119,17 +131,21 @@ def kernel_perturbation(
     """
     path = _check_path(path)
     lo, hi = _check_bounds(low, high, path.shape[1])
-    if not (np.isfinite(sharpness) and sharpness > 0):
-        raise ValueError(f"sharpness must be a positive float, got {sharpness!r}")
-    if not isinstance(min_window, (int, np.integer)) or min_window < 2:
-        raise ValueError(f"min_window must be an int >= 2, got {min_window!r}")
+    real_scalar(sharpness, "sharpness", low=0.0, low_inclusive=False)
+    min_window = integer(min_window, "min_window", low=2)
     inner = len(path) - 2  # indices 1 .. T-2
     if inner <= min_window:
         raise ValueError(f"path of length {len(path)} is too short for a window of >= {min_window} steps")
-    while True:
+    # rejection sampling of the window: each draw succeeds with probability >= 2 / (inner (inner - 1)) > 0
+    for _ in range(_MAX_WINDOW_DRAWS):
         s, e = sorted(int(i) for i in rng.choice(inner, size=2, replace=False) + 1)
         if e - s >= min_window:
             break
+    else:
+        raise BoundExceeded(
+            f"kernel_perturbation: no window of >= {min_window} steps drawn within {_MAX_WINDOW_DRAWS} draws "
+            f"(path of length {len(path)})"
+        )
     z = rng.uniform(lo, hi)
     t = np.arange(s, e + 1, dtype=np.float64)
     c = 0.5 * (s + e)
@@ -153,13 +169,14 @@ def gripper_toggle(
     ``-1``/``+1`` (robosuite). Returns the new sequence and the window
     ``(start, end)`` (inclusive).
     """
-    g = np.asarray(gripper, dtype=np.float64)
-    if g.ndim != 1 or len(g) < 2:
+    g = real_array(gripper, "gripper", ndim=1)
+    if len(g) < 2:
         raise ValueError(f"gripper must have shape (T >= 2,), got {g.shape}")
-    if not (isinstance(min_steps, (int, np.integer)) and isinstance(max_steps, (int, np.integer))):
-        raise TypeError("min_steps and max_steps must be ints")
+    min_steps, max_steps = integer(min_steps, "min_steps"), integer(max_steps, "max_steps")
     if not 1 <= min_steps <= max_steps:
         raise ValueError(f"need 1 <= min_steps <= max_steps, got {min_steps}, {max_steps}")
+    if force is not None:
+        force = real_scalar(force, "force")
     length = int(min(len(g), rng.integers(min_steps, max_steps + 1)))
     start = int(rng.integers(0, len(g) - length + 1))
     out = g.copy()
@@ -187,6 +204,29 @@ class PerturbedReference:
     window: tuple[int, int]
     target: np.ndarray
     gripper: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        owner = "PerturbedReference"
+        wps = real_array(self.waypoints, "waypoints", ndim=2, owner=owner)
+        if not (1 <= len(wps) <= MAX_WAYPOINTS and wps.shape[1] >= 1):
+            raise ValueError(
+                f"{owner}: waypoints must have shape (W, d) with 1 <= W <= {MAX_WAYPOINTS}, d >= 1, got {wps.shape}"
+            )
+        if not isinstance(self.kind, str) or self.kind not in REFERENCE_KINDS:
+            raise ValueError(f"{owner}: kind must be one of {list(REFERENCE_KINDS)}, got {self.kind!r}")
+        source = integer(self.source, "source", owner=owner)
+        if not isinstance(self.window, (tuple, list)) or len(self.window) != 2:
+            raise TypeError(f"{owner}: window must be a pair of ints, got {self.window!r}")
+        window = (integer(self.window[0], "window[0]", owner=owner), integer(self.window[1], "window[1]", owner=owner))
+        target = real_array(self.target, "target", shape=(wps.shape[1],), finite=False, owner=owner)
+        gripper = None
+        if self.gripper is not None:
+            gripper = real_array(self.gripper, "gripper", shape=(len(wps),), owner=owner)
+        object.__setattr__(self, "waypoints", wps)
+        object.__setattr__(self, "source", source)
+        object.__setattr__(self, "window", window)
+        object.__setattr__(self, "target", target)
+        object.__setattr__(self, "gripper", gripper)
 
 
 @dataclass(frozen=True)
@@ -237,8 +277,11 @@ def _kind_weights(kind: str | Mapping[str, float] | Sequence[str]) -> dict[str, 
 class _Track:
     """Book-keeping of one replay across episodes (see ``replay_batch``)."""
 
-    def __init__(self, ref: PerturbedReference) -> None:
+    def __init__(self, ref: PerturbedReference, index: int = 0, max_steps: int | None = None) -> None:
         self.ref = ref
+        self.index = index  # position in the batch (for error messages)
+        self.max_steps = max_steps
+        self.steps = 0  # env steps taken (all episodes)
         self.idx = 1  # next waypoint
         self.states: list[np.ndarray] = []
         self.modes: list[int] = []
@@ -267,6 +310,7 @@ class _Track:
         self, state: np.ndarray, mode: int, violation: bool, success: bool, terminated: bool, truncated: bool
     ) -> None:
         """One env step of the replay."""
+        self.steps += 1
         self.states.append(state)
         self.modes.append(mode)
         if violation and self.violation_step < 0:
@@ -285,6 +329,12 @@ class _Track:
             self.done = True
             self.truncated = True
             self.success = False
+        if not self.done and self.max_steps is not None and self.steps >= self.max_steps:
+            raise BoundExceeded(
+                f"CounterfactualReplayer: reference {self.index} ({self.ref.kind} of demo {self.ref.source}) did "
+                f"not reach waypoint {self.idx} of {len(self.ref.waypoints)} within max_steps={self.max_steps} "
+                f"env steps (at state {np.round(self.states[-1], 6).tolist()})"
+            )
 
     def result(self) -> Replay:
         return Replay(
@@ -342,6 +392,15 @@ class CounterfactualReplayer:
             straight toward the waypoint.
         gripper: whether references carry a gripper command (none of the 2D envs do).
         kernel_sharpness, kernel_min_window: parameters of :func:`kernel_perturbation`.
+        max_steps: the most env steps one replay may take before :class:`~steer_envs.core.validation.BoundExceeded`
+            is raised (an env step limit, when the env has one, usually ends it first as a truncated
+            replay). ``None``: with the default controller, twice the steps the reference needs
+            plus 100 (each step covers ``max_speed * dt``); with a custom controller
+            :data:`DEFAULT_MAX_REPLAY_STEPS`.
+
+    With the default controller (and with ``execution="jump"``), a reference with a waypoint outside
+    the workspace (the observation space's box, more than :data:`WAYPOINT_TOLERANCE` away) can never be
+    followed to the end and is refused with ``ValueError`` before anything runs.
     """
 
     def __init__(
@@ -354,6 +413,7 @@ class CounterfactualReplayer:
         gripper: bool = False,
         kernel_sharpness: float = 5.0,
         kernel_min_window: int = 2,
+        max_steps: int | None = None,
     ) -> None:
         if not isinstance(env, gym.Env):
             raise TypeError(f"CounterfactualReplayer: `env` must be a gymnasium.Env, got {type(env).__name__}")
@@ -361,9 +421,14 @@ class CounterfactualReplayer:
         self.kind_weights = _kind_weights(kind)
         if "gripper" in self.kind_weights and not gripper:
             raise ValueError("kind 'gripper' needs an env whose replays carry a gripper command (gripper=True)")
-        self.gripper = bool(gripper)
-        self.kernel_sharpness = float(kernel_sharpness)
-        self.kernel_min_window = int(kernel_min_window)
+        self.gripper = boolean(gripper, "gripper", owner="CounterfactualReplayer")
+        self.kernel_sharpness = real_scalar(
+            kernel_sharpness, "kernel_sharpness", low=0.0, low_inclusive=False, owner="CounterfactualReplayer"
+        )
+        self.kernel_min_window = integer(kernel_min_window, "kernel_min_window", low=2, owner="CounterfactualReplayer")
+        self.max_steps = (
+            None if max_steps is None else integer(max_steps, "max_steps", low=1, owner="CounterfactualReplayer")
+        )
         space = env.observation_space
         if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1:
             raise TypeError("CounterfactualReplayer needs a flat Box observation space (the state)")
@@ -372,7 +437,11 @@ class CounterfactualReplayer:
         if not (np.all(np.isfinite(self.low)) and np.all(np.isfinite(self.high))):
             raise ValueError("the observation space must be bounded (Z is drawn uniformly inside it)")
         base = env.unwrapped
-        if execution not in EXECUTIONS:
+        # where the state can be: the kinematic envs clip it to their model's box
+        model = getattr(base, "model", None) if isinstance(base, Kinematic2DEnv) else None
+        self.workspace_low = np.asarray(model.low if model is not None else self.low, dtype=np.float64)
+        self.workspace_high = np.asarray(model.high if model is not None else self.high, dtype=np.float64)
+        if not isinstance(execution, str) or execution not in EXECUTIONS:
             raise ValueError(f"execution must be 'tracking' or 'jump', got {execution!r}")
         self.execution = execution
         self._replay_env: gym.Env = self.env
@@ -493,13 +562,21 @@ class CounterfactualReplayer:
         controller, or ``vectorized=False``) the references are replayed one
         by one on ``env``; both paths give the same replays.
         """
+        if isinstance(references, PerturbedReference):
+            raise TypeError("references must be a sequence of PerturbedReference objects (use replay() for one)")
         refs = list(references)
-        for r in refs:
+        for i, r in enumerate(refs):
             if not isinstance(r, PerturbedReference):
                 raise TypeError(f"references must be PerturbedReference objects, got {type(r).__name__}")
             if r.gripper is not None and self._default_controller:
                 raise ValueError("the default kinematic controller cannot replay gripper commands")
-        tracks = [_Track(r) for r in refs]
+            if r.waypoints.shape[1] != len(self.low):
+                raise ValueError(
+                    f"references[{i}]: waypoints must have state dimension {len(self.low)}, got {r.waypoints.shape}"
+                )
+            if self._default_controller:
+                self._check_reachable(r, i)
+        tracks = [_Track(r, i, self._step_bound(r)) for i, r in enumerate(refs)]
         venv = self._vector_env(len(tracks)) if vectorized and tracks else None
         if venv is None:
             for t in tracks:
@@ -510,6 +587,29 @@ class CounterfactualReplayer:
             finally:
                 venv.close()
         return [t.result() for t in tracks]
+
+    def _check_reachable(self, ref: PerturbedReference, i: int) -> None:
+        """``ValueError`` for a waypoint the default controller can never reach (outside the workspace)."""
+        wps = ref.waypoints
+        with np.errstate(over="ignore"):  # a waypoint near the float limit is simply far out
+            gap = np.linalg.norm(wps - np.clip(wps, self.workspace_low, self.workspace_high), axis=1)
+        far = np.flatnonzero(gap > WAYPOINT_TOLERANCE)
+        if len(far):
+            k = int(far[0])
+            raise ValueError(
+                f"CounterfactualReplayer: references[{i}] waypoint {k} {wps[k].tolist()} lies outside the workspace "
+                f"[{self.workspace_low.tolist()}, {self.workspace_high.tolist()}] and can never be reached"
+            )
+
+    def _step_bound(self, ref: PerturbedReference) -> int:
+        """The most env steps a replay of ``ref`` may take (see ``max_steps``)."""
+        if self.max_steps is not None:
+            return self.max_steps
+        if not self._default_controller:
+            return DEFAULT_MAX_REPLAY_STEPS
+        seg = np.linalg.norm(np.diff(ref.waypoints, axis=0), axis=1)
+        needed = len(ref.waypoints) + int(np.sum(np.ceil(seg / self._reach)))
+        return 2 * needed + 100
 
     def _run_single(self, t: _Track) -> None:
         wps = t.ref.waypoints
@@ -573,10 +673,8 @@ class CounterfactualReplayer:
         paths = [_check_path(d, f"demos[{i}]") for i, d in enumerate(demos)]
         if not paths:
             raise ValueError("demos must hold at least one demonstration")
-        if not isinstance(n, (int, np.integer)) or n < 0:
-            raise ValueError(f"n must be an int >= 0, got {n!r}")
-        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+        n = integer(n, "n", low=0, owner="CounterfactualReplayer.rollouts")
+        batch_size = integer(batch_size, "batch_size", low=1, owner="CounterfactualReplayer.rollouts")
         rng = np.random.default_rng(seed)
         out: list[Replay] = []
         with tqdm(total=int(n), desc="counterfactual replays", disable=not progress, leave=False) as bar:
@@ -590,8 +688,10 @@ class CounterfactualReplayer:
 
 
 __all__ = [
+    "DEFAULT_MAX_REPLAY_STEPS",
     "EXECUTIONS",
     "PERTURBATION_KINDS",
+    "REFERENCE_KINDS",
     "CounterfactualReplayer",
     "PerturbedReference",
     "Replay",

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +43,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
+from steer_envs.core.validation import integer, one_of
 from steer_envs.data.counterfactual import EXECUTIONS, CounterfactualReplayer, Execution, Replay
+from steer_envs.io import DatasetError, atomic_write_npz, read_npz
 
 KINDS: tuple[str, ...] = ("demo", "segment", "kernel", "gripper")
 FORMAT_VERSION = 1
@@ -155,40 +156,65 @@ class CounterfactualDataset:
         path = Path(path)
         if path.suffix != ".npz":
             raise ValueError(f"path must end in .npz, got {str(path)!r}")
-        path.parent.mkdir(parents=True, exist_ok=True)
         meta = {**dict(self.meta), "format_version": FORMAT_VERSION, "kinds": list(KINDS)}
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(
-                    fh,
-                    states=self.states,
-                    modes=self.modes,
-                    offsets=self.offsets,
-                    success=self.success,
-                    kind=self.kind,
-                    source=self.source,
-                    window=self.window,
-                    target=self.target,
-                    violation_step=self.violation_step,
-                    meta=np.array(json.dumps(meta, sort_keys=True)),
-                )
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        return path
+        arrays = {name: getattr(self, name) for name in _SPECS}
+        return atomic_write_npz(path, {**arrays, "meta": np.array(json.dumps(meta, sort_keys=True))})
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> CounterfactualDataset:
-        """Read a data set written by :meth:`save` (no pickle)."""
-        with np.load(Path(path), allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            if meta.get("format_version") != FORMAT_VERSION:
-                raise ValueError(f"{path}: unsupported format_version {meta.get('format_version')!r}")
-            arrays = {k: data[k] for k in data.files if k != "meta"}
-        return cls(**arrays, meta=meta)
+        """Read a data set written by :meth:`save` (no pickle).
+
+        :class:`~steer_envs.io.DatasetError` (a ``ValueError``) naming the file
+        when it is missing, not an ``.npz`` of plain arrays, of another format
+        version, or holds arrays of the wrong dtype or shape, non-finite states,
+        unknown kinds or inconsistent offsets.
+        """
+        src = Path(path)
+        arrays = read_npz(src)
+        missing = sorted((set(_SPECS) | {"meta"}) - set(arrays))
+        if missing:
+            raise DatasetError(f"{src} is not a GLiDE counterfactual dataset (missing {missing})")
+        meta_arr = arrays.pop("meta")
+        if meta_arr.dtype.kind != "U" or meta_arr.ndim != 0:
+            raise DatasetError(f"{src}: 'meta' must be a JSON string, got dtype {meta_arr.dtype}")
+        try:
+            meta = json.loads(str(meta_arr))
+        except ValueError as err:
+            raise DatasetError(f"{src}: 'meta' is not JSON ({err})") from None
+        if not isinstance(meta, dict):
+            raise DatasetError(f"{src}: 'meta' must be a JSON object, got {type(meta).__name__}")
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise DatasetError(f"{src}: unsupported format_version {meta.get('format_version')!r}")
+        unknown = sorted(set(arrays) - set(_SPECS))
+        if unknown:
+            raise DatasetError(f"{src}: unexpected arrays {unknown}")
+        for name, (kinds, ndim) in _SPECS.items():
+            arr = arrays[name]
+            if arr.dtype.kind not in kinds or arr.ndim != ndim:
+                raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
+        if not np.all(np.isfinite(arrays["states"])):
+            raise DatasetError(f"{src}: 'states' holds NaN or infinite values")
+        kind = arrays["kind"]
+        if np.any((kind < 0) | (kind >= len(KINDS))):
+            raise DatasetError(f"{src}: 'kind' holds values outside [0, {len(KINDS)})")
+        try:
+            return cls(**arrays, meta=meta)
+        except (TypeError, ValueError, IndexError) as err:
+            raise DatasetError(f"{src}: {err}") from None
+
+
+#: array -> (dtype kinds, number of axes) of a saved data set
+_SPECS: dict[str, tuple[str, int]] = {
+    "states": ("f", 2),
+    "modes": ("iu", 1),
+    "offsets": ("iu", 1),
+    "success": ("b", 1),
+    "kind": ("iu", 1),
+    "source": ("iu", 1),
+    "window": ("iu", 2),
+    "target": ("f", 2),
+    "violation_step": ("iu", 1),
+}
 
 
 def build_counterfactual_dataset(
@@ -223,15 +249,18 @@ def build_counterfactual_dataset(
     >>> len(data), int(data.is_demo.sum()), int(data.success[~data.is_demo].sum())
     (8, 2, 3)
     """
-    for name, v in (("n_success", n_success), ("n_failure", n_failure)):
-        if not isinstance(v, (int, np.integer)) or v < 0:
-            raise ValueError(f"{name} must be an int >= 0, got {v!r}")
-    if not isinstance(max_replays, (int, np.integer)) or max_replays < 1:
-        raise ValueError(f"max_replays must be a positive int, got {max_replays!r}")
-    if len(demos) == 0:
-        raise ValueError("demos must hold at least one demonstration")
-    if execution not in EXECUTIONS:
-        raise ValueError(f"execution must be one of {EXECUTIONS}, got {execution!r}")
+    owner = "build_counterfactual_dataset"
+    if not isinstance(env_id, str):
+        raise TypeError(f"{owner}: env_id must be a str, got {type(env_id).__name__}")
+    n_success = integer(n_success, "n_success", low=0, owner=owner)
+    n_failure = integer(n_failure, "n_failure", low=0, owner=owner)
+    max_replays = integer(max_replays, "max_replays", low=1, owner=owner)
+    batch_size = integer(batch_size, "batch_size", low=1, owner=owner)
+    max_episode_steps = integer(max_episode_steps, "max_episode_steps", low=1, owner=owner)
+    seed = integer(seed, "seed", low=0, owner=owner)
+    if isinstance(demos, (str, bytes)) or len(demos) == 0:
+        raise ValueError(f"{owner}: demos must hold at least one demonstration")
+    one_of(execution, "execution", EXECUTIONS, owner=owner)
     env = gym.make(env_id, terminate_on_violation=False, max_episode_steps=max_episode_steps, **make_kwargs)
     replayer = CounterfactualReplayer(env, kind, execution=cast(Execution, execution))
     try:

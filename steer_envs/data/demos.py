@@ -16,7 +16,11 @@ import numpy as np
 
 from steer_envs.core.env import task_of
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import BoundExceeded, boolean, describe, integer
 from steer_envs.data.experts import make_expert
+
+#: steps an expert episode may take before success when neither ``max_steps`` nor the env sets a limit.
+DEFAULT_MAX_STEPS = 10_000
 
 
 @dataclass(frozen=True)
@@ -52,7 +56,10 @@ def rollout_expert(
     into the goal region (e.g. ``expert_kwargs={"final_target": "centroid"}``
     for PolygonNav) the demo then shows the goal's interior, which GLiDE's
     classifier cannot otherwise see. ``success`` still reports whether the goal
-    was reached; ``max_steps`` bounds the steps before success.
+    was reached; ``max_steps`` bounds the steps before success (default: the
+    env's step limit, else :data:`DEFAULT_MAX_STEPS`): an expert that has not
+    reached the goal by then gives a demo with ``success=False`` (the
+    documented "timed out" result).
 
     >>> import gymnasium as gym
     >>> import steer_envs
@@ -60,18 +67,20 @@ def rollout_expert(
     >>> demo.success, demo.states.shape[1], len(demo.actions) == len(demo) - 1
     (True, 2, True)
     """
-    if not isinstance(seed, (int, np.integer)):
-        raise TypeError(f"seed must be an int, got {type(seed).__name__}")
-    if isinstance(steps_after_success, bool) or not isinstance(steps_after_success, (int, np.integer)):
-        raise TypeError(f"steps_after_success must be an int, got {type(steps_after_success).__name__}")
-    if steps_after_success < 0:
-        raise ValueError(f"steps_after_success must be >= 0, got {steps_after_success}")
+    seed = integer(seed, "seed", low=0, owner="rollout_expert")
+    steps_after_success = integer(steps_after_success, "steps_after_success", low=0, owner="rollout_expert")
+    if max_steps is not None:
+        max_steps = integer(max_steps, "max_steps", low=1, owner="rollout_expert")
+    if expert_kwargs is not None and not isinstance(expert_kwargs, Mapping):
+        raise TypeError(f"rollout_expert: expert_kwargs must be a mapping or None, got {describe(expert_kwargs)}")
     expert = make_expert(env, **dict(expert_kwargs or {}))
     task = task_of(env, who="rollout_expert")
     obs, info = env.reset(seed=int(seed))
     expert.reset(obs, info)
     states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
-    limit = max_steps if max_steps is not None else (env.spec.max_episode_steps if env.spec else None) or 10_000
+    limit = (
+        max_steps if max_steps is not None else (env.spec.max_episode_steps if env.spec else None) or DEFAULT_MAX_STEPS
+    )
     success = bool(info["success"])
     steps, extra = 0, int(steps_after_success)  # steps before success, steps left after it
     while (not success and steps < limit) or (success and extra > 0):
@@ -94,7 +103,9 @@ def rollout_expert(
         env_id=env.spec.id if env.spec else type(env.unwrapped).__name__,
         seed=int(seed),
         states=np.asarray(states),
-        actions=np.asarray(actions).reshape(len(actions), -1),
+        actions=np.asarray(actions, dtype=np.float64).reshape(len(actions), -1)
+        if actions
+        else np.zeros((0, int(np.prod(env.action_space.shape or (0,)))), dtype=np.float64),  # began in the goal
         modes=np.asarray(modes, dtype=np.int64),
         sensors=np.asarray(sensors, dtype=bool).reshape(len(states), len(task.sensors)),
         success=success,
@@ -114,7 +125,9 @@ def collect_demonstrations(
     """``n`` expert demonstrations of ``env_id`` from seeds ``seed, seed + 1, ...``.
 
     With ``only_successful`` (default), failed episodes are skipped and more
-    seeds are tried (at most ``10 * n``) until ``n`` successes are found.
+    seeds are tried (at most ``10 * n``) until ``n`` successes are found;
+    :class:`~steer_envs.core.validation.BoundExceeded` (a ``RuntimeError``)
+    when fewer succeed.
     ``steps_after_success`` and ``expert_kwargs`` go to :func:`rollout_expert`
     (defaults: demos end on success, the expert's default settings);
     ``make_kwargs`` to ``gymnasium.make``.
@@ -124,8 +137,11 @@ def collect_demonstrations(
     >>> [d.success for d in demos], demos[0].modes[0], demos[0].modes[-1]
     ([True, True], 0, 2)
     """
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be a positive int, got {n!r}")
+    n = integer(n, "n", low=1, owner="collect_demonstrations")
+    seed = integer(seed, "seed", low=0, owner="collect_demonstrations")
+    only_successful = boolean(only_successful, "only_successful", owner="collect_demonstrations")
+    if not isinstance(env_id, str):
+        raise TypeError(f"collect_demonstrations: env_id must be a str, got {describe(env_id)}")
     env = gym.make(env_id, **make_kwargs)
     demos: list[Demonstration] = []
     try:
@@ -137,7 +153,14 @@ def collect_demonstrations(
                 return demos
     finally:
         env.close()
-    raise RuntimeError(f"the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes")
+    raise BoundExceeded(
+        f"collect_demonstrations: the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes "
+        f"(the bound: 10 * n episodes of at most max_steps={_episode_limit(env)} steps each)"
+    )
+
+
+def _episode_limit(env: gym.Env) -> int:
+    return (env.spec.max_episode_steps if env.spec else None) or DEFAULT_MAX_STEPS
 
 
 def _sensor_row(task: TaskSpec, info: dict[str, Any]) -> list[bool]:

@@ -43,19 +43,25 @@ import importlib.util
 import json
 import math
 import os
+import shutil
+import sys
 import time
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from steer_envs.core.validation import boolean, integer, one_of, real_scalar
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
-from steer_envs.io import atomic_open
+from steer_envs.io import DatasetError, atomic_directory, atomic_write_npz, read_npz
 
 FORMAT = "steer_envs.maze2d_random_walk/1"
+#: the most raw steps one walk may have (the ITPS data uses 1M; D4RL's largest maze2d set 4M)
+MAX_STEPS = 10**8
 #: D4RL maze2d timeouts (raw steps per goal) by maze.
 MAX_LEG_STEPS = {"umaze": 300, "medium": 600, "large": 800}
 #: grid moves in Q-iteration's action order (ties go to the first): stay, -row, +row, -col, +col.
@@ -128,14 +134,16 @@ class WaypointController:
         solve_thresh: float = 0.1,
         vel_thresh: float = 0.1,
     ) -> None:
-        for name, value in (("jitter", jitter), ("solve_thresh", solve_thresh), ("vel_thresh", vel_thresh)):
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite float >= 0, got {value!r}")
+        owner = "WaypointController"
+        if not isinstance(grid, MazeGrid):
+            raise TypeError(f"{owner}: grid must be a MazeGrid, got {type(grid).__name__}")
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise TypeError(f"{owner}: rng must be a numpy Generator or None, got {type(rng).__name__}")
         self.grid = grid
         self.rng = rng if rng is not None else np.random.default_rng()
-        self.jitter = float(jitter)
-        self.solve_thresh = float(solve_thresh)
-        self.vel_thresh = float(vel_thresh)
+        self.jitter = real_scalar(jitter, "jitter", low=0.0, owner=owner)
+        self.solve_thresh = real_scalar(solve_thresh, "solve_thresh", low=0.0, owner=owner)
+        self.vel_thresh = real_scalar(vel_thresh, "vel_thresh", low=0.0, owner=owner)
         self.target: tuple[int, int] | None = None
         self.waypoints: list[tuple[float, float]] = []
         self.index = 0
@@ -250,22 +258,18 @@ def generate_random_walk(
     """Run the D4RL random walk for ``steps`` raw (0.01 s) steps and keep every ``subsample``-th state.
 
     Deterministic from ``seed``. ``max_leg_steps`` (default: D4RL's timeout of
-    the maze) ends a leg whose goal was not reached.
+    the maze) ends a leg whose goal was not reached. Accepted: ``maze`` one of
+    :data:`MAX_LEG_STEPS`; ints ``subsample >= 1``, ``subsample <= steps <=``
+    :data:`MAX_STEPS`, ``seed >= 0``, ``max_leg_steps >= 1`` (bools, floats
+    and strings are a ``TypeError``).
     """
-    for name, value in (("steps", steps), ("seed", seed), ("subsample", subsample)):
-        if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
-            raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if subsample < 1:
-        raise ValueError(f"subsample must be >= 1, got {subsample}")
-    if steps < subsample:
-        raise ValueError(f"steps must be >= subsample ({subsample}), got {steps}")
-    if seed < 0:
-        raise ValueError(f"seed must be >= 0, got {seed}")
-    if maze not in MAX_LEG_STEPS:
-        raise ValueError(f"maze must be one of {sorted(MAX_LEG_STEPS)}, got {maze!r}")
-    leg_limit = MAX_LEG_STEPS[maze] if max_leg_steps is None else int(max_leg_steps)
-    if leg_limit < 1:
-        raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps}")
+    owner = "generate_random_walk"
+    subsample = integer(subsample, "subsample", low=1, owner=owner)
+    steps = integer(steps, "steps", low=subsample, high=MAX_STEPS, owner=owner)
+    seed = integer(seed, "seed", low=0, owner=owner)
+    one_of(maze, "maze", tuple(MAX_LEG_STEPS), owner=owner)
+    leg_limit = MAX_LEG_STEPS[maze] if max_leg_steps is None else integer(max_leg_steps, "max_leg_steps", low=1)
+    progress = boolean(progress, "progress", owner=owner)
 
     grid = MazeGrid(maze_map(maze))
     physics = MazePhysics(grid, name=f"maze2d_{maze}")
@@ -370,26 +374,66 @@ def save_random_walk(dataset: RandomWalkDataset, path: str | os.PathLike[str]) -
     out = Path(path)
     if out.suffix != ".npz":
         raise ValueError(f"path must end with .npz, got {str(out)!r}")
-    out.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: np.asarray(getattr(dataset, name)) for name in _ARRAYS}
-    with atomic_open(out, "wb") as fh:
-        np.savez_compressed(fh, meta=np.array(json.dumps(dataset.meta)), **arrays)
-    return out
+    return atomic_write_npz(out, {"meta": np.array(json.dumps(dataset.meta)), **arrays})
+
+
+#: array -> (dtype kinds, number of axes) of a saved walk
+_SPECS = {
+    "observations": ("f", 2),
+    "actions": ("f", 2),
+    "waypoints": ("f", 2),
+    "goals": ("f", 2),
+    "wall_contact": ("b", 1),
+    "episode_starts": ("iu", 1),
+    "leg_starts": ("iu", 1),
+}
 
 
 def load_random_walk(path: str | os.PathLike[str]) -> RandomWalkDataset:
-    """Read a dataset written by :func:`save_random_walk` (validates format and shapes)."""
+    """Read a dataset written by :func:`save_random_walk`.
+
+    :class:`~steer_envs.io.DatasetError` (a ``ValueError``) naming the file
+    when it is missing, not an ``.npz`` of plain arrays, of another format, or
+    holds arrays of the wrong dtype or shape, non-finite values or
+    out-of-range indices.
+    """
     src = Path(path)
     if not src.is_file():
-        raise ValueError(f"no dataset file at {str(src)!r}")
-    with np.load(src, allow_pickle=False) as npz:
-        missing = [k for k in (*_ARRAYS, "meta") if k not in npz.files]
-        if missing:
-            raise ValueError(f"{src} is not a maze2d random-walk dataset (missing {missing})")
-        meta = json.loads(str(npz["meta"]))
-        if meta.get("format") != FORMAT:
-            raise ValueError(f"{src} has format {meta.get('format')!r}, expected {FORMAT!r}")
-        return RandomWalkDataset(**{k: npz[k] for k in _ARRAYS}, meta=meta)
+        raise DatasetError(f"no dataset file at {str(src)!r}")
+    return random_walk_from_arrays(src, read_npz(src))
+
+
+def random_walk_from_arrays(src: Path, arrays: Mapping[str, np.ndarray]) -> RandomWalkDataset:
+    """A :class:`RandomWalkDataset` from the arrays of the file ``src`` (checked; ``DatasetError`` naming it)."""
+    missing = [k for k in (*_ARRAYS, "meta") if k not in arrays]
+    if missing:
+        raise DatasetError(f"{src} is not a maze2d random-walk dataset (missing {missing})")
+    meta_arr = arrays["meta"]
+    if meta_arr.dtype.kind != "U" or meta_arr.ndim != 0:
+        raise DatasetError(f"{src}: 'meta' must be a JSON string, got dtype {meta_arr.dtype} shape {meta_arr.shape}")
+    try:
+        meta = json.loads(str(meta_arr))
+    except ValueError as err:
+        raise DatasetError(f"{src}: 'meta' is not JSON ({err})") from None
+    if not isinstance(meta, dict):
+        raise DatasetError(f"{src}: 'meta' must be a JSON object, got {type(meta).__name__}")
+    if meta.get("format") != FORMAT:
+        raise DatasetError(f"{src} has format {meta.get('format')!r}, expected {FORMAT!r}")
+    for name, (kinds, ndim) in _SPECS.items():
+        arr = arrays[name]
+        if arr.dtype.kind not in kinds or arr.ndim != ndim:
+            raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
+        if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+            raise DatasetError(f"{src}: array {name!r} holds NaN or infinite values")
+    n = len(arrays["observations"])
+    legs = arrays["leg_starts"]
+    if len(legs) and (legs[0] < 0 or legs[-1] >= max(n, 1) or np.any(np.diff(legs) <= 0)):
+        raise DatasetError(f"{src}: leg_starts must be increasing indices in [0, {n})")
+    try:
+        return RandomWalkDataset(**{k: arrays[k] for k in _ARRAYS}, meta=meta)
+    except (TypeError, ValueError) as err:
+        raise DatasetError(f"{src}: {err}") from None
 
 
 def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -399,27 +443,68 @@ def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
 
 
 # -------------------------------------------------------------------- Minari
+def minari_root() -> Path:
+    """The folder Minari keeps local datasets in: ``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``."""
+    root = os.environ.get("MINARI_DATASETS_PATH")
+    return Path(root) if root else Path.home() / ".minari" / "datasets"
+
+
+def _torn_minari_export(folder: Path) -> bool:
+    """Whether ``folder`` is what a killed export of an earlier version left: our dataset, with no episodes."""
+    meta_file = folder / "data" / "metadata.json"
+    try:
+        meta = json.loads(meta_file.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return not any(folder.rglob("*.hdf5"))  # not even metadata: nothing of value
+    if not isinstance(meta, dict):
+        return False
+    authors = meta.get("author")
+    authors = [authors] if isinstance(authors, str) else authors if isinstance(authors, list) else []
+    ours = not authors or any(str(a).startswith("steer-envs") for a in authors)
+    return ours and not meta.get("total_episodes")
+
+
 def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None = None) -> Any:
-    """Store ``dataset`` as a local Minari dataset (one episode per continuous walk).
+    """Store ``dataset`` as a local Minari dataset (one episode per continuous walk); returns it.
 
     Needs a Minari storage backend (``pip install "minari[hdf5]"``); Minari
-    writes under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``) and
-    refuses to overwrite an existing id. Observations are ``(x, y, vx, vy)``
-    (the env made with ``observe_velocity=True``), actions the next xy, step
-    infos ``waypoint`` and ``goal``; ``env_id`` defaults to the maze's id.
+    writes under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``).
+    The dataset is built in a temp folder next to its final place and renamed
+    there when complete (:func:`steer_envs.io.atomic_directory`), so a killed
+    export leaves no dataset (and its leftovers are removed by the next
+    export into the same folder); an existing complete dataset of that id is
+    refused (``FileExistsError``), a torn one left by a killed export of an
+    earlier version (no episodes) is replaced. Observations are ``(x, y, vx,
+    vy)`` (the env made with ``observe_velocity=True``), actions the next xy,
+    step infos ``waypoint`` and ``goal``; ``env_id`` defaults to the maze's id.
     """
     if not isinstance(dataset, RandomWalkDataset):
         raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
+    if not isinstance(dataset_id, str) or not dataset_id or dataset_id != dataset_id.strip("/"):
+        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
+    if any(part in ("", ".", "..") for part in dataset_id.split("/")):
+        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
     if importlib.util.find_spec("h5py") is None and importlib.util.find_spec("pyarrow") is None:
         raise ImportError('to_minari needs a Minari storage backend: pip install "minari[hdf5]"')
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
+    from minari.dataset.minari_storage import MinariStorage
+    from minari.namespace import create_namespace, list_local_namespaces
 
     if env_id is None:
         names = {"umaze": "Umaze", "medium": "Medium", "large": "Large"}
         env_id = f"steer_envs/Maze2D-{names[dataset.meta.get('maze', 'large')]}-v0"
-    env = gym.make(env_id, observe_velocity=True)
+    root = minari_root()
+    final = root.joinpath(*dataset_id.split("/"))
+    overwrite = False
+    if final.exists():
+        if not (final.is_dir() and _torn_minari_export(final)):
+            raise FileExistsError(
+                f"a Minari dataset {dataset_id!r} already exists at {final}; use another id or version"
+            )
+        overwrite = True
+    namespace = dataset_id.rsplit("/", 1)[0] if "/" in dataset_id else None
     buffers = []
     for k, sl in enumerate(dataset.episode_slices()):
         obs = dataset.observations[sl]
@@ -436,26 +521,54 @@ def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None
                 infos={"waypoint": dataset.waypoints[sl], "goal": dataset.goals[sl]},
             )
         )
+    env = gym.make(env_id, observe_velocity=True)
+    previous = os.environ.get("MINARI_DATASETS_PATH")
     try:
-        with warnings.catch_warnings():  # Minari recommends author/e-mail/permalink metadata; none applies here
-            warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
-            return minari.create_dataset_from_buffers(
-                dataset_id=dataset_id,
-                buffer=buffers,
-                env=env,
-                algorithm_name="D4RL maze2d waypoint controller (random walk)",
-                author="steer-envs (steer_envs.data.maze_random_walk)",
-                description=f"steer-envs maze2d random walk: {json.dumps(dataset.meta)}",
-            )
+        if namespace is not None:
+            os.environ["MINARI_DATASETS_PATH"] = str(root)
+            if namespace not in list_local_namespaces():
+                create_namespace(namespace)
+        with atomic_directory(final, overwrite=overwrite) as build:
+            scratch = build / "_minari"
+            os.environ["MINARI_DATASETS_PATH"] = str(scratch)
+            with warnings.catch_warnings():  # Minari recommends author/e-mail/permalink metadata; none applies here
+                warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
+                created = minari.create_dataset_from_buffers(
+                    dataset_id=dataset_id,
+                    buffer=buffers,
+                    env=env,
+                    algorithm_name="D4RL maze2d waypoint controller (random walk)",
+                    author="steer-envs (steer_envs.data.maze_random_walk)",
+                    description=f"steer-envs maze2d random walk: {json.dumps(dataset.meta)}",
+                )
+                del created  # its storage points into the temp folder
+            scratch.joinpath(*dataset_id.split("/"), "data").rename(build / "data")
+            shutil.rmtree(scratch)
     finally:
+        if previous is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = previous
         env.close()
+    return minari.MinariDataset(MinariStorage.read(final / "data"))
 
 
 # ----------------------------------------------------------------------- CLI
+_PROG = "python -m steer_envs.data.maze_random_walk"
+
+
+def _fail(message: str) -> int:
+    print(f"{_PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m steer_envs.data.maze_random_walk``: generate and save a random-walk dataset."""
+    """``python -m steer_envs.data.maze_random_walk``: generate and save a random-walk dataset.
+
+    Exit 0 done, 2 a usage error or an output that cannot be written (one line on stderr).
+    """
     parser = argparse.ArgumentParser(
-        prog="python -m steer_envs.data.maze_random_walk",
+        prog=_PROG,
         description="Generate the D4RL maze2d random walk (ITPS training data) as an .npz dataset.",
     )
     parser.add_argument("--out", required=True, help="output .npz file, or a directory for the default name")
@@ -472,9 +585,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
 
+    if not args.out.strip():
+        parser.error("--out must not be empty")
     out = Path(args.out)
     if out.suffix != ".npz":
         out = out / f"maze2d-{args.maze}-randomwalk-seed{args.seed}.npz"
+    if out.is_dir():
+        parser.error(f"--out {args.out!r}: {out} is a folder")
+    blocker = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        parser.error(f"--out {args.out!r}: {blocker} is not a folder")
     tic = time.perf_counter()
     try:
         ds = generate_random_walk(
@@ -483,7 +603,10 @@ def main(argv: list[str] | None = None) -> int:
     except (TypeError, ValueError) as err:
         parser.error(str(err))
     elapsed = time.perf_counter() - tic
-    save_random_walk(ds, out)
+    try:
+        save_random_walk(ds, out)
+    except OSError as err:
+        return _fail(f"cannot write {out}: {err}")
     grid = MazeGrid(maze_map(args.maze))
     in_wall = float(grid.is_wall(ds.actions).mean())
     raw = ds.meta["raw_steps"]
@@ -492,7 +615,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"waypoints in wall cells: {in_wall:.4%}; samples touching a wall: {float(ds.wall_contact.mean()):.4%}")
     if args.minari_id:
         os.environ.setdefault("MINARI_DATASETS_PATH", str(out.parent / "minari"))
-        to_minari(ds, args.minari_id)
+        try:
+            to_minari(ds, args.minari_id)
+        except (ImportError, OSError, ValueError) as err:
+            return _fail(f"Minari dataset {args.minari_id!r}: {err}")
         print(f"wrote Minari dataset {args.minari_id!r} under {os.environ['MINARI_DATASETS_PATH']}")
     return 0
 

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import boolean, describe, integer, real_array
 
 __all__ = ["ModeData", "ModeSegment", "Segmentation", "segment_demonstration", "segment_demonstrations"]
 
@@ -138,13 +139,17 @@ def _labels(labels: object, n: int, task: TaskSpec | None) -> list[Hashable]:
     out: list[Hashable] = []
     for item in labels:
         if isinstance(item, Mapping):
-            out.append(task.mode_of(item) if task is not None else tuple(sorted(k for k, v in item.items() if bool(v))))
-        elif isinstance(item, np.generic):
-            out.append(item.item())
-        elif isinstance(item, Hashable):
+            reading = {k: boolean(v, f"sensor reading {k!r}") for k, v in item.items()}
+            out.append(task.mode_of(reading) if task is not None else tuple(sorted(k for k, v in reading.items() if v)))
+            continue
+        if isinstance(item, np.generic):
+            item = item.item()
+        if isinstance(item, float) and item != item:
+            raise ValueError("labels must not be NaN")
+        if isinstance(item, Hashable) and not isinstance(item, (bytes, complex)):
             out.append(item)
         else:
-            raise TypeError(f"labels must be ints, strings, bool rows or dicts, got {type(item).__name__}")
+            raise TypeError(f"labels must be ints, strings, bool rows or dicts, got {describe(item)}")
     if task is not None:  # normalise indices and names to names
         out = [task.modes[task.mode_index(m)] if isinstance(m, int | str) else m for m in out]
     return out
@@ -175,18 +180,15 @@ def segment_demonstration(
     >>> [(s.mode, s.start, s.stop) for s in segment_demonstration(np.zeros((5, 2)), [0, 0, 1, 0, 0], min_length=2)]
     [(0, 0, 5)]
     """
-    x = np.asarray(states, dtype=np.float64)
+    x = real_array(states, "states")
     if x.ndim != 2 or len(x) == 0:
         raise ValueError(f"states must have shape (T>=1, d), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("states must be finite (got NaN or inf)")
     v = None
     if velocities is not None:
-        v = np.asarray(velocities, dtype=np.float64)
-        if v.shape != x.shape or not np.all(np.isfinite(v)):
+        v = real_array(velocities, "velocities")
+        if v.shape != x.shape:
             raise ValueError(f"velocities must be finite with the shape of states {x.shape}, got {v.shape}")
-    if not isinstance(min_length, int) or min_length < 1:
-        raise ValueError(f"min_length must be a positive int, got {min_length!r}")
+    min_length = integer(min_length, "min_length", low=1)
     lab = _labels(labels, len(x), task)
     bounds = [0] + [t for t in range(1, len(lab)) if lab[t] != lab[t - 1]] + [len(lab)]
     merged: list[tuple[Hashable, int, int]] = []

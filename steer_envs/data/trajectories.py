@@ -14,7 +14,10 @@ declarations say how the data relates to the env:
 
 :class:`PlanWindows` cuts ``(observation history, plan)`` training pairs.
 Files are ``.npz`` (no pickle), written atomically; :func:`load_trajectories`
-also reads the datasets of :mod:`steer_envs.data.maze_random_walk`.
+also reads the datasets of :mod:`steer_envs.data.maze_random_walk`, and
+checks every array's header before loading it: a file that is missing,
+foreign, malformed or holds non-finite data is a
+:class:`~steer_envs.io.DatasetError` naming it.
 
 >>> import numpy as np
 >>> obs = np.arange(20, dtype=np.float32).reshape(10, 2)
@@ -34,20 +37,66 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.io import atomic_open
+from steer_envs.core.validation import describe, integer
+from steer_envs.io import DatasetError, atomic_write_npz, read_npz
 
-__all__ = ["FORMAT", "PlanWindows", "TrajectoryDataset", "load_trajectories", "save_trajectories"]
+__all__ = [
+    "FORMAT",
+    "DatasetError",
+    "PlanWindows",
+    "TrajectoryDataset",
+    "load_trajectories",
+    "save_trajectories",
+]
 
 FORMAT = "steer_envs.trajectories/1"
+
+
+def real_matrix(value: Any, name: str, dtype: type = np.float32) -> np.ndarray:
+    """``value`` (a 2-D array, nested sequence or tensor of real numbers) as a ``dtype`` array, not coerced.
+
+    ``TypeError`` for strings, bools, complex numbers and objects (numpy would
+    parse ``"1.5"`` and drop imaginary parts); ``ValueError`` for ragged input.
+    Shapes and finiteness are the caller's checks.
+    """
+    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):  # a torch tensor
+        value = value.detach().cpu().numpy()
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise TypeError(f"{name} must be an array of real numbers, got {describe(value)}")
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be a rectangular array of real numbers ({err})") from None
+    if raw.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must hold real numbers, got dtype {raw.dtype}")
+    return np.asarray(raw, dtype=dtype)
+
+
+def index_array(value: Any, name: str) -> np.ndarray:
+    """``value`` as a 1-D int64 array of integers (floats, bools and strings are a ``TypeError``)."""
+    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):
+        value = value.detach().cpu().numpy()
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise TypeError(f"{name} must be a sequence of ints, got {describe(value)}")
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be a 1-D sequence of ints ({err})") from None
+    if raw.size == 0:
+        raw = raw.astype(np.int64)
+    if raw.dtype.kind not in "iu":
+        raise TypeError(f"{name} must hold ints, got dtype {raw.dtype}")
+    if raw.ndim != 1:
+        raise ValueError(f"{name} must be 1-D, got shape {raw.shape}")
+    return raw.astype(np.int64)
 
 
 def _indices(value: Any, name: str, bound: int | None) -> tuple[int, ...] | None:
     if value is None:
         return None
-    try:
-        out = tuple(int(v) for v in value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a sequence of ints or None, got {value!r}") from None
+    if not isinstance(value, (list, tuple, range, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim != 1):
+        raise TypeError(f"{name} must be a 1-D sequence of ints or None, got {describe(value)}")
+    out = tuple(integer(v, f"{name} entry") for v in value)
     if not out or len(set(out)) != len(out) or min(out) < 0 or (bound is not None and max(out) >= bound):
         limit = f" below {bound}" if bound is not None else ""
         raise ValueError(f"{name} must be distinct ints >= 0{limit}, got {list(out)}")
@@ -75,8 +124,8 @@ class TrajectoryDataset:
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.observations = np.asarray(self.observations, dtype=np.float32)
-        self.actions = np.asarray(self.actions, dtype=np.float32)
+        self.observations = real_matrix(self.observations, "observations")
+        self.actions = real_matrix(self.actions, "actions")
         if self.observations.ndim != 2 or self.observations.shape[1] < 1:
             raise ValueError(f"observations must have shape (N, obs_dim), got {self.observations.shape}")
         n = len(self.observations)
@@ -84,8 +133,8 @@ class TrajectoryDataset:
             raise ValueError(f"actions must have shape ({n}, action_dim), got {self.actions.shape}")
         if not (np.all(np.isfinite(self.observations)) and np.all(np.isfinite(self.actions))):
             raise ValueError("observations and actions must be finite")
-        starts = np.asarray(self.episode_starts, dtype=np.int64)
-        if starts.ndim != 1 or (n and (len(starts) == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0))):
+        starts = index_array(self.episode_starts, "episode_starts")
+        if n and (len(starts) == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0)):
             raise ValueError(f"episode_starts must be increasing indices starting at 0, got {starts.tolist()}")
         if len(starts) and starts[-1] >= max(n, 1):
             raise ValueError(f"episode_starts must be < {n}, got {starts.tolist()}")
@@ -99,6 +148,8 @@ class TrajectoryDataset:
             raise ValueError(f"action_obs_indices must have action_dim={self.action_dim} entries, got {got}")
         if not isinstance(self.meta, dict):
             raise TypeError(f"meta must be a dict, got {type(self.meta).__name__}")
+        if not all(isinstance(k, str) for k in self.meta):
+            raise TypeError(f"meta keys must be strings, got {sorted(map(repr, self.meta))[:5]}")
 
     def __len__(self) -> int:
         return len(self.observations)
@@ -166,12 +217,9 @@ class PlanWindows:
     def __init__(self, dataset: TrajectoryDataset, n_obs: int = 2, horizon: int = 64, action_start: int = 0) -> None:
         if not isinstance(dataset, TrajectoryDataset):
             raise TypeError(f"dataset must be a TrajectoryDataset, got {type(dataset).__name__}")
-        if not isinstance(n_obs, (int, np.integer)) or n_obs < 1:
-            raise ValueError(f"n_obs must be a positive int, got {n_obs!r}")
-        if not isinstance(horizon, (int, np.integer)) or horizon < 1:
-            raise ValueError(f"horizon must be a positive int, got {horizon!r}")
-        if not isinstance(action_start, (int, np.integer)) or action_start < 1 - n_obs:
-            raise ValueError(f"action_start must be an int >= 1 - n_obs = {1 - n_obs}, got {action_start!r}")
+        n_obs = integer(n_obs, "n_obs", low=1, owner="PlanWindows")
+        horizon = integer(horizon, "horizon", low=1, owner="PlanWindows")
+        action_start = integer(action_start, "action_start", low=1 - n_obs, owner="PlanWindows")
         self.observations = np.ascontiguousarray(dataset.observations, dtype=np.float32)
         self.actions = np.ascontiguousarray(dataset.actions, dtype=np.float32)
         self.n_obs, self.horizon, self.action_start = int(n_obs), int(horizon), int(action_start)
@@ -203,8 +251,7 @@ class PlanWindows:
         self, batch_size: int, rng: np.random.Generator | None = None
     ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """One epoch of batches (shuffled when ``rng`` is given)."""
-        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
-            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+        integer(batch_size, "batch_size", low=1, owner="PlanWindows.batches")
         order = rng.permutation(len(self)) if rng is not None else np.arange(len(self))
         for a in range(0, len(order), int(batch_size)):
             yield self.gather(order[a : a + int(batch_size)])
@@ -231,48 +278,76 @@ def save_trajectories(dataset: TrajectoryDataset, path: str | os.PathLike[str]) 
         "action_obs_indices": None if dataset.action_obs_indices is None else list(dataset.action_obs_indices),
         "meta": dataset.meta,
     }
-    with atomic_open(out, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            header=np.array(json.dumps(header)),
-            observations=dataset.observations,
-            actions=dataset.actions,
-            episode_starts=dataset.episode_starts,
-        )
-    return out
+    try:
+        text = json.dumps(header)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"dataset.meta must be JSON-serializable ({err})") from None
+    arrays = {
+        "header": np.array(text),
+        "observations": dataset.observations,
+        "actions": dataset.actions,
+        "episode_starts": dataset.episode_starts,
+    }
+    return atomic_write_npz(out, arrays)
+
+
+def _require(src: Path, arrays: Mapping[str, np.ndarray], specs: Mapping[str, tuple[str, int]]) -> None:
+    """``DatasetError`` unless each named array is present with a dtype kind in ``kinds`` and ``ndim`` axes."""
+    missing = sorted(set(specs) - set(arrays))
+    if missing:
+        raise DatasetError(f"{src}: missing arrays {missing}")
+    for name, (kinds, ndim) in specs.items():
+        arr = arrays[name]
+        if arr.dtype.kind not in kinds or arr.ndim != ndim:
+            raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
+
+
+def _json_header(src: Path, arrays: Mapping[str, np.ndarray], key: str) -> dict[str, Any]:
+    """The JSON object stored as the 0-d string array ``key`` (``DatasetError`` when malformed)."""
+    arr = arrays[key]
+    if arr.dtype.kind != "U" or arr.ndim != 0:
+        raise DatasetError(f"{src}: {key!r} must be a JSON string, got dtype {arr.dtype} shape {arr.shape}")
+    try:
+        value = json.loads(str(arr))
+    except ValueError as err:
+        raise DatasetError(f"{src}: {key!r} is not JSON ({err})") from None
+    if not isinstance(value, dict):
+        raise DatasetError(f"{src}: {key!r} must be a JSON object, got {type(value).__name__}")
+    return value
 
 
 def load_trajectories(path: str | os.PathLike[str]) -> TrajectoryDataset:
     """Read a file of :func:`save_trajectories`, or a Maze2D random walk (converted with its declarations).
 
-    ``ValueError`` naming the file when it is missing or of another format.
+    :class:`~steer_envs.io.DatasetError` (a ``ValueError``) naming the file
+    when it is missing, not an ``.npz`` of plain arrays, of another format, or
+    holds arrays of the wrong dtype, shape or with non-finite values.
     """
     src = Path(path)
     if not src.is_file():
-        raise ValueError(f"no dataset file at {str(src)!r}")
-    try:
-        npz = np.load(src, allow_pickle=False)
-    except (OSError, EOFError, ValueError) as err:
-        raise ValueError(f"{src} is not a readable .npz dataset ({err})") from None
-    if not isinstance(npz, np.lib.npyio.NpzFile):
-        raise ValueError(f"{src} is not an .npz archive of arrays")
-    with npz:
-        if "header" in npz.files:
-            header = json.loads(str(npz["header"]))
-            if not isinstance(header, Mapping) or header.get("format") != FORMAT:
-                found = header.get("format") if isinstance(header, Mapping) else None
-                raise ValueError(f"{src} has format {found!r}, expected {FORMAT!r}")
+        raise DatasetError(f"no dataset file at {str(src)!r}")
+    arrays = read_npz(src)
+    if "header" in arrays:
+        header = _json_header(src, arrays, "header")
+        if header.get("format") != FORMAT:
+            raise DatasetError(f"{src} has format {header.get('format')!r}, expected {FORMAT!r}")
+        _require(src, arrays, {"observations": ("iuf", 2), "actions": ("iuf", 2), "episode_starts": ("iu", 1)})
+        meta = header.get("meta") or {}
+        if not isinstance(meta, dict):
+            raise DatasetError(f"{src}: the header's meta must be a JSON object, got {type(meta).__name__}")
+        try:
             return TrajectoryDataset(
-                npz["observations"],
-                npz["actions"],
-                npz["episode_starts"],
+                arrays["observations"],
+                arrays["actions"],
+                arrays["episode_starts"],
                 obs_indices=header.get("obs_indices"),
                 action_obs_indices=header.get("action_obs_indices"),
-                meta=dict(header.get("meta") or {}),
+                meta=dict(meta),
             )
-        is_walk = "meta" in npz.files
-    if is_walk:
-        from steer_envs.data.maze_random_walk import load_random_walk
+        except (TypeError, ValueError) as err:
+            raise DatasetError(f"{src}: {err}") from None
+    if "meta" in arrays:
+        from steer_envs.data.maze_random_walk import random_walk_from_arrays
 
-        return load_random_walk(src).to_trajectories()
-    raise ValueError(f"{src} is not a trajectory dataset (no header; expected {FORMAT!r} or a maze2d random walk)")
+        return random_walk_from_arrays(src, arrays).to_trajectories()
+    raise DatasetError(f"{src} is not a trajectory dataset (no header; expected {FORMAT!r} or a maze2d random walk)")

@@ -23,6 +23,7 @@ from shapely.geometry import MultiPoint, Polygon
 from shapely.geometry.polygon import orient
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
 from steer_envs.envs.render import Canvas
 
@@ -35,6 +36,12 @@ NUM_HULL_POINTS = 10
 ATTRACTOR_RADIUS = 0.4
 #: closed-set tolerance of the half-space test (points on an edge count as inside).
 INSIDE_TOL = 1e-9
+#: largest accepted ``start_noise`` (half the workspace): wider noise would start almost nowhere inside the mode.
+MAX_START_NOISE = WORKSPACE_HALF_WIDTH
+#: rounds of rejection sampling for start states (each round redraws every start still outside the mode).
+MAX_START_ROUNDS = 10_000
+#: redraws of the 10 hull points when they are degenerate (collinear: probability ~0).
+MAX_HULL_DRAWS = 1_000
 
 CONVEX_TASK = TaskSpec(
     name="ConvexMode",
@@ -83,13 +90,14 @@ def in_halfspaces(a: np.ndarray, b: np.ndarray, pos: np.ndarray, tol: float = IN
     return np.all(margins <= tol, axis=-1)
 
 
-def check_layout_seed(layout_seed: Any) -> int:
-    """Validate a ``layout_seed`` (a non-negative int) and return it as ``int``."""
-    if isinstance(layout_seed, bool) or not isinstance(layout_seed, (int, np.integer)):
-        raise TypeError(f"layout_seed must be a non-negative int, got {type(layout_seed).__name__}")
-    if layout_seed < 0:
-        raise ValueError(f"layout_seed must be a non-negative int, got {layout_seed}")
-    return int(layout_seed)
+def check_layout_seed(layout_seed: Any, owner: str | None = None) -> int:
+    """Validate a ``layout_seed`` (a non-negative int, not a bool or a float) and return it as ``int``.
+
+    >>> check_layout_seed("3")
+    Traceback (most recent call last):
+    TypeError: layout_seed must be an int, got str '3'
+    """
+    return integer(layout_seed, "layout_seed", low=0, owner=owner)
 
 
 class ConvexModeModel(KinematicTaskModel):
@@ -108,7 +116,10 @@ class ConvexModeModel(KinematicTaskModel):
     mode. A float ``sigma >= 0`` reproduces the TLI protocol: a point drawn
     uniformly on the demonstration path (the segment ``demo_start ->
     attractor``, which the scripted expert follows) plus ``N(0, sigma^2 I)``,
-    redrawn until inside the mode (``sigma`` in {0, 1, 5} ~ 0/5/30% noise).
+    redrawn until inside the mode (``sigma`` in {0, 1, 5} ~ 0/5/30% noise);
+    ``sigma`` must be at most :data:`MAX_START_NOISE` (half the workspace), and
+    a start that is still outside after :data:`MAX_START_ROUNDS` redraws raises
+    :class:`~steer_envs.core.validation.BoundExceeded`.
 
     Task memory (1 slot): whether the agent has ever stepped out of the mode.
     Success: inside, within 0.4 of the attractor, and never stepped out.
@@ -118,13 +129,9 @@ class ConvexModeModel(KinematicTaskModel):
     region_names = ("outside", "mode")
 
     def __init__(self, layout_seed: int = 0, start_noise: float | None = None) -> None:
-        self.layout_seed = check_layout_seed(layout_seed)
+        self.layout_seed = check_layout_seed(layout_seed, "ConvexMode")
         if start_noise is not None:
-            if isinstance(start_noise, bool) or not isinstance(start_noise, (int, float, np.floating, np.integer)):
-                raise TypeError(f"start_noise must be None or a float >= 0, got {type(start_noise).__name__}")
-            if not (np.isfinite(start_noise) and start_noise >= 0):
-                raise ValueError(f"start_noise must be None or a finite float >= 0, got {start_noise!r}")
-            start_noise = float(start_noise)
+            start_noise = real_scalar(start_noise, "start_noise", low=0.0, high=MAX_START_NOISE, owner="ConvexMode")
         self.start_noise = start_noise
         self.task = CONVEX_TASK
         self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
@@ -132,11 +139,13 @@ class ConvexModeModel(KinematicTaskModel):
         self.attractor_radius = ATTRACTOR_RADIUS
 
         rng = np.random.default_rng(self.layout_seed)
-        while True:  # a degenerate hull (collinear points) has probability ~0; redraw then
+        for _ in range(MAX_HULL_DRAWS):  # a degenerate hull (collinear points) has probability ~0; redraw then
             points = rng.uniform(-SAMPLE_HALF_WIDTH, SAMPLE_HALF_WIDTH, size=(NUM_HULL_POINTS, 2))
             hull = MultiPoint([tuple(p) for p in points]).convex_hull
             if isinstance(hull, Polygon) and hull.area > 1.0:
                 break
+        else:  # pragma: no cover - needs MAX_HULL_DRAWS degenerate draws in a row
+            raise BoundExceeded(f"ConvexMode: no hull of area > 1 in MAX_HULL_DRAWS={MAX_HULL_DRAWS} draws")
         self.points = points
         self.polygon: Polygon = orient(hull, sign=1.0)
         self.vertices = np.asarray(self.polygon.exterior.coords, dtype=np.float64)[:-1]
@@ -167,9 +176,11 @@ class ConvexModeModel(KinematicTaskModel):
         return np.where(self.inside(pos), 0, 1).astype(np.int64)
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` starts inside the mode (see the class docstring); :class:`BoundExceeded` if sampling stalls."""
+        n = integer(n, "n", low=0, owner="ConvexMode.sample_start")
         out = np.empty((n, 2))
         todo = np.arange(n)
-        for _ in range(10_000):
+        for _ in range(MAX_START_ROUNDS):
             if len(todo) == 0:
                 return out
             m = len(todo)
@@ -182,7 +193,12 @@ class ConvexModeModel(KinematicTaskModel):
             ok = self.inside(cand)
             out[todo[ok]] = cand[ok]
             todo = todo[~ok]
-        raise RuntimeError("ConvexMode: could not draw start states inside the mode")  # pragma: no cover
+        if len(todo) == 0:
+            return out
+        raise BoundExceeded(
+            f"ConvexMode: {len(todo)} of {n} start states still outside the mode after "
+            f"MAX_START_ROUNDS={MAX_START_ROUNDS} rounds of rejection sampling (start_noise={self.start_noise})"
+        )
 
     # ---------------------------------------------------------------- task
     def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -225,9 +241,10 @@ class ConvexModeEnv(Kinematic2DEnv):
     """ConvexMode-v0 (TLI single-mode study); see the module docstring.
 
     Args:
-        layout_seed: seed of the random convex mode (geometry only).
+        layout_seed: seed of the random convex mode (geometry only), an int >= 0.
         start_noise: ``None`` for uniform starts in the mode, or the std of the
-            Gaussian noise added to demonstration-path points (TLI protocol).
+            Gaussian noise added to demonstration-path points (TLI protocol), a
+            real in ``[0, MAX_START_NOISE]``.
         terminate_on_violation: end the episode when the agent leaves the mode.
         dt, max_speed: integration step and speed limit (thesis: 0.01, 20).
         render_mode: ``None`` or ``"rgb_array"``.
@@ -268,6 +285,7 @@ make_vector_env = vector_factory(ConvexModeEnv)
 __all__ = [
     "ATTRACTOR_RADIUS",
     "CONVEX_TASK",
+    "MAX_START_NOISE",
     "ConvexModeEnv",
     "ConvexModeModel",
     "check_layout_seed",

@@ -74,6 +74,7 @@ from types import MappingProxyType
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import one_of
 from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
@@ -193,8 +194,7 @@ class CookingModel(KinematicTaskModel):
     # ------------------------------------------------------------ geometry
     def in_rect(self, name: str, pos: np.ndarray) -> np.ndarray:
         """Whether points lie in region ``name``'s closed rectangle (overlaps ignored): ``(N, 2) -> (N,)``."""
-        if name not in self.rects:
-            raise ValueError(f"name must be one of {tuple(self.rects)}, got {name!r}")
+        one_of(name, "name", tuple(self.rects), owner="Cooking.in_rect")
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
         x0, y0, x1, y1 = self.rects[name]
         return (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)

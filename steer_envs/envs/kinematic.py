@@ -25,7 +25,13 @@ from gymnasium.vector.utils import batch_space
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import bool_array, boolean, describe, integer, one_of, real_array, real_scalar
 from steer_envs.envs.render import REGION_PALETTE, Canvas
+
+#: accepted ``render_size`` (pixels per side): a region map above this size costs hundreds of MB to draw.
+RENDER_SIZE_RANGE = (8, 1024)
+#: largest ``num_envs`` of a vector env (its state arrays are allocated up front).
+MAX_NUM_ENVS = 1_000_000
 
 
 @dataclass
@@ -102,6 +108,17 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     norm is clipped to ``max_speed``. ``info`` carries ``mode`` (int),
     ``mode_name``, ``sensors`` (AP -> bool), ``success`` and
     ``constraint_violation``. Reward: +1 on success, -1 on a violation, else 0.
+
+    Accepted inputs (anything else raises ``TypeError`` for the wrong kind,
+    ``ValueError`` for a wrong value, naming the argument): ``dt`` and
+    ``max_speed`` positive finite reals; ``terminate_on_violation`` a bool;
+    ``render_mode`` ``None`` or ``"rgb_array"``; ``render_size`` an int in
+    :data:`RENDER_SIZE_RANGE`. Actions, ``perturb`` displacements/targets and
+    ``options["state"]`` are arrays of 2 finite real numbers (lists, numpy
+    arrays, torch tensors, read detached); strings (also ``"1"``), bools,
+    complex numbers and objects are refused, never converted. A finite
+    action outside the action space is clipped to ``max_speed`` (its
+    direction kept) and a state outside the workspace onto it.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 30}  # noqa: RUF012 - Env's type
@@ -117,19 +134,17 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         render_size: int = 256,
     ) -> None:
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite float, got {dt!r}")
-        if not (np.isfinite(max_speed) and max_speed > 0):
-            raise ValueError(f"max_speed must be a positive finite float, got {max_speed!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        owner = type(self).__name__
+        if not isinstance(model, KinematicTaskModel):
+            raise TypeError(f"{owner}: model must be a KinematicTaskModel, got {describe(model)}")
+        self.dt = real_scalar(dt, "dt", low=0.0, low_inclusive=False, owner=owner)
+        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner=owner)
+        self.terminate_on_violation = boolean(terminate_on_violation, "terminate_on_violation", owner=owner)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
+        low, high = RENDER_SIZE_RANGE
+        self.render_size = integer(render_size, "render_size", low=low, high=high, owner=owner)
         self.model = model
         self.task: TaskSpec = model.task
-        self.dt = float(dt)
-        self.max_speed = float(max_speed)
-        self.terminate_on_violation = bool(terminate_on_violation)
-        self.render_mode = render_mode
-        self.render_size = int(render_size)
         self.observation_space = spaces.Box(
             model.low.astype(np.float32), model.high.astype(np.float32), dtype=np.float32
         )
@@ -164,11 +179,15 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start an episode; ``options={"state": xy}`` starts from a given state."""
-        super().reset(seed=seed)
-        options = options or {}
-        if "state" in options and options["state"] is not None:
-            self._pos = _check_xy(options["state"], "options['state']")[None, :]
+        """Start an episode; ``options={"state": xy}`` starts from a given state (clipped onto the workspace).
+
+        ``seed`` is None or an int >= 0; ``options`` None or a dict whose only key is ``"state"``.
+        """
+        owner = f"{type(self).__name__}.reset"
+        super().reset(seed=check_seed(seed, owner))
+        options = check_options(options, _KINEMATIC_OPTIONS, owner)
+        if options.get("state") is not None:
+            self._pos = _check_xy(options["state"], "options['state']", owner)[None, :]
             self._pos = np.clip(self._pos, self.model.low, self.model.high)
         else:
             self._pos = self.model.sample_start(self.np_random, 1).astype(np.float64)
@@ -177,7 +196,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._obs(), self._info(False)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        velocity = _clip_speed(_check_action(action, self.action_space), self.max_speed)
+        """Move by ``dt * action``; the action (2 finite reals) is clipped to speed ``max_speed``."""
+        velocity = _clip_speed(_check_action(action, self.action_space, f"{type(self).__name__}.step"), self.max_speed)
         prev = self._pos
         self._pos = np.clip(prev + self.dt * velocity[None, :], self.model.low, self.model.high)
         self._memory, violation = self.model.advance(self._memory, prev, self._pos)
@@ -192,11 +212,13 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
         The task memory follows the new state (soup falls off a tilted spoon,
         ...). The push itself is not a constraint violation of the policy.
-        Returns the new ``info``.
+        ``delta``/``to`` are 2 finite reals (see the class docstring); a target
+        outside the workspace is clipped onto it. Returns the new ``info``.
         """
+        owner = f"{type(self).__name__}.perturb"
         if (delta is None) == (to is None):
-            raise ValueError("perturb: pass exactly one of `delta` (displacement) or `to` (target state)")
-        target = self._pos[0] + _check_xy(delta, "delta") if to is None else _check_xy(to, "to")
+            raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target state)")
+        target = self._pos[0] + _check_xy(delta, "delta", owner) if to is None else _check_xy(to, "to", owner)
         prev = self._pos
         self._pos = np.clip(target, self.model.low, self.model.high)[None, :]
         self._memory = self.model.teleport(self._memory, prev, self._pos)
@@ -238,12 +260,15 @@ class Kinematic2DVectorEnv(VectorEnv):
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012 - VectorEnv's type
 
     def __init__(self, env: Kinematic2DEnv, num_envs: int, max_episode_steps: int | None = None) -> None:
-        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        owner = type(self).__name__
+        if not isinstance(env, Kinematic2DEnv):
+            raise TypeError(f"{owner}: env must be a Kinematic2DEnv, got {describe(env)}")
         self.env = env
         self.model = env.model
-        self.num_envs = int(num_envs)
-        self.max_episode_steps = max_episode_steps
+        self.num_envs = integer(num_envs, "num_envs", low=1, high=MAX_NUM_ENVS, owner=owner)
+        self.max_episode_steps = (
+            None if max_episode_steps is None else integer(max_episode_steps, "max_episode_steps", low=1, owner=owner)
+        )
         self.single_observation_space = env.observation_space
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
@@ -268,14 +293,11 @@ class Kinematic2DVectorEnv(VectorEnv):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start all episodes; ``options={"state": xy}`` with ``xy`` of shape ``(num_envs, 2)`` sets the starts."""
-        super().reset(seed=seed)
-        options = options or {}
+        owner = f"{type(self).__name__}.reset"
+        super().reset(seed=check_seed(seed, owner))
+        options = check_options(options, _KINEMATIC_OPTIONS, owner)
         if options.get("state") is not None:
-            states = np.asarray(options["state"], dtype=np.float64)
-            if states.shape != (self.num_envs, 2) or not np.all(np.isfinite(states)):
-                raise ValueError(
-                    f"options['state'] must be a finite array of shape ({self.num_envs}, 2), got {states.shape}"
-                )
+            states = real_array(options["state"], "options['state']", shape=(self.num_envs, 2), owner=owner)
             self._pos = np.clip(states, self.model.low, self.model.high)
         else:
             self._pos = self.model.sample_start(self.np_random, self.num_envs).astype(np.float64)
@@ -285,11 +307,8 @@ class Kinematic2DVectorEnv(VectorEnv):
         return self._pos.astype(np.float32), self._infos(np.zeros(self.num_envs, dtype=bool))
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        actions = np.asarray(actions, dtype=np.float64)
-        if actions.shape != (self.num_envs, 2):
-            raise ValueError(f"actions must have shape ({self.num_envs}, 2), got {actions.shape}")
-        if not np.all(np.isfinite(actions)):
-            raise ValueError("actions must be finite (got NaN or inf)")
+        """Step every agent; ``actions`` is ``(num_envs, 2)`` finite reals (the single env's rules, per row)."""
+        actions = real_array(actions, "actions", shape=(self.num_envs, 2), owner=f"{type(self).__name__}.step")
         velocity = _clip_speed(actions, self.env.max_speed)
         prev = self._pos
         moved = np.clip(prev + self.env.dt * velocity, self.model.low, self.model.high)
@@ -320,50 +339,70 @@ class Kinematic2DVectorEnv(VectorEnv):
 
         The batched counterpart of :meth:`Kinematic2DEnv.perturb` (``to=``): the
         task memory follows ``model.teleport`` and no violation is reported.
-        Returns the new ``infos``.
+        ``mask`` must hold real bools (not 0/1); ``to`` is ``(num_envs, 2)``
+        reals, finite in the selected rows. Returns the new ``infos``.
         """
-        mask = np.asarray(mask, dtype=bool)
-        if mask.shape != (self.num_envs,):
-            raise ValueError(f"mask must have shape ({self.num_envs},), got {mask.shape}")
-        target = np.asarray(to, dtype=np.float64)
-        if target.shape != (self.num_envs, 2) or not np.all(np.isfinite(target[mask])):
-            raise ValueError(f"to must be a finite array of shape ({self.num_envs}, 2), got {target.shape}")
+        owner = f"{type(self).__name__}.perturb"
+        mask = bool_array(mask, "mask", shape=(self.num_envs,), owner=owner)
+        target = real_array(to, "to", shape=(self.num_envs, 2), finite=False, owner=owner)
+        if not np.all(np.isfinite(target[mask])):
+            raise ValueError(f"{owner}: to must be finite in the rows selected by mask (no NaN or inf)")
         prev = self._pos.copy()
         self._pos = np.where(mask[:, None], np.clip(target, self.model.low, self.model.high), self._pos)
         self._memory = np.where(mask[:, None], self.model.teleport(self._memory, prev, self._pos), self._memory)
         return self._infos(np.zeros(self.num_envs, dtype=bool))
 
 
-def _check_xy(value: Any, name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a length-2 array of floats, got {type(value).__name__}") from None
-    if arr.shape != (2,):
-        raise ValueError(f"{name} must have shape (2,), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
-    return arr
+_KINEMATIC_OPTIONS = frozenset({"state"})
 
 
-def _check_action(action: Any, space: spaces.Space[Any]) -> np.ndarray:
-    try:
-        arr = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"action must be an array of shape {space.shape}, got {type(action).__name__}") from None
-    if arr.shape != space.shape:
-        raise ValueError(f"action must have shape {space.shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"action must be finite, got {arr.tolist()}")
-    return arr
+def check_seed(seed: Any, owner: str) -> int | None:
+    """A ``reset`` seed: None or an int >= 0 (numpy ints too), as a Python int."""
+    return None if seed is None else integer(seed, "seed", low=0, owner=owner)
+
+
+def check_options(options: Any, keys: frozenset[str], owner: str) -> dict[str, Any]:
+    """``reset`` options: None or a dict with only the known ``keys``; unknown keys are an error, not ignored."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f"{owner}: options must be a dict or None, got {describe(options)}")
+    unknown = set(options) - keys
+    if unknown:
+        raise ValueError(f"{owner}: unknown reset options {sorted(map(str, unknown))}; expected some of {sorted(keys)}")
+    return dict(options)
+
+
+def check_render_mode(render_mode: Any, modes: list[str], owner: str) -> str | None:
+    """``render_mode``: None or one of ``modes``."""
+    if render_mode is None:
+        return None
+    if not isinstance(render_mode, str):
+        raise TypeError(f"{owner}: render_mode must be one of {modes} or None, got {describe(render_mode)}")
+    return one_of(render_mode, "render_mode", modes, owner=owner)
+
+
+def _check_xy(value: Any, name: str, owner: str | None = None) -> np.ndarray:
+    """A state or displacement: 2 finite real numbers (see :func:`steer_envs.core.validation.real_array`)."""
+    return real_array(value, name, shape=(2,), owner=owner)
+
+
+def _check_action(action: Any, space: spaces.Space[Any], owner: str | None = None) -> np.ndarray:
+    """An action: finite real numbers of the action space's shape (not yet clipped)."""
+    return real_array(action, "action", shape=space.shape, owner=owner)
 
 
 def _clip_speed(velocity: np.ndarray, max_speed: float) -> np.ndarray:
-    """Scale each row of ``velocity`` down to norm ``max_speed`` where it is faster."""
+    """Scale each row of ``velocity`` down to norm ``max_speed`` where it is faster (direction kept)."""
     v = np.atleast_2d(velocity)
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(over="ignore"):
+        norm = np.linalg.norm(v, axis=-1, keepdims=True)
     scale = np.minimum(1.0, max_speed / np.maximum(norm, 1e-12))
     out = v * scale
+    huge = ~np.isfinite(norm[:, 0])
+    if huge.any():  # finite rows whose norm overflows float64 (|u| ~ 1e308): normalise them scaled down first
+        u = v[huge] / np.max(np.abs(v[huge]), axis=-1, keepdims=True)
+        out[huge] = u / np.linalg.norm(u, axis=-1, keepdims=True) * max_speed
     return out if velocity.ndim == 2 else out[0]
 
 
@@ -371,6 +410,8 @@ def vector_factory(env_cls: type[Kinematic2DEnv]) -> Any:
     """A ``vector_entry_point`` for ``gymnasium.make_vec`` that batches ``env_cls``."""
 
     def make_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> Kinematic2DVectorEnv:
+        if kwargs.get("render_mode") is not None:
+            check_render_mode(kwargs["render_mode"], env_cls.metadata["render_modes"], env_cls.__name__)
         kwargs.pop("render_mode", None)
         return Kinematic2DVectorEnv(env_cls(**kwargs), num_envs, max_episode_steps)
 

@@ -34,7 +34,8 @@ from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
-from steer_envs.envs.kinematic import _check_action, _check_xy
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
+from steer_envs.envs.kinematic import _check_action, _check_xy, check_options, check_render_mode, check_seed
 from steer_envs.envs.render import Canvas
 
 #: D4RL maze2d physics.
@@ -44,6 +45,13 @@ AGENT_RADIUS = 0.1
 KP, KD, U_MAX, GEAR = 10.0, 1.0, 1.0, 100.0
 
 MAZE_NAMES: tuple[str, ...] = ("umaze", "medium", "large")
+#: cells of a map: 1 is a wall; 0 and gymnasium-robotics' markers "r" (reset), "g" (goal), "c" (both) are free.
+WALL_CELL, FREE_CELLS = 1, (0, "r", "g", "c")
+#: largest accepted map side in cells (the MJCF holds one box per wall cell).
+MAX_MAZE_SIDE = 100
+#: accepted ``frame_skip`` (physics steps per env step) and ``cell_px`` (rendered pixels per cell).
+FRAME_SKIP_RANGE = (1, 1000)
+CELL_PX_RANGE = (4, 256)
 
 _WALL_RGB = (90, 90, 100)
 _FREE_RGB = (250, 250, 250)
@@ -59,8 +67,8 @@ def maze_map(name: str) -> list[list[int | str]]:
         from gymnasium_robotics.envs.maze import maps
 
     table = {"umaze": maps.U_MAZE, "medium": maps.MEDIUM_MAZE, "large": maps.LARGE_MAZE}
-    if name not in table:
-        raise ValueError(f"maze must be one of {MAZE_NAMES} or a 2D map of 0/1 cells, got {name!r}")
+    if not isinstance(name, str) or name not in table:
+        raise ValueError(f"maze must be one of {MAZE_NAMES} or a 2D map of 0/1 cells, got {describe(name)}")
     return [list(row) for row in table[name]]
 
 
@@ -70,17 +78,28 @@ class MazeGrid:
     ``walls[r, c]`` is True for wall cells. Points outside the grid are
     clipped onto it before lookup, so everything beyond the border counts as
     the border's cells (walls in every shipped map).
+
+    A layout is a non-empty rectangular sequence of rows (at most
+    :data:`MAX_MAZE_SIDE` cells a side) whose cells are the int ``1`` (a wall)
+    or ``0`` / ``"r"`` / ``"g"`` / ``"c"`` (free; gymnasium-robotics' reset,
+    goal and combined markers). Anything else (the string ``"1"``, ``True``,
+    ``1.0``, ``2``) is refused, naming the cell, instead of being read as free.
     """
 
     def __init__(self, layout: Sequence[Sequence[int | str]]) -> None:
+        if isinstance(layout, (str, bytes)) or layout is None:
+            raise TypeError(f"maze layout must be a sequence of rows of cells, got {describe(layout)}")
         try:
             rows = [list(r) for r in layout]
         except TypeError:
-            raise TypeError("maze layout must be a sequence of rows of cells") from None
+            raise TypeError(f"maze layout must be a sequence of rows of cells, got {describe(layout)}") from None
         if not rows or not rows[0] or any(len(r) != len(rows[0]) for r in rows):
             raise ValueError("maze layout must be a non-empty rectangular list of rows")
-        # gymnasium-robotics maps mark wall cells with 1; 0, "r", "g" and "c" are free cells
-        walls = np.array([[cell == 1 for cell in r] for r in rows], dtype=bool)
+        if len(rows) > MAX_MAZE_SIDE or len(rows[0]) > MAX_MAZE_SIDE:
+            raise ValueError(
+                f"maze layout may be at most {MAX_MAZE_SIDE} x {MAX_MAZE_SIDE} cells, got {len(rows)} x {len(rows[0])}"
+            )
+        walls = np.array([[_is_wall_cell(cell, i, j) for j, cell in enumerate(r)] for i, r in enumerate(rows)])
         if walls.all():
             raise ValueError("maze layout has no free cell")
         self.walls: np.ndarray = walls
@@ -106,10 +125,7 @@ class MazeGrid:
 
     def cell_to_xy(self, cells: np.ndarray) -> np.ndarray:
         """Centres ``(..., 2)`` float of integer cells ``(..., 2)`` (row, col)."""
-        arr = np.asarray(cells)
-        if arr.shape[-1:] != (2,):
-            raise ValueError(f"cells must have shape (..., 2), got {arr.shape}")
-        return arr.astype(np.float64)
+        return _points(cells, "cells")
 
     def xy_to_cell(self, xy: np.ndarray) -> np.ndarray:
         """The cell ``(..., 2)`` int64 holding each point: clip to the grid, round to nearest (half up)."""
@@ -142,9 +158,10 @@ class MazeGrid:
 
         Used to place the agent after a push or a teleport: a point in a wall
         cell goes to the closest point of the nearest free cell, then it is
-        pushed off the walls of that cell's 8-neighbourhood.
+        pushed off the walls of that cell's 8-neighbourhood. ``radius`` is a real in ``[0, 0.5)``.
         """
-        p = np.clip(_check_xy(xy, "xy"), self.low - 0.5, self.high + 0.5)
+        radius = real_scalar(radius, "radius", low=0.0, high=0.5, high_inclusive=False, owner="MazeGrid.project_free")
+        p = np.clip(_check_xy(xy, "xy", "MazeGrid.project_free"), self.low - 0.5, self.high + 0.5)
         r, c = self.xy_to_cell(p)
         if self.walls[r, c]:
             lo = self.free_cells - 0.5
@@ -214,6 +231,24 @@ def maze_mjcf(grid: MazeGrid, name: str = "maze2d") -> str:
 """
 
 
+def _is_wall_cell(cell: Any, row: int, col: int) -> bool:
+    """Whether a map cell is a wall: the int 1 is; 0 and the markers "r", "g", "c" are not; else an error."""
+    if isinstance(cell, str):
+        if cell in FREE_CELLS:
+            return False
+        raise ValueError(
+            f"maze layout cell ({row}, {col}) must be 1 (wall), 0, 'r', 'g' or 'c' (free), got {describe(cell)}"
+        )
+    if isinstance(cell, (int, np.integer)) and not isinstance(cell, (bool, np.bool_)):
+        if cell in (0, 1):
+            return bool(cell == WALL_CELL)
+        raise ValueError(f"maze layout cell ({row}, {col}) must be 1 (wall) or 0 (free), got {describe(cell)}")
+    raise TypeError(
+        f"maze layout cell ({row}, {col}) must be the int 1 (wall), 0 or a marker 'r', 'g', 'c' (free), "
+        f"got {describe(cell)}"
+    )
+
+
 class MazePhysics:
     """The MuJoCo model and data of one maze; steps the PD-tracked point mass."""
 
@@ -265,15 +300,23 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
     Args:
         maze: ``"umaze"``, ``"medium"``, ``"large"`` (gymnasium-robotics maps) or
-            a custom map (rows of 1 = wall, 0 / "r" / "g" / "c" = free).
-        frame_skip: physics steps (0.01 s each) per env step; 4 = the ITPS data rate.
-        observe_velocity: observation is ``(x, y, vx, vy)`` instead of ``(x, y)``.
+            a custom map (rows of the int 1 = wall, 0 / "r" / "g" / "c" = free;
+            see :class:`MazeGrid`).
+        frame_skip: physics steps (0.01 s each) per env step, an int in
+            :data:`FRAME_SKIP_RANGE`; 4 = the ITPS data rate.
+        observe_velocity: observation is ``(x, y, vx, vy)`` instead of ``(x, y)`` (a bool).
         sample_goal: draw a random goal cell at every reset (``info["success"]``
             = agent in the goal cell, which ends the episode). With False,
             there is no goal unless ``reset(options={"goal_cell": ...})`` sets one
-            (the ITPS setting: free navigation, never "successful").
+            (the ITPS setting: free navigation, never "successful"). A bool.
         render_mode: ``"rgb_array"`` or None.
-        cell_px: rendered pixels per cell.
+        cell_px: rendered pixels per cell, an int in :data:`CELL_PX_RANGE`.
+
+    Booleans must be real bools (``"no"`` is refused, not read as True);
+    numbers are never parsed from strings. Actions, ``perturb`` arguments and
+    ``options["state"]`` are 2 finite reals (lists, numpy arrays, torch
+    tensors, read detached); strings, bools, complex numbers and objects
+    raise ``TypeError``, NaN/inf and wrong shapes ``ValueError``.
 
     Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity.
     Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it).
@@ -309,27 +352,24 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         cell_px: int = 32,
     ) -> None:
+        owner = type(self).__name__
         layout: Sequence[Sequence[int | str]]
         if isinstance(maze, str):
-            self.maze_name = maze
+            self.maze_name = one_of(maze, "maze", MAZE_NAMES, owner=owner)
             layout = maze_map(maze)
         else:
             self.maze_name = "custom"
             layout = maze
-        if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool) or frame_skip < 1:
-            raise ValueError(f"frame_skip must be a positive int, got {frame_skip!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if not isinstance(cell_px, (int, np.integer)) or cell_px < 4:
-            raise ValueError(f"cell_px must be an int >= 4, got {cell_px!r}")
+        self.frame_skip = integer(
+            frame_skip, "frame_skip", low=FRAME_SKIP_RANGE[0], high=FRAME_SKIP_RANGE[1], owner=owner
+        )
+        self.observe_velocity = boolean(observe_velocity, "observe_velocity", owner=owner)
+        self.sample_goal = boolean(sample_goal, "sample_goal", owner=owner)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
+        self.cell_px = integer(cell_px, "cell_px", low=CELL_PX_RANGE[0], high=CELL_PX_RANGE[1], owner=owner)
         self.grid = MazeGrid(layout)
         self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
-        self.frame_skip = int(frame_skip)
         self.dt = TIMESTEP * self.frame_skip
-        self.observe_velocity = bool(observe_velocity)
-        self.sample_goal = bool(sample_goal)
-        self.render_mode = render_mode
-        self.cell_px = int(cell_px)
         self.task = TaskSpec(
             name=f"maze2d-{self.maze_name}",
             modes=("navigate",),
@@ -418,17 +458,16 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         }
 
     def _check_cell(self, value: Any, name: str) -> tuple[int, int]:
-        try:
-            cell = np.asarray(value)
-        except (TypeError, ValueError):
-            raise TypeError(f"{name} must be a (row, col) pair of ints, got {type(value).__name__}") from None
-        if cell.shape != (2,) or not np.issubdtype(cell.dtype, np.integer):
-            raise ValueError(f"{name} must be a (row, col) pair of ints, got {value!r}")
-        r, c = int(cell[0]), int(cell[1])
+        owner = f"{type(self).__name__}.reset"
+        if not isinstance(value, (tuple, list, np.ndarray)):
+            raise TypeError(f"{owner}: {name} must be a (row, col) pair of ints, got {describe(value)}")
+        if len(value) != 2:
+            raise ValueError(f"{owner}: {name} must be a (row, col) pair of ints, got {describe(value)}")
+        r, c = (integer(v, f"{name}[{i}]", owner=owner) for i, v in enumerate(value))
         if not (0 <= r < self.grid.shape[0] and 0 <= c < self.grid.shape[1]):
-            raise ValueError(f"{name} {value!r} lies outside the {self.grid.shape} grid")
+            raise ValueError(f"{owner}: {name} {describe(value)} lies outside the {self.grid.shape} grid")
         if self.grid.walls[r, c]:
-            raise ValueError(f"{name} {value!r} is a wall cell")
+            raise ValueError(f"{owner}: {name} {describe(value)} is a wall cell")
         return r, c
 
     # ------------------------------------------------------------------- API
@@ -437,16 +476,16 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode at a random free cell (+-U(0.1) noise, D4RL) at rest.
 
-        ``options``: ``state`` (xy start), ``goal_cell`` ((row, col), or None for no goal).
+        ``seed``: None or an int >= 0. ``options``: None or a dict with ``state``
+        (xy start, 2 finite reals, not in a wall cell), ``goal_cell`` ((row, col)
+        ints of a free cell, or None for no goal); other keys are refused.
         """
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - self._OPTION_KEYS
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {sorted(self._OPTION_KEYS)}")
+        owner = f"{type(self).__name__}.reset"
+        super().reset(seed=check_seed(seed, owner))
+        options = check_options(options, self._OPTION_KEYS, owner)
         rng = self.np_random
         if options.get("state") is not None:
-            start = _check_xy(options["state"], "options['state']")
+            start = _check_xy(options["state"], "options['state']", owner)
             if bool(self.grid.is_wall(start)):
                 raise ValueError(f"options['state'] {start.tolist()} lies in a wall cell")
             start = self.grid.project_free(start)
@@ -467,8 +506,9 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._obs(), self._info(False)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """Track the waypoint ``action`` for ``frame_skip`` physics steps with the PD law."""
-        waypoint = np.clip(_check_action(action, self.action_space), self.grid.low, self.grid.high)
+        """Track the waypoint ``action`` (2 finite reals, clipped into the grid) for ``frame_skip`` physics steps."""
+        action = _check_action(action, self.action_space, f"{type(self).__name__}.step")
+        waypoint = np.clip(action, self.grid.low, self.grid.high)
         touched = self.physics.step(waypoint, self.frame_skip)
         self._trail.append(self.state)
         info = self._info(touched)
@@ -480,11 +520,13 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
         The simulator state is moved and the velocity zeroed. A target in or
         against a wall is projected to the closest position where the agent
-        touches no wall (the push stops at the wall). Returns the new ``info``.
+        touches no wall (the push stops at the wall). ``delta``/``to`` are 2
+        finite reals. Returns the new ``info``.
         """
+        owner = f"{type(self).__name__}.perturb"
         if (delta is None) == (to is None):
-            raise ValueError("perturb: pass exactly one of `delta` (displacement) or `to` (target state)")
-        target = self.state + _check_xy(delta, "delta") if to is None else _check_xy(to, "to")
+            raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target state)")
+        target = self.state + _check_xy(delta, "delta", owner) if to is None else _check_xy(to, "to", owner)
         self.physics.set_state(self.grid.project_free(target))
         self._trail.append(self.state)
         return self._info(False, perturbed=True)
@@ -562,17 +604,15 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return canvas.image
 
     def pixel_to_xy(self, u: float, v: float) -> np.ndarray:
-        """Maze xy of image pixel column ``u``, row ``v`` of :meth:`render` (e.g. a mouse sketch)."""
+        """Maze xy of image pixel column ``u``, row ``v`` of :meth:`render` (e.g. a mouse sketch); finite reals."""
+        u = real_scalar(u, "u", owner="Maze2DEnv.pixel_to_xy")
+        v = real_scalar(v, "v", owner="Maze2DEnv.pixel_to_xy")
         return np.array([v / self.cell_px - 0.5, u / self.cell_px - 0.5])
 
 
 def _points(value: Any, name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a float array of shape (..., 2), got {type(value).__name__}") from None
+    """Finite real points of shape ``(..., 2)`` (see :func:`steer_envs.core.validation.real_array`)."""
+    arr = real_array(value, name)
     if arr.ndim == 0 or arr.shape[-1] != 2:
         raise ValueError(f"{name} must have shape (..., 2), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
     return arr

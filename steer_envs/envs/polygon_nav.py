@@ -32,6 +32,7 @@ from shapely.geometry.polygon import orient
 from shapely.ops import unary_union
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.convex_mode import check_layout_seed, convex_halfspaces, in_halfspaces
 from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
 from steer_envs.envs.render import Canvas
@@ -42,7 +43,12 @@ SCALE, OFFSET = 5.0, -4.0
 MIN_POLYGON_AREA = 1.0
 #: shape limits of a random quadrilateral in unit-box coordinates (keeps polygons navigable).
 _MIN_ANGLE_DEG, _MAX_ANGLE_DEG, _MIN_EDGE, _MIN_UNIT_AREA = 30.0, 150.0, 0.3, 0.3
-_MAX_LAYOUT_TRIES = 100_000
+#: draws of whole polygon chains before a layout is given up (a valid one takes a handful).
+MAX_LAYOUT_TRIES = 100_000
+#: draws of 4 random points per quadrilateral before giving up (about one in five is accepted).
+MAX_QUAD_TRIES = 10_000
+#: rounds of rejection sampling in :meth:`PolygonNavModel.sample_in_mode` (each redraws every rejected point).
+MAX_SAMPLE_ROUNDS = 10_000
 
 
 def polygon_nav_task(num_modes: int) -> TaskSpec:
@@ -70,7 +76,7 @@ def polygon_nav_task(num_modes: int) -> TaskSpec:
 
 def _random_quad(rng: np.random.Generator) -> np.ndarray:
     """A random convex quadrilateral scaled to the unit box, CCW vertices ``(4, 2)``."""
-    while True:
+    for _ in range(MAX_QUAD_TRIES):
         pts = rng.uniform(0.0, 1.0, size=(4, 2))
         hull = MultiPoint([tuple(p) for p in pts]).convex_hull
         if not isinstance(hull, Polygon):
@@ -92,6 +98,9 @@ def _random_quad(rng: np.random.Generator) -> np.ndarray:
             and Polygon(v).area >= _MIN_UNIT_AREA
         ):
             return v
+    raise BoundExceeded(  # pragma: no cover - about one draw in five is accepted
+        f"PolygonNav: no acceptable random quadrilateral in MAX_QUAD_TRIES={MAX_QUAD_TRIES} draws"
+    )
 
 
 def _attach(prev: np.ndarray, new: np.ndarray) -> np.ndarray:
@@ -136,19 +145,17 @@ class PolygonNavModel(KinematicTaskModel):
         workspace_margin: float = 0.5,
         min_gap: float = 0.5,
     ) -> None:
-        if isinstance(num_modes, bool) or not isinstance(num_modes, (int, np.integer)):
-            raise TypeError(f"num_modes must be an int >= 2, got {type(num_modes).__name__}")
-        if not 2 <= num_modes <= 9:
-            raise ValueError(f"num_modes must be in [2, 9] (free space + 1..8 polygons), got {num_modes}")
-        if not (np.isfinite(workspace_margin) and 0 <= workspace_margin < 2):
-            raise ValueError(f"workspace_margin must be in [0, 2), got {workspace_margin!r}")
-        if not (np.isfinite(min_gap) and 0 < min_gap < 4):
-            raise ValueError(f"min_gap must be in (0, 4), got {min_gap!r}")
-        self.num_modes = int(num_modes)
+        owner = "PolygonNav"
+        # num_modes in [2, 9]: free space + 1..8 polygons
+        self.num_modes = integer(num_modes, "num_modes", low=2, high=9, owner=owner)
         self.num_polygons = self.num_modes - 1
-        self.layout_seed = check_layout_seed(layout_seed)
-        self.workspace_margin = float(workspace_margin)
-        self.min_gap = float(min_gap)
+        self.layout_seed = check_layout_seed(layout_seed, owner)
+        self.workspace_margin = real_scalar(
+            workspace_margin, "workspace_margin", low=0.0, high=2.0, high_inclusive=False, owner=owner
+        )
+        self.min_gap = real_scalar(
+            min_gap, "min_gap", low=0.0, high=4.0, low_inclusive=False, high_inclusive=False, owner=owner
+        )
         self.task = polygon_nav_task(self.num_modes)
         self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
         self.high = np.full(2, WORKSPACE_HALF_WIDTH)
@@ -168,7 +175,7 @@ class PolygonNavModel(KinematicTaskModel):
 
     def _generate(self, rng: np.random.Generator) -> list[np.ndarray]:
         lim = WORKSPACE_HALF_WIDTH - self.workspace_margin
-        for _ in range(_MAX_LAYOUT_TRIES):
+        for _ in range(MAX_LAYOUT_TRIES):
             unit = [_random_quad(rng)]
             for _ in range(self.num_polygons - 1):
                 unit.append(_attach(unit[-1], _random_quad(rng)))
@@ -184,8 +191,9 @@ class PolygonNavModel(KinematicTaskModel):
             ):
                 continue
             return verts
-        raise RuntimeError(  # pragma: no cover - a valid layout takes a handful of draws
-            f"PolygonNav: no valid layout in {_MAX_LAYOUT_TRIES} draws (num_modes={self.num_modes})"
+        raise BoundExceeded(  # pragma: no cover - a valid layout takes a handful of draws
+            f"PolygonNav: no valid layout in MAX_LAYOUT_TRIES={MAX_LAYOUT_TRIES} draws (num_modes={self.num_modes}, "
+            f"workspace_margin={self.workspace_margin}, min_gap={self.min_gap})"
         )
 
     # ------------------------------------------------------------ geometry
@@ -208,21 +216,33 @@ class PolygonNavModel(KinematicTaskModel):
 
     def sample_in_mode(self, rng: np.random.Generator, n: int, mode: int) -> np.ndarray:
         """``n`` points uniform in the region of ``mode`` (0: free space), by rejection sampling in
-        the workspace (free space) or in the polygon's bounding box."""
-        if not 0 <= int(mode) < self.num_modes:
-            raise ValueError(f"mode must be in [0, {self.num_modes}), got {mode!r}")
+        the workspace (free space) or in the polygon's bounding box.
+
+        ``n`` is an int >= 0, ``mode`` an int in ``[0, num_modes)``; rejection
+        sampling that leaves points unplaced after :data:`MAX_SAMPLE_ROUNDS`
+        rounds raises :class:`~steer_envs.core.validation.BoundExceeded`.
+        """
+        n = integer(n, "n", low=0, owner="PolygonNav.sample_in_mode")
+        mode = integer(mode, "mode", low=0, high=self.num_modes - 1, owner="PolygonNav.sample_in_mode")
         lo, hi = np.asarray(self.low, dtype=np.float64), np.asarray(self.high, dtype=np.float64)
         if mode > 0:
             bounds = np.asarray(self.polygons[mode - 1].bounds, dtype=np.float64)
             lo, hi = np.maximum(lo, bounds[:2]), np.minimum(hi, bounds[2:])
         out = np.empty((n, 2))
         todo = np.arange(n)
-        while len(todo):
+        for _ in range(MAX_SAMPLE_ROUNDS):
+            if not len(todo):
+                return out
             cand = rng.uniform(lo, hi, size=(len(todo), 2))
             ok = self.mode_of(cand) == mode
             out[todo[ok]] = cand[ok]
             todo = todo[~ok]
-        return out
+        if not len(todo):
+            return out
+        raise BoundExceeded(
+            f"PolygonNav.sample_in_mode: {len(todo)} of {n} points still outside mode {mode} after "
+            f"MAX_SAMPLE_ROUNDS={MAX_SAMPLE_ROUNDS} rounds of rejection sampling"
+        )
 
     # ---------------------------------------------------------------- task
     def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -260,10 +280,11 @@ class PolygonNavEnv(Kinematic2DEnv):
     """PolygonNav-kMode-v0 (GLiDE 2D navigation); see the module docstring.
 
     Args:
-        num_modes: number of modes K (free space + K-1 polygons); registered 3, 4, 5.
-        layout_seed: seed of the random polygon chain (geometry only).
-        terminate_on_violation: end the episode on an invalid transition (GLiDE: yes).
-        workspace_margin, min_gap: layout validity margins (see the module docstring).
+        num_modes: number of modes K (free space + K-1 polygons), an int in [2, 9]; registered 3, 4, 5.
+        layout_seed: seed of the random polygon chain (geometry only), an int >= 0.
+        terminate_on_violation: end the episode on an invalid transition (GLiDE: yes), a bool.
+        workspace_margin, min_gap: layout validity margins (see the module docstring), reals in
+            ``[0, 2)`` and ``(0, 4)``.
         render_mode: ``None`` or ``"rgb_array"``.
         render_size: side of the rendered square image in pixels.
     >>> import gymnasium as gym
@@ -297,4 +318,12 @@ class PolygonNavEnv(Kinematic2DEnv):
 
 make_vector_env = vector_factory(PolygonNavEnv)
 
-__all__ = ["PolygonNavEnv", "PolygonNavModel", "make_vector_env", "polygon_nav_task"]
+__all__ = [
+    "MAX_LAYOUT_TRIES",
+    "MAX_QUAD_TRIES",
+    "MAX_SAMPLE_ROUNDS",
+    "PolygonNavEnv",
+    "PolygonNavModel",
+    "make_vector_env",
+    "polygon_nav_task",
+]

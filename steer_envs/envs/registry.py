@@ -108,6 +108,10 @@ def env_ids(kinematic_only: bool = False) -> list[str]:
     >>> env_ids(kinematic_only=True)[:2]
     ['steer_envs/SoupScoop-v0', 'steer_envs/ConvexMode-v0']
     """
+    if not isinstance(kinematic_only, bool):
+        raise TypeError(
+            f"env_ids: kinematic_only must be a bool, got {type(kinematic_only).__name__} {kinematic_only!r}"
+        )
     return [e.id for e in ENTRIES if e.kinematic or not kinematic_only]
 
 

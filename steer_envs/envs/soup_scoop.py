@@ -62,6 +62,7 @@ from typing import Literal
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import describe, one_of
 from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
@@ -130,9 +131,11 @@ class SoupScoopModel(KinematicTaskModel):
     region_palette = REGION_PALETTE[[0, 1, 2, 3]]
 
     def __init__(self, sensor_convention: SensorConvention = "public") -> None:
-        if sensor_convention not in ("public", "thesis"):
-            raise ValueError(f"sensor_convention must be 'public' or 'thesis', got {sensor_convention!r}")
-        self.sensor_convention = sensor_convention
+        if not isinstance(sensor_convention, str):
+            raise TypeError(
+                f"SoupScoop: sensor_convention must be 'public' or 'thesis', got {describe(sensor_convention)}"
+            )
+        self.sensor_convention = one_of(sensor_convention, "sensor_convention", ("public", "thesis"), owner="SoupScoop")
         self.task = SOUP_TASK
         self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
         self.high = np.full(2, WORKSPACE_HALF_WIDTH)
@@ -159,8 +162,7 @@ class SoupScoopModel(KinematicTaskModel):
         ``(N, 2) -> (N,)`` bool. Use :meth:`regions` for the label after the
         "later region wins" rule.
         """
-        if name not in self.rects:
-            raise ValueError(f"name must be one of {tuple(self.rects)}, got {name!r}")
+        one_of(name, "name", tuple(self.rects), owner="SoupScoop.in_region")
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
         x0, y0, x1, y1 = self.rects[name]
         in_rect = (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)

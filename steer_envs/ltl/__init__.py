@@ -10,6 +10,12 @@ tested against. :class:`ModeReplanner` turns a GR(1)-style task specification
 (:class:`GR1Spec`) over a :class:`~steer_envs.core.task.TaskSpec` into a task
 automaton over modes that answers "which mode next?" from sensor readings.
 
+Deep input never ends in a ``RecursionError``: parsing and printing use
+explicit stacks (:data:`MAX_PARSE_DEPTH`), NNF, simplification and
+translation refuse formulas deeper than :data:`MAX_FORMULA_DEPTH`
+(:class:`FormulaTooDeep`, :class:`TranslationTooLarge`; both ``ValueError``).
+Sensor readings must hold real bools (``"False"`` is an error, not true).
+
 >>> from steer_envs.ltl import LassoWord, evaluate, parse, translate
 >>> formula = parse("G(request -> F grant)")
 >>> automaton = translate(formula)
@@ -23,7 +29,7 @@ from steer_envs.ltl.automaton import Automaton, Edge
 from steer_envs.ltl.buchi import BACKENDS, TranslationTooLarge, translate, translate_native
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.hoa import from_hoa, to_hoa
-from steer_envs.ltl.parser import LTLParseError, parse
+from steer_envs.ltl.parser import MAX_PARSE_DEPTH, LTLParseError, parse
 from steer_envs.ltl.replanner import (
     ModeReplanner,
     TaskAutomaton,
@@ -35,6 +41,8 @@ from steer_envs.ltl.simplify import nnf, simplify
 from steer_envs.ltl.spot_backend import spot_available, translate_spot
 from steer_envs.ltl.syntax import (
     FALSE,
+    MAX_FORMULA_DEPTH,
+    MAX_FORMULA_TEXT,
     TRUE,
     And,
     Atom,
@@ -42,6 +50,7 @@ from steer_envs.ltl.syntax import (
     Equiv,
     Finally,
     Formula,
+    FormulaTooDeep,
     Globally,
     Implies,
     Next,
@@ -57,6 +66,9 @@ from steer_envs.ltl.syntax import (
 __all__ = [
     "BACKENDS",
     "FALSE",
+    "MAX_FORMULA_DEPTH",
+    "MAX_FORMULA_TEXT",
+    "MAX_PARSE_DEPTH",
     "TRUE",
     "And",
     "Atom",
@@ -66,6 +78,7 @@ __all__ = [
     "Equiv",
     "Finally",
     "Formula",
+    "FormulaTooDeep",
     "GR1Spec",
     "Globally",
     "Implies",

@@ -18,19 +18,22 @@ acceptance set (Tarjan's algorithm).
 from __future__ import annotations
 
 import os
-import tempfile
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
+from steer_envs.core.validation import BoundExceeded, boolean, describe, integer
 from steer_envs.ltl.guards import MAX_APS, GuardLetter, full_mask, guard_to_str, remap_guard, valuation_of
 
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["Automaton", "Edge"]
+__all__ = ["MAX_STATES", "Automaton", "Edge"]
+
+#: most states an automaton may have (HOA input declares its count; each state costs memory up front)
+MAX_STATES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -73,21 +76,32 @@ class Automaton:
     name: str = ""
 
     def __post_init__(self) -> None:
+        if isinstance(self.aps, (str, bytes)):
+            raise TypeError(f"Automaton: `aps` must be a sequence of AP names, not one string ({describe(self.aps)})")
         aps = tuple(str(a) for a in self.aps)
         if len(set(aps)) != len(aps):
             raise ValueError(f"Automaton: `aps` has duplicates: {aps}")
         if len(aps) > MAX_APS:
             raise ValueError(f"Automaton: at most {MAX_APS} APs are supported, got {len(aps)}")
         object.__setattr__(self, "aps", aps)
-        if self.num_states < 1:
+        if integer(self.num_states, "num_states", owner="Automaton") < 1:
             raise ValueError(f"Automaton: `num_states` must be >= 1, got {self.num_states}")
-        if not 0 <= self.initial < self.num_states:
+        if self.num_states > MAX_STATES:
+            raise ValueError(f"Automaton: `num_states` may be at most MAX_STATES={MAX_STATES}, got {self.num_states}")
+        if not 0 <= integer(self.initial, "initial", owner="Automaton") < self.num_states:
             raise ValueError(f"Automaton: `initial` must be in [0, {self.num_states}), got {self.initial}")
-        if self.num_sets < 0:
+        if integer(self.num_sets, "num_sets", owner="Automaton") < 0:
             raise ValueError(f"Automaton: `num_sets` must be >= 0, got {self.num_sets}")
+        boolean(self.state_based, "state_based", owner="Automaton")
+        if not isinstance(self.name, str):
+            raise TypeError(f"Automaton: `name` must be a str, got {describe(self.name)}")
         full = full_mask(len(aps))
         edges = tuple(self.edges)
         for e in edges:
+            if not isinstance(e, Edge):
+                raise TypeError(f"Automaton: `edges` must hold Edge objects, got {describe(e)}")
+            for label in ("src", "dst", "guard"):
+                integer(getattr(e, label), f"edge.{label}", owner="Automaton")
             if not (0 <= e.src < self.num_states and 0 <= e.dst < self.num_states):
                 raise ValueError(f"Automaton: edge {e.src}->{e.dst} names a state outside [0, {self.num_states})")
             if not 0 < e.guard <= full:
@@ -122,7 +136,8 @@ class Automaton:
         return valuation_of(letter, self.aps)
 
     def successors(self, state: int, letter: GuardLetter) -> list[int]:
-        """States reachable from ``state`` in one step reading ``letter``."""
+        """States reachable from ``state`` (an int in ``[0, num_states)``) in one step reading ``letter``."""
+        state = integer(state, "state", low=0, high=self.num_states - 1, owner="Automaton.successors")
         v = self.valuation(letter)
         return sorted({dst for dst, guard, _ in self._out[state] if (guard >> v) & 1})
 
@@ -148,7 +163,12 @@ class Automaton:
 
         Exact: searches the product with the word's positions for a reachable
         strongly connected component whose internal edges carry every mark.
+        Letters are sets of true APs, mappings AP -> bool (real bools only) or
+        valuation ints.
         """
+        for label, part in (("prefix", prefix), ("loop", loop)):
+            if isinstance(part, (str, bytes)) or not isinstance(part, Iterable):
+                raise TypeError(f"accepts: `{label}` must be a sequence of letters, got {describe(part)}")
         word = [self.valuation(x) for x in prefix]
         k = len(word)
         word += [self.valuation(x) for x in loop]
@@ -260,7 +280,7 @@ class Automaton:
         """Quotient by (direct) bisimulation: states with the same outgoing behaviour are merged."""
         aut = self.merge_edges()
         block = [0] * aut.num_states
-        while True:
+        for _ in range(aut.num_states + 1):  # each round splits a block or stops: at most num_states rounds
             sigs: dict[tuple[Any, ...], int] = {}
             new_block = []
             for q in range(aut.num_states):
@@ -274,6 +294,10 @@ class Automaton:
                 block = new_block
                 break
             block = new_block
+        else:  # pragma: no cover - partition refinement stabilises within num_states rounds
+            raise BoundExceeded(
+                f"Automaton.reduce: no stable partition after num_states + 1 = {aut.num_states + 1} rounds"
+            )
         if len(set(block)) == aut.num_states:
             return aut
         rep: dict[int, int] = {}
@@ -351,18 +375,11 @@ class Automaton:
         return to_hoa(self)
 
     def write_hoa(self, path: str | os.PathLike[str]) -> None:
-        """Write :meth:`to_hoa` to ``path`` atomically (temp file + ``os.replace``)."""
-        text = self.to_hoa()
-        directory = os.path.dirname(os.path.abspath(os.fspath(path)))
-        fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".hoa")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        """Write :meth:`to_hoa` to ``path`` atomically (:func:`steer_envs.io.atomic_write_text`: a temp file in
+        the target's folder, ``fsync``, ``os.replace``, usual file mode)."""
+        from steer_envs.io import atomic_write_text
+
+        atomic_write_text(path, self.to_hoa())
 
     @classmethod
     def from_hoa(cls, text: str) -> Automaton:

@@ -29,7 +29,9 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Sequence
+from typing import Any
 
+from steer_envs.core.validation import boolean, describe, integer
 from steer_envs.ltl.automaton import Automaton, Edge
 from steer_envs.ltl.guards import MAX_APS, full_mask
 from steer_envs.ltl.guards import formula_mask as _formula_mask
@@ -48,6 +50,8 @@ from steer_envs.ltl.syntax import (
     StrongRelease,
     Until,
     WeakUntil,
+    check_depth,
+    check_text_length,
 )
 
 __all__ = ["BACKENDS", "TranslationTooLarge", "translate", "translate_native"]
@@ -59,7 +63,10 @@ MAX_TERMS = 1_000_000
 
 
 class TranslationTooLarge(ValueError):
-    """The tableau outgrew the translator's memory budget (see :data:`GUARD_BUDGET_BYTES`)."""
+    """The formula is too large to translate: the tableau outgrew the translator's memory budget (see
+    :data:`GUARD_BUDGET_BYTES`), or the formula nests deeper than
+    :data:`~steer_envs.ltl.syntax.MAX_FORMULA_DEPTH` or prints longer than
+    :data:`~steer_envs.ltl.syntax.MAX_FORMULA_TEXT`; the message names the limit."""
 
 
 #: accepted values of ``translate(..., backend=...)``
@@ -222,20 +229,33 @@ def translate_native(
         simplify_formula: apply :func:`steer_envs.ltl.simplify` first (else only NNF).
         reduce: trim useless states and merge bisimilar ones.
         max_terms: give up (:class:`TranslationTooLarge`) beyond this many
-            tableau terms (default: a 256 MiB guard budget, at most
+            tableau terms, an int >= 1 (default: a 256 MiB guard budget, at most
             :data:`MAX_TERMS`).
+
+    Raises:
+        LTLParseError: malformed text.
+        TranslationTooLarge: a formula deeper than ``MAX_FORMULA_DEPTH``, whose
+            NNF text exceeds ``MAX_FORMULA_TEXT``, or whose tableau exceeds the budget.
+        TypeError / ValueError: bad ``aps`` (not a sequence of str names, or
+            missing an AP of the formula), ``max_terms`` or flags.
     """
     f = parse(formula)
+    check_depth(f, "translate", error=TranslationTooLarge)
+    simplify_formula = boolean(simplify_formula, "simplify_formula", owner="translate")
+    reduce = boolean(reduce, "reduce", owner="translate")
+    if max_terms is not None:
+        max_terms = integer(max_terms, "max_terms", low=1, owner="translate")
     atoms = f.atoms()
     if aps is None:
         aps = tuple(sorted(atoms))
     else:
-        aps = tuple(aps)
+        aps = check_aps(aps, "translate")
         missing = sorted(atoms - set(aps))
         if missing:
             raise ValueError(f"translate: `aps` must include every AP of the formula; missing {missing}")
     if len(aps) > MAX_APS:
         raise ValueError(f"translate: at most {MAX_APS} APs are supported, got {len(aps)}")
+    check_text_length(nnf(f), "translate", error=TranslationTooLarge)
     start = simplify(f) if simplify_formula else nnf(f)
     evs = _eventualities(start)
     acc_index = {e: i for i, e in enumerate(evs)}
@@ -270,6 +290,22 @@ def translate_native(
     return aut
 
 
+def check_aps(aps: Any, who: str) -> tuple[str, ...]:
+    """An AP order: a sequence (not a single string) of str names."""
+    if isinstance(aps, (str, bytes)):
+        raise TypeError(f"{who}: `aps` must be a sequence of AP names, not one string ({describe(aps)})")
+    try:
+        items = list(aps)
+    except TypeError:
+        raise TypeError(f"{who}: `aps` must be a sequence of AP names, got {describe(aps)}") from None
+    names: list[str] = []
+    for name in items:
+        if not isinstance(name, str):
+            raise TypeError(f"{who}: `aps` must hold str AP names, got {describe(name)}")
+        names.append(name)
+    return tuple(names)
+
+
 def translate(
     formula: str | Formula,
     aps: Sequence[str] | None = None,
@@ -296,8 +332,8 @@ def translate(
     >>> aut.accepts([{"a"}], [{"b"}]), aut.accepts([], [{"a"}])
     (True, False)
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"translate: `backend` must be one of {BACKENDS}, got {backend!r}")
+    if not isinstance(backend, str) or backend not in BACKENDS:
+        raise ValueError(f"translate: `backend` must be one of {BACKENDS}, got {describe(backend)}")
     if backend == "auto":
         from steer_envs.ltl.spot_backend import spot_available
 

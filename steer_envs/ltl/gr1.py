@@ -11,12 +11,26 @@ part), and builds the full formula for the translator.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
+from steer_envs.core.validation import describe
 from steer_envs.ltl.parser import LTLParseError, parse
-from steer_envs.ltl.syntax import TRUE, And, Finally, Formula, Globally, Implies, Next, Not, Or
+from steer_envs.ltl.syntax import (
+    TRUE,
+    And,
+    Finally,
+    Formula,
+    FormulaTooDeep,
+    Globally,
+    Implies,
+    Next,
+    Not,
+    Or,
+    check_depth,
+)
 
 __all__ = ["PARTS", "GR1Spec", "SafetyPart"]
 
@@ -42,6 +56,21 @@ def _has_next(f: Formula) -> bool:
     return any(isinstance(g, Next) for g in f.subformulas())
 
 
+def _names(value: Any, what: str) -> tuple[str, ...]:
+    if isinstance(value, (str, bytes, Mapping, set, frozenset)):  # one name, or no order
+        raise TypeError(f"GR1Spec.{what} must be an ordered tuple of mode names, got {describe(value)}")
+    try:
+        items = list(value)
+    except TypeError:
+        raise TypeError(f"GR1Spec.{what} must be a tuple of mode names, got {describe(value)}") from None
+    names: list[str] = []
+    for name in items:
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"GR1Spec.{what} must hold non-empty str mode names, got {describe(name)}")
+        names.append(name)
+    return tuple(names)
+
+
 @dataclass(frozen=True)
 class GR1Spec:
     """A GR(1) specification over sensor APs (environment) and mode APs (system).
@@ -58,7 +87,10 @@ class GR1Spec:
         name: a label (e.g. ``"phi_cb"``).
         description: free text (where the spec comes from).
 
-    All parts are LTL text in Spot syntax; they are parsed and checked here.
+    All parts are LTL text in Spot syntax; they are parsed and checked here
+    (a part nested deeper than :data:`~steer_envs.ltl.syntax.MAX_FORMULA_DEPTH`
+    raises :class:`~steer_envs.ltl.syntax.FormulaTooDeep` naming it). Mode
+    names are str (a single string is not a tuple of its characters).
 
     >>> spec = GR1Spec(sys_init="m0", sys_safety="G(m0 -> X m1) & G(m1 -> X m1)", sys_liveness="G F m1")
     >>> str(spec.formula())
@@ -83,12 +115,15 @@ class GR1Spec:
             text = getattr(self, part)
             if not isinstance(text, str):
                 raise TypeError(f"GR1Spec.{part} must be LTL text (str), got {type(text).__name__}")
+        for label in ("name", "description"):
+            if not isinstance(getattr(self, label), str):
+                raise TypeError(f"GR1Spec.{label} must be a str, got {describe(getattr(self, label))}")
         if self.modes is not None:
-            modes = tuple(str(m) for m in self.modes)
+            modes = _names(self.modes, "modes")
             if not modes or len(set(modes)) != len(modes):
                 raise ValueError(f"GR1Spec.modes must be distinct mode APs, got {self.modes!r}")
             object.__setattr__(self, "modes", modes)
-        recovery = tuple(str(m) for m in self.recovery_modes)
+        recovery = _names(self.recovery_modes, "recovery_modes")
         if self.modes is not None and not set(recovery) <= set(self.modes):
             raise ValueError(f"GR1Spec.recovery_modes {recovery} must be among GR1Spec.modes {self.modes}")
         object.__setattr__(self, "recovery_modes", recovery)
@@ -115,6 +150,7 @@ class GR1Spec:
                 out[name] = parse(getattr(self, name))
             except LTLParseError as err:
                 raise ValueError(f"GR1Spec.{name}: {err}") from None
+            check_depth(out[name], f"GR1Spec.{name}", error=FormulaTooDeep)
         return out
 
     def initial_condition(self, name: str) -> Formula:

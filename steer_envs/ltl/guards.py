@@ -14,9 +14,13 @@ irredundant cover) for printing and for HOA labels.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
 
+import numpy as np
+
+from steer_envs.core.validation import boolean, describe
 from steer_envs.ltl.syntax import (
     And,
     Atom,
@@ -49,6 +53,8 @@ Cube = tuple[tuple[int, bool], ...]  # ((ap index, polarity), ...), sorted by in
 
 
 def _check_n(n: int) -> None:
+    if isinstance(n, bool) or not isinstance(n, int):
+        raise TypeError(f"the number of APs must be an int, got {describe(n)}")
     if not 0 <= n <= MAX_APS:
         raise ValueError(f"guards range over at most {MAX_APS} atomic propositions, got {n}")
 
@@ -86,19 +92,31 @@ GuardLetter = Mapping[str, bool] | Iterable[str] | int
 
 
 def valuation_of(letter: GuardLetter, aps: Sequence[str]) -> int:
-    """The valuation (int) of a letter: set of true APs, mapping AP -> bool, or an int already."""
-    if isinstance(letter, bool):
-        raise TypeError("a letter must be a set of true APs, a mapping AP -> bool or an int, got bool")
-    if isinstance(letter, int):
-        if not 0 <= letter < (1 << len(aps)):
-            raise ValueError(f"valuation {letter} out of range for {len(aps)} APs")
-        return letter
+    """The valuation (int) of a letter: set of true APs, mapping AP -> bool, or an int already.
+
+    Mapping values must be real bools (Python or numpy): ``"False"``, ``1`` or
+    NaN raise ``TypeError`` instead of reading as true. AP names must be str.
+    """
+    return _valuation(letter, aps, "letter")
+
+
+def _valuation(letter: object, aps: Sequence[str], what: str) -> int:
+    kinds = "a set of true APs, a mapping AP -> bool or an int"
+    if isinstance(letter, (bool, np.bool_)):
+        raise TypeError(f"{what} must be {kinds}, got {describe(letter)}")
+    if isinstance(letter, numbers.Integral):
+        value = int(letter)
+        if not 0 <= value < (1 << len(aps)):
+            raise ValueError(f"valuation {value} out of range for {len(aps)} APs")
+        return value
     if isinstance(letter, Mapping):
-        true = {str(k) for k, v in letter.items() if bool(v)}
+        true = {_ap_name(k, what) for k, v in letter.items() if boolean(v, f"{what}[{k!r}]")}
     elif isinstance(letter, str):
         true = {letter}
+    elif isinstance(letter, Iterable) and not isinstance(letter, (bytes, np.ndarray)):
+        true = {_ap_name(x, what) for x in letter}
     else:
-        true = {str(x) for x in letter}
+        raise TypeError(f"{what} must be {kinds}, got {describe(letter)}")
     v = 0
     for j, ap in enumerate(aps):
         if ap in true:
@@ -106,17 +124,36 @@ def valuation_of(letter: GuardLetter, aps: Sequence[str]) -> int:
     return v
 
 
+def _ap_name(name: object, what: str) -> str:
+    if not isinstance(name, str):
+        raise TypeError(f"{what}: AP names must be str, got {describe(name)}")
+    return name
+
+
 def formula_mask(f: Formula, aps: Sequence[str], cache: dict[Formula, int] | None = None) -> int:
-    """The guard of a propositional formula over ``aps`` (APs not in ``aps`` raise)."""
+    """The guard of a propositional formula over ``aps`` (APs not in ``aps`` raise).
+
+    Evaluated with an explicit stack (children first), so any depth works;
+    ``cache`` memoises guards of subformulas across calls.
+    """
+    if not isinstance(f, Formula):
+        raise TypeError(f"formula_mask: `f` must be a Formula, got {describe(f)}")
     n = len(aps)
     index = {ap: j for j, ap in enumerate(aps)}
     full = full_mask(n)
     memo = {} if cache is None else cache
-
-    def go(g: Formula) -> int:
-        hit = memo.get(g)
-        if hit is not None:
-            return hit
+    hit = memo.get(f)
+    if hit is not None:
+        return hit
+    stack: list[tuple[Formula, bool]] = [(f, False)]
+    while stack:
+        g, ready = stack.pop()
+        if g in memo:
+            continue
+        if not ready and g.args:
+            stack.append((g, True))
+            stack.extend((a, False) for a in reversed(g.args) if a not in memo)
+            continue
         if isinstance(g, Const):
             m = full if g.value else 0
         elif isinstance(g, Atom):
@@ -124,27 +161,25 @@ def formula_mask(f: Formula, aps: Sequence[str], cache: dict[Formula, int] | Non
                 raise ValueError(f"atomic proposition {g.name!r} is not one of the automaton APs {tuple(aps)}")
             m = ap_mask(index[g.name], n)
         elif isinstance(g, Not):
-            m = full & ~go(g.arg)
+            m = full & ~memo[g.arg]
         elif isinstance(g, And):
             m = full
             for a in g.args:
-                m &= go(a)
+                m &= memo[a]
         elif isinstance(g, Or):
             m = 0
             for a in g.args:
-                m |= go(a)
+                m |= memo[a]
         elif isinstance(g, Implies):
-            m = (full & ~go(g.left)) | go(g.right)
+            m = (full & ~memo[g.left]) | memo[g.right]
         elif isinstance(g, Equiv):
-            m = full & ~(go(g.left) ^ go(g.right))
+            m = full & ~(memo[g.left] ^ memo[g.right])
         elif isinstance(g, Xor):
-            m = go(g.left) ^ go(g.right)
+            m = memo[g.left] ^ memo[g.right]
         else:
             raise TypeError(f"formula_mask: {str(g)!r} is temporal, expected a propositional formula")
         memo[g] = m
-        return m
-
-    return go(f)
+    return memo[f]
 
 
 # ---------------------------------------------------------------- ISOP

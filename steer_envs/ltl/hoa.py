@@ -6,7 +6,11 @@ indices, transition- or state-based marks and a generalized Büchi
 ``ltl2tgba`` produce for LTL: generalized Büchi acceptance (``t``, ``f``, or a
 conjunction of ``Inf(i)``), explicit labels (``[0&!1 | 2]``, aliases
 ``@name``), state- or transition-based marks, one or several (non-alternating)
-start states. Anything else raises ``ValueError`` saying what is unsupported.
+start states. Anything else raises ``ValueError`` saying what is unsupported
+or malformed (also for truncated or garbled input: never an ``IndexError``);
+labels may nest at most :data:`MAX_LABEL_DEPTH` deep, aliases may not refer
+to themselves, and an automaton has at most
+:data:`~steer_envs.ltl.automaton.MAX_STATES` states.
 """
 
 from __future__ import annotations
@@ -14,10 +18,13 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from steer_envs.ltl.automaton import Automaton, Edge
-from steer_envs.ltl.guards import ap_mask, cubes_to_str, full_mask, isop
+from steer_envs.ltl.automaton import MAX_STATES, Automaton, Edge
+from steer_envs.ltl.guards import MAX_APS, ap_mask, cubes_to_str, full_mask, isop
 
-__all__ = ["from_hoa", "to_hoa"]
+__all__ = ["MAX_LABEL_DEPTH", "from_hoa", "to_hoa"]
+
+#: deepest nesting of ``!`` / ``(`` / alias references in one HOA edge label
+MAX_LABEL_DEPTH = 100
 
 
 def _hoa_string(text: str) -> str:
@@ -117,10 +124,18 @@ def _unquote(s: str) -> str:
 
 
 class _LabelParser:
-    """Boolean label expressions over AP indices: ``t f int ! & | ( ) @alias``."""
+    """Boolean label expressions over AP indices: ``t f int ! & | ( ) @alias`` (nesting bounded)."""
 
-    def __init__(self, toks: list[_Tok], n: int, aliases: dict[str, list[_Tok]]) -> None:
+    def __init__(
+        self,
+        toks: list[_Tok],
+        n: int,
+        aliases: dict[str, list[_Tok]],
+        depth: int = 0,
+        using: frozenset[str] = frozenset(),
+    ) -> None:
         self.toks, self.i, self.n, self.aliases = toks, 0, n, aliases
+        self.depth, self.using = depth, using
 
     def peek(self) -> str:
         return self.toks[self.i].text if self.i < len(self.toks) else ""
@@ -130,6 +145,11 @@ class _LabelParser:
         if self.i != len(self.toks):
             raise ValueError(f"from_hoa: unexpected {self.peek()!r} in a label")
         return value
+
+    def _enter(self) -> None:
+        self.depth += 1
+        if self.depth > MAX_LABEL_DEPTH:
+            raise ValueError(f"from_hoa: a label nests deeper than MAX_LABEL_DEPTH={MAX_LABEL_DEPTH}")
 
     def disj(self) -> int:
         v = self.conj()
@@ -152,12 +172,17 @@ class _LabelParser:
         self.i += 1
         full = full_mask(self.n)
         if tok.text == "!":
-            return full & ~self.atom()
+            self._enter()
+            v = full & ~self.atom()
+            self.depth -= 1
+            return v
         if tok.text == "(":
+            self._enter()
             v = self.disj()
             if self.peek() != ")":
                 raise ValueError("from_hoa: missing ')' in a label")
             self.i += 1
+            self.depth -= 1
             return v
         if tok.text == "t":
             return full
@@ -171,8 +196,27 @@ class _LabelParser:
         if tok.text.startswith("@"):
             if tok.text not in self.aliases:
                 raise ValueError(f"from_hoa: undefined alias {tok.text}")
-            return _LabelParser(self.aliases[tok.text], self.n, self.aliases).parse()
+            if tok.text in self.using:
+                raise ValueError(f"from_hoa: alias {tok.text} refers to itself")
+            self._enter()
+            inner = _LabelParser(self.aliases[tok.text], self.n, self.aliases, self.depth, self.using | {tok.text})
+            v = inner.parse()
+            self.depth -= 1
+            return v
         raise ValueError(f"from_hoa: unexpected {tok.text!r} in a label")
+
+
+def _int(tok: _Tok | None, what: str) -> int:
+    """A non-negative int token, or a ``ValueError`` saying what was expected."""
+    if tok is None:
+        raise ValueError(f"from_hoa: {what} is missing (input ends early)")
+    if tok.kind != "int":
+        raise ValueError(f"from_hoa: {what} must be a non-negative int, got {tok.text!r}")
+    return int(tok.text)
+
+
+def _at(toks: list[_Tok], i: int) -> _Tok | None:
+    return toks[i] if 0 <= i < len(toks) else None
 
 
 def _parse_acceptance(toks: list[_Tok]) -> list[int] | None:
@@ -194,6 +238,8 @@ def _parse_acceptance(toks: list[_Tok]) -> list[int] | None:
                 "from_hoa: only generalized Büchi acceptance (t, f, or Inf(i)&Inf(j)&...) is supported, got "
                 + " ".join(body)
             )
+        if not body[i + 2].isdigit():
+            raise ValueError(f"from_hoa: Inf() needs a set number, got {body[i + 2]!r}")
         sets.append(int(body[i + 2]))
         i += 4
         if i < len(body):
@@ -204,6 +250,13 @@ def _parse_acceptance(toks: list[_Tok]) -> list[int] | None:
                 )
             i += 1
     return sets
+
+
+def _closing(toks: list[_Tok], start: int, closer: str, what: str) -> int:
+    at = next((k for k in range(start, len(toks)) if toks[k].text == closer), None)
+    if at is None:
+        raise ValueError(f"from_hoa: unterminated {what} (no {closer!r})")
+    return at
 
 
 def from_hoa(text: str) -> Automaton:
@@ -233,21 +286,29 @@ def from_hoa(text: str) -> Automaton:
     aliases: dict[str, list[_Tok]] = {}
     for key, args in headers:
         if key == "States":
-            num_states = int(args[0].text)
+            num_states = _int(_at(args, 0), "States:")
+            if num_states > MAX_STATES:
+                raise ValueError(f"from_hoa: States: {num_states} exceeds MAX_STATES={MAX_STATES}")
         elif key == "Start":
             if any(t.text == "&" for t in args):
                 raise ValueError("from_hoa: alternating automata (conjunctive Start) are not supported")
-            starts.append(int(args[0].text))
+            starts.append(_int(_at(args, 0), "Start:"))
         elif key == "AP":
-            count = int(args[0].text)
+            count = _int(_at(args, 0), "AP: count")
+            if count > MAX_APS:
+                raise ValueError(f"from_hoa: AP: declares {count} APs; at most {MAX_APS} are supported")
+            if any(t.kind != "string" for t in args[1:]):
+                raise ValueError("from_hoa: AP: names must be double-quoted strings")
             aps = tuple(_unquote(t.text) for t in args[1:])
             if len(aps) != count:
                 raise ValueError(f"from_hoa: AP: declares {count} APs but lists {len(aps)}")
         elif key == "Acceptance":
             sets = _parse_acceptance(args)
         elif key == "name":
-            name = _unquote(args[0].text) if args else ""
+            name = _unquote(args[0].text) if args and args[0].kind == "string" else ""
         elif key == "Alias":
+            if not args or not args[0].text.startswith("@"):
+                raise ValueError("from_hoa: Alias: needs an @name and a label")
             aliases[args[0].text] = args[1:]
     if not starts:
         raise ValueError("from_hoa: no Start: state")
@@ -273,16 +334,17 @@ def from_hoa(text: str) -> Automaton:
             break
         if tok.text == "State:":
             i += 1
-            if body[i].text == "[":
+            nxt = _at(body, i)
+            if nxt is not None and nxt.text == "[":
                 raise ValueError("from_hoa: state labels are not supported (use edge labels)")
-            state = int(body[i].text)
+            state = _int(nxt, "State:")
             i += 1
             if i < len(body) and body[i].kind == "string":
                 names[state] = _unquote(body[i].text)
                 i += 1
             state_marks = frozenset()
             if i < len(body) and body[i].text == "{":
-                j = next(k for k in range(i, len(body)) if body[k].text == "}")
+                j = _closing(body, i, "}", "state marks")
                 state_marks = marks(body[i + 1 : j])
                 state_based = True
                 i = j + 1
@@ -291,18 +353,16 @@ def from_hoa(text: str) -> Automaton:
             raise ValueError(f"from_hoa: edge before any State: ({tok.text!r})")
         if tok.text != "[":
             raise ValueError("from_hoa: implicit (unlabelled) edges are not supported")
-        close = next((k for k in range(i, len(body)) if body[k].text == "]"), None)
-        if close is None:
-            raise ValueError("from_hoa: unterminated edge label")
+        close = _closing(body, i, "]", "edge label")
         guard = _LabelParser(body[i + 1 : close], n, aliases).parse()
         i = close + 1
-        dst = int(body[i].text)
+        dst = _int(_at(body, i), "an edge's destination state")
         i += 1
         if i < len(body) and body[i].text == "&":
             raise ValueError("from_hoa: alternating automata (conjunctive destinations) are not supported")
         acc = state_marks
         if i < len(body) and body[i].text == "{":
-            k = next(m for m in range(i, len(body)) if body[m].text == "}")
+            k = _closing(body, i, "}", "edge marks")
             acc = acc | marks(body[i + 1 : k])
             i = k + 1
         if guard:
@@ -310,6 +370,8 @@ def from_hoa(text: str) -> Automaton:
     total = (
         num_states if num_states is not None else 1 + max([*starts, *(e.dst for e in edges), *(e.src for e in edges)])
     )
+    if total > MAX_STATES:
+        raise ValueError(f"from_hoa: the automaton names state {total - 1}; at most MAX_STATES={MAX_STATES} states")
     state_names = tuple(names.get(q, "") for q in range(total)) if names else ()
     if len(starts) > 1:  # a fresh initial state copying the edges of every start state
         fresh = total

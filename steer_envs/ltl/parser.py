@@ -18,11 +18,16 @@ start a binary operator, so ``a Ub`` is ``a U b`` (but ``aUb`` is one AP).
 PSL/SERE syntax (``{...}``, ``[*]``) is not supported.
 
 A syntax error raises :class:`LTLParseError` (a ``ValueError``) naming the
-1-based column and what was expected there.
+1-based column and what was expected there. The parser keeps its own stack
+instead of recursing, so deeply nested text parses up to
+:data:`MAX_PARSE_DEPTH` open grammar rules (thousands of parentheses) and
+beyond that raises :class:`LTLParseError` naming the limit, never a
+``RecursionError``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
 from steer_envs.ltl.syntax import (
@@ -45,9 +50,13 @@ from steer_envs.ltl.syntax import (
     Xor,
 )
 
-__all__ = ["LTLParseError", "parse"]
+__all__ = ["MAX_PARSE_DEPTH", "LTLParseError", "parse"]
 
 _OPERAND = "a formula (atomic proposition, true/false, '(', or a unary operator ! X F G)"
+
+
+#: characters of context shown either side of the error column in a long formula's message
+_CONTEXT = 60
 
 
 class LTLParseError(ValueError):
@@ -64,8 +73,14 @@ class LTLParseError(ValueError):
         self.column = column
         self.expected = expected
         self.found = found
-        caret = " " * (column - 1) + "^"
-        super().__init__(f"LTL syntax error at column {column}: expected {expected}, got {found}\n  {text}\n  {caret}")
+        shown, at = text, column - 1
+        if len(text) > 2 * _CONTEXT:  # long text: a window around the column
+            lo = max(0, at - _CONTEXT)
+            hi = min(len(text), at + _CONTEXT)
+            shown = ("..." if lo else "") + text[lo:hi] + ("..." if hi < len(text) else "")
+            at = at - lo + (3 if lo else 0)
+        caret = " " * at + "^"
+        super().__init__(f"LTL syntax error at column {column}: expected {expected}, got {found}\n  {shown}\n  {caret}")
 
 
 @dataclass(frozen=True)
@@ -182,6 +197,17 @@ def _tokenize(text: str) -> list[_Token]:
     return tokens
 
 
+#: the parser's explicit stack holds at most this many open grammar rules (about 7 per open
+#: parenthesis, 1 per unary operator or right-nested binary one) before it refuses the text.
+MAX_PARSE_DEPTH = 100_000
+
+# A grammar rule is a generator: it yields the rule it needs parsed next (a bound method returning
+# a new generator) and is sent that rule's result; its return value is its own result. ``_run``
+# drives the rules with an explicit stack, so nesting depth is bounded by MAX_PARSE_DEPTH, not by
+# Python's recursion limit.
+_Rule = Generator[Callable[[], "_Rule"], Formula, Formula]
+
+
 class _Parser:
     def __init__(self, text: str) -> None:
         self.text = text
@@ -198,65 +224,85 @@ class _Parser:
     def parse(self) -> Formula:
         if self.tok.kind == "end":
             raise self.fail(_OPERAND)
-        f = self.implication()
+        f = self._run(self.implication)
         if self.tok.kind != "end":
             if self.tok.kind == "rparen":
                 raise self.fail("a binary operator or end of input (unbalanced ')')")
             raise self.fail("a binary operator or end of input")
         return f
 
-    def implication(self) -> Formula:
-        left = self.disjunction()
+    def _run(self, start: Callable[[], _Rule]) -> Formula:
+        stack: list[_Rule] = [start()]
+        value: Formula | None = None
+        while True:
+            try:
+                rule = stack[-1].send(value)  # type: ignore[arg-type]  # None primes a fresh rule
+            except StopIteration as done:
+                stack.pop()
+                value = done.value
+                if not stack:
+                    return value
+                continue
+            if len(stack) >= MAX_PARSE_DEPTH:
+                raise self.fail(f"less nesting (the formula nests deeper than MAX_PARSE_DEPTH={MAX_PARSE_DEPTH})")
+            stack.append(rule())
+            value = None
+
+    def implication(self) -> _Rule:
+        left = yield self.disjunction
         tok = self.tok
         if tok.kind in ("implies", "equiv"):
             self.pos += 1
-            right = self.implication()
+            right = yield self.implication
             return Implies(left, right) if tok.kind == "implies" else Equiv(left, right)
         return left
 
-    def disjunction(self) -> Formula:
-        args = [self.exclusive()]
+    def disjunction(self) -> _Rule:
+        args = [(yield self.exclusive)]
         while self.tok.kind == "or":
             self.pos += 1
-            args.append(self.exclusive())
+            args.append((yield self.exclusive))
         return Or(*args)
 
-    def exclusive(self) -> Formula:
-        left = self.conjunction()
+    def exclusive(self) -> _Rule:
+        left = yield self.conjunction
         while self.tok.kind == "xor":
             self.pos += 1
-            left = Xor(left, self.conjunction())
+            left = Xor(left, (yield self.conjunction))
         return left
 
-    def conjunction(self) -> Formula:
-        args = [self.temporal()]
+    def conjunction(self) -> _Rule:
+        args = [(yield self.temporal)]
         while self.tok.kind == "and":
             self.pos += 1
-            args.append(self.temporal())
+            args.append((yield self.temporal))
         return And(*args)
 
-    def temporal(self) -> Formula:
-        left = self.unary()
+    def temporal(self) -> _Rule:
+        left = yield self.unary
         tok = self.tok
         if tok.kind == "binop":
             self.pos += 1
-            right = self.temporal()
+            right = yield self.temporal
             cls = {"U": Until, "R": Release, "W": WeakUntil, "M": StrongRelease}[tok.value]
             return cls(left, right)
         return left
 
-    def unary(self) -> Formula:
+    def unary(self) -> _Rule:
         tok = self.tok
         if tok.kind == "not":
             self.pos += 1
-            return Not(self.unary())
+            return Not((yield self.unary))
         if tok.kind == "unary":
             self.pos += 1
             cls = {"X": Next, "F": Finally, "G": Globally}[tok.value]
-            return cls(self.unary())
-        return self.primary()
+            return cls((yield self.unary))
+        if tok.kind == "ap":  # the common leaves, without a rule of their own
+            self.pos += 1
+            return Atom(tok.value)
+        return (yield self.primary)
 
-    def primary(self) -> Formula:
+    def primary(self) -> _Rule:
         tok = self.tok
         if tok.kind == "ap":
             self.pos += 1
@@ -268,7 +314,7 @@ class _Parser:
             self.pos += 1
             if self.tok.kind == "rparen":
                 raise self.fail(_OPERAND + " inside '()'")
-            inner = self.implication()
+            inner = yield self.implication
             if self.tok.kind != "rparen":
                 raise self.fail(f"')' to close the '(' at column {tok.column}")
             self.pos += 1

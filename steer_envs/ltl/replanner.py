@@ -39,8 +39,10 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import networkx as nx
+import numpy as np
 
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import boolean, describe
 from steer_envs.ltl.automaton import Automaton, Edge
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.guards import MAX_APS, formula_mask
@@ -397,24 +399,32 @@ class TaskAutomaton:
 
 
 def _reading(sensors: Mapping[str, bool] | Iterable[str], known: tuple[str, ...]) -> frozenset[str]:
+    """The set of true APs of a reading. Values must be real bools: ``"False"``, ``1`` or NaN raise ``TypeError``."""
     keys: set[str] | frozenset[str]
     if isinstance(sensors, Mapping):
-        reading = frozenset(str(k) for k, v in sensors.items() if bool(v))
-        keys = {str(k) for k in sensors}
+        for k in sensors:
+            _ap_name(k)
+        reading = frozenset(k for k, v in sensors.items() if boolean(v, f"sensors[{k!r}]"))
+        keys = set(sensors)
     elif isinstance(sensors, str):
         reading = keys = frozenset((sensors,))
     else:
-        try:
-            reading = frozenset(str(x) for x in sensors)
-        except TypeError:
+        if isinstance(sensors, (bytes, np.ndarray)) or not isinstance(sensors, Iterable):
             raise TypeError(
-                f"sensors must be a mapping AP -> bool or an iterable of true AP names, got {type(sensors).__name__}"
-            ) from None
+                f"sensors must be a mapping AP -> bool or an iterable of true AP names, got {describe(sensors)}"
+            )
+        reading = frozenset(_ap_name(x) for x in sensors)
         keys = set(reading)
     unknown = sorted(set(keys) - set(known))
     if unknown:
         raise ValueError(f"sensors: unknown sensor APs {unknown}; expected a subset of {known}")
     return reading
+
+
+def _ap_name(name: object) -> str:
+    if not isinstance(name, str):
+        raise TypeError(f"sensors: AP names must be str, got {describe(name)}")
+    return name
 
 
 class ModeReplanner:
@@ -426,7 +436,8 @@ class ModeReplanner:
 
     Use :meth:`reset` with the first reading of an episode, then :meth:`update`
     (or :meth:`next_mode` / :meth:`plan`, which update first) with every new
-    reading.
+    reading. A reading is a mapping AP -> bool (real bools: ``"False"`` or NaN
+    is a ``TypeError``, never a true AP) or an iterable of the true AP names.
 
     >>> from steer_envs.envs.soup_scoop import SOUP_TASK
     >>> from steer_envs.ltl import specs

@@ -13,9 +13,13 @@ tests use it as the oracle for the translator.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
+from steer_envs.core.validation import BoundExceeded, boolean, describe
 from steer_envs.ltl.parser import parse
 from steer_envs.ltl.syntax import (
     And,
@@ -43,23 +47,30 @@ Letter = frozenset[str] | set[str] | Mapping[str, bool] | int | Iterable[str]
 
 
 def _letter(letter: object, aps: Sequence[str] | None, what: str) -> frozenset[str]:
-    if isinstance(letter, bool):
-        raise TypeError(f"{what}: a letter must be a set of true APs, a mapping AP -> bool or an int, got bool")
-    if isinstance(letter, int):
+    """A letter as its set of true APs; mapping values must be real bools (``"False"``/NaN are errors)."""
+    kinds = "a set of true APs, a mapping AP -> bool or an int"
+    if isinstance(letter, (bool, np.bool_)):
+        raise TypeError(f"{what}: a letter must be {kinds}, got {describe(letter)}")
+    if isinstance(letter, numbers.Integral):
+        value = int(letter)
         if aps is None:
             raise ValueError(f"{what}: int letters need `aps` (the AP order of the bits)")
-        if not 0 <= letter < (1 << len(aps)):
-            raise ValueError(f"{what}: int letter {letter} out of range for {len(aps)} APs")
-        return frozenset(ap for j, ap in enumerate(aps) if (letter >> j) & 1)
+        if not 0 <= value < (1 << len(aps)):
+            raise ValueError(f"{what}: int letter {value} out of range for {len(aps)} APs")
+        return frozenset(ap for j, ap in enumerate(aps) if (value >> j) & 1)
     if isinstance(letter, Mapping):
-        return frozenset(str(k) for k, v in letter.items() if bool(v))
+        return frozenset(_ap(k, what) for k, v in letter.items() if boolean(v, f"{what} letter[{k!r}]"))
     if isinstance(letter, str):
         return frozenset((letter,))
-    if not isinstance(letter, Iterable):
-        raise TypeError(
-            f"{what}: a letter must be a set of true APs, a mapping AP -> bool or an int, got {type(letter).__name__}"
-        )
-    return frozenset(str(x) for x in letter)
+    if not isinstance(letter, Iterable) or isinstance(letter, (bytes, np.ndarray)):
+        raise TypeError(f"{what}: a letter must be {kinds}, got {describe(letter)}")
+    return frozenset(_ap(x, what) for x in letter)
+
+
+def _ap(name: object, what: str) -> str:
+    if not isinstance(name, str):
+        raise TypeError(f"{what}: AP names in a letter must be str, got {describe(name)}")
+    return name
 
 
 @dataclass(frozen=True)
@@ -71,7 +82,14 @@ class LassoWord:
 
     @classmethod
     def of(cls, prefix: Iterable[Letter], loop: Iterable[Letter], aps: Sequence[str] | None = None) -> LassoWord:
-        """Build a word from letters in any accepted form (see :data:`Letter`)."""
+        """Build a word from letters in any accepted form (see :data:`Letter`; mapping values are real bools)."""
+        if aps is not None:
+            if isinstance(aps, str):
+                raise TypeError(f"LassoWord.of: `aps` must be a sequence of AP names, not one string ({aps!r})")
+            aps = tuple(_ap(a, "aps") for a in aps)
+        for name, part in (("prefix", prefix), ("loop", loop)):
+            if isinstance(part, (str, bytes)) or not isinstance(part, Iterable):
+                raise TypeError(f"LassoWord.of: `{name}` must be a sequence of letters, got {describe(part)}")
         p = tuple(_letter(x, aps, "prefix") for x in prefix)
         v = tuple(_letter(x, aps, "loop") for x in loop)
         if not v:
@@ -106,15 +124,16 @@ def evaluate_positions(formula: str | Formula, word: LassoWord) -> tuple[bool, .
 
     def fixpoint(init: bool, step: Callable[..., bool]) -> list[bool]:
         val = [init] * n
-        changed = True
-        while changed:
+        for _ in range(n + 1):  # monotone: every sweep but the last flips a value for good, so <= n + 1 sweeps
             changed = False
             for i in range(n - 1, -1, -1):
                 new = step(i, val[succ[i]])
                 if new != val[i]:
                     val[i] = new
                     changed = True
-        return val
+            if not changed:
+                return val
+        raise BoundExceeded(f"evaluate: no fixpoint after len(word) + 1 = {n + 1} sweeps")  # pragma: no cover
 
     for g in f.subformulas():
         a = values[g.args[0]] if g.args else []

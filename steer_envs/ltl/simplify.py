@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import lru_cache
 
+from steer_envs.core.validation import BoundExceeded
 from steer_envs.ltl.parser import parse
 from steer_envs.ltl.syntax import (
     FALSE,
@@ -38,6 +39,8 @@ from steer_envs.ltl.syntax import (
     Until,
     WeakUntil,
     Xor,
+    check_depth,
+    check_text_length,
 )
 
 __all__ = ["clear_caches", "conjunction", "disjunction", "nnf", "simplify"]
@@ -47,10 +50,15 @@ __all__ = ["clear_caches", "conjunction", "disjunction", "nnf", "simplify"]
 def nnf(formula: str | Formula) -> Formula:
     """Negation normal form: ``!`` only on atoms; no ``->``, ``<->``, ``xor``.
 
+    Raises :class:`~steer_envs.ltl.syntax.FormulaTooDeep` for formulas nested
+    deeper than :data:`~steer_envs.ltl.syntax.MAX_FORMULA_DEPTH`.
+
     >>> str(nnf("!G(a -> b)"))
     'F(a & !b)'
     """
-    return _nnf(parse(formula), False)
+    f = parse(formula)
+    check_depth(f, "nnf")
+    return _nnf(f, False)
 
 
 @lru_cache(maxsize=65536)
@@ -67,15 +75,15 @@ def _nnf(f: Formula, neg: bool) -> Formula:
     if isinstance(f, Or):
         parts = [_nnf(a, neg) for a in f.args]
         return And(*parts) if neg else Or(*parts)
-    if isinstance(f, Implies):  # a -> b == !a | b
-        return _nnf(Or(Not(f.left), f.right), neg)
-    if isinstance(f, Equiv):  # (a & b) | (!a & !b)
+    # the derived operators recurse straight into their operands (one stack frame per level)
+    if isinstance(f, Implies):  # a -> b == !a | b; !(a -> b) == a & !b
+        left, right = _nnf(f.left, not neg), _nnf(f.right, neg)
+        return And(left, right) if neg else Or(left, right)
+    if isinstance(f, Equiv | Xor):  # a <-> b == (a & b) | (!a & !b); a xor b == !(a <-> b)
         a, b = f.left, f.right
-        if neg:  # a xor b
+        if neg != isinstance(f, Xor):  # a xor b
             return Or(And(_nnf(a, False), _nnf(b, True)), And(_nnf(a, True), _nnf(b, False)))
         return Or(And(_nnf(a, False), _nnf(b, False)), And(_nnf(a, True), _nnf(b, True)))
-    if isinstance(f, Xor):
-        return _nnf(Equiv(f.left, f.right), not neg)
     if isinstance(f, Next):
         return Next(_nnf(f.arg, neg))
     if isinstance(f, Finally):
@@ -150,15 +158,29 @@ def _junction(args: tuple[Formula, ...], cls: type, unit: Const, zero: Const) ->
 def simplify(formula: str | Formula) -> Formula:
     """An equivalent, usually smaller formula in negation normal form.
 
+    Raises :class:`~steer_envs.ltl.syntax.FormulaTooDeep` for formulas nested
+    deeper than :data:`~steer_envs.ltl.syntax.MAX_FORMULA_DEPTH` or whose NNF
+    text exceeds :data:`~steer_envs.ltl.syntax.MAX_FORMULA_TEXT`. The rewrites
+    run to a fixpoint, at most :data:`MAX_SIMPLIFY_ROUNDS` rounds
+    (:class:`~steer_envs.core.validation.BoundExceeded` beyond).
+
     >>> str(simplify("!(a U b)")), str(simplify("G G a & G b"))
     ('!a R !b', 'G(a & b)')
     """
     f = nnf(formula)
-    while True:
+    check_text_length(f, "simplify")  # operands are ordered by their text
+    for _ in range(MAX_SIMPLIFY_ROUNDS):
         g = _simp(f)
         if g is f:
             return f
         f = g
+    raise BoundExceeded(  # pragma: no cover - every round shrinks the formula or stops
+        f"simplify: no fixpoint after MAX_SIMPLIFY_ROUNDS={MAX_SIMPLIFY_ROUNDS} rounds of rewriting"
+    )
+
+
+#: rounds of bottom-up rewriting :func:`simplify` runs before giving up (a fixpoint takes a few)
+MAX_SIMPLIFY_ROUNDS = 1_000
 
 
 @lru_cache(maxsize=65536)

@@ -72,7 +72,7 @@ _SOUP_D_SENSORS = MappingProxyType({"thesis": "!r & !s & t", "public": "!r & s &
 
 def soup_scoop(convention: str = "thesis") -> GR1Spec:
     """The soup-scooping GR(1) spec; ``convention`` picks the sensor state of ``d`` (``"thesis"``/``"public"``)."""
-    if convention not in _SOUP_D_SENSORS:
+    if not isinstance(convention, str) or convention not in _SOUP_D_SENSORS:
         raise ValueError(f"convention must be one of {tuple(_SOUP_D_SENSORS)}, got {convention!r}")
     d = _SOUP_D_SENSORS[convention]
     return GR1Spec(
@@ -128,7 +128,7 @@ _COOKING_DESCRIPTIONS = MappingProxyType(
 
 def cooking(variant: str = "phi_cb") -> GR1Spec:
     """A cooking re-tasking: the thesis's ``phi_s_t`` variant plus the shared parts."""
-    if variant not in _COOKING_SYS_SAFETY:
+    if not isinstance(variant, str) or variant not in _COOKING_SYS_SAFETY:
         raise ValueError(f"variant must be one of {tuple(_COOKING_SYS_SAFETY)}, got {variant!r}")
     memory = variant in ("phi_cb", "phi_bc")
     modes = ("w1", "w2", "y", "g", "d1", "d2") if memory else ("w", "y", "g", "d")
@@ -195,7 +195,7 @@ COLOR_TRACING_TASK = _color_task()
 
 def color_tracing(variant: str = "a") -> GR1Spec:
     """Color-tracing automaton ``variant`` in ``("a", "b", "c")`` as a GR(1) spec (see the module doc)."""
-    if variant not in _REENTRY:
+    if not isinstance(variant, str) or variant not in _REENTRY:
         raise ValueError(f"variant must be one of {tuple(_REENTRY)}, got {variant!r}")
     definitions = [f"({tile} <-> {s})" for tile, s in _TILE_SENSOR.items()]
     definitions.append("((dark1 | dark2 | dark3 | dark4) <-> k)")
@@ -268,7 +268,7 @@ def for_env(env: Any, variant: str | None = None) -> GR1Spec:
         convention = getattr(model, "sensor_convention", None)
         if name == "SoupScoop-v0" and convention in table:
             variant = convention
-    if variant not in table:
+    if not isinstance(variant, str) or variant not in table:
         raise ValueError(f"variant for {name!r} must be one of {tuple(table)}, got {variant!r}")
     return table[variant]()
 
@@ -294,8 +294,8 @@ def benchmark_translation(repeats: int = 5, *, backend: str = "native", cold: bo
     from steer_envs.ltl.buchi import translate
     from steer_envs.ltl.simplify import clear_caches
 
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats must be an int >= 1, got {repeats!r}")
     timings: dict[str, float] = {}
     for name, spec in all_specs().items():
         formula = spec.translation_formula()

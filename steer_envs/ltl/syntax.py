@@ -11,7 +11,12 @@ printing round-trip: ``parse(str(f)) is f`` for every formula ``f``.
 The printer writes Spot's syntax (``G F X U R W M``, ``! & | -> <-> xor``,
 ``true false``) with every binary subformula of a binary operator
 parenthesised, so the output is unambiguous to Spot, to ``steer_envs.ltl.parse``
-and to a human reader.
+and to a human reader. It uses an explicit stack, so any formula that can be
+built prints, however deep. The recursive algorithms on formulas (NNF,
+simplification, translation) accept formulas of depth at most
+:data:`MAX_FORMULA_DEPTH` and raise :class:`FormulaTooDeep` (or their own
+documented error, a ``ValueError`` too) beyond it, instead of a
+``RecursionError``.
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from typing import Any, ClassVar, Self
 
 __all__ = [
     "FALSE",
+    "MAX_FORMULA_DEPTH",
+    "MAX_FORMULA_TEXT",
     "TRUE",
     "And",
     "Atom",
@@ -31,6 +38,7 @@ __all__ = [
     "Equiv",
     "Finally",
     "Formula",
+    "FormulaTooDeep",
     "Globally",
     "Implies",
     "Next",
@@ -42,6 +50,9 @@ __all__ = [
     "WeakUntil",
     "Xor",
     "ap_needs_quotes",
+    "check_depth",
+    "check_text_length",
+    "text_length",
 ]
 
 _TABLE: weakref.WeakValueDictionary[tuple[Any, ...], Formula] = weakref.WeakValueDictionary()  # the unique table
@@ -53,6 +64,72 @@ _SERIAL = itertools.count()
 # binary operators) must be quoted.
 _BARE_AP = re.compile(r"(?:[a-zA-EH-WYZ_.][a-zA-Z0-9_.]*|[FGX][0-9][a-zA-Z0-9_.]*)\Z")
 _KEYWORDS = frozenset({"xor", "U", "R", "V", "W", "M"})
+
+
+#: deepest operator nesting the recursive formula algorithms (NNF, simplify, translate, guards) accept;
+#: they use about three Python frames per level, so this stays well inside Python's default recursion limit.
+MAX_FORMULA_DEPTH = 200
+
+
+class FormulaTooDeep(ValueError):
+    """A formula nests operators deeper than an algorithm's limit (see :data:`MAX_FORMULA_DEPTH`)."""
+
+
+def check_depth(
+    f: Formula, who: str, *, limit: int = MAX_FORMULA_DEPTH, error: type[ValueError] = FormulaTooDeep
+) -> None:
+    """Raise ``error`` naming ``who`` and the limit when ``f`` nests deeper than ``limit`` (O(size), no recursion).
+
+    >>> f = Atom("a")
+    >>> for _ in range(300):
+    ...     f = Next(f)
+    >>> check_depth(f, "nnf")
+    Traceback (most recent call last):
+    steer_envs.ltl.syntax.FormulaTooDeep: nnf: the formula nests 300 operators deep; at most MAX_FORMULA_DEPTH=200 ...
+    """
+    depth = f.depth
+    if depth > limit:
+        raise error(
+            f"{who}: the formula nests {depth} operators deep; at most MAX_FORMULA_DEPTH={limit} are supported "
+            f"(rewrite it flatter, e.g. X X a as one X with a counter AP)"
+        )
+
+
+#: longest text (characters) of a formula the algorithms that print subformulas (simplify's operand
+#: order, translate's state names) accept: an n-deep ``<->`` chain has a small DAG but ~4**(n/2) characters.
+MAX_FORMULA_TEXT = 1_000_000
+
+
+def text_length(f: Formula) -> int:
+    """Length of ``str(f)`` computed on the DAG, without building the text (O(size), no recursion).
+
+    >>> f = And(Atom("a"), Not(Atom("b")))
+    >>> text_length(f) == len(str(f))
+    True
+    """
+    lengths: dict[Formula, int] = {}
+    for g in f.subformulas():
+        if isinstance(g, Const):
+            n = 4 if g.value else 5
+        elif isinstance(g, Atom):
+            n = len(_quote(g.name))
+        else:
+            n = sum(lengths[a] + (2 if _parenthesised(a) else 0) for a in g.args)
+            n += len(g.symbol) if isinstance(g, _Unary) else (len(g.args) - 1) * (len(g.symbol) + 2)
+        lengths[g] = n
+    return lengths[f]
+
+
+def check_text_length(
+    f: Formula, who: str, *, limit: int = MAX_FORMULA_TEXT, error: type[ValueError] = FormulaTooDeep
+) -> None:
+    """Raise ``error`` naming ``who`` and the limit when ``str(f)`` would exceed ``limit`` characters."""
+    n = text_length(f)
+    if n > limit:
+        raise error(
+            f"{who}: the formula's text would be {n} characters; at most MAX_FORMULA_TEXT={limit} are supported "
+            f"(nested <->/xor grow exponentially in negation normal form)"
+        )
 
 
 def ap_needs_quotes(name: str) -> bool:
@@ -414,21 +491,48 @@ class Or(_NAry):
 
 
 # ------------------------------------------------------------------ printing
-def _operand(f: Formula) -> str:
-    """A child of an operator: bare when it binds tightest, else parenthesised."""
-    text = str(f)
-    return text if f.precedence == 6 else f"({text})"
+def _parenthesised(f: Formula) -> bool:
+    """A child of an operator is parenthesised unless it binds tightest (unary operators, atoms, constants)."""
+    return f.precedence != 6
 
 
-def _to_str(f: Formula) -> str:
-    if isinstance(f, Const):
-        return "true" if f.value else "false"
-    if isinstance(f, Atom):
-        return _quote(f.name)
-    if isinstance(f, _Unary):
-        return f.symbol + _operand(f.arg)
-    if isinstance(f, _NAry):
-        return f" {f.symbol} ".join(_operand(a) for a in f.args)
-    if isinstance(f, _Binary):
-        return f"{_operand(f.left)} {f.symbol} {_operand(f.right)}"
-    raise TypeError(f"cannot print {type(f).__name__}")  # pragma: no cover - closed hierarchy
+def _to_str(root: Formula) -> str:
+    """Spot-syntax text of ``root``, built with an explicit stack (no recursion, any depth).
+
+    Subformulas whose text is already cached are reused; the others are
+    written out without being cached (caching every subformula of a deep
+    chain would hold quadratically many characters).
+    """
+    out: list[str] = []
+    stack: list[Formula | str] = [root]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, str):
+            out.append(item)
+            continue
+        f = item
+        cached = f._str if f is not root else None
+        if cached is not None:
+            out.append(cached)
+        elif isinstance(f, Const):
+            out.append("true" if f.value else "false")
+        elif isinstance(f, Atom):
+            out.append(_quote(f.name))
+        elif isinstance(f, _Unary | _NAry | _Binary):
+            parts: list[Formula | str] = []
+            if isinstance(f, _Unary):
+                parts.append(f.symbol)
+                operands: tuple[Formula, ...] = (f.arg,)
+            else:
+                operands = f.args
+            for i, a in enumerate(operands):
+                if i:
+                    parts.append(f" {f.symbol} ")
+                if _parenthesised(a):
+                    parts.extend(("(", a, ")"))
+                else:
+                    parts.append(a)
+            stack.extend(reversed(parts))
+        else:  # pragma: no cover - closed hierarchy
+            raise TypeError(f"cannot print {type(f).__name__}")
+    return "".join(out)

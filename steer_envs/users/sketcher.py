@@ -28,6 +28,7 @@ import numpy as np
 from shapely.geometry import LineString
 
 from steer_envs.core.interaction import Sketch
+from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
 from steer_envs.envs.maze2d import MazeGrid, maze_map
 
 __all__ = ["SketchUser", "UserSketch"]
@@ -52,6 +53,17 @@ class UserSketch:
     collides: bool
 
 
+#: most points of one sketch (each is a shapely interpolation).
+MAX_POINTS = 100_000
+
+
+def _check_seed(seed: Any, owner: str) -> Any:
+    """None, an int >= 0, or a numpy SeedSequence / BitGenerator (what ``default_rng`` reads without guessing)."""
+    if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.BitGenerator)):
+        return seed
+    return integer(seed, "`seed`", low=0, owner=owner)
+
+
 def _as_grid(maze: Any) -> MazeGrid:
     if isinstance(maze, MazeGrid):
         return maze
@@ -60,7 +72,7 @@ def _as_grid(maze: Any) -> MazeGrid:
     grid = getattr(getattr(maze, "unwrapped", maze), "grid", None)
     if isinstance(grid, MazeGrid):
         return grid
-    raise TypeError(f"`maze` must be a MazeGrid, a maze name or a Maze2DEnv, got {type(maze).__name__}")
+    raise TypeError(f"`maze` must be a MazeGrid, a maze name or a Maze2DEnv, got {describe(maze)}")
 
 
 class SketchUser:
@@ -73,7 +85,13 @@ class SketchUser:
             ``"follow"``, straight distance for ``"through"``).
         points: number of points of every sketch.
         hand_jitter: uniform offset (cells) of each path corner, a shaky hand.
-        seed: seed of the user's randomness (or pass ``rng`` to :meth:`draw`).
+        seed: seed of the user's randomness (or pass ``rng`` to :meth:`draw`):
+            None, an int >= 0, or a ``numpy.random.SeedSequence`` / ``BitGenerator``.
+
+    Numbers must be real numbers (``through_wall`` in [0, 1], ``0 < min_length
+    <= max_length`` finite, ``points`` an int in [2, MAX_POINTS], ``hand_jitter``
+    in [0, 0.5)); strings and bools are refused with a ``TypeError`` naming
+    the argument.
 
     >>> user = SketchUser("umaze", seed=0, points=8, min_length=2.0, max_length=4.0)
     >>> drawn = user.draw([1.0, 1.0], kind="through")
@@ -92,20 +110,18 @@ class SketchUser:
         hand_jitter: float = 0.15,
         seed: int | None = None,
     ) -> None:
+        owner = "SketchUser"
         self.grid = _as_grid(maze)
-        if not (isinstance(through_wall, (int, float)) and 0.0 <= through_wall <= 1.0):
-            raise ValueError(f"`through_wall` must be a probability in [0, 1], got {through_wall!r}")
-        if not (np.isfinite(min_length) and np.isfinite(max_length) and 0 < min_length <= max_length):
-            raise ValueError(f"need 0 < min_length <= max_length (finite), got {min_length!r}, {max_length!r}")
-        if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 2:
-            raise ValueError(f"`points` must be an integer >= 2, got {points!r}")
-        if not (np.isfinite(hand_jitter) and 0.0 <= hand_jitter < 0.5):
-            raise ValueError(f"`hand_jitter` must be in [0, 0.5) cells, got {hand_jitter!r}")
-        self.through_wall = float(through_wall)
-        self.min_length, self.max_length = float(min_length), float(max_length)
-        self.points = int(points)
-        self.hand_jitter = float(hand_jitter)
-        self.rng = np.random.default_rng(seed)
+        self.through_wall = real_scalar(through_wall, "`through_wall`", low=0.0, high=1.0, owner=owner)
+        self.min_length = real_scalar(min_length, "`min_length`", low=0.0, low_inclusive=False, owner=owner)
+        self.max_length = real_scalar(max_length, "`max_length`", owner=owner)
+        if not self.min_length <= self.max_length:
+            raise ValueError(f"{owner}: need 0 < min_length <= max_length (finite), got {min_length!r}, {max_length!r}")
+        self.points = integer(points, "`points`", low=2, high=MAX_POINTS, owner=owner)
+        self.hand_jitter = real_scalar(
+            hand_jitter, "`hand_jitter`", low=0.0, high=0.5, high_inclusive=False, owner=owner
+        )
+        self.rng = np.random.default_rng(_check_seed(seed, owner))
         free = [tuple(int(v) for v in c) for c in self.grid.free_cells]
         graph = nx.grid_2d_graph(*self.grid.shape)
         graph.remove_nodes_from([n for n in list(graph.nodes) if n not in set(free)])
@@ -117,16 +133,15 @@ class SketchUser:
 
         A ``"through"`` sketch falls back to ``"follow"`` when no free cell in
         range lies behind a wall (e.g. in an open maze); ``ValueError`` when the
-        start's cell reaches no cell in range at all.
+        start's cell reaches no cell in range at all. ``start`` is 2 finite reals.
         """
+        owner = "SketchUser.draw"
         rng = self.rng if rng is None else rng
         if not isinstance(rng, np.random.Generator):
-            raise TypeError(f"`rng` must be a numpy.random.Generator or None, got {type(rng).__name__}")
-        xy = np.asarray(start, dtype=np.float64)
-        if xy.shape != (2,) or not np.all(np.isfinite(xy)):
-            raise ValueError(f"`start` must be a finite xy pair, got {start!r}")
-        if kind not in (None, "follow", "through"):
-            raise ValueError(f"`kind` must be 'follow', 'through' or None, got {kind!r}")
+            raise TypeError(f"{owner}: `rng` must be a numpy.random.Generator or None, got {describe(rng)}")
+        xy = real_array(start, "`start`", shape=(2,), owner=owner)
+        if kind is not None:
+            one_of(kind, "`kind`", ("follow", "through"), owner=owner)
         if kind is None:
             kind = "through" if rng.random() < self.through_wall else "follow"
         row, col = self.grid.xy_to_cell(xy)
@@ -140,8 +155,11 @@ class SketchUser:
         return self._follow(xy, cell, rng)
 
     def draws(self, starts: Any) -> list[UserSketch]:
-        """One sketch per start (``(N, 2)``), drawn in order from the user's generator."""
-        return [self.draw(s) for s in np.asarray(starts, dtype=np.float64).reshape(-1, 2)]
+        """One sketch per start (``(N, 2)`` finite reals, or one ``(2,)``), drawn in order from the user's generator."""
+        arr = real_array(starts, "`starts`", owner="SketchUser.draws")
+        if arr.shape != (2,) and (arr.ndim != 2 or arr.shape[1] != 2):
+            raise ValueError(f"SketchUser.draws: `starts` must have shape (N, 2), got {arr.shape}")
+        return [self.draw(s) for s in arr.reshape(-1, 2)]
 
     # ------------------------------------------------------------ internals
     def _finish(self, corners: np.ndarray, goal: tuple[int, int], kind: SketchKind) -> UserSketch:
@@ -162,7 +180,7 @@ class SketchUser:
             goals = sorted(c for c, d in depth.items() if d == far)
         goal = goals[int(rng.integers(len(goals)))]
         path = [goal]
-        while path[-1] != cell:  # walk back along a random shortest path
+        for _ in range(depth[goal]):  # walk back along a random shortest path: one cell closer per step
             prev = sorted(p for p in self.graph.neighbors(path[-1]) if depth.get(p) == depth[path[-1]] - 1)
             path.append(prev[int(rng.integers(len(prev)))])
         centres = np.array(path[::-1][1:], dtype=np.float64)

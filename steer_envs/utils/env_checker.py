@@ -42,6 +42,7 @@ from steer_envs.core.env import (
     steer_env,
 )
 from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import integer
 
 __all__ = ["CONVENTIONS", "SteerEnvCheckError", "check_steer_env"]
 
@@ -62,7 +63,8 @@ CONVENTIONS: Mapping[str, str] = {
     "perturb_arguments": "perturb rejects a call without or with both arguments (ValueError), a NaN or wrongly "
     "shaped delta (ValueError naming `delta`) and a non-numeric `to` (TypeError naming `to`), "
     "and a rejected push leaves the state alone",
-    "action_arguments": "step rejects a wrongly shaped Box action with a ValueError naming `action`",
+    "action_arguments": "step rejects a wrongly shaped Box action with a ValueError naming `action`, and a "
+    "non-numeric one (strings) with a TypeError or ValueError; a rejected action leaves the state alone",
 }
 
 
@@ -269,6 +271,7 @@ class _Checker:
         space = self.env.action_space
         if not isinstance(space, spaces.Box) or len(space.shape) != 1:
             return
+        before = self.state()
         bad = np.zeros(space.shape[0] + 1, dtype=space.dtype)
         try:
             self.env.step(bad)
@@ -283,6 +286,21 @@ class _Checker:
             ) from err
         else:
             raise self.fail("action_arguments", f"step accepted an action of shape {bad.shape} for {space}")
+        # words, not numbers: any clean refusal will do (envs may word it their way), silence will not
+        words = np.array(["left"] * space.shape[0])
+        call = f"step({words.tolist()!r})"
+        try:
+            self.env.step(words)
+        except (TypeError, ValueError):
+            pass
+        except Exception as err:
+            raise self.fail(
+                "action_arguments", f"{call} raised {type(err).__name__} (expected TypeError or ValueError): {err}"
+            ) from err
+        else:
+            raise self.fail("action_arguments", f"{call} was accepted as an action for {space}")
+        if not np.array_equal(self.state(), before):
+            raise self.fail("action_arguments", "a rejected action moved the agent")
 
 
 def check_steer_env(
@@ -301,14 +319,15 @@ def check_steer_env(
 
     Args:
         env: a (possibly wrapped) Gymnasium env, e.g. ``gymnasium.make("steer_envs/Cooking-v0")``.
-        seed: seed of the checked rollouts (``seed + 1`` for the "another seed" rollout).
+        seed: seed of the checked rollouts, an int >= 0 (``seed + 1`` for the "another seed" rollout).
         steps: steps per rollout.
         gymnasium_checks: also run Gymnasium's own ``check_env`` on ``env.unwrapped``.
-        check_actions: also check that a wrongly shaped Box action raises a ``ValueError``.
+        check_actions: also check that a wrongly shaped Box action raises a ``ValueError``
+            and a non-numeric (string) one a ``TypeError`` or ``ValueError``.
 
     Raises:
         SteerEnvCheckError: names the env, the convention and what was observed.
-        TypeError: ``env`` is not a Gymnasium env.
+        TypeError: ``env`` is not a Gymnasium env, or ``seed`` is not an int.
         ValueError: ``steps`` is not a positive int.
 
     >>> import gymnasium as gym
@@ -319,7 +338,8 @@ def check_steer_env(
         raise TypeError(f"check_steer_env: `env` must be a gymnasium.Env, got {type(env).__name__}")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ValueError(f"check_steer_env: `steps` must be a positive int, got {steps!r}")
-    checker = _Checker(env, int(seed), steps)
+    seed = integer(seed, "seed", low=0, owner="check_steer_env")
+    checker = _Checker(env, seed, steps)
     checker.guarded("interaction_kinds", checker.interaction_kinds)
     if gymnasium_checks:
         checker.gymnasium_api()

@@ -168,5 +168,5 @@ def test_observation_history_forms() -> None:
         observation_history(np.zeros(4), 1, 3)
     with pytest.raises(ValueError, match="finite"):
         observation_history([np.inf, 0.0, 0.0], 1, 3)
-    with pytest.raises(TypeError, match="numeric"):
+    with pytest.raises(TypeError, match="real numbers"):
         observation_history("abc", 1, 3)

@@ -358,3 +358,30 @@ def test_episodes_can_start_inside_the_first_polygon(setting: tuple) -> None:
     assert pushed["perturbed_episodes"] > 0 and pushed["violation_rate"] == 0.0
     with pytest.raises(ValueError, match="start"):
         evaluate_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, start="goal")
+
+
+def test_planner_settings_that_can_never_work_are_refused() -> None:
+    from steer_envs.baselines.glide.planners import MAX_GRID_CELLS
+
+    with pytest.raises(TypeError, match="rrt_iterations"):
+        PlannerConfig(rrt_iterations=1000.0)  # type: ignore[arg-type]  # used to fail deep in numpy
+    with pytest.raises(ValueError, match="rrt_iterations"):
+        PlannerConfig(rrt_iterations=10**12)  # an RRT that would never return
+    with pytest.raises(TypeError, match="grid_resolution"):
+        PlannerConfig(grid_resolution="0.05")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="k_rep"):
+        PlannerConfig(k_rep=float("nan"))
+    with pytest.raises(ValueError, match=f"more than {MAX_GRID_CELLS}"):
+        LearnedModeMap(_DiscWorld(wall=False), np.full(2, -6.0), np.full(2, 6.0), 1e-6)
+    with pytest.raises(TypeError, match="classifier"):
+        LearnedModeMap(object(), np.full(2, -6.0), np.full(2, 6.0), 0.1)  # type: ignore[arg-type]
+    free = lambda p: True  # noqa: E731
+    with pytest.raises(TypeError, match="iterations"):
+        rrt(np.zeros(2), np.ones(2), free, lambda a, b: False, -np.ones(2), np.ones(2), np.random.default_rng(0),
+            iterations=5.5)  # type: ignore[arg-type]  # fmt: skip
+    with pytest.raises(ValueError, match="goal"):
+        rrt(np.zeros(2), np.ones(3), free, lambda a, b: False, -np.ones(2), np.ones(2), np.random.default_rng(0))
+    with pytest.raises(TypeError, match="max_speed"):
+        train_bc(np.zeros((4, 2)), np.zeros((4, 2)), max_speed="0.1")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="states"):
+        train_bc([["0", "0"]] * 4, np.zeros((4, 2)), max_speed=0.1)

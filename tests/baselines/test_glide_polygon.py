@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -23,6 +25,14 @@ def test_small_run_learns_the_polygon_chain_better_than_the_baselines(tmp_path: 
     # the cached classifier gives the same answer without retraining
     again = grounding_trial(env_id, 0, "full", 0, setup=setup, cache_dir=tmp_path)
     assert again["overlap"] == full["overlap"] and again.get("cached") is True
+    # a corrupt cache entry (a torn copy, a disk error) is a miss: rebuilt, same answer, no crash
+    cached = sorted(Path(str(tmp_path)).glob("*.safetensors")) + sorted(Path(str(tmp_path)).glob("*.npz"))
+    assert len(cached) == 2, cached
+    for path in cached:
+        path.write_bytes(path.read_bytes()[:100])
+    with pytest.warns(RuntimeWarning, match="cached"):
+        rebuilt = grounding_trial(env_id, 0, "full", 0, setup=setup, cache_dir=tmp_path)
+    assert rebuilt["overlap"] == full["overlap"] and not rebuilt.get("cached")
 
 
 @pytest.mark.slow

@@ -14,6 +14,7 @@ from steer_envs.bench.suites.tli.robustness import (
     perturbation_schedule,
     scoop_trial,
 )
+from steer_envs.core.validation import BoundExceeded
 from steer_envs.envs.soup_scoop import SoupScoopModel
 
 
@@ -92,3 +93,48 @@ def test_ten_experiments_modulation_never_loops_twice() -> None:
     assert all(r["success"] == 1.0 for r in mod)
     assert sum(r["invariance_failures"] for r in mod) < sum(r["invariance_failures"] for r in plain)
     assert max(r["invariance_failures"] for r in plain) > 20  # a discrete loop without modulation
+
+
+# ---------------------------------------------------------------- bounded rejection loops
+class _Nowhere:
+    """A mode that contains nothing: every rejection-sampling loop over it must give up."""
+
+    demo_start = attractor = np.zeros(2)
+    low, high = np.full(2, -1.0), np.full(2, 1.0)
+    vertices = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+    def inside(self, x: np.ndarray) -> np.ndarray:
+        return np.zeros(len(np.atleast_2d(x)), dtype=bool)
+
+
+def test_rejection_loops_give_up_with_a_named_bound(monkeypatch: pytest.MonkeyPatch) -> None:
+    from steer_envs.bench.suites.tli import protocol
+
+    monkeypatch.setattr(protocol, "MAX_DRAWS", 50)
+    with pytest.raises(BoundExceeded, match="MAX_DRAWS=50"):
+        protocol.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 4, np.random.default_rng(0))
+    assert protocol.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 0, np.random.default_rng(0)).shape == (0, 2)
+    monkeypatch.setattr(protocol, "_make_env", lambda seed: _FakeEnv())
+    with pytest.raises(BoundExceeded, match="control points inside the mode within MAX_DRAWS=50"):
+        protocol.convex_mode_demos(0, 1)  # "drawn" demos: control points by rejection
+    with pytest.raises(ValueError, match="max_cuts"):
+        protocol.cut_loop(lambda x: -x, _Nowhere(), np.zeros((1, 2)), max_cuts=-1)
+    with pytest.raises(TypeError, match="n_steps"):
+        protocol.rollout(lambda x: -x, _Nowhere(), np.zeros((1, 2)), n_steps=10.5)  # type: ignore[arg-type]
+
+
+class _FakeEnv:
+    class unwrapped:
+        model = _Nowhere()
+
+    def close(self) -> None:
+        pass
+
+
+def test_drawn_scoop_demos_and_schedules_validate_their_bounds() -> None:
+    with pytest.raises(TypeError, match="max_tries"):
+        drawn_scoop_demos(0, 1, max_tries=2.5)  # type: ignore[arg-type]
+    with pytest.raises(BoundExceeded, match=r"drew only 0 of 1 .* max_tries \* n = 1 tries"):
+        drawn_scoop_demos(4, 1, max_tries=1)  # seed 4's first drawing is redrawn
+    with pytest.raises(TypeError, match="magnitude"):
+        perturbation_schedule(np.random.default_rng(0), 1, 10, "16")  # type: ignore[arg-type]

@@ -238,3 +238,31 @@ def test_shipped_checkpoints_reproduce_with_the_committed_commands(tmp_path: Pat
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.count("reproduced") == 2, proc.stdout
+
+
+def test_cli_refuses_outputs_it_cannot_write_before_training(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = save_trajectories(_synthetic(declare=True), tmp_path / "arm.npz")
+    argv = ["--policy", "act", "--dataset", str(data), *TINY["act"], "--steps", "2", "--no-progress"]
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _usage_error([*argv, "--out", str(blocker / "act.safetensors")], capsys, "is not a folder")
+    (tmp_path / "dir.safetensors").mkdir()
+    _usage_error([*argv, "--out", str(tmp_path / "dir.safetensors")], capsys, "is a folder")
+    _usage_error([*argv, "--out", str(tmp_path / "a.safetensors"), "--threads", "100000"], capsys, "--threads")
+    _usage_error([*argv, "--out", str(tmp_path / "a.safetensors"), "--device", "nope"], capsys, "device")
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not an archive")
+    _usage_error(
+        ["--policy", "act", "--dataset", str(bad), "--out", str(tmp_path / "a.safetensors")], capsys, "bad.npz"
+    )
+
+
+def test_check_reports_a_broken_record_as_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = save_trajectories(_synthetic(declare=True), tmp_path / "arm.npz")
+    record = tmp_path / "r.json"
+    record.write_text('{"policy": "act", "training": {"settings": {}, "losses": "many"}}')
+    _usage_error(["--dataset", str(data), "--check", str(record)], capsys, "r.json")
+    record.write_text("[1, 2]")
+    _usage_error(["--dataset", str(data), "--check", str(record)], capsys, "a training record is a JSON object")

@@ -1,10 +1,12 @@
-"""Helpers of the steer-bench tests: run ``python -m steer_envs.bench`` in a subprocess."""
+"""Helpers of the steer-bench tests: run ``python -m steer_envs.bench`` in a subprocess, find its processes."""
 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -27,3 +29,66 @@ def run_cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str
         timeout=timeout,
         env=bench_env(),
     )
+
+
+def _process_table() -> dict[int, tuple[str, int]]:
+    """pid -> (state, parent pid) of every process (psutil when installed, else /proc)."""
+    try:
+        import psutil
+    except ImportError:
+        psutil = None
+    table: dict[int, tuple[str, int]] = {}
+    if psutil is not None:
+        for proc in psutil.process_iter(["pid", "ppid", "status"]):
+            info = proc.info
+            state = "Z" if info["status"] in (psutil.STATUS_ZOMBIE, psutil.STATUS_DEAD) else "R"
+            table[info["pid"]] = (state, info["ppid"])
+        return table
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        table[int(entry.name)] = (fields[0], int(fields[1]))
+    return table
+
+
+def descendants(pid: int) -> set[int]:
+    """Every living process below ``pid`` (children, grandchildren, ...)."""
+    table = _process_table()
+    found: set[int] = set()
+    frontier = [pid]
+    while frontier:
+        parent = frontier.pop()
+        for child, (state, ppid) in table.items():
+            if ppid == parent and child not in found and state not in ("Z", "X"):
+                found.add(child)
+                frontier.append(child)
+    return found
+
+
+def alive(pids: set[int]) -> set[int]:
+    """The processes of ``pids`` that still run (zombies count as gone)."""
+    table = _process_table()
+    return {p for p in pids if p in table and table[p][0] not in ("Z", "X")}
+
+
+def wait_gone(pids: set[int], timeout: float = 5.0) -> set[int]:
+    """Wait until none of ``pids`` runs (at most ``timeout`` seconds); returns the survivors."""
+    deadline = time.monotonic() + timeout
+    survivors = alive(pids)
+    while survivors and time.monotonic() < deadline:
+        time.sleep(0.05)
+        survivors = alive(survivors)
+    return survivors
+
+
+def kill_all(pids: set[int]) -> None:
+    """SIGKILL each of ``pids`` that still runs (cleanup after a failed orphan check)."""
+    for pid in alive(pids):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

@@ -1,5 +1,7 @@
 """A test-only steer-bench suite, loaded as a plugin (``--plugin`` / ``STEER_BENCH_PLUGINS``).
 
+``toy_faults`` trials fail in every way a trial can (raise, exit, return junk, kill their
+worker) so the runner's tests can check that none of them stops a run.
 ``toy`` trials compute a deterministic number from (method, seed, scale) and
 fail while the file named by ``fail_flag`` exists, so a test can make trials
 fail, remove the flag and check that the resume re-runs exactly those.
@@ -7,6 +9,7 @@ fail, remove the flag and check that the resume re-runs exactly those.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 
@@ -54,5 +57,44 @@ def run_typo_trial(trial: Trial) -> dict[str, float]:
 
 TYPO = register_suite(
     Suite("toy_typo", "test-only: undeclared metric", (Metric("value"),), run_typo_trial, default_seeds=1),
+    replace=True,
+)
+
+
+class _NotJson:
+    """An object a trial may wrongly put into its extra data."""
+
+
+def run_faulty_trial(trial: Trial) -> TrialResult:
+    """One way for a trial to go wrong per method (``ok`` is fine); none of them may stop the run."""
+    method = trial.method
+    if method == "raise":
+        raise ValueError("this trial raises on purpose")
+    if method == "exit":
+        raise SystemExit(3)
+    if method == "nonjson":
+        return TrialResult({"value": 1.0}, extra={"obj": _NotJson()})
+    if method == "nan":
+        return TrialResult({"value": float("nan")})
+    if method == "complex":
+        return TrialResult({"value": np.complex128(1 + 2j)})
+    if method == "text":
+        return TrialResult({"value": "1.0"})  # type: ignore[dict-item]
+    if method == "die":  # the worker process dies (in a process pool; in the main process it only raises)
+        if multiprocessing.parent_process() is None:
+            raise RuntimeError("toy_faults: 'die' only kills pool workers")
+        os.kill(os.getpid(), 9)
+    return TrialResult({"value": float(trial.seed)})
+
+
+FAULTS = register_suite(
+    Suite(
+        name="toy_faults",
+        description="test-only: trials that fail in every way but one",
+        metrics=(Metric("value"),),
+        run_trial=run_faulty_trial,
+        methods=("ok", "raise", "exit", "nonjson", "nan", "complex", "text", "die"),
+        default_seeds=2,
+    ),
     replace=True,
 )

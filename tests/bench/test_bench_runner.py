@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator, Sequence
 
+import numpy as np
 import pytest
 
 from steer_envs.bench.executors import (
@@ -135,3 +136,69 @@ def test_ray_gives_the_same_results_as_sequential(tmp_path):
     import ray
 
     assert not ray.is_initialized()  # the executor shut down the instance it started
+
+
+FAULT_ERRORS = {
+    "raise": "ValueError: this trial raises on purpose",
+    "exit": "SystemExit: 3",
+    "nonjson": "the trial's result is not JSON",
+    "nan": "metric 'value' is nan",
+    "complex": "metric 'value' must be a real number or None, got complex (1+2j)",
+    "text": "metric 'value' must be a real number or None, got str",
+}
+
+
+def test_a_trial_that_fails_in_any_way_is_recorded_and_the_run_goes_on(tmp_path, toy_suite):
+    methods = ["ok", *FAULT_ERRORS]
+    summary = run_suite("toy_faults", tmp_path, methods=methods, progress=False)
+    assert summary.completed == 2 and {r["config"]["method"] for r in summary.records} == {"ok"}
+    errors = {f.trial.method: f.error for f in summary.failures}
+    assert set(errors) == set(FAULT_ERRORS) and len(summary.failures) == 2 * len(FAULT_ERRORS)
+    for method, message in FAULT_ERRORS.items():
+        assert message in errors[method], (method, errors[method])
+    logged = read_jsonl(tmp_path / FAILURES_FILE, key=None)[0]
+    assert len(logged) == len(summary.failures) and all(r["error"] for r in logged)
+    again = run_suite("toy_faults", tmp_path, methods=methods, progress=False)
+    assert again.skipped == 2 and len(again.failures) == len(summary.failures)  # failures are re-run
+
+
+def test_a_worker_that_dies_fails_its_trials_and_the_pool_goes_on(tmp_path, toy_suite):
+    summary = run_suite("toy_faults", tmp_path, methods=["ok", "die"], seeds=2, workers=2, progress=False)
+    assert summary.completed + len(summary.failures) == summary.planned == 4
+    failed = {(f.trial.method, f.trial.seed) for f in summary.failures}
+    assert {("die", 0), ("die", 1)} <= failed
+    assert all("BrokenProcessPool" in f.error for f in summary.failures)
+    resumed = run_suite("toy_faults", tmp_path, methods=["ok"], seeds=2, progress=False)
+    assert resumed.ok and {r["seed"] for r in resumed.records} == {0, 1}
+
+
+def test_metrics_accept_numbers_bools_and_one_element_arrays():
+    from steer_envs.bench.executors import _as_metric
+
+    assert _as_metric("m", True) == 1.0 and _as_metric("m", np.float32(0.5)) == 0.5
+    assert _as_metric("m", np.array([2.0])) == 2.0 and _as_metric("m", None) is None
+    assert _as_metric("m", 3) == 3.0
+    with pytest.raises(TypeError, match="got ndarray"):
+        _as_metric("m", np.zeros(3))
+    with pytest.raises(ValueError, match="finite number"):
+        _as_metric("m", 10**400)
+
+
+def test_run_suite_argument_errors(tmp_path, toy_suite):
+    with pytest.raises(TypeError, match="envs must be a list of names"):
+        run_suite(toy_suite, tmp_path, envs="toy/A-v0", progress=False)
+    with pytest.raises(ValueError, match="seeds\\[1\\] must be an int in \\[0, inf\\]"):
+        run_suite(toy_suite, tmp_path, seeds=[0, -1], progress=False)
+    with pytest.raises(ValueError, match="seeds must be distinct"):
+        run_suite(toy_suite, tmp_path, seeds=[1, 1], progress=False)
+    with pytest.raises(TypeError, match="seeds must be an int count or a sequence"):
+        run_suite(toy_suite, tmp_path, seeds="3", progress=False)
+    with pytest.raises(TypeError, match="progress must be a bool"):
+        run_suite(toy_suite, tmp_path, progress="no")
+    with pytest.raises(TypeError, match="params must be a mapping"):
+        run_suite(toy_suite, tmp_path, params=[("scale", 2)], progress=False)
+    with pytest.raises(ValueError, match="at most 100000 trials per run"):
+        run_suite(toy_suite, tmp_path, seeds=50_000, progress=False)  # 2 envs x 2 methods x 50000
+    with pytest.raises(ValueError, match="must not be empty"):
+        run_suite(toy_suite, "", progress=False)
+    assert not (tmp_path / "results.jsonl").exists()

@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
+import signal
+from collections.abc import Iterator
+
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import steer_envs  # noqa: F401
+from steer_envs.core.validation import BoundExceeded
 from steer_envs.data.counterfactual import (
     CounterfactualReplayer,
     PerturbedReference,
@@ -182,3 +189,112 @@ def test_dataset_rejects_bad_arguments(demos: list[np.ndarray], tmp_path: object
     data = build_counterfactual_dataset(ENV_ID, demos, n_success=2, n_failure=2, seed=0, layout_seed=0)
     with pytest.raises(ValueError, match=r"\.npz"):
         data.save(tmp_path / "cf.txt")  # type: ignore[operator]
+
+
+# ------------------------------------------------------------------- bounds (no hangs)
+class _Hang(Exception):
+    pass
+
+
+@contextlib.contextmanager
+def _deadline(seconds: float) -> Iterator[None]:
+    """Fail instead of hanging: SIGALRM after ``seconds`` (the old code looped for ever here)."""
+
+    def fire(*_: object) -> None:
+        raise _Hang(f"still running after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, fire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _far_reference(dim: int = 2) -> PerturbedReference:
+    wps = np.array([[0.0, 0.0], [50.0, 50.0], [0.0, 0.0]])[:, :dim]
+    return PerturbedReference(wps, "segment", 0, (0, 1), np.array([50.0, 50.0])[:dim])
+
+
+@pytest.mark.parametrize("execution", ["jump", "tracking"])
+def test_a_waypoint_outside_the_workspace_is_refused_up_front(execution: str) -> None:
+    env = gym.make("steer_envs/PolygonNav-3Mode-v0", layout_seed=0, terminate_on_violation=False)
+    replayer = CounterfactualReplayer(env, "segment", execution=execution)  # type: ignore[arg-type]
+    with _deadline(20), pytest.raises(ValueError, match=r"waypoint 1 \[50.0, 50.0\] lies outside the workspace"):
+        replayer.replay(_far_reference())
+    with _deadline(20), pytest.raises(ValueError, match="outside the workspace"):
+        replayer.replay_batch([replayer.unperturbed(np.zeros((3, 2))), _far_reference()])
+
+
+def test_a_replay_that_cannot_finish_hits_its_step_bound(monkeypatch: pytest.MonkeyPatch) -> None:
+    import steer_envs.data.counterfactual as cf
+
+    assert cf.DEFAULT_MAX_REPLAY_STEPS == 100_000
+    monkeypatch.setattr(cf, "DEFAULT_MAX_REPLAY_STEPS", 2000)  # the same bound, reached sooner
+    env = gym.make(ENV_ID, layout_seed=0, terminate_on_violation=False).unwrapped  # no step limit at all
+    still = CounterfactualReplayer(env, "segment", controller=lambda x, w: np.zeros(2, dtype=np.float32))
+    ref = PerturbedReference(np.array([[0.0, 0.0], [1.0, 1.0]]), "segment", 3, (0, 1), np.ones(2))
+    with _deadline(60), pytest.raises(BoundExceeded, match=r"reference 0 \(segment of demo 3\).*max_steps=2000"):
+        still.replay(ref)
+    short = CounterfactualReplayer(env, "segment", max_steps=5)
+    with pytest.raises(BoundExceeded, match="waypoint 1 of 2 within max_steps=5"):
+        short.replay(PerturbedReference(np.array([[-7.0, -7.0], [7.0, 7.0]]), "segment", 0, (0, 1), np.ones(2)))
+    # the derived bound leaves room: a full-diagonal reference still completes
+    full = CounterfactualReplayer(env, "segment").replay(
+        PerturbedReference(np.array([[-7.0, -7.0], [7.0, 7.0]]), "segment", 0, (0, 1), np.ones(2))
+    )
+    np.testing.assert_allclose(full.states[-1], [7.0, 7.0], atol=1e-4)
+
+
+def test_references_and_replayer_arguments_are_validated() -> None:
+    env = _env()
+    with pytest.raises(ValueError, match="waypoints must be finite"):  # a NaN waypoint is never reached
+        PerturbedReference(np.array([[0.0, 0.0], [np.nan, 0.0]]), "segment", 0, (0, 1), np.zeros(2))
+    with pytest.raises(TypeError, match="waypoints must hold real numbers"):
+        PerturbedReference([["0", "0"], ["1", "1"]], "segment", 0, (0, 1), np.zeros(2))
+    with pytest.raises(ValueError, match="kind"):
+        PerturbedReference(np.zeros((2, 2)), "teleport", 0, (0, 1), np.zeros(2))
+    with pytest.raises(TypeError, match="source"):
+        PerturbedReference(np.zeros((2, 2)), "segment", "0", (0, 1), np.zeros(2))  # type: ignore[arg-type]
+    replayer = CounterfactualReplayer(env, "segment")
+    with pytest.raises(ValueError, match="state dimension 2"):
+        replayer.replay(PerturbedReference(np.zeros((2, 3)), "segment", 0, (0, 1), np.zeros(3)))
+    with pytest.raises(ValueError, match="max_steps"):
+        CounterfactualReplayer(env, "segment", max_steps=0)
+    with pytest.raises(TypeError, match="gripper"):
+        CounterfactualReplayer(env, "segment", gripper="no")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="kernel_sharpness"):
+        CounterfactualReplayer(env, "kernel", kernel_sharpness="5")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="demo must hold real numbers"):
+        replayer.sample([["0", "0"], ["1", "1"]], np.random.default_rng(0))
+    with pytest.raises(TypeError, match="n must be an int"):
+        replayer.rollouts([np.zeros((3, 2))], 2.0, seed=0)  # type: ignore[arg-type]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.one_of(
+        st.lists(
+            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=2, max_size=2), min_size=1, max_size=4
+        ),
+        st.lists(st.lists(st.text(max_size=3), min_size=2, max_size=2), min_size=1, max_size=3),
+        st.lists(st.lists(st.complex_numbers(), min_size=2, max_size=2), min_size=1, max_size=3),
+        st.lists(st.floats(-100, 100), min_size=0, max_size=4),
+    )
+)
+def test_property_replays_of_any_reference_end_or_refuse(waypoints: object) -> None:
+    """A reference either replays to its end quickly or is refused with TypeError/ValueError."""
+    replayer = _PROPERTY_REPLAYER
+    with _deadline(10):
+        try:
+            ref = PerturbedReference(waypoints, "segment", 0, (0, 1), np.zeros(2))  # type: ignore[arg-type]
+            replay = replayer.replay(ref)
+        except (TypeError, ValueError):
+            return
+    np.testing.assert_allclose(replay.states[-1], ref.waypoints[-1], atol=1e-4)
+
+
+_PROPERTY_REPLAYER = CounterfactualReplayer(
+    gym.make("steer_envs/PolygonNav-3Mode-v0", layout_seed=0, terminate_on_violation=False), "segment", execution="jump"
+)

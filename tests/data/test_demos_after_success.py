@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401  (registers the envs)
+from steer_envs.core.validation import BoundExceeded
 from steer_envs.data.demos import collect_demonstrations, rollout_expert
 from steer_envs.data.experts import make_expert
 
@@ -73,3 +74,40 @@ def test_expert_rejects_unknown_final_target() -> None:
             make_expert(env, final_target="middle")
     finally:
         env.close()
+
+
+# ------------------------------------------------------------------ bounds and arguments
+def test_an_expert_that_never_succeeds_hits_a_named_bound() -> None:
+    with pytest.raises(BoundExceeded, match=r"succeeded only 1 times in 20 episodes.*max_steps=3"):
+        collect_demonstrations("steer_envs/ConvexMode-v0", 2, seed=0, max_episode_steps=3)  # 3 steps are too few
+    env = gym.make("steer_envs/ConvexMode-v0").unwrapped  # no step limit: the default bound applies
+    demo = rollout_expert(env, 0, max_steps=4)
+    assert not demo.success and len(demo) == 5  # the documented "timed out" demo
+    at_goal = rollout_expert(env, 10)  # seed 10 starts inside the success radius: a demo of one state
+    assert at_goal.success and at_goal.states.shape == (1, 2) and at_goal.actions.shape == (0, 2)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error"),
+    [
+        ({"max_steps": float("inf")}, TypeError),  # would never stop for an expert that never succeeds
+        ({"max_steps": "100"}, TypeError),
+        ({"max_steps": 0}, ValueError),
+        ({"seed": "0"}, TypeError),
+        ({"expert_kwargs": ["final_target"]}, TypeError),
+    ],
+)
+def test_rollout_expert_arguments_are_validated(kwargs: dict, error: type) -> None:
+    env = gym.make(ENV_ID, layout_seed=1)
+    try:
+        with pytest.raises(error, match=next(iter(kwargs))):
+            rollout_expert(env, **{"seed": 0, **kwargs})
+    finally:
+        env.close()
+
+
+def test_collect_demonstrations_arguments_are_validated() -> None:
+    with pytest.raises(TypeError, match="n must be an int"):
+        collect_demonstrations(ENV_ID, 2.0, layout_seed=1)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="only_successful"):
+        collect_demonstrations(ENV_ID, 1, only_successful="no", layout_seed=1)  # type: ignore[arg-type]

@@ -182,3 +182,20 @@ def test_itps_scale_walk_is_collision_free() -> None:
     assert len(ds) == 250_000
     assert LARGE.is_wall(ds.actions).sum() == 0 and LARGE.is_wall(ds.waypoints).sum() == 0
     assert len({tuple(c) for c in LARGE.xy_to_cell(ds.xy).tolist()}) == len(LARGE.free_cells)
+
+
+def test_generator_refuses_coercions_and_huge_walks() -> None:
+    with pytest.raises(TypeError, match="progress must be a bool"):
+        generate_random_walk("umaze", 100, progress="no")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="steps must be an int in"):
+        generate_random_walk("umaze", 10**12, progress=False)
+    with pytest.raises(TypeError, match="max_leg_steps must be an int"):
+        generate_random_walk("umaze", 100, max_leg_steps=2.5, progress=False)  # type: ignore[arg-type]
+
+
+def test_cli_output_errors_are_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for out, match in (("", "--out must not be empty"), (str(tmp_path / "f" / "x.npz"), "is not a folder")):
+        (tmp_path / "f").write_text("x")
+        with pytest.raises(SystemExit) as exc:
+            main(["--out", out, "--maze", "umaze", "--steps", "40", "--no-progress"])
+        assert exc.value.code == 2 and match in capsys.readouterr().err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from steer_envs.ltl import LassoWord, evaluate, evaluate_positions
@@ -50,7 +51,7 @@ def test_letter_forms_and_positions() -> None:
     aps = ("a", "b")
     # ints (with an AP order), mappings and sets are the same letters
     assert evaluate("a U b", [1, 1], [2], aps=aps) is True
-    assert evaluate("a U b", [{"a": True, "b": False}], [{"b": 1}]) is True
+    assert evaluate("a U b", [{"a": True, "b": False}], [{"b": np.bool_(True)}]) is True
     word = LassoWord.of([1], [0, 2], aps)
     assert word.letters() == (frozenset({"a"}), frozenset(), frozenset({"b"}))
     assert [word.successor(i) for i in range(3)] == [1, 2, 1]

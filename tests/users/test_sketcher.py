@@ -89,7 +89,7 @@ def test_bad_arguments_are_rejected(grid: MazeGrid) -> None:
     user = SketchUser(grid, seed=0)
     with pytest.raises(ValueError, match="wall cell"):
         user.draw([0.0, 0.0])
-    with pytest.raises(ValueError, match="xy pair"):
+    with pytest.raises(ValueError, match="start"):
         user.draw([1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="kind"):
         user.draw([1.0, 1.0], kind="zigzag")  # type: ignore[arg-type]

@@ -194,6 +194,23 @@ class ActionResized(ToyEnv):
         return super().step(np.resize(np.asarray(action), 2))
 
 
+class ActionFromWords(ToyEnv):
+    """Reads any string as a small number: the silent coercion a non-numeric action must not get."""
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        arr = np.asarray(action)
+        if arr.dtype.kind == "U":
+            action = np.array([0.01 * len(str(v)) for v in arr.ravel()])
+        return super().step(action)
+
+
+class ActionWordsCrash(ToyEnv):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if np.asarray(action).dtype.kind == "U":
+            raise IndexError("deep inside")
+        return super().step(action)
+
+
 BROKEN: list[tuple[type[ToyEnv], str, str]] = [
     (NoPerturb, "members", "perturb"),
     (NoTask, "members", "TaskSpec"),
@@ -215,6 +232,8 @@ BROKEN: list[tuple[type[ToyEnv], str, str]] = [
     (PerturbAcceptsNaN, "perturb_arguments", "nan"),
     (PerturbVagueError, "perturb_arguments", "does not name `delta`"),
     (ActionResized, "action_arguments", "accepted an action"),
+    (ActionFromWords, "action_arguments", "was accepted as an action"),
+    (ActionWordsCrash, "action_arguments", "IndexError"),
 ]
 
 
@@ -253,6 +272,8 @@ def test_bad_arguments() -> None:
         check_steer_env("ToyEnv")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="steps"):
         check_steer_env(ToyEnv(), steps=0)
+    with pytest.raises(TypeError, match="seed"):
+        check_steer_env(ToyEnv(), seed="0")  # type: ignore[arg-type]
     with pytest.raises(TypeError, match=r"_Bare \(_Bare\) lacks `task`, `state`, `perturb`, `interaction_kinds`"):
         steer_env(_Bare())
 

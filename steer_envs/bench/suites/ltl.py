@@ -24,13 +24,14 @@ from steer_envs.bench.suite import Metric, Suite, Trial, register_suite
 
 @dataclass(frozen=True)
 class LtlParams(SuiteParams):
-    """Parameters of ``ltl-translation``: cold translations timed per trial."""
+    """Parameters of ``ltl-translation``: cold translations timed per trial (1 to 10^4)."""
 
     suite_name: ClassVar[str] = "ltl-translation"
     repeats: int = 5
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "repeats")
+        self.require_at_most(10_000, "repeats")
 
 
 def _spec_names() -> list[str]:

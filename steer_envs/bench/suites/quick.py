@@ -33,6 +33,10 @@ def quick_sections() -> list[Suite]:
     return [s for s in suites() if s.quick is not None and s.name != QUICK_NAME]
 
 
+def _quick_members() -> list[str]:
+    return [s.name for s in quick_sections()]
+
+
 def _union(axis: str) -> list[str | None]:
     seen: list[str | None] = []
     for s in quick_sections():
@@ -86,5 +90,6 @@ QUICK = register_suite(
         methods=_quick_methods,
         default_seeds=1,
         generate=_plan_quick,
+        members=_quick_members,
     )
 )

@@ -27,10 +27,14 @@ import numpy as np
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Metric, Reference, Suite, Trial, register_suite
 
+#: the most points one estimate may draw (16 bytes each) and the longest delay a trial may take
+MAX_SAMPLES = 100_000_000
+MAX_SLEEP_S = 3600.0
+
 
 @dataclass(frozen=True)
 class SelftestParams(SuiteParams):
-    """Parameters of ``selftest``: points per estimate, a delay, seeds that fail on purpose."""
+    """Parameters of ``selftest``: points per estimate (1 to 10^8), a delay (0 to 3600 s), seeds that fail."""
 
     suite_name: ClassVar[str] = "selftest"
     samples: int = 10_000
@@ -39,6 +43,8 @@ class SelftestParams(SuiteParams):
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "samples")
+        self.require_at_most(MAX_SAMPLES, "samples")
+        self.require("sleep", 0.0 <= self.sleep <= MAX_SLEEP_S, f"in [0, {MAX_SLEEP_S:g}] seconds")
 
 
 def estimate_pi(method: str, samples: int, seed: int) -> float:

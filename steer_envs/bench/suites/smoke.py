@@ -37,7 +37,11 @@ EXPERT_PACKAGE = "steer_envs.data.experts"
 
 @dataclass(frozen=True)
 class SmokeParams(SuiteParams):
-    """Parameters of ``smoke``: expert episodes and the random-action step counts of the throughput runs."""
+    """Parameters of ``smoke``: expert episodes and the random-action step counts of the throughput runs.
+
+    Each count is bounded (episodes <= 10^5, single_steps <= 10^7, num_envs
+    <= 2^20, vec_steps <= 10^6) so a typo cannot exhaust memory or run for days.
+    """
 
     suite_name: ClassVar[str] = "smoke"
     episodes: int = 10
@@ -48,6 +52,10 @@ class SmokeParams(SuiteParams):
     def __post_init__(self) -> None:
         self.require_at_least(0, "episodes")
         self.require_at_least(1, "single_steps", "num_envs", "vec_steps")
+        self.require_at_most(100_000, "episodes")
+        self.require_at_most(10_000_000, "single_steps")
+        self.require_at_most(1 << 20, "num_envs")
+        self.require_at_most(1_000_000, "vec_steps")
 
 
 def _registered_envs() -> list[str]:

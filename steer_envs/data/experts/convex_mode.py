@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.core.validation import real_scalar
 from steer_envs.envs.convex_mode import ConvexModeEnv
 
 
@@ -28,10 +29,8 @@ class ConvexModeExpert:
     def __init__(self, env: ConvexModeEnv, gain: float = 3.0, speed: float = 10.0) -> None:
         if not isinstance(env, ConvexModeEnv):
             raise TypeError(f"env must be an unwrapped ConvexModeEnv, got {type(env).__name__}")
-        if not (np.isfinite(gain) and gain > 0):
-            raise ValueError(f"gain must be a positive finite float, got {gain!r}")
-        if not (np.isfinite(speed) and speed > 0):
-            raise ValueError(f"speed must be a positive finite float, got {speed!r}")
+        gain = real_scalar(gain, "gain", low=0.0, low_inclusive=False, owner="ConvexModeExpert")
+        speed = real_scalar(speed, "speed", low=0.0, low_inclusive=False, owner="ConvexModeExpert")
         self.env = env
         self.gain = float(gain)
         self.speed = float(min(speed, env.max_speed))

@@ -27,6 +27,7 @@ from shapely.geometry import LineString, Point
 from shapely.ops import nearest_points
 from shapely.prepared import prep
 
+from steer_envs.core.validation import real_scalar
 from steer_envs.envs.convex_mode import in_halfspaces
 from steer_envs.envs.polygon_nav import PolygonNavEnv
 
@@ -59,10 +60,10 @@ class PolygonNavExpert:
     ) -> None:
         if not isinstance(env, PolygonNavEnv):
             raise TypeError(f"env must be an unwrapped PolygonNavEnv, got {type(env).__name__}")
-        if not (np.isfinite(clearance) and 0 < clearance < env.model.min_gap / 2):
-            raise ValueError(f"clearance must be in (0, min_gap / 2 = {env.model.min_gap / 2}), got {clearance!r}")
-        if not (np.isfinite(crossing_depth) and 0 < crossing_depth <= 1):
-            raise ValueError(f"crossing_depth must be in (0, 1], got {crossing_depth!r}")
+        clearance = real_scalar(
+            clearance, "clearance", low=0.0, high=env.model.min_gap / 2, low_inclusive=False, high_inclusive=False
+        )
+        crossing_depth = real_scalar(crossing_depth, "crossing_depth", low=0.0, high=1.0, low_inclusive=False)
         if final_target not in FINAL_TARGETS:
             raise ValueError(f"final_target must be one of {FINAL_TARGETS}, got {final_target!r}")
         self.env = env

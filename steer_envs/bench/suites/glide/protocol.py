@@ -28,6 +28,7 @@ import hashlib
 import json
 import os
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -50,8 +51,10 @@ from steer_envs.baselines.glide.classifier import (
 from steer_envs.baselines.glide.kmeans import KMeansSegmentation
 from steer_envs.baselines.glide.mode_policies import GlideBCConfig, GlideBCPolicy, GlidePlanningPolicy, train_bc
 from steer_envs.baselines.glide.planners import PlannerConfig
+from steer_envs.core.validation import integer, real_scalar
 from steer_envs.data.counterfactual_dataset import CounterfactualDataset, build_counterfactual_dataset
 from steer_envs.data.demos import Demonstration, collect_demonstrations
+from steer_envs.io import CheckpointError, DatasetError
 
 VARIANTS: tuple[str, ...] = ("full", "no_counterfactuals", "wrong_feasibility", "no_prediction_loss", "kmeans")
 METHODS: tuple[str, ...] = ("bc", "glide_bc", "glide_planning")
@@ -141,10 +144,9 @@ class PerturbationSchedule:
     max_count: int = 3
 
     def __post_init__(self) -> None:
-        if not 0 <= self.probability <= 1:
-            raise ValueError(f"probability must be in [0, 1], got {self.probability!r}")
-        if self.min_gap < 0 or self.max_count < 0:
-            raise ValueError("min_gap and max_count must be >= 0")
+        real_scalar(self.probability, "probability", low=0.0, high=1.0, owner="PerturbationSchedule")
+        integer(self.min_gap, "min_gap", low=0, owner="PerturbationSchedule")
+        integer(self.max_count, "max_count", low=0, owner="PerturbationSchedule")
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -198,7 +200,10 @@ def counterfactual_data(
     """The balanced perturbation data set of one (env, layout, seed), cached when ``cache_dir`` is set."""
     path = data_cache_path(env_id, layout_seed, seed, setup, cache_dir)
     if path is not None and path.exists():
-        return CounterfactualDataset.load(path)
+        try:
+            return CounterfactualDataset.load(path)
+        except DatasetError as err:  # a corrupt cache entry is a miss: rebuild and overwrite it
+            warnings.warn(f"rebuilding the cached counterfactual data: {err}", RuntimeWarning, stacklevel=2)
     data = build_counterfactual_dataset(
         env_id,
         [d.states for d in demos],
@@ -263,9 +268,13 @@ def learn_grounding(
         key = setup.key(env_id, layout_seed, seed, variant, fields=GlideSetup.CLASSIFIER_FIELDS)
         cache = Path(cache_dir) / f"glide-clf-{key}.safetensors"
         if cache.exists():
-            clf = ModeClassifier.load(cache)
-            meta = clf_meta(cache)
-            return Grounding(clf, demos, {**info, **meta, "cached": True})
+            try:
+                clf = ModeClassifier.load(cache)
+                meta = clf_meta(cache)
+            except CheckpointError as err:  # a corrupt cache entry is a miss: retrain and overwrite it
+                warnings.warn(f"retraining the cached classifier: {err}", RuntimeWarning, stacklevel=2)
+            else:
+                return Grounding(clf, demos, {**info, **meta, "cached": True})
     if variant == "no_counterfactuals":
         trajectories = [d.states for d in demos]
         labels = np.ones(len(demos), dtype=bool)

@@ -48,6 +48,7 @@ import numpy as np
 from steer_envs.baselines.bc.modeling import BCConfig, BCPolicy
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS
 from steer_envs.core.policy import VelocityPolicy
+from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.wrappers.ds_modulation import CutSet, FailureRecord, ModulatedPolicy, resolve_cuts
 
 __all__ = ["POLICY_KINDS", "THESIS_SUCCESS", "convex_mode_demos", "rollout", "sample_starts", "single_mode_trial"]
@@ -69,6 +70,8 @@ SUCCESS_RADIUS = 0.4
 #: nearly marginal A_k on some layouts, whose flows stall short of the attractor within N_STEPS;
 #: eps = 1.0 makes every flow contract at a rate the rollout length can resolve.
 DS_EPS = 1.0
+#: draws of a rejection-sampling loop (a start, a control point inside the mode) before it gives up.
+MAX_DRAWS = 100_000
 
 
 def _make_env(layout_seed: int) -> gym.Env:
@@ -88,6 +91,7 @@ def convex_mode_demos(
     """
     if not isinstance(n_demos, int) or n_demos < 1:
         raise ValueError(f"n_demos must be a positive int, got {n_demos!r}")
+    steps = integer(steps, "steps", low=2, owner="convex_mode_demos")
     if demos == "drawn":
         return _drawn_demos(layout_seed, n_demos, steps)
     if demos != "expert":
@@ -102,11 +106,16 @@ def convex_mode_demos(
     xs, vs = [], []
     for i in range(n_demos):
         start = model.demo_start.copy()
-        while i > 0:
+        for _ in range(MAX_DRAWS if i > 0 else 0):
             cand = model.demo_start + rng.normal(0.0, 0.5, size=2)
             if model.inside(cand[None])[0]:
                 start = cand
                 break
+        else:
+            if i > 0:
+                raise BoundExceeded(
+                    f"convex_mode_demos: no start of demo {i} inside the mode within MAX_DRAWS={MAX_DRAWS} draws"
+                )
         obs, info = base.reset(options={"state": start})
         expert.reset(obs, info)
         states, actions = [], []
@@ -135,10 +144,16 @@ def _drawn_demos(layout_seed: int, n_demos: int, steps: int) -> tuple[list[np.nd
     xs, vs = [], []
     for _ in range(n_demos):
         ctrl: list[np.ndarray] = []
-        while len(ctrl) < 2:
+        for _ in range(MAX_DRAWS):
+            if len(ctrl) == 2:
+                break
             cand = rng.uniform(lo, hi)
             if model.inside(cand[None])[0]:
                 ctrl.append(cand)
+        if len(ctrl) < 2:
+            raise BoundExceeded(
+                f"convex_mode_demos: no control points inside the mode within MAX_DRAWS={MAX_DRAWS} draws"
+            )
         p0, p1, p2, p3 = model.demo_start, ctrl[0], ctrl[1], model.attractor
         b = s[:, None]
         x = (1 - b) ** 3 * p0 + 3 * (1 - b) ** 2 * b * p1 + 3 * (1 - b) * b**2 * p2 + b**3 * p3
@@ -166,10 +181,15 @@ def fitted_policy(
 
 
 def sample_starts(model: Any, demo_points: np.ndarray, sigma: float, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` starts: a random demo point + ``N(0, sigma^2 I)``, redrawn until inside the mode."""
+    """``n`` starts: a random demo point + ``N(0, sigma^2 I)``, redrawn until inside the mode.
+
+    Gives up with :class:`~steer_envs.core.validation.BoundExceeded` after :data:`MAX_DRAWS` rounds.
+    """
+    sigma = real_scalar(sigma, "sigma", low=0.0, owner="sample_starts")
+    n = integer(n, "n", low=0, owner="sample_starts")
     out = np.empty((n, 2))
     todo = np.arange(n)
-    for _ in range(100_000):
+    for _ in range(MAX_DRAWS):
         if len(todo) == 0:
             return out
         cand = demo_points[rng.integers(0, len(demo_points), size=len(todo))]
@@ -177,7 +197,12 @@ def sample_starts(model: Any, demo_points: np.ndarray, sigma: float, n: int, rng
         ok = model.inside(cand)
         out[todo[ok]] = cand[ok]
         todo = todo[~ok]
-    raise RuntimeError("could not draw start states inside the mode")  # pragma: no cover
+    if len(todo) == 0:
+        return out
+    raise BoundExceeded(
+        f"sample_starts: {len(todo)} of {n} start states not inside the mode within MAX_DRAWS={MAX_DRAWS} rounds "
+        f"(sigma={sigma})"
+    )
 
 
 def rollout(policy: VelocityPolicy, model: Any, starts: np.ndarray, n_steps: int = N_STEPS) -> dict[str, np.ndarray]:
@@ -186,6 +211,7 @@ def rollout(policy: VelocityPolicy, model: Any, starts: np.ndarray, n_steps: int
     Returns ``final`` ``(N, 2)``, ``left`` (left the mode), ``success``,
     ``exit_step`` (-1 if never), ``last_in`` and ``first_out`` ``(N, 2)`` (NaN if never).
     """
+    n_steps = integer(n_steps, "n_steps", low=0, owner="rollout")
     x = np.asarray(starts, dtype=np.float64).copy()
     n = len(x)
     left = np.zeros(n, dtype=bool)
@@ -246,10 +272,12 @@ def cut_loop(
     cuts = CutSet(model.attractor)
     if max_cuts is None:
         return CutLoopResult(policy, cuts, [], [], None, None)
+    # every round that does not stop adds one cut, so the loop runs at most max_cuts + 1 rounds
+    max_cuts = integer(max_cuts, "max_cuts", low=0, owner="cut_loop")
     acting = ModulatedPolicy(policy, cuts, max_speed=MAX_SPEED)
     failures: list[FailureRecord] = []
     round_success: list[float] = []
-    while True:
+    for _ in range(max_cuts + 1):
         batch = starts if batch_fn is None else batch_fn()
         res = rollout(acting, model, batch, n_steps)
         round_success.append(float(res["success"].mean()))
@@ -265,6 +293,7 @@ def cut_loop(
         first = int(fresh[0])  # the batch's first failing start (in draw order)
         failures.append(FailureRecord(res["last_in"][first], res["first_out"][first], batch[first]))
         cuts.set_cuts(resolve_cuts(failures, model.attractor))
+    raise BoundExceeded(f"cut_loop: no verdict after max_cuts + 1 = {max_cuts + 1} rounds")  # pragma: no cover
 
 
 def single_mode_trial(
@@ -317,6 +346,7 @@ def single_mode_trial(
         raise ValueError(f"n_starts must be a positive int, got {n_starts!r}")
     if not isinstance(max_cuts, int) or max_cuts < 0:
         raise ValueError(f"max_cuts must be an int >= 0, got {max_cuts!r}")
+    n_steps = integer(n_steps, "n_steps", low=1, owner="single_mode_trial")
     if not (np.isfinite(ds_eps) and ds_eps > 0):
         raise ValueError(f"ds_eps must be a finite float > 0, got {ds_eps!r}")
     t0 = time.perf_counter()

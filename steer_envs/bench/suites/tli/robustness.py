@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from steer_envs.core.validation import BoundExceeded, integer, real_scalar
+
 __all__ = [
     "DS_EPS",
     "ENV_ID",
@@ -64,6 +66,8 @@ WORKSPACE_SIZE = 16.0
 DS_EPS = 1.0
 #: the guard attractors sit this far past the mean crossing point (dt * max_speed = 0.1 < 0.25 < margin 0.4).
 OVERSHOOT = 0.25
+#: draws of a rejection-sampling loop (a control point away from an attractor disc) before it gives up.
+MAX_DRAWS = 100_000
 
 
 def perturbation_schedule(
@@ -82,8 +86,8 @@ def perturbation_schedule(
         raise ValueError(f"n must be an int >= 0, got {n!r}")
     if not isinstance(push_window, int) or push_window < max(1, n):
         raise ValueError(f"push_window must be an int >= max(1, n) = {max(1, n)}, got {push_window!r}")
-    if not (np.isfinite(magnitude) and magnitude >= 0):
-        raise ValueError(f"magnitude must be a finite float >= 0, got {magnitude!r}")
+    magnitude = real_scalar(magnitude, "magnitude", low=0.0, owner="perturbation_schedule")
+    dim = integer(dim, "dim", low=1, owner="perturbation_schedule")
     steps = np.sort(rng.choice(np.arange(1, push_window + 1), size=n, replace=False))
     direction = rng.normal(size=(n, dim))
     direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
@@ -111,14 +115,18 @@ def _drawn_path(rng: np.random.Generator, model: Any, dt: float, max_speed: floa
     inset, depth = 0.3, 0.15  # control points this far inside their region; end points this far past a guard
     x0 = rng.uniform(slo, shi)
     away = 2.0 * model.attractor_radius  # guard crossings stay clear of the regions' "near the attractor" discs
-    while True:
+    for _ in range(MAX_DRAWS):
         p1 = np.array([rng.uniform(yx0 + inset, px0 - 4.0), ysurf - depth])  # into the soup, left of the pink column
         if np.linalg.norm(p1 - model.region_attractors["yellow"]) > away:
             break
-    while True:
+    else:
+        raise BoundExceeded(f"drawn_scoop_demos: no soup entry point off the attractor disc in MAX_DRAWS={MAX_DRAWS}")
+    for _ in range(MAX_DRAWS):
         p2 = np.array([px0 + depth, rng.uniform(py0 + inset, ysurf - 0.5)])  # through the soup into the pink column
         if np.linalg.norm(p2 - model.region_attractors["pink"]) > away:
             break
+    else:
+        raise BoundExceeded(f"drawn_scoop_demos: no column entry point off the attractor disc in MAX_DRAWS={MAX_DRAWS}")
     p3 = np.array([rng.uniform(px0 + inset, px1 - inset), gy0 + depth])  # up the column into green
     boxes = (  # the convex region each curve stays in (a Bezier lies in the hull of its control points)
         ((yx0 + inset, ysurf + 0.5), (px0 - inset, model.high[1] - inset)),  # white, left of pink, above the soup
@@ -166,6 +174,7 @@ def drawn_scoop_demos(seed: int, n: int, *, max_tries: int = 200) -> list[Any]:
 
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"n must be a positive int, got {n!r}")
+    max_tries = integer(max_tries, "max_tries", low=1, owner="drawn_scoop_demos")
     env = gym.make(ENV_ID)
     base: Any = env.unwrapped
     task = base.task
@@ -207,7 +216,10 @@ def drawn_scoop_demos(seed: int, n: int, *, max_tries: int = 200) -> list[Any]:
                 return demos
     finally:
         env.close()
-    raise RuntimeError(f"drew only {len(demos)} of {n} valid soup-scooping demonstrations in {max_tries * n} tries")
+    raise BoundExceeded(
+        f"drawn_scoop_demos: drew only {len(demos)} of {n} valid soup-scooping demonstrations in "
+        f"max_tries * n = {max_tries * n} tries"
+    )
 
 
 def scoop_demonstrations(seed: int, n_demos: int, demos: str = "drawn") -> list[Any]:

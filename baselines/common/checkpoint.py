@@ -1,0 +1,267 @@
+"""Safetensors checkpoint files: written atomically, read only after every header field has been checked.
+
+A checkpoint is a safetensors file: an 8-byte header length, a JSON header
+(each tensor's dtype, shape and byte range, plus string metadata) and the raw
+tensor data; loading it runs no code. :func:`read_safetensors` checks, before
+any tensor is allocated, that the file exists and is not larger than
+:data:`MAX_CHECKPOINT_BYTES`, that the header fits the file, that every
+tensor's dtype is known, its shape non-negative and its byte range inside the
+data and of the size its shape implies (a truncated file is caught here), that
+the ranges tile the data, and that the metadata entry this library writes is
+a JSON object; then it loads the tensors and checks that every floating-point
+tensor is finite. :func:`check_state` then compares the tensors with the
+network they are meant for (names, shapes, dtypes), and
+:func:`check_parameter_count` compares the size a config implies with what
+the file holds, so a config claiming a huge network is refused before that
+network is built. Every problem is a
+:class:`~steer_envs.io.CheckpointError` naming the file.
+
+>>> import tempfile, torch
+>>> with tempfile.TemporaryDirectory() as tmp:
+...     path = write_safetensors(f"{tmp}/w.safetensors", {"w": torch.ones(2)}, "config", {"format": "demo"})
+...     tensors, meta = read_safetensors(path, "config")
+>>> tensors["w"].tolist(), meta
+([1.0, 1.0], {'format': 'demo'})
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors.torch import load as st_load
+from safetensors.torch import save as st_save
+
+from steer_envs.io import CheckpointError, atomic_write_bytes
+
+__all__ = [
+    "MAX_CHECKPOINT_BYTES",
+    "MAX_PARAMETERS",
+    "CheckpointError",
+    "check_parameter_count",
+    "check_state",
+    "read_record",
+    "read_safetensors",
+    "write_safetensors",
+]
+
+#: the largest checkpoint file read (4 GiB): the tensors are read into memory whole
+MAX_CHECKPOINT_BYTES = 4 * 2**30
+#: the most numbers a loaded network may hold (1e9, 4 GB of float32); a config implying more is refused
+MAX_PARAMETERS = 1_000_000_000
+#: the largest training record (a checkpoint's ``.json``) read; the shipped ones are a few hundred kB
+MAX_RECORD_BYTES = 64 * 2**20
+#: safetensors' own header limit is 100 MB; ours are a few kB
+_MAX_HEADER_BYTES = 16 * 2**20
+#: safetensors dtype -> bytes per element
+_DTYPE_BYTES = {
+    "F64": 8,
+    "F32": 4,
+    "F16": 2,
+    "BF16": 2,
+    "I64": 8,
+    "I32": 4,
+    "I16": 2,
+    "I8": 1,
+    "U8": 1,
+    "BOOL": 1,
+}
+
+
+def _source(path: Any) -> Path:
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
+    if os.fspath(path) == "":
+        raise ValueError("path must not be empty")
+    return Path(path)
+
+
+def write_safetensors(
+    path: str | os.PathLike[str],
+    tensors: Mapping[str, torch.Tensor],
+    meta_key: str,
+    meta: Mapping[str, Any],
+    *,
+    sort_keys: bool = False,
+) -> Path:
+    """Write ``tensors`` and the JSON object ``meta`` (under metadata ``meta_key``) atomically; returns the path.
+
+    ``ValueError`` for a path not ending in ``.safetensors`` and for tensors
+    holding NaN or infinite values (such a file could not be loaded again).
+    """
+    out = _source(path)
+    if out.suffix != ".safetensors":
+        raise ValueError(f"path must end with .safetensors, got {str(out)!r}")
+    cpu = {}
+    for name, value in tensors.items():
+        if not isinstance(value, torch.Tensor):
+            raise TypeError(f"tensor {name!r} must be a torch.Tensor, got {type(value).__name__}")
+        t = value.detach().to("cpu").contiguous()
+        if (t.is_floating_point() or t.is_complex()) and not bool(torch.isfinite(t).all()):
+            raise ValueError(f"tensor {name!r} holds NaN or infinite values; refusing to write {str(out)!r}")
+        cpu[name] = t
+    try:
+        text = json.dumps(dict(meta), sort_keys=sort_keys)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"the checkpoint metadata must be JSON-serializable ({err})") from None
+    data = st_save(cpu, metadata={meta_key: text})
+    atomic_write_bytes(out, data)
+    return out
+
+
+def read_safetensors(path: str | os.PathLike[str], meta_key: str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """Tensors and the JSON object stored under metadata ``meta_key`` of a checked safetensors file.
+
+    :class:`~steer_envs.io.CheckpointError` (naming the file) for a missing,
+    oversized, truncated or corrupt file, a foreign file without ``meta_key``,
+    and non-finite floating-point tensors.
+    """
+    src = _source(path)
+    if not src.is_file():
+        raise CheckpointError(f"no checkpoint file at {str(src)!r}")
+    size = src.stat().st_size
+    if size > MAX_CHECKPOINT_BYTES:
+        raise CheckpointError(f"{src}: {size} bytes, more than the {MAX_CHECKPOINT_BYTES} a checkpoint may have")
+    try:
+        raw = src.read_bytes()
+    except OSError as err:
+        raise CheckpointError(f"{src}: cannot be read ({err})") from None
+    if len(raw) < 8:
+        raise CheckpointError(f"{src}: {len(raw)} bytes, too short for a safetensors file (truncated?)")
+    n = int.from_bytes(raw[:8], "little")
+    if n > _MAX_HEADER_BYTES or 8 + n > len(raw):
+        raise CheckpointError(
+            f"{src}: not a safetensors checkpoint or truncated (header of {n} bytes, file of {len(raw)} bytes)"
+        )
+    try:
+        header = json.loads(raw[8 : 8 + n])
+    except (UnicodeDecodeError, ValueError):
+        raise CheckpointError(f"{src}: not a safetensors checkpoint (its header is not JSON)") from None
+    if not isinstance(header, dict):
+        raise CheckpointError(f"{src}: not a safetensors checkpoint (its header is not a JSON object)")
+    metadata = header.pop("__metadata__", None)
+    if not isinstance(metadata, dict) or not isinstance(metadata.get(meta_key), str):
+        raise CheckpointError(f"{src} is not a steer-envs safetensors checkpoint (no {meta_key!r} metadata)")
+    try:
+        meta = json.loads(metadata[meta_key])
+    except ValueError:
+        raise CheckpointError(f"{src}: its {meta_key!r} metadata is not JSON") from None
+    if not isinstance(meta, dict):
+        raise CheckpointError(f"{src} is not a steer-envs safetensors checkpoint ({meta_key!r} is not a JSON object)")
+    data_len = len(raw) - 8 - n
+    spans = []
+    for name, entry in header.items():
+        spans.append((*_check_entry(src, name, entry, data_len), name))
+    spans.sort()
+    end = 0
+    for begin, stop, name in spans:
+        if begin != end:
+            raise CheckpointError(f"{src}: tensor {name!r} starts at byte {begin}, expected {end} (corrupt file)")
+        end = stop
+    if end != data_len:
+        raise CheckpointError(f"{src}: {data_len - end} bytes after the last tensor (corrupt file)")
+    try:
+        tensors = st_load(raw)
+    except Exception as err:  # safetensors' own error type; the header checks above leave little for it
+        raise CheckpointError(f"{src}: safetensors could not read it ({err})") from None
+    for name, t in tensors.items():
+        if t.is_floating_point() and not bool(torch.isfinite(t).all()):
+            raise CheckpointError(f"{src}: tensor {name!r} holds NaN or infinite values")
+    return tensors, meta
+
+
+def _check_entry(src: Path, name: str, entry: Any, data_len: int) -> tuple[int, int]:
+    """The byte range of one header entry, after checking its dtype, shape and size."""
+    if not isinstance(entry, dict) or set(entry) != {"dtype", "shape", "data_offsets"}:
+        raise CheckpointError(f"{src}: header entry {name!r} is not a tensor description (corrupt file)")
+    dtype, shape, offsets = entry["dtype"], entry["shape"], entry["data_offsets"]
+    if dtype not in _DTYPE_BYTES:
+        raise CheckpointError(f"{src}: tensor {name!r} has unsupported dtype {dtype!r}")
+    if not (isinstance(shape, list) and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape)):
+        raise CheckpointError(f"{src}: tensor {name!r} has an invalid shape {shape!r}")
+    if not (
+        isinstance(offsets, list)
+        and len(offsets) == 2
+        and all(isinstance(o, int) and not isinstance(o, bool) for o in offsets)
+        and 0 <= offsets[0] <= offsets[1]
+    ):
+        raise CheckpointError(f"{src}: tensor {name!r} has invalid data offsets {offsets!r}")
+    begin, stop = offsets
+    if stop > data_len:
+        raise CheckpointError(
+            f"{src}: tensor {name!r} ends at byte {stop} of the data, which has {data_len} bytes (truncated file)"
+        )
+    if stop - begin != math.prod(shape) * _DTYPE_BYTES[dtype]:
+        raise CheckpointError(
+            f"{src}: tensor {name!r} of shape {shape} {dtype} does not match its {stop - begin} bytes"
+        )
+    return begin, stop
+
+
+def check_parameter_count(expected: int, tensors: Mapping[str, torch.Tensor], source: str) -> None:
+    """``expected`` (what a config implies) within :data:`MAX_PARAMETERS` and equal to the numbers in ``tensors``.
+
+    Called before the network is built, so a config claiming a huge network is
+    refused without allocating it.
+    """
+    if expected > MAX_PARAMETERS:
+        raise CheckpointError(
+            f"{source}: its config implies a network of {expected:,} parameters, more than the {MAX_PARAMETERS:,} "
+            "a checkpoint may hold"
+        )
+    held = sum(t.numel() for t in tensors.values())
+    if held != expected:
+        raise CheckpointError(
+            f"{source}: its config implies {expected:,} weights but the file holds {held:,} "
+            "(the config and the tensors do not belong together)"
+        )
+
+
+def check_state(expected: Mapping[str, torch.Tensor], tensors: Mapping[str, torch.Tensor], source: str) -> None:
+    """The tensors of a file must be exactly ``expected`` (a network's state dict): names, shapes and dtypes."""
+    missing = sorted(set(expected) - set(tensors))
+    unexpected = sorted(set(tensors) - set(expected))
+    if missing or unexpected:
+        parts = []
+        if missing:
+            parts.append(f"missing {_short(missing)}")
+        if unexpected:
+            parts.append(f"unexpected {_short(unexpected)}")
+        raise CheckpointError(f"{source}: its tensors do not match the network ({'; '.join(parts)})")
+    for name, want in expected.items():
+        got = tensors[name]
+        if tuple(got.shape) != tuple(want.shape):
+            raise CheckpointError(
+                f"{source}: tensor {name!r} has shape {tuple(got.shape)}, the network expects {tuple(want.shape)}"
+            )
+        if got.dtype != want.dtype:
+            raise CheckpointError(f"{source}: tensor {name!r} has dtype {got.dtype}, the network expects {want.dtype}")
+
+
+def _short(names: list[str]) -> str:
+    return ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+
+
+def read_record(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The JSON object of a checkpoint's training record; ``CheckpointError`` naming the file otherwise.
+
+    Refused: a missing file, one larger than :data:`MAX_RECORD_BYTES`, text
+    that is not JSON, and JSON that is not an object.
+    """
+    src = _source(path)
+    if not src.is_file():
+        raise CheckpointError(f"no training record at {str(src)!r}")
+    if src.stat().st_size > MAX_RECORD_BYTES:
+        raise CheckpointError(f"{src}: more than {MAX_RECORD_BYTES} bytes, not a training record")
+    try:
+        value = json.loads(src.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise CheckpointError(f"{src}: cannot be read as a JSON training record ({err})") from None
+    if not isinstance(value, dict):
+        raise CheckpointError(f"{src}: a training record is a JSON object, got {type(value).__name__}")
+    return value
