@@ -32,6 +32,10 @@ from steer_envs.envs.render import REGION_PALETTE, Canvas
 RENDER_SIZE_RANGE = (8, 1024)
 #: largest ``num_envs`` of a vector env (its state arrays are allocated up front).
 MAX_NUM_ENVS = 1_000_000
+#: largest accepted step length (s) and speed limit: beyond them a step leaves every workspace and the
+#: action space's float32 bounds overflow
+MAX_DT = 1e3
+MAX_SPEED = 1e6
 
 
 @dataclass
@@ -111,7 +115,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
     Accepted inputs (anything else raises ``TypeError`` for the wrong kind,
     ``ValueError`` for a wrong value, naming the argument): ``dt`` and
-    ``max_speed`` positive finite reals; ``terminate_on_violation`` a bool;
+    ``max_speed`` positive finite reals (at most :data:`MAX_DT` / :data:`MAX_SPEED`); ``terminate_on_violation`` a bool;
     ``render_mode`` ``None`` or ``"rgb_array"``; ``render_size`` an int in
     :data:`RENDER_SIZE_RANGE`. Actions, ``perturb`` displacements/targets and
     ``options["state"]`` are arrays of 2 finite real numbers (lists, numpy
@@ -137,8 +141,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         owner = type(self).__name__
         if not isinstance(model, KinematicTaskModel):
             raise TypeError(f"{owner}: model must be a KinematicTaskModel, got {describe(model)}")
-        self.dt = real_scalar(dt, "dt", low=0.0, low_inclusive=False, owner=owner)
-        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner=owner)
+        self.dt = real_scalar(dt, "dt", low=0.0, low_inclusive=False, high=MAX_DT, owner=owner)
+        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, high=MAX_SPEED, owner=owner)
         self.terminate_on_violation = boolean(terminate_on_violation, "terminate_on_violation", owner=owner)
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
         low, high = RENDER_SIZE_RANGE
