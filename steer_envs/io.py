@@ -38,6 +38,7 @@ and what is wrong.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -71,7 +72,9 @@ __all__ = [
     "atomic_write_text",
     "clean_stale_temps",
     "fsync_dir",
+    "npz_json",
     "read_npz",
+    "require_arrays",
 ]
 
 
@@ -469,3 +472,53 @@ def read_npz(
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, NotImplementedError, KeyError) as err:
         raise error(f"{src}: not a readable .npz archive ({type(err).__name__}: {err})") from None
     return arrays
+
+
+def require_arrays(
+    src: str | os.PathLike[str],
+    arrays: Mapping[str, np.ndarray],
+    specs: Mapping[str, tuple[str, int]],
+    *,
+    finite: bool = False,
+) -> None:
+    """``DatasetError`` naming ``src`` unless each array of ``specs`` (name -> (dtype kinds, axes)) is present and fits.
+
+    ``finite=True`` also refuses NaN/inf in the floating arrays.
+
+    >>> require_arrays("d.npz", {"x": np.zeros((2, 3))}, {"x": ("f", 2)})
+    >>> require_arrays("d.npz", {"x": np.zeros(2)}, {"x": ("f", 2)})
+    Traceback (most recent call last):
+    steer_envs.io.DatasetError: d.npz: array 'x' has dtype float64 and shape (2,), expected dtype kind 'f' and 2 axes
+    """
+    missing = sorted(set(specs) - set(arrays))
+    if missing:
+        raise DatasetError(f"{src}: missing arrays {missing}")
+    for name, (kinds, ndim) in specs.items():
+        arr = arrays[name]
+        if arr.dtype.kind not in kinds or arr.ndim != ndim:
+            raise DatasetError(
+                f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}, "
+                f"expected dtype kind {kinds!r} and {ndim} axes"
+            )
+        if finite and arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+            raise DatasetError(f"{src}: array {name!r} holds NaN or infinite values")
+
+
+def npz_json(src: str | os.PathLike[str], arrays: Mapping[str, np.ndarray], key: str) -> dict[str, Any]:
+    """The JSON object stored in an ``.npz`` as the 0-d string array ``key`` (``DatasetError`` naming ``src``).
+
+    >>> npz_json("d.npz", {"meta": np.array('{"format": 1}')}, "meta")
+    {'format': 1}
+    """
+    if key not in arrays:
+        raise DatasetError(f"{src}: missing arrays [{key!r}]")
+    arr = arrays[key]
+    if arr.dtype.kind != "U" or arr.ndim != 0:
+        raise DatasetError(f"{src}: {key!r} must be a JSON string, got dtype {arr.dtype} shape {arr.shape}")
+    try:
+        value = json.loads(str(arr))
+    except ValueError as err:
+        raise DatasetError(f"{src}: {key!r} is not JSON ({err})") from None
+    if not isinstance(value, dict):
+        raise DatasetError(f"{src}: {key!r} must be a JSON object, got {type(value).__name__}")
+    return value

@@ -45,7 +45,7 @@ from tqdm.auto import tqdm
 
 from steer_envs.core.validation import integer, one_of
 from steer_envs.data.counterfactual import EXECUTIONS, CounterfactualReplayer, Execution, Replay
-from steer_envs.io import DatasetError, atomic_write_npz, read_npz
+from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 KINDS: tuple[str, ...] = ("demo", "segment", "kernel", "gripper")
 FORMAT_VERSION = 1
@@ -174,24 +174,14 @@ class CounterfactualDataset:
         missing = sorted((set(_SPECS) | {"meta"}) - set(arrays))
         if missing:
             raise DatasetError(f"{src} is not a GLiDE counterfactual dataset (missing {missing})")
-        meta_arr = arrays.pop("meta")
-        if meta_arr.dtype.kind != "U" or meta_arr.ndim != 0:
-            raise DatasetError(f"{src}: 'meta' must be a JSON string, got dtype {meta_arr.dtype}")
-        try:
-            meta = json.loads(str(meta_arr))
-        except ValueError as err:
-            raise DatasetError(f"{src}: 'meta' is not JSON ({err})") from None
-        if not isinstance(meta, dict):
-            raise DatasetError(f"{src}: 'meta' must be a JSON object, got {type(meta).__name__}")
+        meta = npz_json(src, arrays, "meta")
+        arrays.pop("meta")
         if meta.get("format_version") != FORMAT_VERSION:
             raise DatasetError(f"{src}: unsupported format_version {meta.get('format_version')!r}")
         unknown = sorted(set(arrays) - set(_SPECS))
         if unknown:
             raise DatasetError(f"{src}: unexpected arrays {unknown}")
-        for name, (kinds, ndim) in _SPECS.items():
-            arr = arrays[name]
-            if arr.dtype.kind not in kinds or arr.ndim != ndim:
-                raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
+        require_arrays(src, arrays, _SPECS)
         if not np.all(np.isfinite(arrays["states"])):
             raise DatasetError(f"{src}: 'states' holds NaN or infinite values")
         kind = arrays["kind"]

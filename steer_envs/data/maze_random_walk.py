@@ -57,7 +57,7 @@ import numpy as np
 from steer_envs.core.validation import boolean, integer, one_of, real_scalar
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
-from steer_envs.io import DatasetError, atomic_directory, atomic_write_npz, read_npz
+from steer_envs.io import DatasetError, atomic_directory, atomic_write_npz, npz_json, read_npz, require_arrays
 
 FORMAT = "steer_envs.maze2d_random_walk/1"
 #: the most raw steps one walk may have (the ITPS data uses 1M; D4RL's largest maze2d set 4M)
@@ -409,23 +409,10 @@ def random_walk_from_arrays(src: Path, arrays: Mapping[str, np.ndarray]) -> Rand
     missing = [k for k in (*_ARRAYS, "meta") if k not in arrays]
     if missing:
         raise DatasetError(f"{src} is not a maze2d random-walk dataset (missing {missing})")
-    meta_arr = arrays["meta"]
-    if meta_arr.dtype.kind != "U" or meta_arr.ndim != 0:
-        raise DatasetError(f"{src}: 'meta' must be a JSON string, got dtype {meta_arr.dtype} shape {meta_arr.shape}")
-    try:
-        meta = json.loads(str(meta_arr))
-    except ValueError as err:
-        raise DatasetError(f"{src}: 'meta' is not JSON ({err})") from None
-    if not isinstance(meta, dict):
-        raise DatasetError(f"{src}: 'meta' must be a JSON object, got {type(meta).__name__}")
+    meta = npz_json(src, arrays, "meta")
     if meta.get("format") != FORMAT:
         raise DatasetError(f"{src} has format {meta.get('format')!r}, expected {FORMAT!r}")
-    for name, (kinds, ndim) in _SPECS.items():
-        arr = arrays[name]
-        if arr.dtype.kind not in kinds or arr.ndim != ndim:
-            raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
-        if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-            raise DatasetError(f"{src}: array {name!r} holds NaN or infinite values")
+    require_arrays(src, arrays, _SPECS, finite=True)
     n = len(arrays["observations"])
     legs = arrays["leg_starts"]
     if len(legs) and (legs[0] < 0 or legs[-1] >= max(n, 1) or np.any(np.diff(legs) <= 0)):

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.validation import describe, integer
-from steer_envs.io import DatasetError, atomic_write_npz, read_npz
+from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 __all__ = [
     "FORMAT",
@@ -291,31 +291,6 @@ def save_trajectories(dataset: TrajectoryDataset, path: str | os.PathLike[str]) 
     return atomic_write_npz(out, arrays)
 
 
-def _require(src: Path, arrays: Mapping[str, np.ndarray], specs: Mapping[str, tuple[str, int]]) -> None:
-    """``DatasetError`` unless each named array is present with a dtype kind in ``kinds`` and ``ndim`` axes."""
-    missing = sorted(set(specs) - set(arrays))
-    if missing:
-        raise DatasetError(f"{src}: missing arrays {missing}")
-    for name, (kinds, ndim) in specs.items():
-        arr = arrays[name]
-        if arr.dtype.kind not in kinds or arr.ndim != ndim:
-            raise DatasetError(f"{src}: array {name!r} has dtype {arr.dtype} and shape {arr.shape}")
-
-
-def _json_header(src: Path, arrays: Mapping[str, np.ndarray], key: str) -> dict[str, Any]:
-    """The JSON object stored as the 0-d string array ``key`` (``DatasetError`` when malformed)."""
-    arr = arrays[key]
-    if arr.dtype.kind != "U" or arr.ndim != 0:
-        raise DatasetError(f"{src}: {key!r} must be a JSON string, got dtype {arr.dtype} shape {arr.shape}")
-    try:
-        value = json.loads(str(arr))
-    except ValueError as err:
-        raise DatasetError(f"{src}: {key!r} is not JSON ({err})") from None
-    if not isinstance(value, dict):
-        raise DatasetError(f"{src}: {key!r} must be a JSON object, got {type(value).__name__}")
-    return value
-
-
 def load_trajectories(path: str | os.PathLike[str]) -> TrajectoryDataset:
     """Read a file of :func:`save_trajectories`, or a Maze2D random walk (converted with its declarations).
 
@@ -328,10 +303,10 @@ def load_trajectories(path: str | os.PathLike[str]) -> TrajectoryDataset:
         raise DatasetError(f"no dataset file at {str(src)!r}")
     arrays = read_npz(src)
     if "header" in arrays:
-        header = _json_header(src, arrays, "header")
+        header = npz_json(src, arrays, "header")
         if header.get("format") != FORMAT:
             raise DatasetError(f"{src} has format {header.get('format')!r}, expected {FORMAT!r}")
-        _require(src, arrays, {"observations": ("iuf", 2), "actions": ("iuf", 2), "episode_starts": ("iu", 1)})
+        require_arrays(src, arrays, {"observations": ("iuf", 2), "actions": ("iuf", 2), "episode_starts": ("iu", 1)})
         meta = header.get("meta") or {}
         if not isinstance(meta, dict):
             raise DatasetError(f"{src}: the header's meta must be a JSON object, got {type(meta).__name__}")
