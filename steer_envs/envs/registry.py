@@ -99,6 +99,20 @@ ENTRIES: tuple[EnvEntry, ...] = (
         )
         for maze, steps in (("Umaze", 300), ("Medium", 600), ("Large", 800))
     ),
+    *(
+        EnvEntry(
+            name,
+            "steer_envs.envs.robosuite.adapter:RobosuiteEnv",
+            max_episode_steps=steps,
+            kwargs={"task": task},
+            expert=f"steer_envs.data.experts.robosuite:{expert}",
+        )
+        for name, task, steps, expert in (
+            ("Lift-v0", "lift", 200, "LiftExpert"),
+            ("Can-v0", "can", 400, "CanExpert"),
+            ("Square-v0", "square", 500, "SquareExpert"),
+        )
+    ),
 )
 
 

@@ -84,10 +84,12 @@ def test_vector_path_matches_single_envs(env_id: str) -> None:
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_every_env_has_a_scripted_expert_that_succeeds(env_id: str) -> None:
     assert has_expert(env_id)
-    demos = collect_demonstrations(env_id, n=3, seed=0, only_successful=False)
-    assert sum(d.success for d in demos) == 3
+    n = 1 if entry(env_id).entry_point.startswith("steer_envs.envs.robosuite") else 3  # arm episodes cost seconds
+    demos = collect_demonstrations(env_id, n=n, seed=0, only_successful=False)
+    assert sum(d.success for d in demos) == n
+    obs_dim = gym.make(env_id).observation_space.shape[0]  # demonstration states are the observations
     for d in demos:
-        assert d.states.shape == (len(d), 2)
+        assert d.states.shape == (len(d), obs_dim)
         assert d.actions.shape[0] == len(d) - 1
         assert entry(env_id).id == d.env_id
 

@@ -168,7 +168,7 @@ BAD_ACTIONS: list[tuple[Any, type[Exception]]] = [
     ({"x": 0.1, "y": 0.2}, TypeError),
     ([math.nan, 0.0], ValueError),
     ([0.0, math.inf], ValueError),
-    (np.zeros(3), ValueError),
+    (WRONG_LENGTH := object(), ValueError),  # replaced by an array one entry too long for the argument
     ([[0.0, 0.0]], ValueError),
     ([[0.0], [0.0, 1.0]], ValueError),
 ]
@@ -179,12 +179,13 @@ def test_step_and_perturb_take_one_validation_path(made: dict[str, Any], env_id:
     env = made[env_id]
     env.reset(seed=0)
     before = env.state
+    action_dim, state_dim = env.action_space.shape[0], before.shape[0]
     for bad, exc in BAD_ACTIONS:
         with pytest.raises(exc, match="action"):
-            env.step(bad)
-        for kwargs in ({"delta": bad}, {"to": bad}):
-            with pytest.raises(exc, match=next(iter(kwargs))):
-                env.perturb(**kwargs)
+            env.step(np.zeros(action_dim + 1) if bad is WRONG_LENGTH else bad)
+        for name in ("delta", "to"):
+            with pytest.raises(exc, match=name):
+                env.perturb(**{name: np.zeros(state_dim + 1) if bad is WRONG_LENGTH else bad})
     np.testing.assert_array_equal(env.state, before)  # nothing refused moved the agent
 
 
@@ -199,8 +200,10 @@ def test_a_tensor_that_requires_grad_acts_like_its_values(env_id: str) -> None:
     obs_b = b.step(np.asarray(action))[0]
     np.testing.assert_array_equal(obs_a, obs_b)
     assert tensor.grad is None
-    push = torch.tensor([0.01, 0.0], dtype=torch.float64, requires_grad=True)
-    assert a.perturb(delta=push)["mode"] == b.perturb(delta=[0.01, 0.0])["mode"]
+    delta = np.zeros(a.state.shape[0])
+    delta[0] = 0.01
+    push = torch.tensor(delta, dtype=torch.float64, requires_grad=True)
+    assert a.perturb(delta=push)["mode"] == b.perturb(delta=delta)["mode"]
     np.testing.assert_array_equal(a.state, b.state)
     a.close()
     b.close()
@@ -356,4 +359,5 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "CookingEnv",
         "PolygonNavEnv",
         "Maze2DEnv",
+        "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py
     }

@@ -1,0 +1,339 @@
+"""``RobosuiteEnv``: one robosuite task (Panda, delta OSC_POSE) as a steer-envs env.
+
+robosuite is imported when an env is made, never by ``import steer_envs``.
+The sim is robosuite's own (``env.unwrapped.rs_env``); its observation dict
+stays available under robosuite's names (``env.unwrapped.robosuite_obs``).
+
+Observation (flat ``float32`` Box, keys in :attr:`RobosuiteEnv.obs_keys`):
+``robot0_eef_pos`` (3), ``robot0_eef_quat`` (4, xyzw), ``robot0_gripper_qpos``
+(2), then the task's object state (``<object>_pos`` (3), ``<object>_quat`` (4),
+the object-to-gripper vector (3)): 19 numbers.
+Action: 7 reals in [-1, 1] (clipped): delta eef position / axis-angle (scaled
+by robosuite to +-0.05 m, +-0.5 rad per step) and the gripper (+1 closes).
+Reward: 1 on success (robosuite's sparse reward), which also terminates the
+episode; the step limit is the registry's TimeLimit (robosuite's own
+``horizon`` is off: ``ignore_done=True``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from steer_envs.core.interaction import InteractionKind
+from steer_envs.core.validation import boolean, integer, one_of, real_array
+from steer_envs.envs.kinematic import _check_action, check_options, check_render_mode, check_seed
+from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
+
+__all__ = ["PERTURB_MAX_STEPS", "PERTURB_TOLERANCE", "ROBOT_KEYS", "RobosuiteEnv"]
+
+#: robot observation keys, in observation order (the task's object keys follow).
+ROBOT_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos")
+#: ``perturb`` drives the arm with closed-loop OSC steps until the eef is this close to the target (m) ...
+PERTURB_TOLERANCE = 0.005
+#: ... or for at most this many control steps (0.05 s each).
+PERTURB_MAX_STEPS = 40
+_REST_MARGIN = 0.01  # m above the rest height that count as "in the air" (held latch, Lift's `lifted`)
+_SNAP_ITERS = 100
+#: bound of every observation entry (positions in m lie within ~2 m of the origin; quats, gripper qpos within 1).
+OBS_BOUND = 10.0
+
+
+@contextlib.contextmanager
+def _quiet_robosuite() -> Iterator[None]:
+    """Silence robosuite's import-time and make-time warnings (missing macros, optional robot packages)."""
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)
+    try:
+        yield
+    finally:
+        logging.disable(previous)
+        logging.getLogger("robosuite_logs").setLevel(logging.ERROR)
+
+
+class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
+    """A robosuite task (``"lift"``, ``"can"``, ``"square"``) with ground-truth modes and perturbations.
+
+    Args:
+        task: the task name, one of :data:`steer_envs.envs.robosuite.tasks.TASK_NAMES`.
+        render_mode: ``"rgb_array"`` (an offscreen renderer is built) or None (no renderer).
+        camera: robosuite camera rendered by ``render`` (e.g. ``"agentview"``, ``"frontview"``).
+        render_size: rendered frames are ``render_size x render_size`` pixels, an int in [16, 2048]
+            (the library's convention).
+        perturb_exact: after the OSC steps of ``perturb``, set the arm joints kinematically
+            (damped least squares) so the eef lands on the target to 1e-7 m (the contract's exact
+            ``perturb(to=x)``); False leaves the eef where the OSC steps brought it
+            (within :data:`PERTURB_TOLERANCE`, unless blocked).
+
+        fast_render: with ``render_mode="rgb_array"``, render without multisampling,
+            reflections and skybox (robosuite's defaults are slow on a CPU renderer such as
+            OSMesa); False keeps robosuite's look.
+
+    Frames are flipped to the image convention (row 0 at the top). The model is
+    built with robosuite's seed 0, so every instance is the same model (Lift's
+    cube size, drawn at construction, is the same everywhere) and a reset seed
+    replays across instances.
+
+    ``info``: ``mode`` / ``mode_name`` (ground truth, see :mod:`steer_envs.envs.robosuite.tasks`),
+    ``sensors``, ``success`` (robosuite's ``_check_success``), ``constraint_violation``
+    (a mode change the task does not allow, e.g. the object dropped after being
+    grasped), ``perturbed``.
+
+    >>> RobosuiteEnv.interaction_kinds
+    ('point', 'sketch', 'nudge')
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 - Env's type
+    interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
+    control_freq = 20
+    _OPTION_KEYS = frozenset({"state"})
+
+    def __init__(
+        self,
+        task: str = "lift",
+        *,
+        render_mode: str | None = None,
+        camera: str = "agentview",
+        render_size: int = 256,
+        perturb_exact: bool = True,
+        fast_render: bool = False,
+    ) -> None:
+        owner = type(self).__name__
+        self.task_name = one_of(task, "task", TASK_NAMES, owner=owner)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
+        if not isinstance(camera, str):
+            raise TypeError(f"{owner}: `camera` must be a str, got {type(camera).__name__}")
+        self.render_size = integer(render_size, "render_size", low=16, high=2048, owner=owner)
+        self.perturb_exact = boolean(perturb_exact, "perturb_exact", owner=owner)
+        self.fast_render = boolean(fast_render, "fast_render", owner=owner)
+        self.camera = camera
+        self.spec_task = TASKS[self.task_name]
+        self.task = task_spec(self.spec_task)
+        self.obs_keys: tuple[str, ...] = ROBOT_KEYS + self.spec_task.object_keys
+        with _quiet_robosuite():
+            import robosuite as suite
+            from robosuite.controllers import load_composite_controller_config
+
+            cfg = load_composite_controller_config(controller="BASIC", robot="Panda")
+            # robosuite draws parts of the model from `rng` when it builds it (e.g. Lift's cube size):
+            # a fixed construction seed makes every instance the same model, so episode seeds replay.
+            self.rs_env: Any = suite.make(
+                self.spec_task.env_name,
+                robots="Panda",
+                controller_configs=cfg,
+                control_freq=self.control_freq,
+                has_renderer=False,
+                has_offscreen_renderer=self.render_mode is not None,
+                use_camera_obs=False,
+                hard_reset=False,
+                horizon=10**9,
+                ignore_done=True,
+                seed=0,
+            )
+        if self.render_mode is not None and camera not in self.rs_env.sim.model.camera_names:
+            raise ValueError(
+                f"{owner}: unknown `camera` {camera!r}; cameras: {list(self.rs_env.sim.model.camera_names)}"
+            )
+        rs = self.rs_env
+        if self.render_mode is not None and self.fast_render:
+            self._fast_render()
+        self._robot = rs.robots[0]
+        self._eef_site = int(self._robot.eef_site_id["right"])
+        self._arm_qpos = np.asarray(self._robot._ref_joint_pos_indexes, dtype=int)
+        self._arm_qvel = np.asarray(self._robot._ref_joint_vel_indexes, dtype=int)
+        if self.task_name == "lift":
+            self._object = rs.cube
+        elif self.task_name == "can":
+            self._object = rs.objects[rs.object_id]
+        else:
+            self._object = rs.nuts[rs.nut_id]
+        self.robosuite_obs: dict[str, np.ndarray] = rs.reset()
+        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
+        self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self._held = False
+        self._rest_z = 0.0
+        self._mode = 0
+        self._gripper = -1.0
+        self._success = False
+        self._begin()
+
+    # ----------------------------------------------------------------- state
+    @property
+    def state(self) -> np.ndarray:
+        """The end effector's position in the world frame (m, a float64 copy)."""
+        return np.array(self.rs_env.sim.data.site_xpos[self._eef_site], dtype=np.float64)
+
+    @property
+    def object_pos(self) -> np.ndarray:
+        """The task object's position (cube, can, nut centre; a copy)."""
+        return np.array(self.robosuite_obs[f"{self.spec_task.object_prefix}_pos"], dtype=np.float64)
+
+    def _obs(self) -> np.ndarray:
+        return np.concatenate([np.ravel(self.robosuite_obs[k]) for k in self.obs_keys]).astype(np.float32)
+
+    def _refresh(self) -> None:
+        self.robosuite_obs = self.rs_env._get_observations(force_update=True)
+
+    def _begin(self) -> None:
+        self._held = False
+        self._rest_z = float(self.object_pos[2])
+        self._gripper = -1.0
+        self._mode = self.task.mode_index(self.task.mode_of(self._sensors()))
+
+    # --------------------------------------------------------------- sensors
+    def _sensors(self) -> dict[str, bool]:
+        rs = self.rs_env
+        pos = self.object_pos
+        grasped = bool(rs._check_grasp(gripper=self._robot.gripper, object_geoms=self._object))
+        in_air = pos[2] > self._rest_z + _REST_MARGIN
+        self._held = grasped or (self._held and in_air)
+        if not self._held:
+            self._rest_z = min(self._rest_z, float(pos[2]))
+        self._success = bool(rs._check_success())
+        sensors = {"held": self._held}
+        if self.task_name == "lift":
+            sensors["lifted"] = bool(in_air)
+            sensors["at_height"] = self._success
+        elif self.task_name == "can":
+            obj_id = rs.object_to_id["can"]
+            target = np.asarray(rs.target_bin_placements[obj_id])
+            sensors["above_target"] = bool(np.all(np.abs(pos[:2] - target[:2]) <= np.asarray(rs.bin_size[:2]) / 4))
+            sensors["in_target_bin"] = not bool(rs.not_in_bin(pos, obj_id))
+        else:
+            peg = np.asarray(rs.sim.data.body_xpos[rs.peg1_body_id])
+            sensors["above_peg"] = bool(np.linalg.norm(pos[:2] - peg[:2]) <= 0.03)
+            sensors["low"] = bool(pos[2] < self._rest_z + SQUARE_LOW_HEIGHT)
+            sensors["on_peg"] = self._success
+        return sensors
+
+    def _info(self, *, perturbed: bool = False) -> dict[str, Any]:
+        sensors = self._sensors()
+        name = self.task.mode_of(sensors)
+        mode = self.task.mode_index(name)
+        violation = not perturbed and mode != self._mode and not self.task.is_allowed(self._mode, mode)
+        self._mode = mode
+        return {
+            "mode": mode,
+            "mode_name": name,
+            "sensors": sensors,
+            "success": self._success,
+            "constraint_violation": bool(violation),
+            "perturbed": perturbed,
+        }
+
+    # ------------------------------------------------------------------- API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: robosuite's placement (and the arm's init noise) drawn from ``seed``.
+
+        ``seed``: None (continue the stream) or an int >= 0; robosuite's samplers
+        draw from ``rs_env.rng``, whose state is replaced in place (the samplers
+        share the Generator). ``options``: None or a dict with ``state`` (an eef
+        start position, 3 finite reals, reached as by ``perturb(to=...)``).
+        """
+        owner = f"{type(self).__name__}.reset"
+        super().reset(seed=check_seed(seed, owner))
+        options = check_options(options, self._OPTION_KEYS, owner)
+        start = options.get("state")
+        if start is not None:
+            start = real_array(start, "options['state']", shape=(3,), owner=owner)
+        if seed is not None:
+            self.rs_env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+        self.robosuite_obs = self.rs_env.reset()
+        self._gripper = -1.0
+        if start is not None:
+            self.perturb(to=start)
+        self._begin()
+        return self._obs(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One 20 Hz control step of the 7-D delta OSC action (clipped to [-1, 1])."""
+        act = np.clip(_check_action(action, self.action_space, f"{type(self).__name__}.step"), -1.0, 1.0)
+        self._gripper = float(act[6])
+        self.robosuite_obs, reward, _, _ = self.rs_env.step(act)
+        info = self._info()
+        return self._obs(), float(reward), info["success"], False, info
+
+    def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
+        """Move the end effector by ``delta`` (or ``to`` a position, 3 finite reals, m): a push from outside.
+
+        Closed-loop OSC steps (the gripper command held) drive the eef toward the
+        target until it is within :data:`PERTURB_TOLERANCE` or for
+        :data:`PERTURB_MAX_STEPS` steps; with ``perturb_exact`` the arm joints are
+        then set so the eef is on the target (a held object follows on the next
+        steps). Sim time advances by the OSC steps; they are not env steps (no
+        TimeLimit count). Returns the new ``info`` (``perturbed=True``).
+        """
+        owner = f"{type(self).__name__}.perturb"
+        if (delta is None) == (to is None):
+            raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target position)")
+        if to is None:
+            target = self.state + real_array(delta, "delta", shape=(3,), owner=owner)
+        else:
+            target = real_array(to, "to", shape=(3,), owner=owner)
+        for _ in range(PERTURB_MAX_STEPS):
+            d = target - self.state
+            if np.linalg.norm(d) <= PERTURB_TOLERANCE:
+                break
+            act = np.zeros(7)
+            act[:3] = np.clip(d * 10.0, -1.0, 1.0)
+            act[6] = self._gripper
+            self.rs_env.step(act)
+        if self.perturb_exact:
+            self._snap(target)
+        self._refresh()
+        return self._info(perturbed=True)
+
+    def _snap(self, target: np.ndarray) -> None:
+        """Damped least-squares IK on the arm joints (kinematic) until the eef is on ``target``."""
+        import mujoco
+
+        sim = self.rs_env.sim
+        model, data = sim.model._model, sim.data._data
+        jacp = np.zeros((3, model.nv))
+        for _ in range(_SNAP_ITERS):
+            err = target - data.site_xpos[self._eef_site]
+            if np.linalg.norm(err) < 1e-9:
+                break
+            mujoco.mj_jacSite(model, data, jacp, None, self._eef_site)
+            jac = jacp[:, self._arm_qvel]
+            data.qpos[self._arm_qpos] += jac.T @ np.linalg.solve(jac @ jac.T + 1e-8 * np.eye(3), err)
+            mujoco.mj_forward(model, data)
+        data.qvel[self._arm_qvel] = 0.0
+        mujoco.mj_forward(model, data)
+
+    # ------------------------------------------------------------- rendering
+    def _fast_render(self) -> None:
+        """No multisampling (the offscreen buffers rebuilt), no reflections, no skybox: cheap CPU frames."""
+        import mujoco
+
+        sim = self.rs_env.sim
+        ctx = sim._render_context_offscreen
+        sim.model.vis.quality.offsamples = 0
+        ctx.gl_ctx.make_current()
+        ctx.con.free()
+        ctx._set_mujoco_context_and_buffers()
+        ctx.scn.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        ctx.scn.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
+
+    def render(self) -> np.ndarray | None:
+        """An RGB frame (``render_size x render_size x 3``, uint8) from ``camera`` with ``render_mode="rgb_array"``."""
+        if self.render_mode is None:
+            return None
+        frame = self.rs_env.sim.render(camera_name=self.camera, width=self.render_size, height=self.render_size)
+        return np.ascontiguousarray(frame[::-1])
+
+    def close(self) -> None:
+        """Close robosuite's env (its renderer)."""
+        rs = getattr(self, "rs_env", None)
+        if rs is not None:
+            rs.close()
+            self.rs_env = None

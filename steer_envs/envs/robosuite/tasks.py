@@ -1,0 +1,151 @@
+"""The robosuite tasks of steer-envs: Lift, Can, Square, as data (no robosuite import).
+
+One module for the three tasks, not one per task: a task is a small table
+(robosuite env name, observation keys, ground-truth modes) read by the one
+adapter, :class:`steer_envs.envs.robosuite.adapter.RobosuiteEnv`; the
+sim-side predicates (grasp, bin, peg) live in the adapter beside the sim they read.
+
+Ground-truth modes (thesis appendix "Heuristic Rules for Mode Family
+Groundtruth in RoboSuite") are labelled from sensor APs, so
+``task.mode_of(info["sensors"]) == info["mode_name"]`` always holds:
+
+- ``held``: latched. Set when both finger pads touch the object
+  (robosuite's ``_check_grasp``); it stays set while the object is grasped *or*
+  still in the air (a momentary slip of the fingers in transport is not a
+  new reach); it clears when the object is not grasped and rests again
+  (less than 1 cm above its height at reset).
+- Lift: ``lifted`` (cube 1 cm above its rest height), ``at_height`` (robosuite's
+  success: cube 4 cm above the table). Modes reach -> lift (held, or lifted)
+  -> reach_height (at_height).
+- Can: ``above_target`` (can xy within ``bin_size / 4`` of its target bin
+  placement, per axis). Modes reach -> transport (held) -> hover (above_target,
+  held or released into the bin).
+- Square: ``above_peg`` (nut-peg xy <= 0.03 m), ``low`` (nut less than
+  :data:`SQUARE_LOW_HEIGHT` above its rest height), ``on_peg`` (robosuite's
+  success). Modes reach -> transport (held) -> align (held, above_peg, not
+  low) -> lower (held, above_peg and low; or on_peg).
+
+Transitions: the forward chain, plus every backward edge that does not go
+back to ``reach``. A step whose mode change is not allowed (the object
+dropped after being grasped, or a skipped mode) reports
+``info["constraint_violation"]``; a change caused by ``perturb`` does not
+(a push is not the policy's fault).
+
+>>> TASKS["square"].modes
+('reach', 'transport', 'align', 'lower')
+>>> sorted(TASK_NAMES)
+['can', 'lift', 'square']
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from steer_envs.core.task import TaskSpec
+
+__all__ = ["SQUARE_LOW_HEIGHT", "TASKS", "TASK_NAMES", "RobosuiteTask", "task_spec"]
+
+#: Square: the nut counts as "low" (lowering onto the peg) below this height over its rest height (m).
+SQUARE_LOW_HEIGHT = 0.10
+
+Labeller = Callable[[Mapping[str, bool]], str]
+
+
+@dataclass(frozen=True)
+class RobosuiteTask:
+    """One robosuite task as the adapter sees it.
+
+    Attributes:
+        name: steer-envs task name (``"lift"``...).
+        env_name: robosuite environment name (``suite.make``'s first argument).
+        object_prefix: prefix of robosuite's object observation keys (``"cube"``, ``"Can"``, ``"SquareNut"``).
+        object_keys: robosuite observation keys of the object state, in observation order.
+        modes: ordered ground-truth modes.
+        sensors: sensor APs (``info["sensors"]`` keys).
+        label: sensor reading -> mode name.
+    """
+
+    name: str
+    env_name: str
+    object_prefix: str
+    object_keys: tuple[str, ...]
+    modes: tuple[str, ...]
+    sensors: tuple[str, ...]
+    label: Labeller
+
+
+def _lift(s: Mapping[str, bool]) -> str:
+    if s["at_height"]:
+        return "reach_height"
+    return "lift" if s["held"] or s["lifted"] else "reach"
+
+
+def _can(s: Mapping[str, bool]) -> str:
+    if s["above_target"] and (s["held"] or s["in_target_bin"]):
+        return "hover"
+    return "transport" if s["held"] else "reach"
+
+
+def _square(s: Mapping[str, bool]) -> str:
+    if s["on_peg"] or (s["held"] and s["above_peg"] and s["low"]):
+        return "lower"
+    if s["held"] and s["above_peg"]:
+        return "align"
+    return "transport" if s["held"] else "reach"
+
+
+TASKS: Mapping[str, RobosuiteTask] = {
+    "lift": RobosuiteTask(
+        "lift",
+        "Lift",
+        "cube",
+        ("cube_pos", "cube_quat", "gripper_to_cube_pos"),
+        ("reach", "lift", "reach_height"),
+        ("held", "lifted", "at_height"),
+        _lift,
+    ),
+    "can": RobosuiteTask(
+        "can",
+        "PickPlaceCan",
+        "Can",
+        ("Can_pos", "Can_quat", "Can_to_robot0_eef_pos"),
+        ("reach", "transport", "hover"),
+        ("held", "above_target", "in_target_bin"),
+        _can,
+    ),
+    "square": RobosuiteTask(
+        "square",
+        "NutAssemblySquare",
+        "SquareNut",
+        ("SquareNut_pos", "SquareNut_quat", "SquareNut_to_robot0_eef_pos"),
+        ("reach", "transport", "align", "lower"),
+        ("held", "above_peg", "low", "on_peg"),
+        _square,
+    ),
+}
+TASK_NAMES = tuple(TASKS)
+
+
+def task_spec(task: RobosuiteTask) -> TaskSpec:
+    """The :class:`TaskSpec` of ``task``: every sensor reading labelled, forward chain + non-reach back edges.
+
+    >>> spec = task_spec(TASKS["lift"])
+    >>> spec.mode_of({"held": True, "lifted": False, "at_height": False}), spec.is_allowed("lift", "reach")
+    ('lift', False)
+    """
+    sensor_modes = {}
+    for values in itertools.product((False, True), repeat=len(task.sensors)):
+        reading = dict(zip(task.sensors, values, strict=True))
+        sensor_modes[frozenset(k for k, v in reading.items() if v)] = task.label(reading)
+    m = task.modes
+    transitions = {(m[i], m[i + 1]) for i in range(len(m) - 1)}
+    transitions |= {(m[i + 1], m[i]) for i in range(1, len(m) - 1)}
+    return TaskSpec(
+        name=f"robosuite-{task.name}",
+        modes=m,
+        sensors=task.sensors,
+        sensor_modes=sensor_modes,
+        transitions=frozenset(transitions),
+    )

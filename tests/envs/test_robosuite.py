@@ -1,0 +1,228 @@
+"""The robosuite envs (Lift, Can, Square): contract, checkers, seeding, modes, experts, bad input.
+
+One env per task for the whole module (robosuite env creation takes 0.3-3 s).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from collections.abc import Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import steer_envs  # noqa: F401  (registers the ids)
+from steer_envs.data.experts import make_expert
+from steer_envs.envs.robosuite.adapter import PERTURB_TOLERANCE, RobosuiteEnv
+from steer_envs.envs.robosuite.tasks import TASKS, task_spec
+from steer_envs.utils.env_checker import check_steer_env
+
+IDS = {"lift": "steer_envs/Lift-v0", "can": "steer_envs/Can-v0", "square": "steer_envs/Square-v0"}
+
+pytestmark = [
+    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
+    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
+]
+
+
+@pytest.fixture(scope="module")
+def envs() -> Iterator[dict[str, gym.Env[Any, Any]]]:
+    made: dict[str, gym.Env[Any, Any]] = {}
+
+    class Lazy(dict[str, gym.Env[Any, Any]]):
+        def __missing__(self, task: str) -> gym.Env[Any, Any]:
+            made[task] = self[task] = gym.make(IDS[task])
+            return made[task]
+
+    yield Lazy()
+    for env in made.values():
+        env.close()
+
+
+def run_expert(env: gym.Env[Any, Any], seed: int) -> tuple[bool, list[str], bool]:
+    """(success, the sequence of distinct modes, any constraint violation) of one expert episode."""
+    expert = make_expert(env)
+    obs, info = env.reset(seed=seed)
+    expert.reset(obs, info)
+    modes, violated = [info["mode_name"]], False
+    while True:
+        obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
+        violated |= info["constraint_violation"]
+        if info["mode_name"] != modes[-1]:
+            modes.append(info["mode_name"])
+        if terminated or truncated:
+            return bool(info["success"]), modes, violated
+
+
+def test_import_does_not_load_robosuite() -> None:
+    code = "import sys, steer_envs, steer_envs.envs.robosuite; assert 'robosuite' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("task", list(IDS))
+def test_follows_the_steer_env_contract(envs: dict[str, gym.Env[Any, Any]], task: str) -> None:
+    check_steer_env(envs[task], steps=10)
+
+
+@pytest.mark.parametrize("task", list(IDS))
+def test_gymnasium_and_sb3_checkers_pass(envs: dict[str, gym.Env[Any, Any]], task: str) -> None:
+    gym_check_env(envs[task].unwrapped, skip_render_check=True)
+    sb3_check_env(envs[task].unwrapped, warn=False)
+
+
+def test_seeding_is_deterministic_and_exposes_robosuite_obs(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    env = envs["can"]
+    a, _ = env.reset(seed=7)
+    rs_a = env.unwrapped.robosuite_obs["Can_pos"].copy()
+    b, _ = env.reset(seed=7)
+    c, _ = env.reset(seed=8)
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    np.testing.assert_allclose(a[9:12], rs_a, atol=1e-6)  # the can's position (float32) follows the 9 robot numbers
+
+
+def test_two_instances_replay_the_same_seed(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    """robosuite draws Lift's cube size when it builds the model: both instances must build the same one."""
+    other = gym.make(IDS["lift"])
+    action = np.full(7, 0.3, dtype=np.float32)
+    for env in (envs["lift"], other):
+        env.reset(seed=1)
+        for _ in range(3):
+            obs = env.step(action)[0]
+        env.unwrapped.last = obs
+    np.testing.assert_array_equal(envs["lift"].unwrapped.last, other.unwrapped.last)
+    other.close()
+
+
+def test_reset_can_start_the_end_effector_elsewhere(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    env = envs["can"]
+    env.reset(seed=2)
+    start = env.unwrapped.state + np.array([0.02, 0.0, 0.03])
+    _, info = env.reset(seed=2, options={"state": start})
+    np.testing.assert_allclose(env.unwrapped.state, start, atol=1e-6)
+    assert info["mode_name"] == "reach" and not info["perturbed"]
+
+
+def test_perturb_tracks_the_target_within_the_tolerance(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    env = envs["lift"]
+    base = env.unwrapped
+    env.reset(seed=1)
+    target = base.state + np.array([0.05, -0.03, 0.04])
+    base.perturb_exact = False
+    try:
+        info = base.perturb(to=target)
+    finally:
+        base.perturb_exact = True
+    assert info["perturbed"] and not info["constraint_violation"]
+    assert np.linalg.norm(base.state - target) <= PERTURB_TOLERANCE
+    before = base.state
+    base.perturb(delta=np.array([0.0, 0.02, 0.0]))  # perturb_exact (the default): on the target
+    np.testing.assert_allclose(base.state, before + np.array([0.0, 0.02, 0.0]), atol=1e-6)
+
+
+def test_dropping_the_cube_is_a_constraint_violation(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    env = envs["lift"]
+    expert = make_expert(env)
+    obs, info = env.reset(seed=0)
+    expert.reset(obs, info)
+    while not (info["mode_name"] == "lift" and info["sensors"]["lifted"]):
+        obs, _, _, _, info = env.step(expert.act(obs, info))
+    flags = []
+    for _ in range(40):  # open the gripper mid-air: the cube falls back onto the table
+        _, _, _, _, info = env.step(np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32))
+        flags.append(info["constraint_violation"])
+    assert info["mode_name"] == "reach" and sum(flags) == 1
+
+
+@pytest.mark.parametrize(("task", "seeds"), [("lift", (0, 1)), ("can", (0,)), ("square", (0,))])
+def test_expert_solves_and_walks_the_modes_in_order(
+    envs: dict[str, gym.Env[Any, Any]], task: str, seeds: tuple[int, ...]
+) -> None:
+    for seed in seeds:
+        success, modes, violated = run_expert(envs[task], seed)
+        assert success and not violated
+        assert modes == list(TASKS[task].modes)
+
+
+def test_every_sensor_reading_has_a_mode() -> None:
+    for task in TASKS.values():
+        spec = task_spec(task)
+        assert len(spec.sensor_modes) == 2 ** len(task.sensors)
+        assert not spec.is_allowed(spec.modes[1], "reach")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"task": "stack"}, ValueError, "task"),
+        ({"task": 3}, ValueError, "task"),
+        ({"render_size": 0}, ValueError, "render_size"),
+        ({"render_size": 64.0}, TypeError, "render_size"),
+        ({"render_mode": "human"}, ValueError, "render_mode"),
+        ({"camera": 1}, TypeError, "camera"),
+        ({"perturb_exact": "yes"}, TypeError, "perturb_exact"),
+        ({"fast_render": 1}, TypeError, "fast_render"),
+    ],
+)
+def test_bad_constructor_arguments_are_refused_before_robosuite_runs(
+    kwargs: dict[str, Any], error: type[Exception], match: str
+) -> None:
+    with pytest.raises(error, match=match):
+        RobosuiteEnv(**kwargs)
+
+
+def test_bad_perturb_and_action_are_refused(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    env = envs["square"]
+    env.reset(seed=0)
+    base = env.unwrapped
+    before = base.state
+    with pytest.raises(ValueError, match="delta"):
+        base.perturb(delta=[np.nan, 0.0, 0.0])
+    with pytest.raises(TypeError, match="to"):
+        base.perturb(to="up")
+    with pytest.raises(ValueError, match="action"):
+        env.step(np.zeros(6))
+    np.testing.assert_array_equal(base.state, before)
+    with pytest.raises(ValueError, match="options"):
+        env.reset(options={"start": [0, 0, 0]})
+    with pytest.raises(ValueError, match="state"):
+        env.reset(options={"state": [0.0, 0.0]})
+
+
+def test_a_tensor_that_requires_grad_acts_like_its_values(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    torch = pytest.importorskip("torch")
+    env = envs["lift"]
+    action = np.full(7, 0.2, dtype=np.float32)
+    env.reset(seed=4)
+    by_array = env.step(action)[0]
+    env.reset(seed=4)
+    tensor = torch.tensor(action, requires_grad=True)
+    np.testing.assert_array_equal(env.step(tensor)[0], by_array)
+    assert tensor.grad is None
+    push = torch.tensor([0.01, 0.0, 0.0], dtype=torch.float64, requires_grad=True)
+    before = env.unwrapped.state
+    env.unwrapped.perturb(delta=push)
+    np.testing.assert_allclose(env.unwrapped.state, before + np.array([0.01, 0.0, 0.0]), atol=1e-6)
+
+
+def test_rgb_array_render() -> None:
+    env = gym.make("steer_envs/Lift-v0", render_mode="rgb_array", render_size=64, fast_render=True)
+    env.reset(seed=0)
+    frame = env.render()
+    env.reset(seed=1)  # a soft reset keeps the renderer (and its fast settings)
+    again = env.render()
+    env.close()
+    assert frame.shape == again.shape == (64, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", list(IDS))
+def test_expert_succeeds_in_95_of_100_seeded_episodes(envs: dict[str, gym.Env[Any, Any]], task: str) -> None:
+    wins = sum(run_expert(envs[task], seed)[0] for seed in range(100))
+    assert wins >= 95, f"{task}: {wins}/100"
