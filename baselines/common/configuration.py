@@ -62,8 +62,36 @@ def _indices(value: Any, name: str) -> tuple[int, ...] | None:
     return out
 
 
+class _FieldsMixin:
+    """What a policy config and the training settings share: their field names, validated copies, dicts."""
+
+    @classmethod
+    def field_names(cls) -> set[str]:
+        """Names of the fields (what ``--model`` / ``--train KEY=VALUE`` accept)."""
+        return {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+
+    def replace(self, **changes: Any) -> Self:
+        """A copy with ``changes`` (validated); ``ValueError`` naming an unknown field."""
+        unknown = set(changes) - self.field_names()
+        if unknown:
+            fields = ", ".join(sorted(self.field_names()))
+            raise ValueError(f"{sorted(unknown)} not fields of {type(self).__name__} (fields: {fields})")
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> Self:
+        """Inverse of ``to_dict`` (lists become tuples); ``ValueError`` naming an unknown key."""
+        if not isinstance(values, Mapping):
+            raise TypeError(f"values must be a mapping, got {type(values).__name__}")
+        unknown = set(values) - cls.field_names()
+        if unknown:
+            raise ValueError(f"{sorted(unknown)} not fields of {cls.__name__}")
+        kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**kwargs)
+
+
 @dataclass(frozen=True, kw_only=True)
-class PolicyConfig:
+class PolicyConfig(_FieldsMixin):
     """Features and normalization of a trajectory policy (the base of each policy's config).
 
     Attributes:
@@ -142,33 +170,9 @@ class PolicyConfig:
         """
         return None
 
-    def replace(self, **changes: Any) -> Self:
-        """A copy with ``changes`` (validated); ``ValueError`` naming an unknown field."""
-        unknown = set(changes) - self.field_names()
-        if unknown:
-            fields = ", ".join(sorted(self.field_names()))
-            raise ValueError(f"{sorted(unknown)} not fields of {type(self).__name__} (fields: {fields})")
-        return dataclasses.replace(self, **changes)
-
-    @classmethod
-    def field_names(cls) -> set[str]:
-        """Names of the config's fields (what ``--model KEY=VALUE`` accepts)."""
-        return {f.name for f in dataclasses.fields(cls)}
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (tuples become lists)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> Self:
-        """Inverse of :meth:`to_dict` (lists become tuples); ``ValueError`` naming an unknown key."""
-        if not isinstance(values, Mapping):
-            raise TypeError(f"values must be a mapping, got {type(values).__name__}")
-        unknown = set(values) - cls.field_names()
-        if unknown:
-            raise ValueError(f"{sorted(unknown)} not fields of {cls.__name__}")
-        kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        return cls(**kwargs)
 
 
 #: the most optimizer steps and the largest batch :class:`TrainSettings` accepts
@@ -177,7 +181,7 @@ MAX_BATCH_SIZE = 2**20
 
 
 @dataclass(frozen=True)
-class TrainSettings:
+class TrainSettings(_FieldsMixin):
     """Optimization settings of one training run (AdamW, linear warm-up then cosine decay to 0).
 
     ``static_history_prob``: the fraction of training histories replaced by the
@@ -229,32 +233,9 @@ class TrainSettings:
         object.__setattr__(self, "static_history_prob", prob)
         object.__setattr__(self, "ema_power", real_scalar(self.ema_power, "ema_power", low=0.0, high=1.0))
 
-    def replace(self, **changes: Any) -> TrainSettings:
-        """A copy with ``changes``; ``ValueError`` naming an unknown field."""
-        unknown = set(changes) - self.field_names()
-        if unknown:
-            raise ValueError(f"{sorted(unknown)} not fields of TrainSettings (fields: {sorted(self.field_names())})")
-        return dataclasses.replace(self, **changes)
-
-    @classmethod
-    def field_names(cls) -> set[str]:
-        """Names of the settings (what ``--train KEY=VALUE`` accepts)."""
-        return {f.name for f in dataclasses.fields(cls)}
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
         return {**asdict(self), "betas": list(self.betas)}
-
-    @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> TrainSettings:
-        """Inverse of :meth:`to_dict`; ``ValueError`` naming an unknown key."""
-        if not isinstance(values, Mapping):
-            raise TypeError(f"values must be a mapping, got {type(values).__name__}")
-        unknown = set(values) - cls.field_names()
-        if unknown:
-            raise ValueError(f"{sorted(unknown)} not fields of TrainSettings")
-        kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        return cls(**kwargs)
 
 
 ConfigT = TypeVar("ConfigT", bound=PolicyConfig)
