@@ -69,3 +69,15 @@ def test_glide_polygon_learns_modes_and_plans_through_them(tmp_path: Path) -> No
     assert bad.returncode == 2 and "--replays" in bad.stderr
     bad = _run("glide_polygon.py", "--max-steps", "0", "--out", str(tmp_path))
     assert bad.returncode == 2 and "--max-steps" in bad.stderr
+
+
+@pytest.mark.skipif(
+    __import__("importlib").util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
+)
+def test_glide_robosuite_learns_modes_and_draws_them(tmp_path: Path) -> None:
+    args = ("--task", "lift", "--demos", "2", "--replays", "2", "--epochs", "30", "--show", "2")
+    res = _run("glide_robosuite.py", *args, "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert "lift: 2 demos, 4 replays" in res.stdout and "kmeans: accuracy" in res.stdout
+    assert (tmp_path / "glide_lift_modes.png").stat().st_size > 10_000
+    assert _run("glide_robosuite.py", "--demos", "0").returncode == 2

@@ -45,6 +45,7 @@ _EXPORTS: dict[str, str] = {
     "CutSet": "ds_modulation",
     "solve_cut": "ds_modulation",
     "modulate": "ds_modulation",
+    "ArmPerturbationWrapper": "arm_perturbation",
 }
 
 __all__ = sorted(_EXPORTS)

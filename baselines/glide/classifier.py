@@ -92,7 +92,8 @@ class GlideLossWeights:
         for t in terms:
             if t not in LOSS_TERMS:
                 raise ValueError(f"unknown loss term {t!r}; expected one of {LOSS_TERMS}")
-        return replace(self, **dict.fromkeys(terms, 0.0))
+        zeros: dict[str, Any] = dict.fromkeys(terms, 0.0)
+        return replace(self, **zeros)
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,9 @@ class GlideTrainConfig:
             minibatches, used in turn; 1 is full-batch training. One epoch is
             one pass over all minibatches.
         psi_hidden: hidden units of the forward model psi (0: one linear map per mode).
+        dyn_columns: the state columns ``L_dyn`` models (None: all). On a robot arm the
+            quaternions' controller jitter, divided by their tiny spread, would swamp the
+            positions whose dynamics tell the modes apart.
         seed: seeds the initial weights.
         num_threads: torch intra-op threads during training (None: leave torch's setting); 1 by
             default: the networks are small and extra threads mostly spin on a shared CPU.
@@ -144,6 +148,7 @@ class GlideTrainConfig:
     succ_warmup: float = 0.5
     succ_warmup_start: float = 1e-3
     psi_hidden: int = 0
+    dyn_columns: tuple[int, ...] | None = None
     seed: int = 0
     num_threads: int | None = 1
     progress: bool = False
@@ -159,6 +164,14 @@ class GlideTrainConfig:
             or self.psi_hidden < 0
         ):
             raise ValueError(f"psi_hidden must be an int >= 0, got {self.psi_hidden!r}")
+        if self.dyn_columns is not None:
+            cols = self.dyn_columns
+            if (
+                not isinstance(cols, tuple)
+                or not cols
+                or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0 for c in cols)
+            ):
+                raise ValueError(f"dyn_columns must be None or a non-empty tuple of column indices, got {cols!r}")
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a positive float, got {self.lr!r}")
         if not 0 < self.lr_final_ratio <= 1:
@@ -487,6 +500,7 @@ def glide_losses(
     init_mode: int = 0,
     final_mode: int | None = None,
     state_scale: torch.Tensor | None = None,
+    dyn_columns: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Every loss term per head, ``(H,)`` tensors, plus their weighted ``"total"``.
 
@@ -523,6 +537,8 @@ def glide_losses(
             out["dyn"] = zero
         else:
             s = data.states if state_scale is None else data.states / state_scale
+            if dyn_columns is not None:
+                s = s[:, dyn_columns]
             delta_prev = s[data.dyn_mid] - s[data.dyn_prev]
             delta_next = s[data.dyn_next] - s[data.dyn_mid]
             pred_k = psi(delta_prev)  # (H, M, K, d)
@@ -669,8 +685,16 @@ def train_mode_classifier(
         psi = None
         params = list(clf.parameters())
         if weights.dyn > 0:
+            if config.dyn_columns is not None and max(config.dyn_columns) >= data.states.shape[1]:
+                raise ValueError(
+                    f"dyn_columns {config.dyn_columns} index past the {data.states.shape[1]} state columns"
+                )
             psi = ForwardModel(
-                data.states.shape[1], k, n_heads=config.n_heads, hidden=config.psi_hidden, seed=config.seed
+                data.states.shape[1] if config.dyn_columns is None else len(config.dyn_columns),
+                k,
+                n_heads=config.n_heads,
+                hidden=config.psi_hidden,
+                seed=config.seed,
             )
             params += list(psi.parameters())
         feas_t = torch.as_tensor(feas, dtype=torch.float32)
@@ -679,6 +703,7 @@ def train_mode_classifier(
             "init_mode": init_mode,
             "final_mode": final_mode,
             "state_scale": clf.scale,
+            "dyn_columns": None if config.dyn_columns is None else torch.tensor(config.dyn_columns),
         }
         opt: torch.optim.Optimizer = torch.optim.Adam(params, lr=config.lr)
         lr_min = config.lr * config.lr_final_ratio

@@ -210,6 +210,40 @@ def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:
     assert with_dyn.history["dyn"][-1] < with_dyn.history["dyn"][0]
 
 
+def test_dyn_columns_restrict_the_dynamics_loss_to_informative_features() -> None:
+    """The toy above plus a jittering column on a tiny range: modelled, it swamps L_dyn; left out, it does not."""
+    rng = np.random.default_rng(2)
+    trajs, truth = [], []
+    for _ in range(30):
+        x, v = np.array([rng.uniform(-3, -2), 0.0]), np.array([0.1, 0.0])
+        pts = [x.copy()]
+        for _ in range(50):
+            if x[0] >= 0:
+                v = 0.9 * v
+            x = x + v
+            pts.append(x.copy())
+        t = np.array(pts)
+        jitter = 1e-3 * rng.standard_normal((len(t), 1))
+        trajs.append(np.concatenate([t, jitter], axis=1))
+        truth.append((t[:, 0] >= 0).astype(int))
+    f2, labels = np.zeros((2, 2)), np.ones(len(trajs), dtype=bool)
+    weights = GlideLossWeights(dyn=100.0)
+
+    def acc(dyn_columns: tuple[int, ...] | None) -> float:
+        config = GlideTrainConfig(epochs=400, n_heads=1, stride=1, seed=0, dyn_columns=dyn_columns)
+        clf = train_mode_classifier(trajs, labels, f2, weights=weights, config=config).classifier
+        return float(np.mean(np.concatenate([clf.predict(t) == m for t, m in zip(trajs, truth, strict=True)])))
+
+    assert acc((0, 1)) > 0.9
+    assert acc((0, 1)) > acc(None) + 0.05
+    with pytest.raises(ValueError, match="dyn_columns"):
+        GlideTrainConfig(dyn_columns=())
+    with pytest.raises(ValueError, match="past the 3 state columns"):
+        train_mode_classifier(
+            trajs[:2], labels[:2], f2, weights=weights, config=GlideTrainConfig(epochs=1, dyn_columns=(5,))
+        )
+
+
 def test_training_rejects_bad_input() -> None:
     tr = [np.zeros((3, 2))]
     with pytest.raises(ValueError, match="feasibility"):

@@ -31,9 +31,14 @@ def test_smoke_params_and_trials_option():
     smoke = get_suite("smoke")
     plan = plan_trials(smoke, build_request(smoke, envs=["ConvexMode-v0"], trials=4, params={"num_envs": 256}))
     assert [t.seed for t in plan.trials] == [0, 1, 2] and plan.trials[0].env == "steer_envs/ConvexMode-v0"
-    assert plan.trials[0].params == {"episodes": 4, "single_steps": 2000, "num_envs": 256, "vec_steps": 50}
+    assert plan.trials[0].params == {
+        "episodes": 4, "single_steps": 2000, "num_envs": 256, "vec_steps": 50, "raw_steps": 200, "render_frames": 10
+    }  # fmt: skip
     with pytest.raises(ValueError, match="num_envs"):
         plan_trials(smoke, build_request(smoke, params={"num_envs": 0}))
+    for bad in ({"raw_steps": 0}, {"render_frames": -1}, {"render_frames": 1001}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            plan_trials(smoke, build_request(smoke, params=bad))
 
 
 def test_quick_tours_every_suite_with_quick_settings():
@@ -69,6 +74,35 @@ def test_smoke_trial_on_a_kinematic_env_is_deterministic_in_its_values():
     assert m["env_sps"] > 0 and m["vec_sps"] > 0 and m["vec_speedup"] == pytest.approx(m["vec_sps"] / m["env_sps"])
     values = [x.name for x in smoke.metrics if x.kind == "value"]
     assert {k: m[k] for k in values} == {k: second.record["metrics"][k] for k in values}
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
+@pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed")
+def test_smoke_trial_on_a_robosuite_env_times_the_raw_sim_and_rgbd_frames():
+    smoke = get_suite("smoke")
+    params = {**TINY, "episodes": 0, "raw_steps": 50, "render_frames": 2}
+    result = execute_trial(Trial("smoke", "steer_envs/Lift-v0", "expert", 0, params, smoke.fn))
+    assert result.ok, result.error
+    m = result.record["metrics"]
+    assert m["env_sps"] > 0 and m["raw_sps"] > 0 and m["adapter_ratio"] == pytest.approx(m["env_sps"] / m["raw_sps"])
+    assert m["rgbd_ms"] > 0 and m["vec_sps"] is None and m["success_rate"] is None  # no episodes asked for
+
+
+def _record(env, seed, **metrics):
+    return {"config": {"suite": "smoke", "env": env, "method": "expert", "params": TINY}, "seed": seed,
+            "metrics": metrics}  # fmt: skip
+
+
+def test_smoke_findings_check_the_adapter_goals():
+    from steer_envs.bench.report import summarize
+
+    lift, can = "steer_envs/Lift-v0", "steer_envs/Can-v0"
+    records = [_record(lift, 0, adapter_ratio=0.97, rgbd_ms=18.0), _record(can, 0, adapter_ratio=0.85, rgbd_ms=20.0)]
+    ratio, rgbd = suites_smoke.smoke_findings(summarize(records)[0])
+    assert ratio.holds is False and "Can-v0" in ratio.detail and "0.85" in ratio.detail
+    assert rgbd.holds is True
+    kinematic_only = summarize([_record("steer_envs/ConvexMode-v0", 0, env_sps=1000.0)])[0]
+    assert [f.holds for f in suites_smoke.smoke_findings(kinematic_only)] == [None, None]
 
 
 def test_throughput_plot_from_records(tmp_path):

@@ -1,6 +1,7 @@
-"""The robosuite envs (Lift, Can, Square): contract, checkers, seeding, modes, experts, bad input.
+"""The robosuite envs (Lift, Can, Square): contract, checkers, seeding, modes, experts, RGB-D, bad input.
 
-One env per task for the whole module (robosuite env creation takes 0.3-3 s).
+One env per task for the whole module (robosuite env creation takes 0.3-3 s),
+plus one rendering Lift env (``fast_render``) for the RGB-D and pixel tests.
 """
 
 from __future__ import annotations
@@ -29,6 +30,15 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
     pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
 ]
+
+
+@pytest.fixture(scope="module")
+def rgbd_env() -> Iterator[RobosuiteEnv]:
+    """A Lift env with an offscreen renderer (256x256, fast_render), reset to seed 0."""
+    env = RobosuiteEnv("lift", render_mode="rgb_array", fast_render=True)
+    env.reset(seed=0)
+    yield env
+    env.close()
 
 
 @pytest.fixture(scope="module")
@@ -219,6 +229,108 @@ def test_rgb_array_render() -> None:
     again = env.render()
     env.close()
     assert frame.shape == again.shape == (64, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
+
+
+def _surface_points(env: RobosuiteEnv) -> dict[str, np.ndarray]:
+    """World points on visible surfaces: the centre of the cube's top face and a spot of the table top."""
+    rs = env.rs_env
+    return {
+        "cube top": env.object_pos + np.array([0.0, 0.0, rs.cube.size[2]]),
+        "table": np.array([-0.1, 0.15, rs.model.mujoco_arena.table_offset[2]]),
+    }
+
+
+def test_render_rgbd_gives_the_frame_and_metric_depth_in_image_convention(rgbd_env: RobosuiteEnv) -> None:
+    rgb, depth = rgbd_env.render_rgbd()
+    assert rgb.shape == (256, 256, 3) and rgb.dtype == np.uint8 and depth.shape == (256, 256)
+    assert depth.dtype == np.float32 and np.all(np.isfinite(depth)) and depth.min() > 0.1
+    np.testing.assert_array_equal(rgb, rgbd_env.render())  # the same frame as render, row 0 on top
+    u, v, z = rgbd_env.world_to_pixel(_surface_points(rgbd_env)["cube top"])
+    row, col = round(v), round(u)
+    assert rgb[row, col, 0] > rgb[row, col, 1] + 60  # the red cube is where the camera matrix puts it
+    assert abs(depth[row, col] - z) < 0.005  # metres along the optical axis
+    front_rgb, front_depth = rgbd_env.render_rgbd("frontview")
+    assert front_rgb.shape == (256, 256, 3) and not np.allclose(front_depth, depth)
+
+
+def test_pixel_to_world_inverts_world_to_pixel(rgbd_env: RobosuiteEnv) -> None:
+    for point in (rgbd_env.object_pos, rgbd_env.state):  # the depth given: exact
+        u, v, z = rgbd_env.world_to_pixel(point)
+        np.testing.assert_allclose(rgbd_env.pixel_to_world(u, v, depth=z), point, atol=1e-9)
+    for camera in ("agentview", "sideview"):  # the depth read from a render: the surface seen at that pixel
+        for name, point in _surface_points(rgbd_env).items():
+            u, v, _ = rgbd_env.world_to_pixel(point, camera=camera)
+            error = np.linalg.norm(rgbd_env.pixel_to_world(round(u), round(v), camera=camera) - point)
+            assert error < 0.01, f"{camera} {name}: {error * 1e3:.1f} mm"
+
+
+def test_grasp_check_matches_robosuites_own(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    """The adapter's geom-id grasp check answers like robosuite's ``_check_grasp`` on every step of an episode."""
+    env = envs["lift"]
+    base = env.unwrapped
+    expert = make_expert(env)
+    obs, info = env.reset(seed=0)
+    expert.reset(obs, info)
+    answers = set()
+    while True:
+        obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
+        ours = base._grasped()
+        assert ours == bool(base.rs_env._check_grasp(gripper=base._robot.gripper, object_geoms=base._object))
+        answers.add(ours)
+        if terminated or truncated:
+            break
+    assert answers == {False, True}
+
+
+def test_held_needs_a_grasp_of_two_steps(envs: dict[str, gym.Env[Any, Any]], monkeypatch: Any) -> None:
+    """A one-step touch of both pads (fingers closing on the resting object) neither holds nor drops the object."""
+    env = envs["lift"]
+    base = env.unwrapped
+    env.reset(seed=0)
+    readings = iter([True, False, False, True, True, True, False])
+    monkeypatch.setattr(base, "_grasped", lambda: next(readings))
+    rest = np.zeros(7, dtype=np.float32)  # the cube stays on the table
+    infos = [env.step(rest)[4] for _ in range(7)]
+    assert [i["sensors"]["held"] for i in infos] == [False, False, False, False, True, True, False]
+    assert [i["constraint_violation"] for i in infos] == [False] * 6 + [True]  # a real grasp dropped on the table
+
+
+@pytest.mark.parametrize(
+    ("call", "error", "match"),
+    [
+        (lambda e: e.pixel_to_world(256, 10), ValueError, r"u must be in \[0.0, 256\), got 256"),
+        (lambda e: e.pixel_to_world(10, -0.5), ValueError, r"v must be in \[0.0, 256\), got -0.5"),
+        (lambda e: e.pixel_to_world(np.nan, 10), ValueError, "u must be a finite"),
+        (lambda e: e.pixel_to_world(10, 10, depth=np.nan), ValueError, "depth must be a finite"),
+        (lambda e: e.pixel_to_world(10, 10, depth=0.0), ValueError, r"depth must be in \(0.0, inf\]"),
+        (lambda e: e.pixel_to_world("10", 10), TypeError, "u must be a real number"),
+        (lambda e: e.pixel_to_world(10, 10, camera="nope"), ValueError, r"unknown `camera` 'nope'; cameras: \["),
+        (lambda e: e.render_rgbd("nope"), ValueError, "unknown `camera` 'nope'; cameras: .*agentview"),
+        (lambda e: e.render_rgbd(3), TypeError, "camera"),
+        (lambda e: e.world_to_pixel([np.nan, 0.0, 0.0]), ValueError, "point"),
+    ],
+)
+def test_bad_pixels_depths_and_cameras_are_refused(
+    rgbd_env: RobosuiteEnv, call: Any, error: type[Exception], match: str
+) -> None:
+    with pytest.raises(error, match=match):
+        call(rgbd_env)
+
+
+def test_rgbd_needs_a_renderer_but_a_given_depth_does_not(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    base = envs["lift"].unwrapped  # render_mode=None
+    envs["lift"].reset(seed=0)
+    for call in (base.render_rgbd, lambda: base.pixel_to_world(10, 10)):
+        with pytest.raises(ValueError, match="render_mode='rgb_array'"):
+            call()
+    point = base.object_pos
+    u, v, z = base.world_to_pixel(point)
+    np.testing.assert_allclose(base.pixel_to_world(u, v, depth=z), point, atol=1e-9)
+
+
+def test_an_unknown_camera_is_refused_without_a_renderer_too() -> None:
+    with pytest.raises(ValueError, match=r"unknown `camera` 'nope'; cameras: .*agentview"):
+        RobosuiteEnv("lift", camera="nope")
 
 
 @pytest.mark.slow

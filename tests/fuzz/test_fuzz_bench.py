@@ -402,8 +402,10 @@ def _kill_case(rng: random.Random, workers: int) -> str:
 
 
 # ------------------------------------------------------------------------------------ the pass
-def test_fuzz_bench():
+def test_fuzz_bench(tmp_path, monkeypatch):
     from steer_envs.bench.suite import load_plugins
+
+    monkeypatch.chdir(tmp_path)  # junk `out` values such as "1" are relative folders: keep them out of the checkout
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
     load_plugins(["steer_bench_testplugin"])

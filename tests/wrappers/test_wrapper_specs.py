@@ -27,7 +27,12 @@ def _wrapper_classes() -> list[type]:
 
 def test_every_exported_wrapper_records_its_constructor_arguments() -> None:
     classes = _wrapper_classes()
-    assert {c.__name__ for c in classes} == {"SteeringWrapper", "LTLReplanWrapper", "DSModulationWrapper"}
+    assert {c.__name__ for c in classes} == {
+        "SteeringWrapper",
+        "LTLReplanWrapper",
+        "DSModulationWrapper",
+        "ArmPerturbationWrapper",
+    }
     for cls in classes:
         assert issubclass(cls, gym.utils.RecordConstructorArgs), cls.__name__
 

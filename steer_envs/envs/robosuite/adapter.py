@@ -13,6 +13,11 @@ by robosuite to +-0.05 m, +-0.5 rad per step) and the gripper (+1 closes).
 Reward: 1 on success (robosuite's sparse reward), which also terminates the
 episode; the step limit is the registry's TimeLimit (robosuite's own
 ``horizon`` is off: ``ignore_done=True``).
+
+Cameras: ``render`` gives RGB frames, :meth:`RobosuiteEnv.render_rgbd` RGB and a
+metric depth map from any camera of the model; :meth:`RobosuiteEnv.world_to_pixel`
+and :meth:`RobosuiteEnv.pixel_to_world` map between world points and pixels of
+those frames (conventions in :mod:`steer_envs.envs.robosuite.camera`).
 """
 
 from __future__ import annotations
@@ -27,11 +32,12 @@ import numpy as np
 from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
-from steer_envs.core.validation import boolean, integer, one_of, real_array
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
 from steer_envs.envs.kinematic import _check_action, check_options, check_render_mode, check_seed
+from steer_envs.envs.robosuite import camera as cam
 from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
 
-__all__ = ["PERTURB_MAX_STEPS", "PERTURB_TOLERANCE", "ROBOT_KEYS", "RobosuiteEnv"]
+__all__ = ["GRASP_HOLD_STEPS", "PERTURB_MAX_STEPS", "PERTURB_TOLERANCE", "ROBOT_KEYS", "RobosuiteEnv"]
 
 #: robot observation keys, in observation order (the task's object keys follow).
 ROBOT_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos")
@@ -40,6 +46,9 @@ PERTURB_TOLERANCE = 0.005
 #: ... or for at most this many control steps (0.05 s each).
 PERTURB_MAX_STEPS = 40
 _REST_MARGIN = 0.01  # m above the rest height that count as "in the air" (held latch, Lift's `lifted`)
+#: the held latch sets once a grasp has lasted this many control steps (a one-step touch of both pads
+#: while the fingers close on an object resting on the table is no grasp); 1 sets it at the first touch.
+GRASP_HOLD_STEPS = 2
 _SNAP_ITERS = 100
 #: bound of every observation entry (positions in m lie within ~2 m of the origin; quats, gripper qpos within 1).
 OBS_BOUND = 10.0
@@ -63,7 +72,8 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         task: the task name, one of :data:`steer_envs.envs.robosuite.tasks.TASK_NAMES`.
         render_mode: ``"rgb_array"`` (an offscreen renderer is built) or None (no renderer).
-        camera: robosuite camera rendered by ``render`` (e.g. ``"agentview"``, ``"frontview"``).
+        camera: robosuite camera rendered by ``render`` and the default camera of the RGB-D and
+            pixel methods (e.g. ``"agentview"``, ``"frontview"``; :attr:`camera_names` lists the model's).
         render_size: rendered frames are ``render_size x render_size`` pixels, an int in [16, 2048]
             (the library's convention).
         perturb_exact: after the OSC steps of ``perturb``, set the arm joints kinematically
@@ -73,7 +83,8 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
 
         fast_render: with ``render_mode="rgb_array"``, render without multisampling,
             reflections and skybox (robosuite's defaults are slow on a CPU renderer such as
-            OSMesa); False keeps robosuite's look.
+            OSMesa); False keeps robosuite's look. It applies to ``render`` and
+            :meth:`render_rgbd` alike (the depth buffer is rebuilt with the colour buffer).
 
     Frames are flipped to the image convention (row 0 at the top). The model is
     built with robosuite's seed 0, so every instance is the same model (Lift's
@@ -136,11 +147,14 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
                 ignore_done=True,
                 seed=0,
             )
-        if self.render_mode is not None and camera not in self.rs_env.sim.model.camera_names:
-            raise ValueError(
-                f"{owner}: unknown `camera` {camera!r}; cameras: {list(self.rs_env.sim.model.camera_names)}"
-            )
         rs = self.rs_env
+        #: the model's cameras (``render`` uses ``camera``; the RGB-D and pixel methods take any of these)
+        self.camera_names: tuple[str, ...] = tuple(rs.sim.model.camera_names)
+        try:
+            self._camera(camera, owner)
+        except ValueError:
+            rs.close()  # the renderer, if one was built
+            raise
         if self.render_mode is not None and self.fast_render:
             self._fast_render()
         self._robot = rs.robots[0]
@@ -153,11 +167,13 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
             self._object = rs.objects[rs.object_id]
         else:
             self._object = rs.nuts[rs.nut_id]
+        self._object_geoms, self._pad_geoms = self._grasp_masks()
         self.robosuite_obs: dict[str, np.ndarray] = rs.reset()
         dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
         self._held = False
+        self._grasp_start: float | None = None  # sim time of the first reading of the current grasp
         self._rest_z = 0.0
         self._mode = 0
         self._gripper = -1.0
@@ -183,17 +199,54 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _begin(self) -> None:
         self._held = False
+        self._grasp_start = None
         self._rest_z = float(self.object_pos[2])
         self._gripper = -1.0
         self._mode = self.task.mode_index(self.task.mode_of(self._sensors()))
 
     # --------------------------------------------------------------- sensors
+    def _grasp_masks(self) -> tuple[np.ndarray, tuple[tuple[np.ndarray, ...], ...]]:
+        """Geom-id masks of the object's contact geoms and of each arm's finger-pad groups (see :meth:`_grasped`)."""
+        model = self.rs_env.sim.model
+
+        def mask(names: Any) -> np.ndarray:
+            names = [names] if isinstance(names, str) else list(names)
+            out = np.zeros(model.ngeom, dtype=bool)
+            for i in range(model.ngeom):
+                out[i] = model.geom_id2name(i) in names
+            return out
+
+        pads = tuple(
+            (mask(g.important_geoms["left_fingerpad"]), mask(g.important_geoms["right_fingerpad"]))
+            for g in self._robot.gripper.values()
+        )
+        return mask(self._object.contact_geoms), pads
+
+    def _grasped(self) -> bool:
+        """robosuite's ``_check_grasp(gripper, object)``, by geom ids over the contact arrays.
+
+        Grasped: for some arm, each finger-pad group touches one of the object's
+        contact geoms. robosuite's own check looks every contact's geom names up
+        in Python lists, several times per contact; the masks give the same
+        answer without the names.
+        """
+        contact = self.rs_env.sim.data._data.contact
+        g1, g2 = contact.geom1, contact.geom2
+        if g1.size == 0:
+            return False
+        obj1, obj2 = self._object_geoms[g1], self._object_geoms[g2]
+        return any(all(bool(np.any((pad[g1] & obj2) | (obj1 & pad[g2]))) for pad in pads) for pads in self._pad_geoms)
+
     def _sensors(self) -> dict[str, bool]:
         rs = self.rs_env
         pos = self.object_pos
-        grasped = bool(rs._check_grasp(gripper=self._robot.gripper, object_geoms=self._object))
+        grasped = self._grasped()
         in_air = pos[2] > self._rest_z + _REST_MARGIN
-        self._held = grasped or (self._held and in_air)
+        # control steps the grasp has lasted, from sim time (a second reading in the same step counts once)
+        now = float(rs.sim.data.time)
+        self._grasp_start = (now if self._grasp_start is None else self._grasp_start) if grasped else None
+        lasted = 0 if self._grasp_start is None else round((now - self._grasp_start) * self.control_freq) + 1
+        self._held = lasted >= GRASP_HOLD_STEPS or (self._held and (grasped or in_air))
         if not self._held:
             self._rest_z = min(self._rest_z, float(pos[2]))
         self._success = bool(rs._check_success())
@@ -330,6 +383,90 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
             return None
         frame = self.rs_env.sim.render(camera_name=self.camera, width=self.render_size, height=self.render_size)
         return np.ascontiguousarray(frame[::-1])
+
+    def _camera(self, camera: Any, owner: str) -> str:
+        """``camera`` (None: the env's ``camera``) checked against the model's cameras."""
+        name = self.camera if camera is None else camera
+        if not isinstance(name, str):
+            raise TypeError(f"{owner}: `camera` must be a str or None, got {describe(name)}")
+        if name not in self.camera_names:
+            raise ValueError(f"{owner}: unknown `camera` {name!r}; cameras: {list(self.camera_names)}")
+        return name
+
+    def render_rgbd(self, camera: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """An RGB frame (uint8, ``(H, W, 3)``) and its depth map (float32 metres, ``(H, W)``) from ``camera``.
+
+        ``camera``: any camera of the model (:attr:`camera_names`; None: the
+        env's ``camera``). Both are ``render_size x render_size`` in image
+        convention (row 0 at the top, like ``render``); depth is the distance
+        along the camera's optical axis, converted from MuJoCo's normalised
+        depth buffer (robosuite's ``get_real_depth_map``). Needs
+        ``render_mode="rgb_array"`` (the offscreen renderer).
+        """
+        owner = f"{type(self).__name__}.render_rgbd"
+        name = self._camera(camera, owner)
+        self._need_renderer(owner)
+        from robosuite.utils.camera_utils import get_real_depth_map
+
+        sim = self.rs_env.sim
+        rgb, depth = sim.render(camera_name=name, width=self.render_size, height=self.render_size, depth=True)
+        metres = get_real_depth_map(sim, depth[::-1])
+        return np.ascontiguousarray(rgb[::-1]), np.ascontiguousarray(metres, dtype=np.float32)
+
+    def _need_renderer(self, owner: str) -> None:
+        if self.render_mode is None:
+            raise ValueError(
+                f"{owner} needs an offscreen renderer: make the env with render_mode='rgb_array' "
+                "(this one has render_mode=None)"
+            )
+
+    def camera_matrix(self, camera: str | None = None) -> np.ndarray:
+        """The 4x4 world-to-image matrix of ``camera`` for a ``render_size`` frame (robosuite's, at the current state).
+
+        It maps a world point ``p`` to ``(x z, y z, z, 1)``; see
+        :mod:`steer_envs.envs.robosuite.camera` for the pixel conventions.
+        """
+        name = self._camera(camera, f"{type(self).__name__}.camera_matrix")
+        from robosuite.utils.camera_utils import get_camera_transform_matrix
+
+        size = self.render_size
+        return np.asarray(get_camera_transform_matrix(self.rs_env.sim, name, size, size), dtype=np.float64)
+
+    def world_to_pixel(self, point: Any, *, camera: str | None = None) -> np.ndarray:
+        """``(u, v, depth)`` of a world point (3 finite reals, m) in a frame of ``camera``.
+
+        Column ``u`` and row ``v`` in image convention (integers are pixel
+        centres; the point lies in pixel ``(round(v), round(u))`` when inside the
+        frame), ``depth`` its distance along the optical axis (m). Points outside
+        the frame are not clipped. No renderer needed.
+        """
+        owner = f"{type(self).__name__}.world_to_pixel"
+        p = real_array(point, "point", shape=(3,), owner=owner)
+        return cam.world_to_pixel(p, self.camera_matrix(self._camera(camera, owner)))
+
+    def pixel_to_world(
+        self, u: float, v: float, *, camera: str | None = None, depth: float | None = None
+    ) -> np.ndarray:
+        """The world point (3,) seen at column ``u``, row ``v`` of a ``render_size`` frame of ``camera``.
+
+        ``u``, ``v``: reals in ``[0, render_size)``, image convention (row 0 at
+        the top; integers are pixel centres). ``depth``: the point's distance
+        along the optical axis (m, finite, > 0); None reads it from a fresh
+        depth render at the nearest pixel (needs ``render_mode="rgb_array"``),
+        so the point is the first surface the pixel sees.
+        """
+        owner = f"{type(self).__name__}.pixel_to_world"
+        size = self.render_size
+        u = real_scalar(u, "u", low=0.0, high=size, high_inclusive=False, owner=owner)
+        v = real_scalar(v, "v", low=0.0, high=size, high_inclusive=False, owner=owner)
+        name = self._camera(camera, owner)
+        if depth is None:
+            self._need_renderer(owner)
+            row, col = cam.nearest_pixel(u, v, size)
+            z = float(self.render_rgbd(name)[1][row, col])
+        else:
+            z = real_scalar(depth, "depth", low=0.0, low_inclusive=False, owner=owner)
+        return cam.pixel_to_world(u, v, z, self.camera_matrix(name))
 
     def close(self) -> None:
         """Close robosuite's env (its renderer)."""

@@ -9,9 +9,12 @@ Ground-truth modes (thesis appendix "Heuristic Rules for Mode Family
 Groundtruth in RoboSuite") are labelled from sensor APs, so
 ``task.mode_of(info["sensors"]) == info["mode_name"]`` always holds:
 
-- ``held``: latched. Set when both finger pads touch the object
-  (robosuite's ``_check_grasp``); it stays set while the object is grasped *or*
-  still in the air (a momentary slip of the fingers in transport is not a
+- ``held``: latched. Set when both finger pads have touched the object
+  (robosuite's ``_check_grasp``) for two consecutive control steps
+  (``adapter.GRASP_HOLD_STEPS``: a one-step touch of both pads while the
+  fingers close on an object on the table is no grasp, and would otherwise
+  read as a grasp dropped at once); it stays set while the object is grasped
+  *or* still in the air (a momentary slip of the fingers in transport is not a
   new reach); it clears when the object is not grasped and rests again
   (less than 1 cm above its height at reset).
 - Lift: ``lifted`` (cube 1 cm above its rest height), ``at_height`` (robosuite's

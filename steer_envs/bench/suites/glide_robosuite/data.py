@@ -1,0 +1,115 @@
+"""GLiDE's robosuite data: one shard per demonstration (the demo and its perturbed replays), then one data set.
+
+A shard is the unit of work of the ``glide-robosuite-data`` suite (one trial =
+one task x one demo index), so generation runs through the bench executors
+(local processes or Ray), resumes where it stopped (a shard on disk is never
+rebuilt) and shows the runner's progress bar. :func:`task_dataset` reads a
+task's shards (building any missing one in-process) and writes the merged data
+set atomically beside them.
+
+Shard ``i`` of a task: the scripted expert from reset seed ``i``; if ``i <
+replay_demos``, ``replays_per_demo`` perturbed replays of it (drawn from
+``default_rng([i, 7])`` by :func:`~steer_envs.data.robosuite_replays.sample_perturbation`)
+and an early-terminated copy of every successful one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from steer_envs.data import robosuite_replays as rr
+from steer_envs.io import DatasetError
+
+#: bump when shard contents change for the same settings (old shards are then not reused).
+SHARD_VERSION = 2
+
+
+@dataclass(frozen=True)
+class ShardSettings:
+    """What one shard is built from (its file name hashes these)."""
+
+    task: str
+    index: int
+    replay_demos: int
+    replays_per_demo: int
+    truncated_copies: bool = True
+
+    @property
+    def has_replays(self) -> bool:
+        return self.index < self.replay_demos
+
+    def file_name(self) -> str:
+        key = {
+            "v": SHARD_VERSION,
+            "replays": self.replays_per_demo if self.has_replays else 0,
+            "truncated": self.truncated_copies and self.has_replays,
+        }
+        digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
+        return f"{self.task}-demo{self.index:04d}-{digest}.npz"
+
+
+def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv | None = None) -> list[rr.ArmTrajectory]:
+    """The demo of ``settings.index`` and (when it has replays) its perturbed replays and their truncated copies."""
+    env = env or rr.make_arm_env(settings.task)
+    demo = rr.record_demo(env, settings.index)
+    out = [demo]
+    if not (settings.has_replays and demo.success):
+        return out
+    rng = np.random.default_rng([settings.index, 7])
+    for _ in range(settings.replays_per_demo):
+        r = rr.replay(env, demo, rr.sample_perturbation(demo, rng), source=settings.index)
+        out.append(r)
+        if settings.truncated_copies and r.success:
+            out.append(rr.early_terminated(r, rng))
+    return out
+
+
+def shard_path(cache_dir: str | Path, settings: ShardSettings) -> Path:
+    return Path(cache_dir) / "shards" / settings.file_name()
+
+
+def ensure_shard(
+    cache_dir: str | Path, settings: ShardSettings, env: rr.RobosuiteEnv | None = None
+) -> tuple[Path, bool]:
+    """The shard's file, built and written atomically unless a readable one exists; (path, built now)."""
+    path = shard_path(cache_dir, settings)
+    if path.exists():
+        try:
+            rr.load_trajectories(path)
+            return path, False
+        except DatasetError:
+            pass  # unreadable (e.g. written by an older format): rebuild
+    trajs = build_shard(settings, env)
+    rr.save_trajectories(path, trajs, meta={"shard": asdict(settings)})
+    return path, True
+
+
+def task_dataset(
+    cache_dir: str | Path, task: str, n_demos: int, replay_demos: int, replays_per_demo: int
+) -> list[rr.ArmTrajectory]:
+    """Every trajectory of ``task``'s shards ``0 .. n_demos - 1`` in shard order (missing shards built here)."""
+    out: list[rr.ArmTrajectory] = []
+    env = None
+    for i in range(n_demos):
+        settings = ShardSettings(task, i, replay_demos, replays_per_demo)
+        path = shard_path(cache_dir, settings)
+        if not path.exists():
+            env = env or rr.make_arm_env(task)
+        ensure_shard(cache_dir, settings, env)
+        out += rr.load_trajectories(path)[0]
+    if env is not None:
+        env.close()
+    return out
+
+
+def split(trajectories: Sequence[rr.ArmTrajectory]) -> tuple[list[rr.ArmTrajectory], list[rr.ArmTrajectory]]:
+    """(successful demos, replays incl. truncated copies)."""
+    demos = [t for t in trajectories if t.perturbation.kind == "demo" and t.source < 0 and t.success]
+    replays = [t for t in trajectories if t.source >= 0]
+    return demos, replays

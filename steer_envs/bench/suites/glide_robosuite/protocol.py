@@ -1,0 +1,246 @@
+"""GLiDE on the robosuite arms: mode grounding (thesis Table 4.2) from demos and perturbed replays.
+
+The classifier (:func:`~steer_envs.baselines.glide.classifier.train_mode_classifier`)
+sees only the features the recorded LLM response selected
+(``baselines/glide/responses/robosuite_<task>.txt``, the thesis appendix), the
+success labels and the feasibility matrix of the task's forward chain; it is
+scored by the fraction of demonstration states whose predicted mode is the
+ground truth's (:mod:`steer_envs.envs.robosuite.tasks`).
+
+Choices, and why:
+
+* The number of modes ``K`` is the ground truth's (3, 3, 4). The recorded Can
+  response plans four steps (a separate "close the gripper" step the ground
+  truth folds into transport); the thesis scores Can against three modes.
+* Feasibility (:func:`manipulation_feasibility`): the public code's forward
+  matrix makes every step back free, which cannot explain a replay that fails
+  because the object was dropped (transport -> reach); the plan's sequential
+  structure says a step back to the first mode loses the object.
+* ``L_dyn`` models the position features only (``GlideTrainConfig.dyn_columns``):
+  divided by their tiny spread, the quaternions' controller jitter outweighs
+  the positions, whose dynamics (the object moving with the gripper or not)
+  tell reach from transport.
+* The early-terminated copies are generated but not trained on by default
+  (``train_truncated``): ``L_init`` / ``L_final`` hold the first and last state
+  of *every* trajectory to the plan's first and last mode (thesis §4.2), which
+  a copy cut mid-task contradicts.
+* Variants: ``full`` (``L_under``, eq. 4.3), ``no_dynamics`` (``L_dyn`` off),
+  ``no_prediction`` (``L_succ`` and ``L_fail`` off), ``no_feature_selection``
+  (every available feature), ``kmeans`` (k-means++ on the standardised selected
+  features of the demos, clusters ordered in time).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.data import robosuite_replays as rr
+
+#: thesis Table 4.2: variant -> task -> accuracy against the ground-truth modes per demo sample.
+THESIS_TABLE_4_2: Mapping[str, Mapping[str, float]] = {
+    "full": {"can": 0.83, "lift": 0.83, "square": 0.67},
+    "no_dynamics": {"can": 0.67, "lift": 0.75, "square": 0.46},
+    "no_prediction": {"can": 0.67, "lift": 0.68, "square": 0.56},
+    "no_feature_selection": {"can": 0.55, "lift": 0.70, "square": 0.57},
+    "kmeans": {"can": 0.66, "lift": 0.56, "square": 0.54},
+}
+VARIANTS: tuple[str, ...] = tuple(THESIS_TABLE_4_2)
+
+
+@cache
+def recorded_plan(task: str) -> Any:
+    """The thesis appendix's recorded LLM response for ``task``, parsed (:class:`GlidePlan`)."""
+    from steer_envs.baselines.glide import llm_plan
+    from steer_envs.baselines.glide.llm_plan import parse_plan_response
+
+    path = Path(llm_plan.__file__).resolve().parent / "responses" / f"robosuite_{task}.txt"
+    return parse_plan_response(path.read_text())
+
+
+def selected_features(task: str, variant: str) -> tuple[str, ...]:
+    """The features the variant's classifier sees: the LLM's selection, or all (``no_feature_selection``)."""
+    if variant == "no_feature_selection":
+        return rr.feature_names(task)
+    return tuple(recorded_plan(task).features)
+
+
+def manipulation_feasibility(k: int) -> np.ndarray:
+    """GLiDE's ``F`` for a ``k``-step pick-and-place chain.
+
+    Staying, one step forward and a step back that keeps the object (e.g.
+    hover -> transport) are free; skipping ahead costs the missing steps
+    (``-(j - i - 1)``); going back to the first mode (the object lost) costs 1.
+
+    >>> manipulation_feasibility(3).tolist()
+    [[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
+    """
+    i, j = np.indices((k, k))
+    f = np.where(j > i + 1, -(j - i - 1), 0).astype(np.float64)
+    f[1:, 0] = -1.0
+    return f
+
+
+def dyn_columns(task: str, names: Sequence[str]) -> tuple[int, ...]:
+    """Positions of the non-quaternion features among ``names`` in the classifier's input (its ``dyn_columns``).
+
+    >>> dyn_columns("lift", ["block_to_robot0_eef_pos", "block_to_robot0_eef_quat", "gripper_state"])
+    (0, 1, 2, 7, 8)
+    """
+    sizes = dict(rr.FEATURES[task])
+    out: list[int] = []
+    start = 0
+    for n in names:
+        if not n.endswith("quat"):
+            out += range(start, start + sizes[n])
+        start += sizes[n]
+    return tuple(out)
+
+
+def num_modes(task: str) -> int:
+    from steer_envs.envs.robosuite.tasks import TASKS
+
+    return len(TASKS[task].modes)
+
+
+@dataclass(frozen=True)
+class GroundingSetup:
+    """Data and training sizes of one grounding trial.
+
+    ``stride``: the classifier sees every ``stride``-th state (20 Hz control
+    moves little per step; the losses cost time per state). ``extra``: further
+    :class:`GlideTrainConfig` fields.
+    """
+
+    n_demos: int = 50
+    replay_demos: int = 20
+    replays_per_demo: int = 10
+    epochs: int = 1000
+    n_heads: int = 3
+    dyn_weight: float = 100.0
+    stride: int = 6
+    train_truncated: bool = False
+    weights: Any = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+
+def _weights(setup: GroundingSetup, variant: str) -> Any:
+    from steer_envs.baselines.glide.classifier import GlideLossWeights
+
+    base = setup.weights or GlideLossWeights(dyn=setup.dyn_weight)
+    if variant == "no_dynamics":
+        return base.without("dyn")
+    if variant == "no_prediction":
+        return base.without("succ", "fail")
+    return base
+
+
+@dataclass
+class _Standardized:
+    """A predictor over standardised features (the k-means baseline's clusters live in standard units)."""
+
+    inner: Any
+    mean: np.ndarray
+    std: np.ndarray
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        return np.asarray(self.inner.predict((np.asarray(states, dtype=np.float64) - self.mean) / self.std))
+
+
+def train_predictor(
+    task: str,
+    variant: str,
+    trajectories: Sequence[rr.ArmTrajectory],
+    *,
+    seed: int = 0,
+    setup: GroundingSetup | None = None,
+) -> tuple[Any, dict[str, Any]]:
+    """Fit ``variant``'s mode predictor on ``trajectories`` (demos + replays of one task).
+
+    Returns the predictor (``predict(features[:, cols])`` with ``cols`` the
+    variant's :func:`selected_features`) and a record (training time, counts,
+    head losses).
+    """
+    from steer_envs.baselines.glide.classifier import GlideTrainConfig, train_mode_classifier
+    from steer_envs.baselines.glide.kmeans import KMeansSegmentation
+    from steer_envs.bench.suites.glide_robosuite.data import split
+
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; expected one of {VARIANTS}")
+    setup = setup or GroundingSetup()
+    k = num_modes(task)
+    names = selected_features(task, variant)
+    cols = rr.feature_columns(task, names)
+    demos, replays = split(trajectories)
+    if not demos:
+        raise ValueError(f"no successful demonstration of {task!r} among the {len(trajectories)} trajectories")
+    start = time.perf_counter()
+    info: dict[str, Any] = {"n_demos": len(demos), "n_replays": len(replays)}
+    predictor: Any
+    if variant == "kmeans":
+        x = np.concatenate([d.features[:, cols] for d in demos]).astype(np.float64)
+        mean, std = x.mean(0), x.std(0) + 1e-6
+        km = KMeansSegmentation(k, seed=seed).fit([(d.features[:, cols] - mean) / std for d in demos])
+        predictor = _Standardized(km, mean, std)
+    else:
+        train_demos = [d for d in demos if d.seed < setup.replay_demos]
+        train = train_demos + [r for r in replays if setup.train_truncated or r.perturbation.kind != "truncated"]
+        config = GlideTrainConfig(
+            epochs=setup.epochs,
+            n_heads=setup.n_heads,
+            stride=setup.stride,
+            seed=seed,
+            dyn_columns=dyn_columns(task, names),
+        )
+        config = replace(config, **dict(setup.extra))
+        result = train_mode_classifier(
+            [t.features[:, cols] for t in train],
+            [t.success for t in train],
+            manipulation_feasibility(k),
+            weights=_weights(setup, variant),
+            config=config,
+        )
+        predictor = result.classifier
+        info["head_losses"] = result.head_losses
+        info["n_train"] = len(train)
+        info["raw_success_rate"] = float(np.mean([t.success for t in replays])) if replays else None
+    info["train_seconds"] = time.perf_counter() - start
+    return predictor, info
+
+
+def grounding(
+    task: str,
+    variant: str,
+    trajectories: Sequence[rr.ArmTrajectory],
+    *,
+    seed: int = 0,
+    setup: GroundingSetup | None = None,
+    keep: int = 0,
+) -> dict[str, Any]:
+    """Train ``variant`` on ``trajectories`` (demos + replays of one task) and score it on the demos.
+
+    Returns ``accuracy`` (all demo samples), ``accuracy_per_mode``, ``train_seconds``,
+    counts, and with ``keep > 0`` the predicted and true modes of the first ``keep`` demos.
+    """
+    from steer_envs.bench.suites.glide_robosuite.data import split
+
+    predictor, out = train_predictor(task, variant, trajectories, seed=seed, setup=setup)
+    k = num_modes(task)
+    cols = rr.feature_columns(task, selected_features(task, variant))
+    demos, _ = split(trajectories)
+    pred = [np.asarray(predictor.predict(d.features[:, cols])) for d in demos]
+    truth = [d.modes.astype(int) for d in demos]
+    p, t = np.concatenate(pred), np.concatenate(truth)
+    out["accuracy"] = float(np.mean(p == t))
+    out["accuracy_per_mode"] = [float(np.mean(p[t == m] == m)) if np.any(t == m) else None for m in range(k)]
+    if keep:
+        out["labels"] = [
+            {"pred": a.tolist(), "true": b.tolist()} for a, b in zip(pred[:keep], truth[:keep], strict=True)
+        ]
+    return out

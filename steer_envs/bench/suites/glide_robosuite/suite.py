@@ -1,0 +1,391 @@
+"""GLiDE suites on the robosuite arms (thesis §4.4): replay data, Table 4.2 (grounding), Table 4.3 (policies).
+
+* ``glide-robosuite-data``: one trial = one task x one demo index (the seed):
+  the expert's demo from that reset seed and, for the first ``replay_demos``
+  indices, ``replays_per_demo`` perturbed replays, written as one shard under
+  ``cache_dir`` (:mod:`~steer_envs.bench.suites.glide_robosuite.data`). Running
+  it through ``steer-bench run`` gives generation in parallel (``--workers``,
+  ``--executor ray``), resumption (a finished shard is never rebuilt) and the
+  runner's progress bar. The other two suites build any missing shard
+  themselves, one process per trial.
+* ``glide-robosuite-grounding``: one trial = one task x one variant (``full``
+  loss, ``no_dynamics``, ``no_prediction``, ``no_feature_selection``,
+  ``kmeans``) x one training seed: the accuracy of the learned modes against
+  the ground truth over every demo sample, beside the thesis's Table 4.2.
+* ``glide-robosuite``: one trial = one task x one method (``bc``,
+  ``glide_bc``) x one training seed: success over ``n_episodes`` evaluation
+  episodes without and with the evaluation perturbations, beside Table 4.3.
+
+``cache_dir`` defaults to ``~/.cache/steer-envs/glide-robosuite``. Trials run
+with one BLAS and one torch thread.
+
+>>> GroundingParams(epochs=0)
+Traceback (most recent call last):
+ValueError: glide-robosuite-grounding: parameter 'epochs' must be >= 1, got 0
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.utils.threads import single_threaded
+
+DATA_SUITE = "glide-robosuite-data"
+GROUNDING_SUITE = "glide-robosuite-grounding"
+POLICY_SUITE = "glide-robosuite"
+TASK_OF_ENV: Mapping[str, str] = {
+    "steer_envs/Can-v0": "can",
+    "steer_envs/Lift-v0": "lift",
+    "steer_envs/Square-v0": "square",
+}
+ENV_IDS: tuple[str, ...] = tuple(TASK_OF_ENV)
+#: thesis Table 4.2 (the same numbers as ``protocol.THESIS_TABLE_4_2``; kept here so declaring imports no torch).
+THESIS_TABLE_4_2: Mapping[str, Mapping[str, float]] = {
+    "full": {"can": 0.83, "lift": 0.83, "square": 0.67},
+    "no_dynamics": {"can": 0.67, "lift": 0.75, "square": 0.46},
+    "no_prediction": {"can": 0.67, "lift": 0.68, "square": 0.56},
+    "no_feature_selection": {"can": 0.55, "lift": 0.70, "square": 0.57},
+    "kmeans": {"can": 0.66, "lift": 0.56, "square": 0.54},
+}
+VARIANTS: tuple[str, ...] = tuple(THESIS_TABLE_4_2)
+#: thesis Table 4.3: method -> task -> (success, success +perturb).
+THESIS_TABLE_4_3: Mapping[str, Mapping[str, tuple[float, float]]] = {
+    "bc": {"can": (0.93, 0.20), "lift": (0.99, 0.18), "square": (0.38, 0.03)},
+    "glide_bc": {"can": (0.85, 0.40), "lift": (0.99, 0.39), "square": (0.25, 0.15)},
+}
+METHODS: tuple[str, ...] = tuple(THESIS_TABLE_4_3)
+
+
+def default_cache_dir() -> str:
+    """``$XDG_CACHE_HOME/steer-envs/glide-robosuite`` (``~/.cache`` when unset)."""
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return str(Path(root) / "steer-envs" / "glide-robosuite")
+
+
+def _task(env: str | None) -> str:
+    if env is None or env not in TASK_OF_ENV:
+        raise ValueError(f"glide-robosuite suites: unknown env {env!r}; expected one of {list(ENV_IDS)}")
+    return TASK_OF_ENV[env]
+
+
+@dataclass(frozen=True)
+class DataParams(SuiteParams):
+    """What the replay data are built from: demos with replays, replays per demo, the cache folder ("": default)."""
+
+    suite_name: ClassVar[str] = DATA_SUITE
+    replay_demos: int = 20
+    replays_per_demo: int = 10
+    cache_dir: str = ""
+
+    def __post_init__(self) -> None:
+        self.require_at_least(0, "replay_demos")
+        self.require_at_least(1, "replays_per_demo")
+        self.require_at_most(10_000, "replay_demos", "replays_per_demo")
+
+    @property
+    def cache(self) -> str:
+        return self.cache_dir or default_cache_dir()
+
+
+@dataclass(frozen=True)
+class GroundingParams(DataParams):
+    """Parameters of ``glide-robosuite-grounding``: the data (``n_demos`` demos scored), the classifier's training."""
+
+    suite_name: ClassVar[str] = GROUNDING_SUITE
+    n_demos: int = 50
+    epochs: int = 1000
+    n_heads: int = 3
+    stride: int = 6
+    dyn_weight: float = 100.0
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.require_at_least(1, "n_demos", "epochs", "n_heads", "stride")
+        self.require_at_least(0, "plot_seeds")
+        self.require_at_most(10_000, "n_demos")
+        if not self.dyn_weight >= 0:
+            raise ValueError(f"{self.suite_name}: parameter 'dyn_weight' must be >= 0, got {self.dyn_weight}")
+
+    def setup(self) -> Any:
+        from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup
+
+        return GroundingSetup(
+            n_demos=self.n_demos,
+            replay_demos=self.replay_demos,
+            replays_per_demo=self.replays_per_demo,
+            epochs=self.epochs,
+            n_heads=self.n_heads,
+            stride=self.stride,
+            dyn_weight=self.dyn_weight,
+        )
+
+
+# ------------------------------------------------------------------ glide-robosuite-data
+def run_data_trial(trial: Trial) -> TrialResult:
+    """One task x demo index: build (or find) its shard."""
+    import numpy as np
+
+    from steer_envs.bench.suites.glide_robosuite.data import ShardSettings, ensure_shard
+    from steer_envs.data.robosuite_replays import load_trajectories
+
+    task = _task(trial.env)
+    params = DataParams.from_json(trial.params)
+    settings = ShardSettings(task, trial.seed, params.replay_demos, params.replays_per_demo)
+    with single_threaded():
+        path, built = ensure_shard(params.cache, settings)
+    trajs, _ = load_trajectories(path)
+    replays = [t for t in trajs if t.source >= 0 and t.perturbation.kind != "truncated"]
+    metrics = {
+        "demo_success": trajs[0].success,
+        "replays": len(replays),
+        "replay_success": float(np.mean([t.success for t in replays])) if replays else None,
+        "built": built,
+    }
+    return TrialResult(metrics, {"shard": str(path)})
+
+
+register_suite(
+    Suite(
+        name=DATA_SUITE,
+        description=(
+            "GLiDE replay data on Lift/Can/Square: per demo index (the seed) the expert's demo and its perturbed "
+            "replays, one shard each under cache_dir (resumable; --workers runs shards in parallel)."
+        ),
+        metrics=(
+            Metric("demo_success", "the expert's demo succeeded"),
+            Metric("replays", "perturbed replays in the shard (truncated copies not counted)", fmt=".0f"),
+            Metric("replay_success", "replays labelled successful", fmt=".2f"),
+            Metric("built", "the shard was built by this trial (0: found on disk)", kind="timing", fmt=".0f"),
+        ),
+        run_trial=run_data_trial,
+        envs=ENV_IDS,
+        params=DataParams(),
+        default_seeds=50,
+    )
+)
+
+
+# ------------------------------------------------------------ glide-robosuite-grounding
+def run_grounding_trial(trial: Trial) -> TrialResult:
+    """One task x variant x training seed: accuracy of the learned modes on every demo sample."""
+    from steer_envs.bench.suites.glide_robosuite.data import task_dataset
+    from steer_envs.bench.suites.glide_robosuite.protocol import grounding
+
+    task = _task(trial.env)
+    if trial.method not in VARIANTS:
+        raise ValueError(f"{GROUNDING_SUITE}: unknown variant {trial.method!r}; expected one of {VARIANTS}")
+    params = GroundingParams.from_json(trial.params)
+    keep = 3 if trial.seed < params.plot_seeds else 0
+    with single_threaded():
+        trajs = task_dataset(params.cache, task, params.n_demos, params.replay_demos, params.replays_per_demo)
+        res = grounding(task, str(trial.method), trajs, seed=trial.seed, setup=params.setup(), keep=keep)
+    metrics = {
+        "accuracy": res["accuracy"],
+        "demo_modes_found": sum(a is not None and a > 0.5 for a in res["accuracy_per_mode"])
+        / len(res["accuracy_per_mode"]),
+        "train_seconds": res["train_seconds"],
+    }
+    extra = {k: v for k, v in res.items() if k not in metrics}
+    return TrialResult(metrics, extra)
+
+
+def grounding_findings(table: Any) -> list[Finding]:
+    """Thesis Table 4.2: the full loss reaches the thesis's accuracy on every task; every other variant is lower."""
+    claims = (
+        "the full loss reaches at least the thesis's accuracy on every task",
+        "every ablation and k-means score lower than the full loss on every task",
+    )
+    acc = {env: table.means("accuracy", VARIANTS, env) for env in ENV_IDS}
+    if any(v is None for v in acc.values()) or any(x is None for v in acc.values() for x in v.values()):
+        return [Finding(c, None) for c in claims]
+    full = {e: acc[e]["full"] for e in ENV_IDS}
+    first = Finding(
+        claims[0],
+        all(full[e] >= THESIS_TABLE_4_2["full"][_task(e)] for e in ENV_IDS),
+        ", ".join(f"{_task(e)} {full[e]:.2f} (thesis {THESIS_TABLE_4_2['full'][_task(e)]:.2f})" for e in ENV_IDS),
+    )
+    gaps = [(full[e] - acc[e][v], e, v) for e in ENV_IDS for v in VARIANTS if v != "full"]
+    gap, env, variant = min(gaps)
+    second = Finding(
+        claims[1],
+        gap > 0,
+        f"closest: {variant} on {_task(env)}, {acc[env][variant]:.3f} vs {full[env]:.3f}",
+    )
+    return [first, second]
+
+
+def plot_grounding(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
+    """Learned vs true modes along the first demos of each task (the full loss and k-means)."""
+    from steer_envs.bench.suites.glide_robosuite.plots import plot_mode_strips
+
+    return plot_mode_strips(records, out_dir, suite=suite.name)
+
+
+register_suite(
+    Suite(
+        name=GROUNDING_SUITE,
+        description=(
+            "GLiDE mode grounding on Lift/Can/Square (thesis Table 4.2): accuracy of the learned modes against the "
+            "ground truth per demo sample, full loss vs ablations and k-means; seeds are training seeds."
+        ),
+        metrics=(
+            Metric("accuracy", "demo samples whose learned mode is the ground truth's", fmt=".3f"),
+            Metric("demo_modes_found", "ground-truth modes recovered on more than half their samples", fmt=".2f"),
+            Metric(
+                "train_seconds",
+                "classifier training (or k-means) wall time (s)",
+                kind="timing",
+                higher_is_better=False,
+                fmt=".1f",
+            ),
+        ),
+        run_trial=run_grounding_trial,
+        envs=ENV_IDS,
+        methods=VARIANTS,
+        params=GroundingParams(),
+        default_seeds=1,
+        quick={"n_demos": 2, "replay_demos": 2, "replays_per_demo": 3, "epochs": 100, "plot_seeds": 1},
+        references=tuple(
+            Reference("accuracy", acc, env=env, method=variant, source="thesis Table 4.2")
+            for variant, by_task in THESIS_TABLE_4_2.items()
+            for env, acc in ((e, by_task[_task(e)]) for e in ENV_IDS)
+        ),
+        plot=plot_grounding,
+        findings=grounding_findings,
+    )
+)
+
+
+# ---------------------------------------------------------------------- glide-robosuite
+#: what GLiDE+BC segments the demos by: the trained GLiDE classifier, the k-means baseline, or the
+#: ground-truth modes (a stand-in that shows what a perfect grounding would give).
+PREDICTORS: tuple[str, ...] = ("classifier", "kmeans", "ground_truth")
+
+
+@dataclass(frozen=True)
+class PolicyParams(GroundingParams):
+    """Parameters of ``glide-robosuite`` (Table 4.3): the grounding's, the evaluation episodes, the predictor."""
+
+    suite_name: ClassVar[str] = POLICY_SUITE
+    n_episodes: int = 50
+    predictor: str = "classifier"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.require_at_least(1, "n_episodes")
+        self.require_at_most(100_000, "n_episodes")
+        self.require_in("predictor", PREDICTORS)
+
+
+def run_policy_trial(trial: Trial) -> TrialResult:
+    """One task x method x training seed: success without and with the "+p" perturbations (thesis Table 4.3)."""
+    from steer_envs.bench.suites.glide_robosuite.data import split, task_dataset
+    from steer_envs.bench.suites.glide_robosuite.policies import GROUND_TRUTH, KMeansModes, policy_trial
+    from steer_envs.bench.suites.glide_robosuite.protocol import train_predictor
+
+    task = _task(trial.env)
+    if trial.method not in METHODS:
+        raise ValueError(f"{POLICY_SUITE}: unknown method {trial.method!r}; expected one of {METHODS}")
+    params = PolicyParams.from_json(trial.params)
+    with single_threaded():
+        trajs = task_dataset(params.cache, task, params.n_demos, params.replay_demos, params.replays_per_demo)
+        demos, _ = split(trajs)
+        predictor: Any = GROUND_TRUTH
+        grounding_seconds = None
+        if trial.method == "glide_bc" and params.predictor == "classifier":
+            predictor, info = train_predictor(task, "full", trajs, seed=trial.seed, setup=params.setup())
+            grounding_seconds = info["train_seconds"]
+        elif trial.method == "glide_bc" and params.predictor == "kmeans":
+            predictor = KMeansModes(task, demos, seed=trial.seed)
+        res = policy_trial(
+            task,
+            str(trial.method),
+            trial.seed,
+            demos=demos,
+            predictor=predictor,
+            n_episodes=params.n_episodes,
+            perturbed="both",
+        )
+    clean, pert = res["eval"]["clean"], res["eval"]["perturbed"]
+    metrics = {
+        "success": clean["success_rate"],
+        "success_perturbed": pert["success_rate"],
+        "success_drop": clean["success_rate"] - pert["success_rate"],
+        "violation": clean["violation_rate"],
+        "violation_perturbed": pert["violation_rate"],
+        "train_seconds": res["train_seconds"] + (grounding_seconds or 0.0),
+        "eval_seconds": clean["eval_seconds"] + pert["eval_seconds"],
+    }
+    extra = {
+        "predictor": params.predictor if trial.method == "glide_bc" else None,
+        "grounding_seconds": grounding_seconds,
+        "clean": {k: clean[k] for k in ("mean_length", "episodes")},
+        "perturbed": {k: pert[k] for k in ("mean_length", "mean_perturbations", "episodes")},
+    }
+    return TrialResult(metrics, extra)
+
+
+def policy_findings(table: Any) -> list[Finding]:
+    """Thesis Table 4.3: GLiDE+BC loses less success under the perturbations than BC, on every task."""
+    claim = "GLiDE+BC loses less success under perturbation than BC on every task"
+    drops = {env: table.means("success_drop", METHODS, env) for env in ENV_IDS}
+    if any(v is None for v in drops.values()):
+        return [Finding(claim, None)]
+    detail = ", ".join(
+        f"{_task(e)} {drops[e]['glide_bc']:.2f} vs {drops[e]['bc']:.2f}"  # type: ignore[index]
+        for e in ENV_IDS
+    )
+    holds = all(drops[e]["glide_bc"] < drops[e]["bc"] for e in ENV_IDS)  # type: ignore[index]
+    return [Finding(claim, holds, detail + " (drop in success, GLiDE+BC vs BC)")]
+
+
+def _policy_references() -> tuple[Reference, ...]:
+    refs = []
+    for method, by_task in THESIS_TABLE_4_3.items():
+        for env in ENV_IDS:
+            plain, perturbed = by_task[_task(env)]
+            refs.append(Reference("success", plain, env=env, method=method, source="thesis Table 4.3"))
+            refs.append(Reference("success_perturbed", perturbed, env=env, method=method, source="thesis Table 4.3"))
+            refs.append(Reference("success_drop", plain - perturbed, env=env, method=method, source="thesis Table 4.3"))
+    return tuple(refs)
+
+
+register_suite(
+    Suite(
+        name=POLICY_SUITE,
+        description=(
+            "GLiDE on Lift/Can/Square (thesis Table 4.3): success of BC and GLiDE+BC over n_episodes episodes "
+            "without / with end-effector pushes and gripper openings; seeds are training seeds."
+        ),
+        metrics=(
+            Metric("success", "success rate, no perturbations", fmt=".2f"),
+            Metric("success_perturbed", "success rate with the evaluation perturbations (+p)", fmt=".2f"),
+            Metric("success_drop", "success lost to the perturbations", higher_is_better=False, fmt=".2f"),
+            Metric("violation", "episodes with an invalid mode transition, no perturbations", higher_is_better=False),
+            Metric("violation_perturbed", "episodes with an invalid mode transition, +p", higher_is_better=False),
+            Metric(
+                "train_seconds",
+                "training wall time (s): BC, or GLiDE's classifier plus the per-mode BCs",
+                kind="timing",
+                higher_is_better=False,
+                fmt=".1f",
+            ),
+            Metric("eval_seconds", "both evaluations' wall time (s)", kind="timing", higher_is_better=False, fmt=".1f"),
+        ),
+        run_trial=run_policy_trial,
+        envs=ENV_IDS,
+        methods=METHODS,
+        params=PolicyParams(),
+        trials_param="n_episodes",
+        default_seeds=1,
+        references=_policy_references(),
+        findings=policy_findings,
+    )
+)

@@ -1,0 +1,130 @@
+"""ArmPerturbationWrapper: the "+p" schedule (never in the quiet steps, at most N, seeded) and its arguments."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import steer_envs  # noqa: F401 - registers the ids
+
+pytest.importorskip("robosuite")
+
+from steer_envs.wrappers import ArmPerturbationWrapper
+
+LIFT = "steer_envs/Lift-v0"
+
+
+@pytest.fixture(scope="module")
+def lift() -> Iterator[gym.Env[Any, Any]]:
+    env = gym.make(LIFT)
+    yield env
+    env.close()
+
+
+def _run(env: ArmPerturbationWrapper, seed: int, steps: int, gripper: float = -1.0) -> list[dict[str, Any]]:
+    """``steps`` steps holding the arm still (gripper command ``gripper``); the infos."""
+    _, info = env.reset(seed=seed)
+    infos = [info]
+    action = np.zeros(7, dtype=np.float32)
+    action[6] = gripper
+    for _ in range(steps):
+        _, _, terminated, truncated, info = env.step(action)
+        infos.append(info)
+        if terminated or truncated:
+            break
+    return infos
+
+
+def test_never_in_the_quiet_steps_and_at_most_the_maximum(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, probability=0.6, max_perturbations=2, quiet_steps=10, max_episode_steps=24)
+    for seed in (0, 1, 2):
+        infos = _run(env, seed, 24)
+        assert 1 <= len(env.log) <= 2
+        for step, kind, value in env.log:
+            assert 1 <= step < 24 - 10
+            if kind == "gripper":
+                assert step + value <= 24 - 10  # the opening is over before the quiet steps
+        assert infos[-1]["perturbation_count"] == len(env.log)
+        assert not any(i["perturbed"] for i in infos[-10:])
+
+
+def test_pushes_move_the_eef_and_are_reported(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, probability=1.0, max_perturbations=1, gripper_fraction=0.0)
+    obs, _ = env.reset(seed=3)
+    floor = float(env.arm.object_pos[2])
+    obs, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))
+    assert info["perturbation"] == "push" and info["perturbed"] and info["perturbation_count"] == 1
+    ((step, kind, delta),) = env.log
+    assert (step, kind) == (1, "push") and 0.05 <= float(np.linalg.norm(delta)) <= 0.1
+    np.testing.assert_allclose(obs[:3], env.arm.state, atol=1e-6)  # the observation is the pushed state
+    assert env.arm.state[2] >= floor - 1e-6
+    _, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))
+    assert info["perturbation"] is None and not info["perturbed"]
+
+
+def test_gripper_openings_force_the_gripper_open(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, probability=1.0, max_perturbations=1, gripper_fraction=1.0, gripper_steps=(6, 6))
+    infos = _run(env, 0, 12, gripper=1.0)
+    assert env.log == [(1, "gripper", 6)]
+    forced = [bool(i.get("gripper_forced")) for i in infos[1:]]
+    assert forced == [False] + [True] * 6 + [False] * 5
+    assert infos[1]["perturbation"] == "gripper" and not infos[1]["perturbed"]
+
+
+def test_a_seed_replays_the_same_perturbations(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, probability=0.3, max_episode_steps=30)
+    _run(env, 7, 30)
+    first = [(s, k, np.asarray(v).tolist()) for s, k, v in env.log]
+    _run(env, 8, 30)
+    _run(env, 7, 30)
+    again = [(s, k, np.asarray(v).tolist()) for s, k, v in env.log]
+    assert first == again and first
+
+
+def test_the_spec_records_the_arguments(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, probability=0.2)
+    (spec,) = env.spec.additional_wrappers
+    assert spec.name == "ArmPerturbationWrapper" and spec.kwargs["probability"] == 0.2
+    assert env.max_episode_steps == 200  # the registry's Lift limit
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error"),
+    [
+        ({"probability": 1.5}, ValueError),
+        ({"probability": -0.1}, ValueError),
+        ({"probability": "0.1"}, TypeError),
+        ({"max_perturbations": -1}, ValueError),
+        ({"max_perturbations": 2.0}, TypeError),
+        ({"quiet_steps": -1}, ValueError),
+        ({"push_range": (0.1, 0.05)}, ValueError),
+        ({"push_range": (-0.1, 0.1)}, ValueError),
+        ({"push_range": 0.1}, TypeError),
+        ({"gripper_fraction": 2.0}, ValueError),
+        ({"gripper_steps": (0, 5)}, ValueError),
+        ({"gripper_steps": (9, 5)}, ValueError),
+        ({"gripper_steps": (5.0, 9)}, TypeError),
+        ({"max_episode_steps": 0}, ValueError),
+    ],
+)
+def test_bad_arguments_are_refused(lift: gym.Env[Any, Any], kwargs: dict[str, Any], error: type) -> None:
+    with pytest.raises(error):
+        ArmPerturbationWrapper(lift, **kwargs)
+
+
+def test_only_robosuite_envs_and_a_step_limit() -> None:
+    with pytest.raises(TypeError, match="RobosuiteEnv"):
+        ArmPerturbationWrapper(gym.make("steer_envs/SoupScoop-v0"))
+    from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+
+    raw = RobosuiteEnv("lift")
+    try:
+        with pytest.raises(ValueError, match="step limit"):
+            ArmPerturbationWrapper(raw)
+        assert ArmPerturbationWrapper(raw, max_episode_steps=50).max_episode_steps == 50
+    finally:
+        raw.close()

@@ -1,0 +1,237 @@
+"""ArmPerturbationWrapper: the "+p" evaluation perturbations of GLiDE's robosuite study (thesis Table 4.3).
+
+While a policy runs, the wrapper now and then disturbs the arm from outside,
+the way the thesis's evaluation "randomly displace[s] the end-effector or
+open[s] the gripper":
+
+- **schedule**: after each step, with probability ``probability`` (0.1) a
+  perturbation starts (it affects the next step), unless ``max_perturbations``
+  (2) have already happened this episode, a gripper opening is still running,
+  or the next step is one of the last ``quiet_steps`` (10) of the step limit.
+  The first step of an episode is never perturbed (a push needs a step to land on).
+- **kind**: with probability ``gripper_fraction`` (1/2) a *gripper opening*,
+  otherwise an *end-effector push*. Half and half because the thesis names
+  both kinds and no ratio; GLiDE's own replays use 1 gripper in 3, but a push
+  of a free arm mostly costs a few steps while an opening drops a held
+  object, so the even split keeps both failure kinds in the numbers.
+- **push**: a displacement of the eef by ``delta``: a uniform direction on
+  the sphere, a length uniform in ``push_range`` ((0.05, 0.1) m, the size of
+  GLiDE's replay perturbations), done by ``env.unwrapped.perturb(delta=...)``
+  (closed-loop OSC steps, not env steps) right after the step, so the policy
+  sees the pushed state. A push that would take the eef below the object's
+  height at reset has its vertical part flipped upward: pushing the fingers
+  into the table is not a push the arm could take.
+- **gripper opening**: the gripper command of the next ``n`` steps is forced
+  to open (-1), ``n`` uniform in ``gripper_steps`` ((5, 20), the replays'
+  range), cut short so the opening ends before the last ``quiet_steps``.
+
+Randomness comes from the wrapper's own generator, seeded by ``reset(seed)``
+(``default_rng([seed, 1])``: independent of the env's placement draws from the
+same seed), so a seed replays the same perturbations for the same policy.
+
+``info`` keys added at every step: ``perturbed`` (this step was pushed or had
+its gripper forced open), ``perturbation`` (``"push"``, ``"gripper"`` or None:
+what started on this step), ``perturbation_count`` (started so far this
+episode), ``gripper_forced`` (the gripper command was overridden).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+
+from steer_envs.core.validation import describe, integer, real_scalar
+from steer_envs.envs.kinematic import check_seed
+from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+
+__all__ = ["PERTURBATION_KINDS", "ArmPerturbationWrapper"]
+
+#: the kinds of perturbation the wrapper starts (``info["perturbation"]``).
+PERTURBATION_KINDS: tuple[str, ...] = ("push", "gripper")
+_OWNER = "ArmPerturbationWrapper"
+
+
+def _pair(value: Any, name: str, *, as_int: bool, low: float) -> tuple[float, float]:
+    """``value`` as an ordered pair ``(lo, hi)`` with ``low <= lo <= hi`` (ints for ``as_int``)."""
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
+        raise TypeError(f"{_OWNER}: `{name}` must be a pair (lo, hi), got {describe(value)}")
+    if as_int:
+        lo, hi = (float(integer(v, name, low=int(low), owner=_OWNER)) for v in value)
+    else:
+        lo, hi = (real_scalar(v, name, low=low, owner=_OWNER) for v in value)
+    if lo > hi:
+        raise ValueError(f"{_OWNER}: `{name}` must have lo <= hi, got {tuple(value)!r}")
+    return lo, hi
+
+
+class ArmPerturbationWrapper(
+    gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray], gym.utils.RecordConstructorArgs
+):
+    """Random end-effector pushes and gripper openings during an episode of a robosuite arm (see the module).
+
+    Args:
+        env: a :class:`~steer_envs.envs.robosuite.adapter.RobosuiteEnv`, wrapped or not
+            (``gym.make("steer_envs/Lift-v0")``).
+        probability: chance per step that a perturbation starts, in [0, 1].
+        max_perturbations: at most this many per episode (int >= 0).
+        quiet_steps: no perturbation affects the last this many steps of the step limit (int >= 0).
+        push_range: ``(lo, hi)`` length of a push, m (0 <= lo <= hi).
+        gripper_fraction: chance that a perturbation is a gripper opening, in [0, 1].
+        gripper_steps: ``(lo, hi)`` steps a gripper opening lasts (ints, 1 <= lo <= hi).
+        max_episode_steps: the episode's step limit; None reads it from ``env.spec``
+            (the registry's TimeLimit), and it is an error if there is none.
+
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = ArmPerturbationWrapper(gym.make("steer_envs/Lift-v0"))  # doctest: +SKIP
+    >>> obs, info = env.reset(seed=0)  # doctest: +SKIP
+    >>> info["perturbation_count"]  # doctest: +SKIP
+    0
+    """
+
+    def __init__(
+        self,
+        env: gym.Env[Any, Any],
+        *,
+        probability: float = 0.1,
+        max_perturbations: int = 2,
+        quiet_steps: int = 10,
+        push_range: tuple[float, float] = (0.05, 0.1),
+        gripper_fraction: float = 0.5,
+        gripper_steps: tuple[int, int] = (5, 20),
+        max_episode_steps: int | None = None,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self,
+            probability=probability,
+            max_perturbations=max_perturbations,
+            quiet_steps=quiet_steps,
+            push_range=push_range,
+            gripper_fraction=gripper_fraction,
+            gripper_steps=gripper_steps,
+            max_episode_steps=max_episode_steps,
+        )
+        if not isinstance(env, gym.Env) or not isinstance(env.unwrapped, RobosuiteEnv):
+            raise TypeError(f"{_OWNER}: `env` must be a RobosuiteEnv (wrapped or not), got {describe(env)}")
+        gym.Wrapper.__init__(self, env)
+        self.probability = real_scalar(probability, "probability", low=0.0, high=1.0, owner=_OWNER)
+        self.max_perturbations = integer(max_perturbations, "max_perturbations", low=0, owner=_OWNER)
+        self.quiet_steps = integer(quiet_steps, "quiet_steps", low=0, owner=_OWNER)
+        self.push_range = _pair(push_range, "push_range", as_int=False, low=0.0)
+        self.gripper_fraction = real_scalar(gripper_fraction, "gripper_fraction", low=0.0, high=1.0, owner=_OWNER)
+        lo, hi = _pair(gripper_steps, "gripper_steps", as_int=True, low=1)
+        self.gripper_steps = (int(lo), int(hi))
+        if max_episode_steps is None:
+            spec = env.spec
+            max_episode_steps = spec.max_episode_steps if spec is not None else None
+            if max_episode_steps is None:
+                raise ValueError(
+                    f"{_OWNER}: `env` has no step limit in its spec; pass `max_episode_steps` "
+                    "(or wrap the gym.make env, which has the registry's TimeLimit)"
+                )
+        self.max_episode_steps = integer(max_episode_steps, "max_episode_steps", low=1, owner=_OWNER)
+        self._rng = np.random.default_rng()
+        self._t = 0  # steps taken this episode
+        self._count = 0
+        self._open_left = 0  # steps of the running gripper opening still to force
+        self._floor = -np.inf
+        self._push_info: dict[str, Any] = {}
+        #: the perturbations of the current episode: (step they affect, kind, push delta or opening length)
+        self.log: list[tuple[int, str, Any]] = []
+
+    @property
+    def arm(self) -> RobosuiteEnv:
+        """The wrapped :class:`RobosuiteEnv`."""
+        base = self.env.unwrapped
+        assert isinstance(base, RobosuiteEnv)
+        return base
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset the env and the schedule; ``seed`` (None or int >= 0) also seeds the perturbations."""
+        seed = check_seed(seed, f"{_OWNER}.reset")
+        obs, info = self.env.reset(seed=seed, options=options)
+        if seed is not None:
+            self._rng = np.random.default_rng([seed, 1])
+        self._t = self._count = self._open_left = 0
+        self._floor = float(self.arm.object_pos[2])
+        self.log = []
+        return obs, self._annotate(info, perturbed=False, started=None)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        """One env step (gripper forced open during an opening), then maybe a perturbation for the next one."""
+        forced = self._open_left > 0
+        if forced:
+            act = np.array(action, dtype=np.float32, copy=True)
+            if act.shape == (7,):  # a malformed action is the env's to refuse
+                act[6] = -1.0
+            action = act
+            self._open_left -= 1
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._t += 1
+        started, pushed = None, False
+        if not (terminated or truncated) and self._may_start():
+            started = self._start()
+            if started == "push":
+                pushed = True
+                obs = self._observation()
+                info = self._after_push(info)
+        info = self._annotate(info, perturbed=forced or pushed, started=started)
+        info["gripper_forced"] = forced
+        return obs, reward, terminated, truncated, info
+
+    # ---------------------------------------------------------------- schedule
+    def _may_start(self) -> bool:
+        """A perturbation may start now, to affect step ``self._t`` (0-based), and the coin says it does."""
+        if self._count >= self.max_perturbations or self._open_left > 0:
+            return False
+        if self._t >= self.max_episode_steps - self.quiet_steps:
+            return False
+        return bool(self._rng.random() < self.probability)
+
+    def _start(self) -> str:
+        """Start one perturbation (a push is done now); returns its kind."""
+        self._count += 1
+        if self._rng.random() < self.gripper_fraction:
+            lo, hi = self.gripper_steps
+            n = int(self._rng.integers(lo, hi + 1))
+            n = min(n, self.max_episode_steps - self.quiet_steps - self._t)  # over before the quiet steps
+            self._open_left = n
+            self.log.append((self._t, "gripper", n))
+            return "gripper"
+        direction = self._rng.normal(size=3)
+        direction /= max(float(np.linalg.norm(direction)), 1e-12)
+        delta = direction * float(self._rng.uniform(*self.push_range))
+        if self.arm.state[2] + delta[2] < self._floor:
+            delta[2] = abs(delta[2])
+        self.log.append((self._t, "push", delta))
+        self._push_info = self.arm.perturb(delta=delta)
+        return "push"
+
+    def _after_push(self, info: dict[str, Any]) -> dict[str, Any]:
+        """The step's ``info`` updated to the pushed state (mode, sensors); the step's violation and success kept."""
+        push = self._push_info
+        return {
+            **info,
+            **push,
+            "constraint_violation": bool(info["constraint_violation"] or push["constraint_violation"]),
+            "success": bool(info["success"] or push["success"]),
+        }
+
+    def _observation(self) -> np.ndarray:
+        """The env's observation of the current (pushed) state, as ``RobosuiteEnv`` builds it."""
+        arm = self.arm
+        return np.concatenate([np.ravel(arm.robosuite_obs[k]) for k in arm.obs_keys]).astype(np.float32)
+
+    def _annotate(self, info: dict[str, Any], *, perturbed: bool, started: str | None) -> dict[str, Any]:
+        return {
+            **info,
+            "perturbed": bool(perturbed),
+            "perturbation": started,
+            "perturbation_count": self._count,
+            "gripper_forced": False,
+        }
