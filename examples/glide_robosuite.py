@@ -22,9 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
 from steer_envs.bench.suites.glide_robosuite.data import split, task_dataset
-from steer_envs.bench.suites.glide_robosuite.plots import draw_mode_strips
+from steer_envs.bench.suites.glide_robosuite.plots import save_mode_strips
 from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup, grounding
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS
 
@@ -67,13 +66,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{name} {acc:.2f}" for name, acc in zip(TASKS[args.task].modes, res["accuracy_per_mode"], strict=True)
         )
         print(f"{variant:>6}: accuracy {res['accuracy']:.3f} ({per_mode}); {res['train_seconds']:.0f} s")
-    fig = new_figure(9.0, 1.0 + 1.2 * show)
-    axes = fig.subplots(show, 1, squeeze=False)[:, 0]
-    for i, ax in enumerate(axes):
-        rows = [("ground truth", np.asarray(results["full"]["labels"][i]["true"]))]
-        rows += [(v, np.asarray(r["labels"][i]["pred"])) for v, r in results.items()]
-        draw_mode_strips(ax, rows, TASKS[args.task].modes, title=f"{args.task}: demo {i}, learned vs true modes")
-    path = save_figure(fig, args.out / f"glide_{args.task}_modes.png")
+    labels = {variant: res["labels"] for variant, res in results.items()}
+    path = save_mode_strips(labels, args.task, args.task, args.out / f"glide_{args.task}_modes.png")
     print(f"wrote {path}")
     return 0
 

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from steer_envs.core.validation import integer, one_of, real_scalar
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
@@ -120,35 +121,6 @@ def _canonical(quat_xyzw: np.ndarray) -> np.ndarray:
     return -q if q[3] < 0 else q
 
 
-def _quat_mat(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _mat_quat(m: np.ndarray) -> np.ndarray:
-    """Rotation matrix -> quaternion (xyzw, w >= 0), Shepperd's method."""
-    tr = np.trace(m)
-    if tr > 0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = np.zeros(4)
-        q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-        q[3] = (m[k, j] - m[j, k]) / s
-    return _canonical(q / np.linalg.norm(q))
-
-
 def _object_poses(env: RobosuiteEnv) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     obs, rs = env.robosuite_obs, env.rs_env
     prefix = env.spec_task.object_prefix
@@ -160,7 +132,7 @@ def _object_poses(env: RobosuiteEnv) -> dict[str, tuple[np.ndarray, np.ndarray]]
         site = sim.model.site_name2id(nut.important_sites["handle"])
         poses["handle"] = (
             np.array(sim.data.site_xpos[site]),
-            _mat_quat(np.array(sim.data.site_xmat[site]).reshape(3, 3)),
+            _canonical(Rotation.from_matrix(np.array(sim.data.site_xmat[site]).reshape(3, 3)).as_quat()),
         )
         peg = rs.peg1_body_id
         wxyz = np.array(sim.data.body_xquat[peg])
@@ -175,11 +147,11 @@ def feature_vector(env: RobosuiteEnv) -> np.ndarray:
     obs = env.robosuite_obs
     eef_pos = np.asarray(obs["robot0_eef_pos"], dtype=np.float64)
     eef_quat = _canonical(obs["robot0_eef_quat"])
-    eef_rot = _quat_mat(eef_quat)
+    eef_inv = Rotation.from_quat(eef_quat).inv()
     parts: list[np.ndarray] = []
     for pos, quat in _object_poses(env).values():
         q = _canonical(quat)
-        parts += [pos, q, pos - eef_pos, _mat_quat(eef_rot.T @ _quat_mat(q))]
+        parts += [pos, q, pos - eef_pos, _canonical((eef_inv * Rotation.from_quat(q)).as_quat())]
     parts += [eef_pos, eef_quat, np.asarray(obs["robot0_gripper_qpos"], dtype=np.float64)]
     return np.concatenate(parts).astype(np.float32)
 
@@ -240,6 +212,7 @@ class _Recorder:
         self.modes = [int(info["mode"])]
         self.actions: list[np.ndarray] = []
         self.violation = -1
+        self.success = bool(info["success"])
         self.done = False
 
     def step(self, action: np.ndarray) -> None:
@@ -251,10 +224,11 @@ class _Recorder:
         self.modes.append(int(info["mode"]))
         if info["constraint_violation"] and self.violation < 0:
             self.violation = len(self.modes) - 1
+        self.success = bool(info["success"])
         self.done = bool(terminated)
 
     def result(self, seed: int, perturbation: ArmPerturbation, source: int) -> ArmTrajectory:
-        success = bool(self.env._success) and self.violation < 0
+        success = self.success and self.violation < 0
         return ArmTrajectory(
             task=self.env.task_name,
             seed=seed,
@@ -387,7 +361,6 @@ def replay(
             target = ref[t - 1] if t > 0 else demo.eef[0]
         else:
             action = np.zeros(7)
-            action[3:6] = 0.0
             action[6] = demo.actions[-1][6]
             target = ref[-1]
         action[:3] = np.clip(action[:3] + gain * (target - env.state), -1.0, 1.0)

@@ -178,12 +178,11 @@ def test_pruning_keeps_the_heads_with_the_lowest_training_loss() -> None:
         GlideTrainConfig(prune_at=1.5)
 
 
-def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:
-    """Underactuated toy (eq. 4.3): constant velocity for x < 0, decelerating after; no failures at all."""
-    rng = np.random.default_rng(1)
-    trajs = []
-    for _ in range(40):
-        x = np.array([rng.uniform(-3, -2), rng.uniform(-1, 1)])
+def _decelerating_paths(rng: np.random.Generator, n: int, *, y_spread: float) -> list[np.ndarray]:
+    """Underactuated toy: constant velocity for x < 0, decelerating after (51 states each)."""
+    paths = []
+    for _ in range(n):
+        x = np.array([rng.uniform(-3, -2), rng.uniform(-y_spread, y_spread) if y_spread else 0.0])
         v = np.array([0.1, 0.0])
         pts = [x.copy()]
         for _ in range(50):
@@ -191,7 +190,13 @@ def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:
                 v = 0.9 * v
             x = x + v
             pts.append(x.copy())
-        trajs.append(np.array(pts))
+        paths.append(np.array(pts))
+    return paths
+
+
+def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:
+    """Underactuated toy (eq. 4.3): constant velocity for x < 0, decelerating after; no failures at all."""
+    trajs = _decelerating_paths(np.random.default_rng(1), 40, y_spread=1.0)
     truth = [(t[:, 0] >= 0).astype(int) for t in trajs]
     f2 = np.zeros((2, 2))
     labels = np.ones(len(trajs), dtype=bool)
@@ -213,19 +218,9 @@ def test_dynamics_loss_separates_modes_with_different_dynamics() -> None:
 def test_dyn_columns_restrict_the_dynamics_loss_to_informative_features() -> None:
     """The toy above plus a jittering column on a tiny range: modelled, it swamps L_dyn; left out, it does not."""
     rng = np.random.default_rng(2)
-    trajs, truth = [], []
-    for _ in range(30):
-        x, v = np.array([rng.uniform(-3, -2), 0.0]), np.array([0.1, 0.0])
-        pts = [x.copy()]
-        for _ in range(50):
-            if x[0] >= 0:
-                v = 0.9 * v
-            x = x + v
-            pts.append(x.copy())
-        t = np.array(pts)
-        jitter = 1e-3 * rng.standard_normal((len(t), 1))
-        trajs.append(np.concatenate([t, jitter], axis=1))
-        truth.append((t[:, 0] >= 0).astype(int))
+    paths = _decelerating_paths(rng, 30, y_spread=0.0)
+    trajs = [np.concatenate([t, 1e-3 * rng.standard_normal((len(t), 1))], axis=1) for t in paths]
+    truth = [(t[:, 0] >= 0).astype(int) for t in paths]
     f2, labels = np.zeros((2, 2)), np.ones(len(trajs), dtype=bool)
     weights = GlideLossWeights(dyn=100.0)
 

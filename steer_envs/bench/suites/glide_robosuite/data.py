@@ -54,9 +54,8 @@ class ShardSettings:
         return f"{self.task}-demo{self.index:04d}-{digest}.npz"
 
 
-def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv | None = None) -> list[rr.ArmTrajectory]:
+def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv) -> list[rr.ArmTrajectory]:
     """The demo of ``settings.index`` and (when it has replays) its perturbed replays and their truncated copies."""
-    env = env or rr.make_arm_env(settings.task)
     demo = rr.record_demo(env, settings.index)
     out = [demo]
     if not (settings.has_replays and demo.success):
@@ -74,20 +73,33 @@ def shard_path(cache_dir: str | Path, settings: ShardSettings) -> Path:
     return Path(cache_dir) / "shards" / settings.file_name()
 
 
-def ensure_shard(
-    cache_dir: str | Path, settings: ShardSettings, env: rr.RobosuiteEnv | None = None
-) -> tuple[Path, bool]:
-    """The shard's file, built and written atomically unless a readable one exists; (path, built now)."""
-    path = shard_path(cache_dir, settings)
-    if path.exists():
-        try:
-            rr.load_trajectories(path)
-            return path, False
-        except DatasetError:
-            pass  # unreadable (e.g. written by an older format): rebuild
+def _read_shard(path: Path) -> list[rr.ArmTrajectory] | None:
+    """The shard's trajectories, or None when there is no readable file (missing, or an older format)."""
+    if not path.exists():
+        return None
+    try:
+        return rr.load_trajectories(path)[0]
+    except DatasetError:
+        return None
+
+
+def _write_shard(path: Path, settings: ShardSettings, env: rr.RobosuiteEnv) -> list[rr.ArmTrajectory]:
     trajs = build_shard(settings, env)
     rr.save_trajectories(path, trajs, meta={"shard": asdict(settings)})
-    return path, True
+    return trajs
+
+
+def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[rr.ArmTrajectory], Path, bool]:
+    """The shard (trajectories, file, built now), built and written atomically unless a readable file exists."""
+    path = shard_path(cache_dir, settings)
+    trajs = _read_shard(path)
+    if trajs is not None:
+        return trajs, path, False
+    env = rr.make_arm_env(settings.task)
+    try:
+        return _write_shard(path, settings, env), path, True
+    finally:
+        env.close()
 
 
 def task_dataset(
@@ -95,16 +107,19 @@ def task_dataset(
 ) -> list[rr.ArmTrajectory]:
     """Every trajectory of ``task``'s shards ``0 .. n_demos - 1`` in shard order (missing shards built here)."""
     out: list[rr.ArmTrajectory] = []
-    env = None
-    for i in range(n_demos):
-        settings = ShardSettings(task, i, replay_demos, replays_per_demo)
-        path = shard_path(cache_dir, settings)
-        if not path.exists():
-            env = env or rr.make_arm_env(task)
-        ensure_shard(cache_dir, settings, env)
-        out += rr.load_trajectories(path)[0]
-    if env is not None:
-        env.close()
+    env = None  # made once, for the first missing shard
+    try:
+        for i in range(n_demos):
+            settings = ShardSettings(task, i, replay_demos, replays_per_demo)
+            path = shard_path(cache_dir, settings)
+            trajs = _read_shard(path)
+            if trajs is None:
+                env = env or rr.make_arm_env(task)
+                trajs = _write_shard(path, settings, env)
+            out += trajs
+    finally:
+        if env is not None:
+            env.close()
     return out
 
 

@@ -40,10 +40,26 @@ def draw_mode_strips(
     )
 
 
-def plot_mode_strips(records: Sequence[Mapping[str, Any]], out_dir: str, *, suite: str) -> list[str]:
-    """One PNG per task: for each kept demo, the ground truth and every variant's learned modes."""
+def save_mode_strips(labels: Mapping[str, Sequence[Mapping[str, Any]]], task: str, name: str, path: str | Path) -> Path:
+    """One panel per kept demo: the ground truth, then each variant's learned modes; written to ``path`` (PNG).
+
+    ``labels``: variant -> per demo ``{"pred": [...], "true": [...]}`` (what the grounding trials keep).
+    """
     from steer_envs.envs.robosuite.tasks import TASKS
 
+    first = next(iter(labels.values()))
+    n = len(first)
+    fig = new_figure(9.0, 1.2 + 0.35 * n * (len(labels) + 1))
+    axes = fig.subplots(n, 1, squeeze=False)[:, 0]
+    for i, ax in enumerate(axes):
+        rows = [("ground truth", np.asarray(first[i]["true"]))]
+        rows += [(v, np.asarray(lab[i]["pred"])) for v, lab in labels.items() if i < len(lab)]
+        draw_mode_strips(ax, rows, TASKS[task].modes, title=f"{name}: demo {i}, learned vs true modes")
+    return save_figure(fig, path)
+
+
+def plot_mode_strips(records: Sequence[Mapping[str, Any]], out_dir: str, *, suite: str) -> list[str]:
+    """One PNG per task: for each kept demo, the ground truth and every variant's learned modes."""
     by_env: dict[str, dict[str, Any]] = {}
     for r in records:
         labels = r.get("extra", {}).get("labels")
@@ -53,15 +69,5 @@ def plot_mode_strips(records: Sequence[Mapping[str, Any]], out_dir: str, *, suit
     written = []
     for env, variants in sorted(by_env.items()):
         task = env.split("/")[-1].split("-")[0].lower()
-        first = next(iter(variants.values()))
-        n = len(first)
-        fig = new_figure(9.0, 1.2 + 0.35 * n * (len(variants) + 1))
-        axes = fig.subplots(n, 1, squeeze=False)[:, 0]
-        for i, ax in enumerate(axes):
-            rows = [("ground truth", np.asarray(first[i]["true"]))]
-            rows += [(v, np.asarray(lab[i]["pred"])) for v, lab in variants.items() if i < len(lab)]
-            draw_mode_strips(ax, rows, TASKS[task].modes, title=f"{env}: demo {i}")
-        path = Path(out_dir) / f"{suite}-{task}-modes.png"
-        save_figure(fig, path)
-        written.append(str(path))
+        written.append(str(save_mode_strips(variants, task, env, Path(out_dir) / f"{suite}-{task}-modes.png")))
     return written

@@ -75,9 +75,10 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from steer_envs.baselines.bc.modeling import BCConfig, BCPolicy
+from steer_envs.bench.suites.glide_robosuite.protocol import KMeansModes, num_modes, selected_columns
 from steer_envs.core.validation import describe, integer, one_of, real_scalar
 from steer_envs.data import robosuite_replays as rr
-from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS
+from steer_envs.envs.robosuite.tasks import TASK_NAMES
 
 __all__ = [
     "GROUND_TRUTH",
@@ -130,11 +131,6 @@ class ArmPolicy(Protocol):
 
 def _task(task: Any) -> str:
     return one_of(task, "task", TASK_NAMES, owner="glide_robosuite.policies")
-
-
-def num_modes(task: str) -> int:
-    """The ground truth's number of modes of ``task`` (3, 3, 4)."""
-    return len(TASKS[_task(task)].modes)
 
 
 # ------------------------------------------------------------------------------- BC
@@ -441,37 +437,6 @@ class GlideArmPolicy:
 
 
 # ------------------------------------------------------------------------ predictors
-class KMeansModes:
-    """The k-means baseline as a mode predictor over selected features: standardised, clusters in temporal order.
-
-    Fitted on the demos' selected features (:func:`selected_columns`), as the
-    grounding study's ``kmeans`` variant is.
-    """
-
-    def __init__(self, task: str, demos: Sequence[rr.ArmTrajectory], *, seed: int = 0) -> None:
-        from steer_envs.baselines.glide.kmeans import KMeansSegmentation
-
-        self.task = _task(task)
-        cols = selected_columns(self.task)
-        x = [np.asarray(d.features[:, cols], dtype=np.float64) for d in demos]
-        if not x:
-            raise ValueError("KMeansModes: demos must not be empty")
-        stacked = np.concatenate(x)
-        self.mean, self.std = stacked.mean(0), stacked.std(0) + 1e-6
-        self.kmeans = KMeansSegmentation(num_modes(self.task), seed=seed).fit([(s - self.mean) / self.std for s in x])
-
-    def predict(self, states: np.ndarray) -> np.ndarray:
-        """Mode of each row of selected features ``(N, d) -> (N,)``."""
-        return self.kmeans.predict((np.asarray(states, dtype=np.float64) - self.mean) / self.std)
-
-
-def selected_columns(task: str) -> np.ndarray:
-    """The feature columns the mode predictor reads: the recorded plan's selected features (variant ``full``)."""
-    from steer_envs.bench.suites.glide_robosuite.protocol import selected_features
-
-    return rr.feature_columns(task, list(selected_features(task, "full")))
-
-
 def _check_predictor(predictor: Any) -> None:
     if predictor != GROUND_TRUTH and not callable(getattr(predictor, "predict", None)):
         raise TypeError(

@@ -33,35 +33,27 @@ Choices, and why:
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from steer_envs.bench.suites.glide_robosuite.suite import VARIANTS
+from steer_envs.core.validation import one_of
 from steer_envs.data import robosuite_replays as rr
-
-#: thesis Table 4.2: variant -> task -> accuracy against the ground-truth modes per demo sample.
-THESIS_TABLE_4_2: Mapping[str, Mapping[str, float]] = {
-    "full": {"can": 0.83, "lift": 0.83, "square": 0.67},
-    "no_dynamics": {"can": 0.67, "lift": 0.75, "square": 0.46},
-    "no_prediction": {"can": 0.67, "lift": 0.68, "square": 0.56},
-    "no_feature_selection": {"can": 0.55, "lift": 0.70, "square": 0.57},
-    "kmeans": {"can": 0.66, "lift": 0.56, "square": 0.54},
-}
-VARIANTS: tuple[str, ...] = tuple(THESIS_TABLE_4_2)
+from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS
 
 
 @cache
 def recorded_plan(task: str) -> Any:
     """The thesis appendix's recorded LLM response for ``task``, parsed (:class:`GlidePlan`)."""
     from steer_envs.baselines.glide import llm_plan
-    from steer_envs.baselines.glide.llm_plan import parse_plan_response
 
     path = Path(llm_plan.__file__).resolve().parent / "responses" / f"robosuite_{task}.txt"
-    return parse_plan_response(path.read_text())
+    return llm_plan.parse_plan_response(path.read_text())
 
 
 def selected_features(task: str, variant: str) -> tuple[str, ...]:
@@ -104,9 +96,34 @@ def dyn_columns(task: str, names: Sequence[str]) -> tuple[int, ...]:
 
 
 def num_modes(task: str) -> int:
-    from steer_envs.envs.robosuite.tasks import TASKS
+    """The ground truth's number of modes of ``task`` (3, 3, 4)."""
+    return len(TASKS[one_of(task, "task", TASK_NAMES, owner="glide_robosuite")].modes)
 
-    return len(TASKS[task].modes)
+
+def selected_columns(task: str, variant: str = "full") -> np.ndarray:
+    """The feature columns ``variant``'s mode predictor reads (:func:`selected_features`)."""
+    return rr.feature_columns(task, list(selected_features(task, variant)))
+
+
+class KMeansModes:
+    """The k-means baseline as a mode predictor over the selected features: standardised, clusters in temporal order."""
+
+    def __init__(self, task: str, demos: Sequence[rr.ArmTrajectory], *, seed: int = 0) -> None:
+        from steer_envs.baselines.glide.kmeans import KMeansSegmentation
+
+        k = num_modes(task)
+        self.task = task
+        cols = selected_columns(task, "kmeans")
+        x = [np.asarray(d.features[:, cols], dtype=np.float64) for d in demos]
+        if not x:
+            raise ValueError("KMeansModes: demos must not be empty")
+        stacked = np.concatenate(x)
+        self.mean, self.std = stacked.mean(0), stacked.std(0) + 1e-6
+        self.kmeans = KMeansSegmentation(k, seed=seed).fit([(s - self.mean) / self.std for s in x])
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        """Mode of each row of selected features ``(N, d) -> (N,)``."""
+        return self.kmeans.predict((np.asarray(states, dtype=np.float64) - self.mean) / self.std)
 
 
 @dataclass(frozen=True)
@@ -114,8 +131,7 @@ class GroundingSetup:
     """Data and training sizes of one grounding trial.
 
     ``stride``: the classifier sees every ``stride``-th state (20 Hz control
-    moves little per step; the losses cost time per state). ``extra``: further
-    :class:`GlideTrainConfig` fields.
+    moves little per step; the losses cost time per state).
     """
 
     n_demos: int = 50
@@ -126,31 +142,17 @@ class GroundingSetup:
     dyn_weight: float = 100.0
     stride: int = 6
     train_truncated: bool = False
-    weights: Any = None
-    extra: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _weights(setup: GroundingSetup, variant: str) -> Any:
     from steer_envs.baselines.glide.classifier import GlideLossWeights
 
-    base = setup.weights or GlideLossWeights(dyn=setup.dyn_weight)
+    base = GlideLossWeights(dyn=setup.dyn_weight)
     if variant == "no_dynamics":
         return base.without("dyn")
     if variant == "no_prediction":
         return base.without("succ", "fail")
     return base
-
-
-@dataclass
-class _Standardized:
-    """A predictor over standardised features (the k-means baseline's clusters live in standard units)."""
-
-    inner: Any
-    mean: np.ndarray
-    std: np.ndarray
-
-    def predict(self, states: np.ndarray) -> np.ndarray:
-        return np.asarray(self.inner.predict((np.asarray(states, dtype=np.float64) - self.mean) / self.std))
 
 
 def train_predictor(
@@ -168,7 +170,6 @@ def train_predictor(
     head losses).
     """
     from steer_envs.baselines.glide.classifier import GlideTrainConfig, train_mode_classifier
-    from steer_envs.baselines.glide.kmeans import KMeansSegmentation
     from steer_envs.bench.suites.glide_robosuite.data import split
 
     if variant not in VARIANTS:
@@ -184,10 +185,7 @@ def train_predictor(
     info: dict[str, Any] = {"n_demos": len(demos), "n_replays": len(replays)}
     predictor: Any
     if variant == "kmeans":
-        x = np.concatenate([d.features[:, cols] for d in demos]).astype(np.float64)
-        mean, std = x.mean(0), x.std(0) + 1e-6
-        km = KMeansSegmentation(k, seed=seed).fit([(d.features[:, cols] - mean) / std for d in demos])
-        predictor = _Standardized(km, mean, std)
+        predictor = KMeansModes(task, demos, seed=seed)
     else:
         train_demos = [d for d in demos if d.seed < setup.replay_demos]
         train = train_demos + [r for r in replays if setup.train_truncated or r.perturbation.kind != "truncated"]
@@ -198,7 +196,6 @@ def train_predictor(
             seed=seed,
             dyn_columns=dyn_columns(task, names),
         )
-        config = replace(config, **dict(setup.extra))
         result = train_mode_classifier(
             [t.features[:, cols] for t in train],
             [t.success for t in train],

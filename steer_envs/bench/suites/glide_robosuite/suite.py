@@ -133,14 +133,12 @@ def run_data_trial(trial: Trial) -> TrialResult:
     import numpy as np
 
     from steer_envs.bench.suites.glide_robosuite.data import ShardSettings, ensure_shard
-    from steer_envs.data.robosuite_replays import load_trajectories
 
     task = _task(trial.env)
     params = DataParams.from_json(trial.params)
     settings = ShardSettings(task, trial.seed, params.replay_demos, params.replays_per_demo)
     with single_threaded():
-        path, built = ensure_shard(params.cache, settings)
-    trajs, _ = load_trajectories(path)
+        trajs, path, built = ensure_shard(params.cache, settings)
     replays = [t for t in trajs if t.source >= 0 and t.perturbation.kind != "truncated"]
     metrics = {
         "demo_success": trajs[0].success,
