@@ -74,12 +74,20 @@ class GlideLossWeights:
     final: float = 10.0
     dyn: float = 0.0
     fail_clip: float = -1.0
+    #: > 0: a failure may also be explained by ending outside the final mode: ``L_fail`` adds
+    #: ``-u (1 - p(s_T in sigma_K))`` to each failure's sum and ``L_final`` holds successes only
+    #: (replays on a robot arm fail by running out of time or being cut short, with every
+    #: move feasible; the thesis's "every trajectory ends in the final mode" is the polygons').
+    #: ``u < 1`` leaves a failure that also makes an infeasible move better explained.
+    unfinished_fails: float = 0.0
 
     def __post_init__(self) -> None:
         for name in LOSS_TERMS:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
                 raise ValueError(f"loss weight {name!r} must be a finite float >= 0, got {v!r}")
+        if not (isinstance(self.unfinished_fails, (int, float)) and 0 <= self.unfinished_fails <= 1):
+            raise ValueError(f"unfinished_fails must be a float in [0, 1], got {self.unfinished_fails!r}")
         if not (np.isfinite(self.fail_clip) and self.fail_clip < 0):
             raise ValueError(f"fail_clip must be a negative float, got {self.fail_clip!r}")
 
@@ -125,6 +133,16 @@ class GlideTrainConfig:
         dyn_columns: the state columns ``L_dyn`` models (None: all). On a robot arm the
             quaternions' controller jitter, divided by their tiny spread, would swamp the
             positions whose dynamics tell the modes apart.
+        dyn_inputs: the state columns whose change psi reads (None: ``dyn_columns``, the
+            thesis's ``psi(s_t - s_{t-1})``). On an underactuated system the robot's own
+            motion (e.g. the end effector's position): a linear psi that reads the change
+            of the columns it predicts fits every smooth motion with the identity, in
+            every mode; one that reads the robot's motion must tell "the object moves
+            with the gripper" from "it does not".
+        dyn_input_lag: 1: psi reads the previous step's change (``s_t - s_{t-1}``, the
+            thesis); 0: the same step's (``s_{t+1} - s_t`` of ``dyn_inputs``, which must
+            then be given): the object's motion caused by the robot's, without the
+            smoothness assumption.
         seed: seeds the initial weights.
         num_threads: torch intra-op threads during training (None: leave torch's setting); 1 by
             default: the networks are small and extra threads mostly spin on a shared CPU.
@@ -149,6 +167,8 @@ class GlideTrainConfig:
     succ_warmup_start: float = 1e-3
     psi_hidden: int = 0
     dyn_columns: tuple[int, ...] | None = None
+    dyn_inputs: tuple[int, ...] | None = None
+    dyn_input_lag: int = 1
     seed: int = 0
     num_threads: int | None = 1
     progress: bool = False
@@ -164,14 +184,18 @@ class GlideTrainConfig:
             or self.psi_hidden < 0
         ):
             raise ValueError(f"psi_hidden must be an int >= 0, got {self.psi_hidden!r}")
-        if self.dyn_columns is not None:
-            cols = self.dyn_columns
-            if (
+        if self.dyn_input_lag not in (0, 1) or isinstance(self.dyn_input_lag, bool):
+            raise ValueError(f"dyn_input_lag must be 0 or 1, got {self.dyn_input_lag!r}")
+        if self.dyn_input_lag == 0 and self.dyn_inputs is None:
+            raise ValueError("dyn_input_lag=0 needs dyn_inputs (psi would read the change it predicts)")
+        for name in ("dyn_columns", "dyn_inputs"):
+            cols = getattr(self, name)
+            if cols is not None and (
                 not isinstance(cols, tuple)
                 or not cols
                 or any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0 for c in cols)
             ):
-                raise ValueError(f"dyn_columns must be None or a non-empty tuple of column indices, got {cols!r}")
+                raise ValueError(f"{name} must be None or a non-empty tuple of column indices, got {cols!r}")
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a positive float, got {self.lr!r}")
         if not 0 < self.lr_final_ratio <= 1:
@@ -357,19 +381,32 @@ _META_KEY = "glide_classifier"
 
 
 class ForwardModel(nn.Module):
-    """Per-mode forward dynamics psi: state change ``(N, d)`` -> predicted next change ``(H, N, K, d)``."""
+    """Per-mode forward dynamics psi: a change ``(N, d_in)`` -> predicted next change ``(H, N, K, d)``.
 
-    def __init__(self, state_dim: int, num_modes: int, *, n_heads: int = 1, hidden: int = 0, seed: int = 0) -> None:
+    ``input_dim`` defaults to ``state_dim`` (psi reads the change of the columns it predicts).
+    """
+
+    def __init__(
+        self,
+        state_dim: int,
+        num_modes: int,
+        *,
+        n_heads: int = 1,
+        hidden: int = 0,
+        seed: int = 0,
+        input_dim: int | None = None,
+    ) -> None:
         super().__init__()
         gen = torch.Generator().manual_seed(int(seed) + 7919)
         d, k, h = int(state_dim), int(num_modes), int(n_heads)
+        d_in = d if input_dim is None else int(input_dim)
         self.state_dim, self.num_modes, self.hidden = d, k, int(hidden)
         if hidden == 0:
-            self.w = _uniform(gen, (h, d, k * d), d)
-            self.b = _uniform(gen, (h, 1, k * d), d)
+            self.w = _uniform(gen, (h, d_in, k * d), d_in)
+            self.b = _uniform(gen, (h, 1, k * d), d_in)
         else:
-            self.w1 = _uniform(gen, (h, d, hidden), d)
-            self.b1 = _uniform(gen, (h, 1, hidden), d)
+            self.w1 = _uniform(gen, (h, d_in, hidden), d_in)
+            self.b1 = _uniform(gen, (h, 1, hidden), d_in)
             self.w = _uniform(gen, (h, hidden, k * d), hidden)
             self.b = _uniform(gen, (h, 1, k * d), hidden)
 
@@ -501,6 +538,8 @@ def glide_losses(
     final_mode: int | None = None,
     state_scale: torch.Tensor | None = None,
     dyn_columns: torch.Tensor | None = None,
+    dyn_inputs: torch.Tensor | None = None,
+    dyn_input_lag: int = 1,
 ) -> dict[str, torch.Tensor]:
     """Every loss term per head, ``(H,)`` tensors, plus their weighted ``"total"``.
 
@@ -525,11 +564,15 @@ def glide_losses(
         fail = ~data.success & has_pairs
         mean_f = per_traj / data.pairs_per_traj.clamp_min(1.0)
         out["succ"] = -mean_f[:, succ].mean(1) if succ.any() else zero
+        if weights.unfinished_fails > 0:
+            per_traj = per_traj - weights.unfinished_fails * (1.0 - probs[:, data.final, final_mode])
+            fail = ~data.success
         out["fail"] = per_traj[:, fail].clamp_min(weights.fail_clip).mean(1) if fail.any() else zero
     else:
         out["succ"] = out["fail"] = zero
     out["init"] = -logp[:, data.init, init_mode].mean(1)
-    out["final"] = -logp[:, data.final, final_mode].mean(1)
+    final_states = data.final[data.success] if weights.unfinished_fails > 0 else data.final
+    out["final"] = -logp[:, final_states, final_mode].mean(1) if len(final_states) else zero
     if weights.dyn > 0:
         if psi is None:
             raise ValueError("the dynamics loss (weights.dyn > 0) needs a forward model psi")
@@ -537,11 +580,14 @@ def glide_losses(
             out["dyn"] = zero
         else:
             s = data.states if state_scale is None else data.states / state_scale
-            if dyn_columns is not None:
-                s = s[:, dyn_columns]
-            delta_prev = s[data.dyn_mid] - s[data.dyn_prev]
-            delta_next = s[data.dyn_next] - s[data.dyn_mid]
-            pred_k = psi(delta_prev)  # (H, M, K, d)
+            s_out = s if dyn_columns is None else s[:, dyn_columns]
+            s_in = s_out if dyn_inputs is None else s[:, dyn_inputs]
+            if dyn_input_lag == 1:
+                delta_in = s_in[data.dyn_mid] - s_in[data.dyn_prev]
+            else:
+                delta_in = s_in[data.dyn_next] - s_in[data.dyn_mid]
+            delta_next = s_out[data.dyn_next] - s_out[data.dyn_mid]
+            pred_k = psi(delta_in)  # (H, M, K, d)
             pred = torch.einsum("hmk,hmkd->hmd", probs[:, data.dyn_mid], pred_k)
             out["dyn"] = ((pred - delta_next) ** 2).sum(-1).mean(1)
     else:
@@ -685,16 +731,18 @@ def train_mode_classifier(
         psi = None
         params = list(clf.parameters())
         if weights.dyn > 0:
-            if config.dyn_columns is not None and max(config.dyn_columns) >= data.states.shape[1]:
-                raise ValueError(
-                    f"dyn_columns {config.dyn_columns} index past the {data.states.shape[1]} state columns"
-                )
+            for name in ("dyn_columns", "dyn_inputs"):
+                cols = getattr(config, name)
+                if cols is not None and max(cols) >= data.states.shape[1]:
+                    raise ValueError(f"{name} {cols} index past the {data.states.shape[1]} state columns")
+            d_out = data.states.shape[1] if config.dyn_columns is None else len(config.dyn_columns)
             psi = ForwardModel(
-                data.states.shape[1] if config.dyn_columns is None else len(config.dyn_columns),
+                d_out,
                 k,
                 n_heads=config.n_heads,
                 hidden=config.psi_hidden,
                 seed=config.seed,
+                input_dim=None if config.dyn_inputs is None else len(config.dyn_inputs),
             )
             params += list(psi.parameters())
         feas_t = torch.as_tensor(feas, dtype=torch.float32)
@@ -704,6 +752,8 @@ def train_mode_classifier(
             "final_mode": final_mode,
             "state_scale": clf.scale,
             "dyn_columns": None if config.dyn_columns is None else torch.tensor(config.dyn_columns),
+            "dyn_inputs": None if config.dyn_inputs is None else torch.tensor(config.dyn_inputs),
+            "dyn_input_lag": config.dyn_input_lag,
         }
         opt: torch.optim.Optimizer = torch.optim.Adam(params, lr=config.lr)
         lr_min = config.lr * config.lr_final_ratio

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from steer_envs.baselines.glide.classifier import (
+    ForwardModel,
     GlideLossWeights,
     GlideTrainConfig,
     ModeClassifier,
@@ -111,6 +112,54 @@ def test_losses_match_the_thesis_equations_on_hard_labels() -> None:
     modes2 = np.floor(packed2.states[:, 0].numpy()).astype(int)
     out2 = glide_losses(_one_hot_logits(modes2, 3), packed2, torch.tensor(F3, dtype=torch.float32), GlideLossWeights())
     assert out2["succ"].item() == pytest.approx(0.5, abs=1e-6)
+
+
+def test_unfinished_failures_are_explained_by_their_last_state() -> None:
+    trajs = [
+        np.array([[0.1, 0], [1.1, 0], [2.1, 0]]),  # success: a b c
+        np.array([[0.2, 0], [1.2, 0]]),  # failure cut short in b: every move feasible
+        np.array([[0.3, 0], [2.3, 0]]),  # failure a -> c (a skip), ends in c
+    ]
+    packed = pack_trajectories(trajs, [True, False, False])
+    logits = _one_hot_logits(np.floor(packed.states[:, 0].numpy()).astype(int), 3)
+    feas = torch.tensor(F3, dtype=torch.float32)
+    thesis = glide_losses(logits, packed, feas, GlideLossWeights())
+    assert thesis["fail"].item() == pytest.approx(-0.5, abs=1e-6)  # the short failure is unexplained
+    assert thesis["final"].item() == pytest.approx(50 / 3, rel=1e-3)  # ... and its last state is not in c
+    arm = glide_losses(logits, packed, feas, GlideLossWeights(unfinished_fails=1.0))
+    assert arm["fail"].item() == pytest.approx(-1.0, abs=1e-6)
+    assert arm["final"].item() == pytest.approx(0.0, abs=1e-6)  # L_final holds the success only
+    half = glide_losses(logits, packed, feas, GlideLossWeights(unfinished_fails=0.5))
+    assert half["fail"].item() == pytest.approx(-0.75, abs=1e-6)
+    with pytest.raises(ValueError, match="unfinished_fails"):
+        GlideLossWeights(unfinished_fails=2.0)
+
+
+def test_dyn_inputs_predict_the_object_from_the_robot_motion() -> None:
+    """Columns (robot x, object - robot r): free (mode 0) r moves against x, carried (mode 1) r stays."""
+    x = np.array([0.0, 0.1, 0.3, 0.6, 1.0])
+    traj = np.stack([x, np.maximum(0.6 - x, 0.0)], axis=1)
+    packed = pack_trajectories([traj], [True])
+    logits = _one_hot_logits((packed.states[:, 0] >= 0.6).long().numpy(), 2)
+    psi = ForwardModel(1, 2, input_dim=1)
+    with torch.no_grad():  # mode 0: dr = -dx; mode 1: dr = 0
+        psi.w.copy_(torch.tensor([[[-1.0, 0.0]]]))
+        psi.b.zero_()
+    weights = GlideLossWeights(dyn=1.0)
+    kw = {"psi": psi, "dyn_columns": torch.tensor([1]), "dyn_inputs": torch.tensor([0])}
+    same_step = glide_losses(logits, packed, torch.zeros(2, 2), weights, dyn_input_lag=0, **kw)["dyn"]
+    previous_step = glide_losses(logits, packed, torch.zeros(2, 2), weights, dyn_input_lag=1, **kw)["dyn"]
+    assert same_step.item() == pytest.approx(0.0, abs=1e-10)
+    assert previous_step.item() > 1e-3  # the robot accelerates: last step's motion mispredicts
+    with pytest.raises(ValueError, match="dyn_input_lag=0 needs dyn_inputs"):
+        GlideTrainConfig(dyn_input_lag=0)
+    with pytest.raises(ValueError, match="dyn_input_lag"):
+        GlideTrainConfig(dyn_input_lag=2, dyn_inputs=(0,))
+    with pytest.raises(ValueError, match="dyn_inputs"):
+        GlideTrainConfig(dyn_inputs=(-1,))
+    config = GlideTrainConfig(epochs=1, dyn_columns=(1,), dyn_inputs=(4,), dyn_input_lag=0)
+    with pytest.raises(ValueError, match=r"dyn_inputs .* past the 2 state columns"):
+        train_mode_classifier([traj], [True], np.zeros((2, 2)), weights=weights, config=config)
 
 
 def test_switched_off_terms_are_zero_and_dyn_needs_psi() -> None:

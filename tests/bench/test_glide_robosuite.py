@@ -28,7 +28,7 @@ def test_params_refuse_bad_values() -> None:
     with pytest.raises(ValueError, match="replays_per_demo"):
         DataParams(replays_per_demo=0)
     with pytest.raises(ValueError, match="stride"):
-        GroundingParams(stride=0)
+        GroundingParams(stride=-1)
     with pytest.raises(ValueError, match="dyn_weight"):
         GroundingParams(dyn_weight=float("nan"))
     assert DataParams().cache.endswith("glide-robosuite")
@@ -37,7 +37,8 @@ def test_params_refuse_bad_values() -> None:
 
 def test_feasibility_and_plan_choices() -> None:
     from steer_envs.bench.suites.glide_robosuite.protocol import (
-        dyn_columns,
+        GroundingSetup,
+        dynamics_columns,
         manipulation_feasibility,
         recorded_plan,
         selected_features,
@@ -49,7 +50,12 @@ def test_feasibility_and_plan_choices() -> None:
     assert selected_features("can", "full")[0] == "can_to_robot0_eef_pos"
     assert len(selected_features("square", "no_feature_selection")) == 15
     names = selected_features("square", "full")
-    assert dyn_columns("square", names) == (0, 1, 2, 7, 8, 9, 14, 15)
+    assert dynamics_columns("square", names) == ((7, 8, 9), (0, 1, 2))  # peg-to-gripper moves with the robot
+    for task in ("lift", "can", "square"):  # every variant's features carry psi's inputs and outputs
+        dynamics_columns(task, selected_features(task, "no_feature_selection"))
+    with pytest.raises(ValueError, match="needs the feature 'robot0_eef_pos'"):
+        dynamics_columns("lift", ["block_to_robot0_eef_pos"])
+    assert GroundingSetup().stride_of("lift") == 2 and GroundingSetup(stride=3).stride_of("can") == 3
 
 
 @pytest.fixture(scope="module")

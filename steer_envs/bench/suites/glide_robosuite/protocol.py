@@ -16,14 +16,22 @@ Choices, and why:
   matrix makes every step back free, which cannot explain a replay that fails
   because the object was dropped (transport -> reach); the plan's sequential
   structure says a step back to the first mode loses the object.
-* ``L_dyn`` models the position features only (``GlideTrainConfig.dyn_columns``):
-  divided by their tiny spread, the quaternions' controller jitter outweighs
-  the positions, whose dynamics (the object moving with the gripper or not)
-  tell reach from transport.
-* The early-terminated copies are generated but not trained on by default
-  (``train_truncated``): ``L_init`` / ``L_final`` hold the first and last state
-  of *every* trajectory to the plan's first and last mode (thesis §4.2), which
-  a copy cut mid-task contradicts.
+* ``L_dyn`` (eq. 4.3) predicts the change of the object's position relative to
+  the gripper from the same step's motion of the robot
+  (:func:`dynamics_columns`; ``GlideTrainConfig.dyn_inputs``, ``dyn_input_lag=0``):
+  read literally, a linear ``psi(s_t - s_{t-1})`` of the features it predicts
+  fits every smooth motion with the identity in every mode, and the ground
+  truth's labels then fit it no better than one mode; what tells reach from
+  transport is whether the object moves with the gripper, the robot's motion
+  is what moves it. The quaternions are left out (their controller jitter,
+  divided by their tiny spread, would outweigh the positions).
+* Failures may be explained by ending outside the final mode
+  (``GlideLossWeights.unfinished_fails``): replays on an arm fail by running
+  out of time or by being cut short (the early-terminated copies, now
+  trained on) with every move feasible; holding the last state of every
+  trajectory to the final mode (the polygons' rule) contradicts them.
+* ``stride`` per task (:data:`TASK_STRIDE`): Lift's lift phase lasts ~5
+  control steps, which every 6th state would skip.
 * Variants: ``full`` (``L_under``, eq. 4.3), ``no_dynamics`` (``L_dyn`` off),
   ``no_prediction`` (``L_succ`` and ``L_fail`` off), ``no_feature_selection``
   (every available feature), ``kmeans`` (k-means++ on the standardised selected
@@ -79,20 +87,37 @@ def manipulation_feasibility(k: int) -> np.ndarray:
     return f
 
 
-def dyn_columns(task: str, names: Sequence[str]) -> tuple[int, ...]:
-    """Positions of the non-quaternion features among ``names`` in the classifier's input (its ``dyn_columns``).
+#: the features whose change is the robot's own motion (Square: the peg is fixed, so the
+#: peg-to-gripper vector moves with the gripper alone) and the object's relative position.
+ROBOT_MOTION: dict[str, str] = {"lift": "robot0_eef_pos", "can": "robot0_eef_pos", "square": "peg_to_robot0_eef_pos"}
+OBJECT_MOTION: dict[str, str] = {
+    "lift": "block_to_robot0_eef_pos",
+    "can": "can_to_robot0_eef_pos",
+    "square": "nut_to_robot0_eef_pos",
+}
+#: every how many control steps the classifier sees a state (Lift's lift phase is ~5 steps long).
+TASK_STRIDE: dict[str, int] = {"lift": 2, "can": 6, "square": 6}
 
-    >>> dyn_columns("lift", ["block_to_robot0_eef_pos", "block_to_robot0_eef_quat", "gripper_state"])
-    (0, 1, 2, 7, 8)
+
+def dynamics_columns(task: str, names: Sequence[str]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Positions among ``names`` (the classifier's input) of psi's inputs and outputs.
+
+    Inputs: the robot's motion (:data:`ROBOT_MOTION`); outputs: the object's
+    position relative to the gripper (:data:`OBJECT_MOTION`).
+
+    >>> dynamics_columns("lift", ["block_to_robot0_eef_pos", "block_to_robot0_eef_quat", "robot0_eef_pos"])
+    ((7, 8, 9), (0, 1, 2))
     """
     sizes = dict(rr.FEATURES[task])
-    out: list[int] = []
+    where: dict[str, tuple[int, ...]] = {}
     start = 0
     for n in names:
-        if not n.endswith("quat"):
-            out += range(start, start + sizes[n])
+        where[n] = tuple(range(start, start + sizes[n]))
         start += sizes[n]
-    return tuple(out)
+    for n in (ROBOT_MOTION[task], OBJECT_MOTION[task]):
+        if n not in where:
+            raise ValueError(f"the dynamics loss of {task!r} needs the feature {n!r}; the features are {list(names)}")
+    return where[ROBOT_MOTION[task]], where[OBJECT_MOTION[task]]
 
 
 def num_modes(task: str) -> int:
@@ -131,23 +156,27 @@ class GroundingSetup:
     """Data and training sizes of one grounding trial.
 
     ``stride``: the classifier sees every ``stride``-th state (20 Hz control
-    moves little per step; the losses cost time per state).
+    moves little per step; the losses cost time per state); 0: the task's
+    (:data:`TASK_STRIDE`).
     """
 
     n_demos: int = 50
     replay_demos: int = 20
     replays_per_demo: int = 10
     epochs: int = 1000
-    n_heads: int = 3
-    dyn_weight: float = 100.0
-    stride: int = 6
-    train_truncated: bool = False
+    n_heads: int = 5
+    dyn_weight: float = 10.0
+    stride: int = 0
+    train_truncated: bool = True
+
+    def stride_of(self, task: str) -> int:
+        return self.stride or TASK_STRIDE[task]
 
 
 def _weights(setup: GroundingSetup, variant: str) -> Any:
     from steer_envs.baselines.glide.classifier import GlideLossWeights
 
-    base = GlideLossWeights(dyn=setup.dyn_weight)
+    base = GlideLossWeights(dyn=setup.dyn_weight, unfinished_fails=1.0)
     if variant == "no_dynamics":
         return base.without("dyn")
     if variant == "no_prediction":
@@ -189,12 +218,15 @@ def train_predictor(
     else:
         train_demos = [d for d in demos if d.seed < setup.replay_demos]
         train = train_demos + [r for r in replays if setup.train_truncated or r.perturbation.kind != "truncated"]
+        dyn_inputs, dyn_outputs = dynamics_columns(task, names)
         config = GlideTrainConfig(
             epochs=setup.epochs,
             n_heads=setup.n_heads,
-            stride=setup.stride,
+            stride=setup.stride_of(task),
             seed=seed,
-            dyn_columns=dyn_columns(task, names),
+            dyn_columns=dyn_outputs,
+            dyn_inputs=dyn_inputs,
+            dyn_input_lag=0,
         )
         result = train_mode_classifier(
             [t.features[:, cols] for t in train],

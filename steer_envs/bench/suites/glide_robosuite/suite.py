@@ -100,15 +100,15 @@ class GroundingParams(DataParams):
     suite_name: ClassVar[str] = GROUNDING_SUITE
     n_demos: int = 50
     epochs: int = 1000
-    n_heads: int = 3
-    stride: int = 6
-    dyn_weight: float = 100.0
+    n_heads: int = 5
+    stride: int = 0
+    dyn_weight: float = 10.0
     plot_seeds: int = 1
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self.require_at_least(1, "n_demos", "epochs", "n_heads", "stride")
-        self.require_at_least(0, "plot_seeds")
+        self.require_at_least(1, "n_demos", "epochs", "n_heads")
+        self.require_at_least(0, "plot_seeds", "stride")
         self.require_at_most(10_000, "n_demos")
         if not self.dyn_weight >= 0:
             raise ValueError(f"{self.suite_name}: parameter 'dyn_weight' must be >= 0, got {self.dyn_weight}")
