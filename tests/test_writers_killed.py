@@ -18,11 +18,12 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+from samples import tiny_counterfactual
 
 from steer_envs.baselines.bc import BCConfig, BCPolicy
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.glide.classifier import ModeClassifier
-from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset
+from steer_envs.data.counterfactual_dataset import CounterfactualDataset
 from steer_envs.data.maze_random_walk import (
     RandomWalkDataset,
     generate_random_walk,
@@ -62,22 +63,6 @@ def kill_at_fsync(write: Callable[[], Any]) -> None:
     assert proc.exitcode == -9
 
 
-def _counterfactual(scale: float) -> CounterfactualDataset:
-    states = np.arange(12, dtype=np.float32).reshape(6, 2) * scale
-    return CounterfactualDataset(
-        states=states,
-        modes=np.zeros(6, np.int16),
-        offsets=np.array([0, 3, 6], np.int64),
-        success=np.array([True, False]),
-        kind=np.array([KINDS.index("demo"), KINDS.index("segment")], np.int8),
-        source=np.zeros(2, np.int32),
-        window=np.zeros((2, 2), np.int32),
-        target=np.full((2, 2), np.nan, np.float32),
-        violation_step=np.array([-1, 1], np.int32),
-        meta={"env_id": "x"},
-    )
-
-
 def _walk(scale: float) -> RandomWalkDataset:
     walk = generate_random_walk("umaze", 40, seed=0, progress=False)
     walk.observations = walk.observations * np.float32(scale)
@@ -109,7 +94,7 @@ WRITERS: dict[str, tuple[str, Callable[[int], Any], Callable[[Any, Path], Any], 
     ),
     "counterfactual": (
         "c.npz",
-        lambda k: _counterfactual(k + 1.0),
+        lambda k: tiny_counterfactual(k + 1.0),
         lambda d, p: d.save(p),
         lambda p: CounterfactualDataset.load(p).states.tolist(),
     ),

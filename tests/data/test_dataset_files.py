@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from samples import tiny_counterfactual
 
-from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset
+from steer_envs.data.counterfactual_dataset import CounterfactualDataset
 from steer_envs.data.maze_random_walk import generate_random_walk, load_random_walk, save_random_walk
 from steer_envs.data.trajectories import DatasetError, TrajectoryDataset, load_trajectories, save_trajectories
 
@@ -29,21 +30,6 @@ def _npz(path: Path, **arrays: Any) -> Path:
 def _arrays(path: Path) -> dict[str, np.ndarray]:
     with np.load(path, allow_pickle=False) as npz:
         return {k: npz[k] for k in npz.files}
-
-
-def _counterfactual() -> CounterfactualDataset:
-    return CounterfactualDataset(
-        states=np.arange(12, dtype=np.float32).reshape(6, 2),
-        modes=np.zeros(6, np.int16),
-        offsets=np.array([0, 3, 6], np.int64),
-        success=np.array([True, False]),
-        kind=np.array([KINDS.index("demo"), KINDS.index("segment")], np.int8),
-        source=np.zeros(2, np.int32),
-        window=np.zeros((2, 2), np.int32),
-        target=np.full((2, 2), np.nan, np.float32),
-        violation_step=np.array([-1, 1], np.int32),
-        meta={"env_id": "x"},
-    )
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +116,7 @@ def test_random_walk_files(walk_file: Path, tmp_path: Path) -> None:
 
 
 def test_counterfactual_files(tmp_path: Path) -> None:
-    good = _counterfactual().save(tmp_path / "c.npz")
+    good = tiny_counterfactual().save(tmp_path / "c.npz")
     assert len(CounterfactualDataset.load(good)) == 2
     arrays = _arrays(good)
     cases: list[tuple[dict[str, Any], str]] = [
@@ -194,7 +180,7 @@ def test_random_array_swaps_load_or_raise_dataset_error(name: str, key: str, val
         src = {
             "trajectories": lambda p: _good_traj(p),
             "random_walk": lambda p: save_random_walk(_WALK, p),
-            "counterfactual": lambda p: _counterfactual().save(p),
+            "counterfactual": lambda p: tiny_counterfactual().save(p),
         }[name](Path(tmp, "good.npz"))
         arrays = {**_arrays(src), key: value}
         bad = _npz(Path(tmp, "bad.npz"), **arrays)

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+from samples import tiny_counterfactual
 
 from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.bc import BCConfig, BCPolicy
@@ -34,7 +35,7 @@ from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.factory import load_policy
 from steer_envs.baselines.glide.classifier import ModeClassifier
 from steer_envs.baselines.training import read_record
-from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset
+from steer_envs.data.counterfactual_dataset import CounterfactualDataset
 from steer_envs.data.maze_random_walk import generate_random_walk, load_random_walk, save_random_walk
 from steer_envs.data.trajectories import TrajectoryDataset, load_trajectories, save_trajectories
 from steer_envs.io import CheckpointError, DatasetError, atomic_write_bytes
@@ -64,21 +65,6 @@ def _act() -> ACTPolicy:
     return ACTPolicy(ACTConfig(obs_dim=2, action_dim=2, chunk_size=4, d_model=8, n_heads=1, dim_feedforward=8))
 
 
-def _counterfactual() -> CounterfactualDataset:
-    return CounterfactualDataset(
-        states=np.arange(12, dtype=np.float32).reshape(6, 2),
-        modes=np.zeros(6, np.int16),
-        offsets=np.array([0, 3, 6], np.int64),
-        success=np.array([True, False]),
-        kind=np.array([KINDS.index("demo"), KINDS.index("segment")], np.int8),
-        source=np.zeros(2, np.int32),
-        window=np.zeros((2, 2), np.int32),
-        target=np.full((2, 2), np.nan, np.float32),
-        violation_step=np.array([-1, 1], np.int32),
-        meta={"env_id": "x"},
-    )
-
-
 def _files(folder: Path) -> dict[str, tuple[bytes, Callable[[Path], Any], type[Exception]]]:
     """kind -> (good bytes, loader, the loader's error type)."""
     out: dict[str, tuple[bytes, Callable[[Path], Any], type[Exception]]] = {}
@@ -93,7 +79,7 @@ def _files(folder: Path) -> dict[str, tuple[bytes, Callable[[Path], Any], type[E
     out["traj"] = (save_trajectories(traj, folder / "t.npz").read_bytes(), load_trajectories, DatasetError)
     walk = save_random_walk(generate_random_walk("umaze", 80, seed=0, progress=False), folder / "w.npz")
     out["walk"] = (walk.read_bytes(), load_random_walk, DatasetError)
-    cf = _counterfactual().save(folder / "c.npz")
+    cf = tiny_counterfactual().save(folder / "c.npz")
     out["cf"] = (cf.read_bytes(), CounterfactualDataset.load, DatasetError)
     return out
 
