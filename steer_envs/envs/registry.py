@@ -113,6 +113,12 @@ ENTRIES: tuple[EnvEntry, ...] = (
             ("Square-v0", "square", 500, "SquareExpert"),
         )
     ),
+    EnvEntry(
+        "BlockStack-v0",
+        "steer_envs.envs.robosuite.blockstack:BlockStackEnv",
+        max_episode_steps=2000,
+        expert="steer_envs.data.experts.blockstack:BlockStackExpert",
+    ),
 )
 
 

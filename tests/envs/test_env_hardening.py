@@ -360,4 +360,5 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "PolygonNavEnv",
         "Maze2DEnv",
         "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py
+        "BlockStackEnv",  # its constructor arguments: tests/envs/test_blockstack.py
     }

@@ -266,11 +266,16 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
             sensors["on_peg"] = self._success
         return sensors
 
+    def _event_violation(self) -> bool:
+        """A violation the last sensor reading found besides a forbidden mode change (none here; BlockStack: a drop)."""
+        return False
+
     def _info(self, *, perturbed: bool = False) -> dict[str, Any]:
         sensors = self._sensors()
         name = self.task.mode_of(sensors)
         mode = self.task.mode_index(name)
-        violation = not perturbed and mode != self._mode and not self.task.is_allowed(self._mode, mode)
+        bad_change = mode != self._mode and not self.task.is_allowed(self._mode, mode)
+        violation = not perturbed and (bad_change or self._event_violation())
         self._mode = mode
         return {
             "mode": mode,
