@@ -1,0 +1,380 @@
+"""BlockStack skill data: the random planner's pick / place skills recorded one record per skill.
+
+An episode (:func:`record_episode`) resets :class:`~steer_envs.envs.robosuite.blockstack.BlockStackEnv`
+with the episode seed and runs ``n_skills`` skills of
+:class:`~steer_envs.data.experts.blockstack.RandomTowerPlanner` (seeded with the
+same seed) on :class:`~steer_envs.data.experts.blockstack.BlockStackSkills`, so
+the same seed records the same skills. Each skill becomes a :class:`SkillRecord`:
+its name in :data:`~steer_envs.envs.robosuite.blockstack.SKILLS`, the cube, the
+target, the outcome, and per-step arrays (states include the skill's first one).
+
+The episode steps the *unwrapped* env: under ``gymnasium.make`` a 4-high tower
+terminates the episode (success) and the TimeLimit cuts it at 2000 steps, either
+of which would end a data episode early without saying so. Here a tower is just
+another world state: the planner goes on (it never places on a full tower), and
+every episode has exactly ``n_skills`` skills.
+
+Files (:func:`save_skills` / :func:`load_skills`) are ragged ``.npz`` archives
+written atomically (:func:`steer_envs.io.atomic_write_npz`); loading checks
+every array and raises :class:`~steer_envs.io.DatasetError` naming the file and
+the field. :func:`to_trajectory_dataset` turns the skills into the generic
+:class:`~steer_envs.data.trajectories.TrajectoryDataset` (one trajectory per skill).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.core.validation import boolean, integer
+from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner, Skill
+from steer_envs.data.trajectories import TrajectoryDataset
+from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv
+from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
+
+__all__ = [
+    "FORMAT_VERSION",
+    "OBS_DIM",
+    "ONTO_NONE",
+    "ONTO_TABLE",
+    "SkillRecord",
+    "load_skills",
+    "make_env",
+    "record_episode",
+    "save_skills",
+    "to_trajectory_dataset",
+]
+
+#: the env's observation size (eef 3, gripper qpos 2, four cube poses of 7).
+OBS_DIM = 3 + 2 + 7 * NUM_CUBES
+#: :attr:`SkillRecord.onto` of a place on the table.
+ONTO_TABLE = -1
+#: :attr:`SkillRecord.onto` of a pick (no support).
+ONTO_NONE = -2
+#: format version of :func:`save_skills` files.
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SkillRecord:
+    """One recorded skill.
+
+    Attributes:
+        name: the skill's name in :data:`SKILLS` (``pick_2``, ``place_2_on_table``, ``place_2_on_0``).
+        cube: the cube picked or placed.
+        onto: the cube placed on, :data:`ONTO_TABLE` or :data:`ONTO_NONE` (a pick).
+        target: ``(3,)`` world point the skill aims at (m): a pick's cube centre at the
+            skill's start; a place's goal centre of the cube (the table spot, or the top of ``onto``).
+        success: the world shows the skill's outcome at its end (``BlockStackSkills.succeeded``).
+        violation: some step of the skill reported ``constraint_violation`` (a drop, a tower falling).
+        seed: the episode seed.
+        index: the skill's position in its episode (0 first).
+        obs: ``(T + 1, 33)`` float32 observations (the first state included).
+        actions: ``(T, 7)`` float32 delta-OSC actions.
+        eef: ``(T + 1, 3)`` float64 end-effector positions.
+        gripper: ``(T + 1,)`` float32 gripper command in force at each state (-1 open, +1 closed).
+        modes: ``(T + 1,)`` int16 mode indices (``free``, ``holding_0..3``).
+    """
+
+    name: str
+    cube: int
+    onto: int
+    target: np.ndarray
+    success: bool
+    violation: bool
+    seed: int
+    index: int
+    obs: np.ndarray
+    actions: np.ndarray
+    eef: np.ndarray
+    gripper: np.ndarray
+    modes: np.ndarray
+
+    @property
+    def kind(self) -> str:
+        """``"pick"`` or ``"place"``."""
+        return "pick" if self.onto == ONTO_NONE else "place"
+
+    def __len__(self) -> int:
+        """Control steps of the skill."""
+        return len(self.actions)
+
+
+def make_env() -> BlockStackEnv:
+    """The unwrapped env the records come from (no renderer, no TimeLimit, no termination)."""
+    return BlockStackEnv()
+
+
+def _unwrapped(env: Any, owner: str) -> BlockStackEnv:
+    base = getattr(env, "unwrapped", env)
+    if not isinstance(base, BlockStackEnv):
+        raise TypeError(f"{owner}: `env` must be a BlockStackEnv (or wrap one), got {type(env).__name__}")
+    return base
+
+
+def _target(env: BlockStackEnv, skill: Skill) -> np.ndarray:
+    if skill.kind == "pick":
+        return env.cube_pos[skill.cube]
+    if skill.onto is None:
+        assert skill.xy is not None
+        return np.array([skill.xy[0], skill.xy[1], env.table_z + CUBE_HALF])
+    return env.cube_pos[skill.onto] + np.array([0.0, 0.0, 2 * CUBE_HALF])
+
+
+def record_episode(env: Any, seed: int, n_skills: int) -> list[SkillRecord]:
+    """``n_skills`` random-planner skills from reset seed ``seed`` (deterministic in ``seed``).
+
+    ``env``: a :class:`BlockStackEnv` or a wrapper of one; the unwrapped env is
+    stepped, so neither success termination nor a TimeLimit cuts the episode
+    (see the module docstring). A skill that fails (a phase ran out of steps,
+    or the outcome is not there) is recorded with ``success=False`` and the
+    planner goes on from the world as it is.
+    """
+    owner = "record_episode"
+    base = _unwrapped(env, owner)
+    seed = integer(seed, "seed", low=0, owner=owner)
+    n_skills = integer(n_skills, "n_skills", low=1, high=10_000, owner=owner)
+    obs, info = base.reset(seed=seed)
+    planner = RandomTowerPlanner(seed)
+    skills = BlockStackSkills(base)
+    out: list[SkillRecord] = []
+    for index in range(n_skills):
+        skill = planner.next_skill(base)
+        skills.start(skill)
+        target = _target(base, skill)
+        states = [np.asarray(obs, dtype=np.float32)]
+        eef, grip, modes = [base.state], [base._gripper], [int(info["mode"])]
+        actions: list[np.ndarray] = []
+        violation = False
+        while not skills.done:
+            action = skills.act()
+            obs, _, _, _, info = base.step(action)
+            actions.append(np.asarray(action, dtype=np.float32))
+            states.append(np.asarray(obs, dtype=np.float32))
+            eef.append(base.state)
+            grip.append(base._gripper)
+            modes.append(int(info["mode"]))
+            violation |= bool(info["constraint_violation"])
+        out.append(
+            SkillRecord(
+                name=skill.name,
+                cube=skill.cube,
+                onto=ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto),
+                target=np.asarray(target, dtype=np.float64),
+                success=skills.succeeded(),
+                violation=violation,
+                seed=seed,
+                index=index,
+                obs=np.stack(states),
+                actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
+                eef=np.stack(eef).astype(np.float64),
+                gripper=np.asarray(grip, dtype=np.float32),
+                modes=np.asarray(modes, dtype=np.int16),
+            )
+        )
+    return out
+
+
+# ------------------------------------------------------------------------------ files
+_STEP_SPECS: dict[str, tuple[str, int]] = {
+    "obs": ("f", 2),
+    "eef": ("f", 2),
+    "gripper": ("f", 1),
+    "actions": ("f", 2),
+    "target": ("f", 2),
+}
+_SPECS: dict[str, tuple[str, int]] = {
+    **_STEP_SPECS,
+    "modes": ("iu", 1),
+    "offsets": ("iu", 1),
+    "skill": ("iu", 1),
+    "cube": ("iu", 1),
+    "onto": ("i", 1),
+    "success": ("b", 1),
+    "violation": ("b", 1),
+    "seed": ("iu", 1),
+    "index": ("iu", 1),
+}
+
+
+def _name_parts(name: str) -> tuple[int, int]:
+    """(cube, onto) of a skill name."""
+    parts = name.split("_")
+    if parts[0] == "pick":
+        return int(parts[1]), ONTO_NONE
+    return int(parts[1]), ONTO_TABLE if parts[3] == "table" else int(parts[3])
+
+
+def save_skills(
+    path: str | os.PathLike[str], records: Sequence[SkillRecord], meta: Mapping[str, Any] | None = None
+) -> Path:
+    """Write ``records`` to ``path`` (``.npz``) atomically (temp file, fsync, rename); returns the path.
+
+    Ragged layout: states (obs, eef, gripper, modes) of skill ``i`` are rows
+    ``offsets[i]:offsets[i+1]``, its actions rows ``offsets[i] - i : offsets[i+1] - i - 1``.
+    ``meta`` (JSON-serializable) is stored beside the format version.
+    """
+    owner = "save_skills"
+    out = Path(path)
+    if out.suffix != ".npz":
+        raise ValueError(f"{owner}: `path` must end in .npz, got {str(out)!r}")
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    recs = list(records)
+    if not recs:
+        raise ValueError(f"{owner}: `records` must not be empty")
+    for i, r in enumerate(recs):
+        if not isinstance(r, SkillRecord):
+            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+        if r.name not in SKILLS or _name_parts(r.name) != (r.cube, r.onto):
+            raise ValueError(f"{owner}: `records[{i}]` has name {r.name!r}, cube {r.cube} and onto {r.onto}")
+        if len(r.obs) != len(r.actions) + 1:
+            raise ValueError(f"{owner}: `records[{i}]` has {len(r.obs)} states for {len(r.actions)} actions")
+    info = {**dict(meta or {}), "format_version": FORMAT_VERSION, "skills": list(SKILLS)}
+    try:
+        text = json.dumps(info, sort_keys=True)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{owner}: `meta` must be JSON-serializable ({err})") from None
+    lengths = np.array([len(r.obs) for r in recs])
+    arrays = {
+        "obs": np.concatenate([r.obs for r in recs]).astype(np.float32),
+        "eef": np.concatenate([r.eef for r in recs]).astype(np.float64),
+        "gripper": np.concatenate([r.gripper for r in recs]).astype(np.float32),
+        "modes": np.concatenate([r.modes for r in recs]).astype(np.int16),
+        "actions": np.concatenate([r.actions for r in recs]).astype(np.float32).reshape(-1, 7),
+        "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+        "target": np.array([r.target for r in recs], dtype=np.float64).reshape(-1, 3),
+        "skill": np.array([SKILLS.index(r.name) for r in recs], dtype=np.int16),
+        "cube": np.array([r.cube for r in recs], dtype=np.int8),
+        "onto": np.array([r.onto for r in recs], dtype=np.int8),
+        "success": np.array([r.success for r in recs], dtype=bool),
+        "violation": np.array([r.violation for r in recs], dtype=bool),
+        "seed": np.array([r.seed for r in recs], dtype=np.int64),
+        "index": np.array([r.index for r in recs], dtype=np.int32),
+    }
+    return atomic_write_npz(out, {**arrays, "meta": np.array(text)})
+
+
+def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[str, Any]]:
+    """Read a :func:`save_skills` file: the records and the meta dict.
+
+    :class:`~steer_envs.io.DatasetError` naming the file and the field for a
+    missing or unreadable file, another format version, an array of the wrong
+    dtype, axes or width, NaN/inf, or inconsistent offsets, skill ids, cubes or targets.
+    """
+    src = Path(path)
+    arrays = read_npz(src)
+    meta = npz_json(src, arrays, "meta")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise DatasetError(
+            f"{src}: field 'format_version' is {meta.get('format_version')!r}, expected {FORMAT_VERSION}"
+        )
+    if meta.get("skills") != list(SKILLS):
+        raise DatasetError(f"{src}: field 'skills' does not list this version's BlockStack skills")
+    require_arrays(src, arrays, _SPECS, finite=True)
+    a = arrays
+    n = len(a["skill"])
+    off = a["offsets"].astype(np.int64)
+    rows = len(a["obs"])
+    widths = {"obs": OBS_DIM, "eef": 3, "actions": 7, "target": 3}
+    for name, width in widths.items():
+        if a[name].shape[1] != width:
+            raise DatasetError(f"{src}: array {name!r} has width {a[name].shape[1]}, expected {width}")
+    if n == 0:
+        raise DatasetError(f"{src}: array 'skill' is empty")
+    if off.shape != (n + 1,) or off[0] != 0 or off[-1] != rows or np.any(np.diff(off) < 1):
+        raise DatasetError(f"{src}: array 'offsets' does not split the {rows} states into {n} skills")
+    for name in ("eef", "gripper", "modes"):
+        if len(a[name]) != rows:
+            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} rows, expected {rows} (one per state)")
+    if len(a["actions"]) != rows - n:
+        raise DatasetError(f"{src}: array 'actions' has {len(a['actions'])} rows, expected {rows - n}")
+    for name in ("target", "cube", "onto", "success", "violation", "seed", "index"):
+        if len(a[name]) != n:
+            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} entries, expected {n} (one per skill)")
+    if np.any((a["skill"] < 0) | (a["skill"] >= len(SKILLS))):
+        raise DatasetError(f"{src}: array 'skill' holds ids outside 0..{len(SKILLS) - 1}")
+    names = [SKILLS[int(k)] for k in a["skill"]]
+    for i, name in enumerate(names):
+        if _name_parts(name) != (int(a["cube"][i]), int(a["onto"][i])):
+            raise DatasetError(f"{src}: arrays 'cube'/'onto' of skill {i} do not match its name {name!r}")
+    out = []
+    for i, name in enumerate(names):
+        s, e = int(off[i]), int(off[i + 1])
+        out.append(
+            SkillRecord(
+                name=name,
+                cube=int(a["cube"][i]),
+                onto=int(a["onto"][i]),
+                target=np.array(a["target"][i], dtype=np.float64),
+                success=bool(a["success"][i]),
+                violation=bool(a["violation"][i]),
+                seed=int(a["seed"][i]),
+                index=int(a["index"][i]),
+                obs=a["obs"][s:e].astype(np.float32),
+                actions=a["actions"][s - i : e - i - 1].astype(np.float32),
+                eef=a["eef"][s:e].astype(np.float64),
+                gripper=a["gripper"][s:e].astype(np.float32),
+                modes=a["modes"][s:e].astype(np.int16),
+            )
+        )
+    return out, meta
+
+
+# ------------------------------------------------------------------------ conversion
+def to_trajectory_dataset(
+    records: Sequence[SkillRecord],
+    *,
+    successful_only: bool = True,
+    gripper: bool = True,
+    meta: Mapping[str, Any] | None = None,
+) -> TrajectoryDataset:
+    """One trajectory per skill, for a pick-or-place Diffusion Policy (one skill per plan).
+
+    Observation at step t: the env's 33-D observation of state t (eef, gripper
+    fingers, the four cube poses): the scene a skill is planned from, with no
+    skill label, so the policy is multimodal over which cube / target (what
+    the user steers). Action at step t: the end-effector trajectory, i.e. the
+    next eef position ``eef[t + 1]`` (a position target, not the OSC delta,
+    so that plans live in the world frame a 3D sketch is drawn in) and, with
+    ``gripper``, the gripper command (4-D). Without the gripper the actions
+    declare ``action_obs_indices=(0, 1, 2)`` (they set the eef entries of the
+    observation; statistics pooled). ``successful_only`` drops skills that
+    failed or reported a violation. ``meta`` is stored with the skill names.
+    """
+    owner = "to_trajectory_dataset"
+    successful_only = boolean(successful_only, "successful_only", owner=owner)
+    gripper = boolean(gripper, "gripper", owner=owner)
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    for i, r in enumerate(records):
+        if not isinstance(r, SkillRecord):
+            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+    keep = [r for r in records if len(r) > 0 and (not successful_only or (r.success and not r.violation))]
+    if not keep:
+        raise ValueError(f"{owner}: `records` holds no non-empty skill to keep (of {len(records)})")
+    obs = np.concatenate([r.obs[:-1] for r in keep]).astype(np.float32)
+    parts = [r.eef[1:].astype(np.float32) for r in keep]
+    if gripper:
+        parts = [np.concatenate([p, r.gripper[1:, None]], axis=1) for p, r in zip(parts, keep, strict=True)]
+    starts = np.concatenate([[0], np.cumsum([len(r) for r in keep])[:-1]]).astype(np.int64)
+    info = {
+        **dict(meta or {}),
+        "source": "blockstack_skills",
+        "action": "eef_pos+gripper" if gripper else "eef_pos",
+        "skills": [r.name for r in keep],
+        "episode_seeds": [r.seed for r in keep],
+    }
+    return TrajectoryDataset(
+        obs,
+        np.concatenate(parts),
+        starts,
+        action_obs_indices=None if gripper else (0, 1, 2),
+        meta=info,
+    )

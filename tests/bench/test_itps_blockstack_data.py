@@ -1,0 +1,57 @@
+"""``itps-blockstack-data``: a trial builds one shard into a tmp cache, a second finds it; merging; parameters."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from steer_envs.bench.suites.itps_blockstack.suite import DATA_SUITE, ENV_ID, DataParams
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
+needs_robosuite = pytest.mark.skipif(
+    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
+)
+
+
+def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(ValueError, match="skills_per_episode"):
+        DataParams(skills_per_episode=0)
+    with pytest.raises(ValueError, match="skills_per_episode"):
+        DataParams.from_json({"skills_per_episode": "many"})
+    with pytest.raises(ValueError, match="cache_dir"):
+        DataParams.from_json({"cache_dir": 3})
+    monkeypatch.setenv("XDG_CACHE_HOME", "/tmp/xdg")
+    assert DataParams().cache == "/tmp/xdg/steer-envs/itps-blockstack"
+    assert DataParams(cache_dir="/x").cache == "/x"
+
+
+def test_suite_is_registered() -> None:
+    from steer_envs.bench.suite import get_suite
+
+    suite = get_suite(DATA_SUITE)
+    assert suite.envs == (ENV_ID,) and suite.default_seeds == 50 and suite.defaults.skills_per_episode == 12
+
+
+@needs_robosuite
+def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+    from steer_envs.bench.suites.itps_blockstack.data import skills_dataset
+    from steer_envs.data.blockstack_skills import load_skills
+
+    suite = get_suite(DATA_SUITE)
+    trial = suite.trial(ENV_ID, None, 0, DataParams(skills_per_episode=2, cache_dir=str(tmp_path)))
+    first = execute_trial(trial)
+    assert first.ok, first.error
+    m = first.record["metrics"]
+    assert m["skills"] == 2.0 and m["built"] == 1.0 and 0.0 <= m["skill_success"] <= 1.0
+    shard = Path(first.record["extra"]["shard"])
+    assert shard.parent == tmp_path / "shards" and load_skills(shard)[0][0].seed == 0
+    again = execute_trial(trial)
+    assert again.record["metrics"]["built"] == 0.0 and again.record["metrics"]["skill_success"] == m["skill_success"]
+    stamp = shard.stat().st_mtime_ns
+    records, merged = skills_dataset(tmp_path, 1, 2)  # the shard exists: nothing is recorded
+    assert shard.stat().st_mtime_ns == stamp and len(records) == 2 and merged.parent == tmp_path
+    assert [r.name for r in load_skills(merged)[0]] == [r.name for r in records]
