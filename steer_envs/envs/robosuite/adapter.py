@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import gymnasium as gym
@@ -117,50 +117,18 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> None:
         owner = type(self).__name__
         self.task_name = one_of(task, "task", TASK_NAMES, owner=owner)
-        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
-        if not isinstance(camera, str):
-            raise TypeError(f"{owner}: `camera` must be a str, got {type(camera).__name__}")
-        self.render_size = integer(render_size, "render_size", low=16, high=2048, owner=owner)
-        self.perturb_exact = boolean(perturb_exact, "perturb_exact", owner=owner)
-        self.fast_render = boolean(fast_render, "fast_render", owner=owner)
-        self.camera = camera
+        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
         self.spec_task = TASKS[self.task_name]
         self.task = task_spec(self.spec_task)
         self.obs_keys: tuple[str, ...] = ROBOT_KEYS + self.spec_task.object_keys
-        with _quiet_robosuite():
-            import robosuite as suite
-            from robosuite.controllers import load_composite_controller_config
 
-            cfg = load_composite_controller_config(controller="BASIC", robot="Panda")
-            # robosuite draws parts of the model from `rng` when it builds it (e.g. Lift's cube size):
-            # a fixed construction seed makes every instance the same model, so episode seeds replay.
-            self.rs_env: Any = suite.make(
-                self.spec_task.env_name,
-                robots="Panda",
-                controller_configs=cfg,
-                control_freq=self.control_freq,
-                has_renderer=False,
-                has_offscreen_renderer=self.render_mode is not None,
-                use_camera_obs=False,
-                hard_reset=False,
-                horizon=10**9,
-                ignore_done=True,
-                seed=0,
-            )
+        def make(**kwargs: Any) -> Any:
+            import robosuite as suite
+
+            return suite.make(self.spec_task.env_name, **kwargs)
+
+        self._build_sim(make, owner)
         rs = self.rs_env
-        #: the model's cameras (``render`` uses ``camera``; the RGB-D and pixel methods take any of these)
-        self.camera_names: tuple[str, ...] = tuple(rs.sim.model.camera_names)
-        try:
-            self._camera(camera, owner)
-        except ValueError:
-            rs.close()  # the renderer, if one was built
-            raise
-        if self.render_mode is not None and self.fast_render:
-            self._fast_render()
-        self._robot = rs.robots[0]
-        self._eef_site = int(self._robot.eef_site_id["right"])
-        self._arm_qpos = np.asarray(self._robot._ref_joint_pos_indexes, dtype=int)
-        self._arm_qvel = np.asarray(self._robot._ref_joint_vel_indexes, dtype=int)
         if self.task_name == "lift":
             self._object = rs.cube
         elif self.task_name == "can":
@@ -179,6 +147,56 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self._gripper = -1.0
         self._success = False
         self._begin()
+
+    def _check_view_args(
+        self, render_mode: Any, camera: Any, render_size: Any, perturb_exact: Any, fast_render: Any, owner: str
+    ) -> None:
+        """Validate and keep the rendering and perturbation arguments every robosuite env takes."""
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
+        if not isinstance(camera, str):
+            raise TypeError(f"{owner}: `camera` must be a str, got {type(camera).__name__}")
+        self.render_size = integer(render_size, "render_size", low=16, high=2048, owner=owner)
+        self.perturb_exact = boolean(perturb_exact, "perturb_exact", owner=owner)
+        self.fast_render = boolean(fast_render, "fast_render", owner=owner)
+        self.camera = camera
+
+    def _build_sim(self, make: Callable[..., Any], owner: str) -> None:
+        """``self.rs_env = make(**settings)`` with the Panda, delta OSC and our settings; cameras, robot handles.
+
+        A fixed construction seed: robosuite draws parts of the model from its
+        ``rng`` when it builds it (e.g. Lift's cube size), so every instance is
+        the same model and episode seeds replay.
+        """
+        with _quiet_robosuite():
+            from robosuite.controllers import load_composite_controller_config
+
+            cfg = load_composite_controller_config(controller="BASIC", robot="Panda")
+            self.rs_env: Any = make(
+                robots="Panda",
+                controller_configs=cfg,
+                control_freq=self.control_freq,
+                has_renderer=False,
+                has_offscreen_renderer=self.render_mode is not None,
+                use_camera_obs=False,
+                hard_reset=False,
+                horizon=10**9,
+                ignore_done=True,
+                seed=0,
+            )
+        rs = self.rs_env
+        #: the model's cameras (``render`` uses ``camera``; the RGB-D and pixel methods take any of these)
+        self.camera_names: tuple[str, ...] = tuple(rs.sim.model.camera_names)
+        try:
+            self._camera(self.camera, owner)
+        except ValueError:
+            rs.close()  # the renderer, if one was built
+            raise
+        if self.render_mode is not None and self.fast_render:
+            self._fast_render()
+        self._robot = rs.robots[0]
+        self._eef_site = int(self._robot.eef_site_id["right"])
+        self._arm_qpos = np.asarray(self._robot._ref_joint_pos_indexes, dtype=int)
+        self._arm_qvel = np.asarray(self._robot._ref_joint_vel_indexes, dtype=int)
 
     # ----------------------------------------------------------------- state
     @property

@@ -50,9 +50,9 @@ from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import boolean, describe, integer, real_array
-from steer_envs.envs.kinematic import check_options, check_render_mode, check_seed
-from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv, _quiet_robosuite
+from steer_envs.core.validation import describe, integer, real_array
+from steer_envs.envs.kinematic import check_options, check_seed
+from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
 
 __all__ = [
     "CUBE_HALF",
@@ -325,13 +325,7 @@ class BlockStackEnv(RobosuiteEnv):
     ) -> None:
         owner = type(self).__name__
         self.default_goal = check_goal_order(goal_order, owner)
-        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
-        if not isinstance(camera, str):
-            raise TypeError(f"{owner}: `camera` must be a str, got {type(camera).__name__}")
-        self.render_size = integer(render_size, "render_size", low=16, high=2048, owner=owner)
-        self.perturb_exact = boolean(perturb_exact, "perturb_exact", owner=owner)
-        self.fast_render = boolean(fast_render, "fast_render", owner=owner)
-        self.camera = camera
+        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
         self.task_name = "blockstack"
         self.task = blockstack_task()
         self.obs_keys = (
@@ -339,35 +333,8 @@ class BlockStackEnv(RobosuiteEnv):
             "robot0_gripper_qpos",
             *(f"cube_{i}_{k}" for i in range(NUM_CUBES) for k in ("pos", "quat")),
         )
-        with _quiet_robosuite():
-            from robosuite.controllers import load_composite_controller_config
-
-            cfg = load_composite_controller_config(controller="BASIC", robot="Panda")
-            self.rs_env: Any = _robosuite_class()(
-                robots="Panda",
-                controller_configs=cfg,
-                control_freq=self.control_freq,
-                has_renderer=False,
-                has_offscreen_renderer=self.render_mode is not None,
-                use_camera_obs=False,
-                hard_reset=False,
-                horizon=10**9,
-                ignore_done=True,
-                seed=0,
-            )
+        self._build_sim(lambda **kwargs: _robosuite_class()(**kwargs), owner)
         rs = self.rs_env
-        self.camera_names = tuple(rs.sim.model.camera_names)
-        try:
-            self._camera(camera, owner)
-        except ValueError:
-            rs.close()
-            raise
-        if self.render_mode is not None and self.fast_render:
-            self._fast_render()
-        self._robot = rs.robots[0]
-        self._eef_site = int(self._robot.eef_site_id["right"])
-        self._arm_qpos = np.asarray(self._robot._ref_joint_pos_indexes, dtype=int)
-        self._arm_qvel = np.asarray(self._robot._ref_joint_vel_indexes, dtype=int)
         self._cube_masks, self._pad_geoms = self._cube_grasp_masks()
         model = rs.sim.model
         owner_of = {f"cube_{i}_g0": i for i in range(NUM_CUBES)} | {"table_collision": NUM_CUBES}
