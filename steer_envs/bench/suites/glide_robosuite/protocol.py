@@ -108,16 +108,16 @@ def dynamics_columns(task: str, names: Sequence[str]) -> tuple[tuple[int, ...], 
     >>> dynamics_columns("lift", ["block_to_robot0_eef_pos", "block_to_robot0_eef_quat", "robot0_eef_pos"])
     ((7, 8, 9), (0, 1, 2))
     """
-    sizes = dict(rr.FEATURES[task])
-    where: dict[str, tuple[int, ...]] = {}
-    start = 0
-    for n in names:
-        where[n] = tuple(range(start, start + sizes[n]))
-        start += sizes[n]
-    for n in (ROBOT_MOTION[task], OBJECT_MOTION[task]):
-        if n not in where:
-            raise ValueError(f"the dynamics loss of {task!r} needs the feature {n!r}; the features are {list(names)}")
-    return where[ROBOT_MOTION[task]], where[OBJECT_MOTION[task]]
+    position = {int(c): i for i, c in enumerate(rr.feature_columns(task, names))}
+
+    def among_names(feature: str) -> tuple[int, ...]:
+        if feature not in names:
+            raise ValueError(
+                f"the dynamics loss of {task!r} needs the feature {feature!r}; the features are {list(names)}"
+            )
+        return tuple(position[int(c)] for c in rr.feature_columns(task, [feature]))
+
+    return among_names(ROBOT_MOTION[task]), among_names(OBJECT_MOTION[task])
 
 
 def num_modes(task: str) -> int:
