@@ -26,10 +26,12 @@ from steer_envs.core.validation import one_of
 from steer_envs.io import CheckpointError
 
 __all__ = [
+    "BLOCKSTACK_CHECKPOINT",
     "CHECKPOINTS",
     "CheckpointError",
     "checkpoint_path",
     "checkpoint_record",
+    "load_blockstack",
     "load_checkpoint",
     "load_pretrained",
 ]
@@ -39,6 +41,20 @@ CHECKPOINTS: dict[str, str] = {
     "dp": "maze2d_large/dp.safetensors",
     "act": "maze2d_large/act.safetensors",
 }
+
+
+#: the BlockStack pick-or-place Diffusion Policy (ITPS §2.3; ``scripts/train_blockstack_checkpoint.sh``).
+BLOCKSTACK_CHECKPOINT = "blockstack/dp.safetensors"
+
+
+def _shipped(relative: str, script: str) -> Path:
+    ref = resources.files("steer_envs.baselines") / "checkpoints" / relative
+    path = Path(str(ref))
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"checkpoint {relative} is missing from the installed package; regenerate it with {script}"
+        )
+    return path
 
 
 def _check_kind(kind: str) -> None:
@@ -52,14 +68,7 @@ def checkpoint_path(kind: str) -> Path:
     'act.safetensors'
     """
     _check_kind(kind)
-    ref = resources.files("steer_envs.baselines") / "checkpoints" / CHECKPOINTS[kind]
-    path = Path(str(ref))
-    if not path.is_file():
-        raise FileNotFoundError(
-            f"checkpoint {CHECKPOINTS[kind]} is missing from the installed package; "
-            "regenerate it with scripts/train_maze_checkpoints.sh"
-        )
-    return path
+    return _shipped(CHECKPOINTS[kind], "scripts/train_maze_checkpoints.sh")
 
 
 def checkpoint_record(kind: str) -> dict[str, Any]:
@@ -86,3 +95,16 @@ def load_checkpoint(kind: str, path: str | os.PathLike[str], device: str | torch
     """
     _check_kind(kind)
     return load_policy(path, name=kind, device=device)
+
+
+def load_blockstack(device: str | torch.device = "cpu") -> TorchPolicy:
+    """The shipped BlockStack Diffusion Policy: one skill per plan, ``(32, 4)`` waypoints ``[x, y, z, gripper]``.
+
+    Its ``interaction_dims`` are ``(0, 1, 2)``: a 3D sketch or point steers the
+    waypoints' positions (:mod:`steer_envs.data.blockstack_plans`).
+    """
+    policy = load_policy(
+        _shipped(BLOCKSTACK_CHECKPOINT, "scripts/train_blockstack_checkpoint.sh"), name="dp", device=device
+    )
+    policy.interaction_dims = (0, 1, 2)
+    return policy

@@ -81,3 +81,14 @@ def test_glide_robosuite_learns_modes_and_draws_them(tmp_path: Path) -> None:
     assert "lift: 2 demos, 4 replays" in res.stdout and "kmeans: accuracy" in res.stdout
     assert (tmp_path / "glide_lift_modes.png").stat().st_size > 10_000
     assert _run("glide_robosuite.py", "--demos", "0").returncode == 2
+
+
+def test_steer_blockstack_builds_part_of_a_tower_and_saves_the_strip(tmp_path: Path) -> None:
+    args = ("--method", "DP-PR", "--batch", "4", "--max-skills", "2", "--order", "3,1,0,2")
+    res = _run("steer_blockstack.py", *args, "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert "skill 1: wanted pick_1" in res.stdout and "skills aligned" in res.stdout
+    (png,) = tmp_path.glob("steer_blockstack_DP-PR_seed0.png")
+    assert png.stat().st_size > 10_000
+    res = _run("steer_blockstack.py", "--order", "0,1,2", "--out", str(tmp_path))
+    assert res.returncode == 2 and "--order" in res.stderr

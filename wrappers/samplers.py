@@ -53,6 +53,7 @@ identity). Guidance always acts on the whole denoised tensor, as in ITPS.
 from __future__ import annotations
 
 import inspect
+import itertools
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
@@ -81,6 +82,7 @@ __all__ = [
     "SteeringResult",
     "StochasticSampling",
     "benchmark_latency",
+    "interaction_dims",
     "make_sampler",
     "output_perturbation_point",
     "place_observation",
@@ -151,10 +153,36 @@ def _check_plans(plans: Any, n: int, policy: Any, who: str) -> np.ndarray:
     return arr
 
 
-def _costs(plans: np.ndarray, interaction: Interaction | None) -> np.ndarray:
+def interaction_dims(policy: Any) -> tuple[int, ...]:
+    """The plan entries an interaction constrains: ``policy.interaction_dims`` if set, else all.
+
+    ``ValueError`` when the attribute is not distinct increasing indices below ``policy.action_dim``.
+    """
+    d = int(policy.action_dim)
+    dims = getattr(policy, "interaction_dims", None)
+    if dims is None:
+        return tuple(range(d))
+    if isinstance(dims, (str, bytes)) or not hasattr(dims, "__iter__"):
+        raise TypeError(f"policy.interaction_dims must be a tuple of ints or None, got {describe(dims)}")
+    out = tuple(dims)
+    if (
+        not out
+        or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) for i in out)
+        or any(b <= a for a, b in itertools.pairwise(out))
+        or not 0 <= out[0]
+        or out[-1] >= d
+    ):
+        raise ValueError(
+            f"policy.interaction_dims must be increasing indices in [0, action_dim={d}), got {list(out)!r}"
+        )
+    return tuple(int(i) for i in out)
+
+
+def _costs(plans: np.ndarray, interaction: Interaction | None, dims: tuple[int, ...]) -> np.ndarray:
     if interaction is None:
         return np.full(plans.shape[0], np.nan)
-    return alignment_cost_np(plans, interaction)
+    view = plans if len(dims) == plans.shape[-1] else plans[..., list(dims)]
+    return alignment_cost_np(view, interaction)
 
 
 def place_observation(obs: Any, xy: Any) -> np.ndarray:
@@ -203,14 +231,23 @@ class _ObjectiveInNormalizedSpace:
 
     def __init__(self, policy: DiffusionPolicyLike, interaction: Point | Sketch, dtype: torch.dtype) -> None:
         data = interaction.target if isinstance(interaction, Point) else interaction.points
-        normalized = np.asarray(policy.normalize(np.array(data)), dtype=np.float64)
-        if normalized.shape != data.shape or not np.all(np.isfinite(normalized)):
-            raise ValueError(f"policy.normalize must map {data.shape} to finite {data.shape}, got {normalized.shape}")
+        self.dims = interaction_dims(policy)
+        self.action_dim = int(policy.action_dim)
+        full = np.zeros((*data.shape[:-1], self.action_dim))
+        full[..., list(self.dims)] = data
+        normalized = np.asarray(policy.normalize(full), dtype=np.float64)
+        if normalized.shape != full.shape or not np.all(np.isfinite(normalized)):
+            raise ValueError(f"policy.normalize must map {full.shape} to finite {full.shape}, got {normalized.shape}")
+        normalized = normalized[..., list(self.dims)]
         self.is_point = isinstance(interaction, Point)
         self.target = torch.as_tensor(normalized, dtype=dtype, device=policy.device)
 
+    def _view(self, x: torch.Tensor) -> torch.Tensor:
+        return x if len(self.dims) == self.action_dim else x[..., list(self.dims)]
+
     def cost(self, x: torch.Tensor) -> torch.Tensor:
-        return point_cost(x, self.target) if self.is_point else sketch_cost(x, self.target)
+        view = self._view(x)
+        return point_cost(view, self.target) if self.is_point else sketch_cost(view, self.target)
 
     def grad(self, x: torch.Tensor) -> torch.Tensor:
         """``grad_x sum_b xi(x_b)``: each plan's own gradient (plans do not interact)."""
@@ -221,9 +258,12 @@ class _ObjectiveInNormalizedSpace:
 
     def as_trajectory(self, horizon: int) -> torch.Tensor:
         """The interaction as a ``(H, d)`` trajectory (a point repeated, a sketch resampled in index)."""
-        if self.is_point:
-            return self.target.expand(horizon, -1).clone()
-        return resample_path_torch(self.target, horizon)
+        part = self.target.expand(horizon, -1).clone() if self.is_point else resample_path_torch(self.target, horizon)
+        if len(self.dims) == self.action_dim:
+            return part
+        out = torch.zeros(horizon, self.action_dim, dtype=part.dtype, device=part.device)
+        out[:, list(self.dims)] = part
+        return out
 
 
 # --------------------------------------------------------------------- samplers
@@ -252,7 +292,7 @@ class Sampler(ABC):
         t0 = time.perf_counter()
         plans, chosen, extra, perturbed = self._run(policy, obs, interaction, n, rng)
         timings = {"total_ms": (time.perf_counter() - t0) * 1e3, **extra}
-        costs = _costs(plans, interaction)
+        costs = _costs(plans, interaction, interaction_dims(policy))
         return SteeringResult(plans, costs, int(chosen(costs)), self.name, timings, perturbed)
 
     def _check_policy(self, policy: Any) -> None:
@@ -272,7 +312,7 @@ class Sampler(ABC):
         if not isinstance(interaction, self.interactions):
             names = ", ".join(t.__name__ for t in self.interactions)
             raise TypeError(f"{type(self).__name__} needs `interaction` to be one of {names}, got {interaction!r}")
-        interaction.validate(int(policy.action_dim))
+        interaction.validate(len(interaction_dims(policy)))
 
     @abstractmethod
     def _run(

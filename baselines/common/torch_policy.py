@@ -167,6 +167,8 @@ class TorchPolicy(ABC):
 
     model: torch.nn.Module
     _device: torch.device
+    #: the plan entries a user's point or sketch constrains (``None``: all; read by the ITPS samplers)
+    interaction_dims: tuple[int, ...] | None = None
 
     def __init__(
         self,

@@ -8,6 +8,9 @@ layout, the U-Net and the DDIM settings. :data:`PRESETS` are named
   for a CPU: v-prediction and plans relative to the current state (a small
   network's epsilon errors are amplified by ``1 / sqrt(abar)`` in the plan it
   implies at high noise), a plan-index channel and observation Fourier features.
+* ``blockstack``: the shipped BlockStack skill policy: one whole pick-or-place
+  skill per plan (32 waypoints of ``[x, y, z, gripper]``, one observation of
+  the scene), absolute plans, DDIM with 100 steps as in the thesis.
 * ``itps``: the public ITPS Maze2D config (Chi et al.'s U-Net at full width,
   epsilon prediction, absolute plans), a GPU job.
 
@@ -15,7 +18,7 @@ layout, the U-Net and the DDIM settings. :data:`PRESETS` are named
 >>> cfg.exec_start, cfg.window_layout
 (1, {'n_obs': 2, 'horizon': 16, 'action_start': -1})
 >>> sorted(PRESETS)
-['cpu', 'itps']
+['blockstack', 'cpu', 'itps']
 """
 
 from __future__ import annotations
@@ -170,6 +173,18 @@ PRESETS: dict[str, Preset[DiffusionConfig]] = {
         DiffusionConfig(relative=True),
         _DP_TRAIN.replace(steps=30_000),
         "the shipped Maze2D checkpoint: a 0.7M-parameter U-Net, v target, plans relative to the agent",
+    ),
+    "blockstack": Preset(
+        DiffusionConfig(
+            horizon=32,
+            n_obs_steps=1,
+            down_dims=(32, 64, 128),
+            num_inference_steps=100,
+            relative=False,
+        ),
+        _DP_TRAIN.replace(steps=30_000, lr=1e-3),
+        "the shipped BlockStack checkpoint: one pick-or-place skill per plan (32 waypoints x [x, y, z, "
+        "gripper], steer_envs.data.blockstack_plans), DDIM with 100 steps as in the thesis",
     ),
     "itps": Preset(
         DiffusionConfig(

@@ -118,7 +118,10 @@ def test_usage_errors_exit_2(tmp_path: Path, walk_file: Path, capsys: pytest.Cap
         (["--policy", "dp", *base, "--out", str(tmp_path / "x.pt")], ".safetensors"),
         (["--policy", "dp", *base], "--out is required"),
         ([*base, "--out", out], "--policy is required"),
-        (["--policy", "dp", *base, "--out", out, "--preset", "gpu"], "preset must be one of ['cpu', 'itps']"),
+        (
+            ["--policy", "dp", *base, "--out", out, "--preset", "gpu"],
+            "preset must be one of ['blockstack', 'cpu', 'itps']",
+        ),
         (["--policy", "dp", *base, "--out", out, "--model", "nope=1"], "--model nope: not a field"),
         (["--policy", "dp", *base, "--out", out, "--model", "down_dims=[7]"], "down_dims"),
         (["--policy", "dp", *base, "--out", out, "--model", "d_model"], "KEY=VALUE"),

@@ -366,3 +366,50 @@ def test_benchmark_latency_times_every_sampler(policy: MixturePolicy) -> None:
         benchmark_latency(policy, {"x": object()}, OBS, sketch_at(0.0))  # type: ignore[dict-item]
     with pytest.raises(ValueError, match="repeats"):
         benchmark_latency(policy, samplers, OBS, sketch_at(0.0), repeats=0)
+
+
+class LinePolicy3(LinePolicy):
+    """Straight lines in xy plus a third entry (a gripper-like command) the user does not draw."""
+
+    action_dim = 3
+    interaction_dims = (0, 1)
+
+    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
+        xy = super().sample(obs, n, generator=generator)
+        return np.concatenate([xy, np.full((*xy.shape[:2], 1), 50.0)], axis=2)
+
+
+def test_interaction_dims_rank_plans_on_the_drawn_entries_only() -> None:
+    policy = LinePolicy3()
+    sketch = sketch_at(45.0, length=2.4, points=8)
+    result = PostHocRanking()(policy, OBS, sketch, 16, generator=np.random.default_rng(0))
+    assert np.allclose(result.costs, alignment_cost_np(result.plans[..., :2], sketch))
+    assert result.chosen == int(np.argmin(result.costs)) and result.costs.max() < 10  # the 50s are not compared
+
+
+def test_interaction_dims_steer_the_drawn_entries_of_a_diffusion_policy(policy: MixturePolicy) -> None:
+    full = run("GD", policy, sketch_at(90.0))
+    policy.interaction_dims = (0, 1)  # all entries: the same call
+    assert np.array_equal(run("GD", policy, sketch_at(90.0)).plans, full.plans)
+    policy.interaction_dims = (1,)  # steer y only: a 1-D sketch going up
+    up = Sketch(np.linspace(0.0, 3.0, 16)[:, None])
+    steered, free = run("GD", policy, up, guide_ratio=20.0), run("RS", policy, up)
+    assert steered.costs.mean() < free.costs.mean()
+    assert np.allclose(steered.costs, alignment_cost_np(steered.plans[..., 1:], up))
+    assert run("BI", policy, up).plans.shape == (32, 16, 2)
+
+
+@pytest.mark.parametrize(
+    ("dims", "error", "match"),
+    [((2,), ValueError, "interaction_dims"), ((1, 0), ValueError, "increasing"), ("01", TypeError, "interaction_dims")],
+)
+def test_bad_interaction_dims_are_refused(policy: MixturePolicy, dims: Any, error: type, match: str) -> None:
+    policy.interaction_dims = dims
+    with pytest.raises(error, match=match):
+        run("PR", policy, sketch_at(0.0))
+
+
+def test_a_sketch_of_the_wrong_size_for_the_interaction_dims_is_refused(policy: MixturePolicy) -> None:
+    policy.interaction_dims = (0,)
+    with pytest.raises(ValueError, match="dimension"):
+        run("GD", policy, sketch_at(0.0))

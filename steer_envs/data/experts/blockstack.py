@@ -22,24 +22,31 @@ the hand would hit) or on top of another tower; now and then it dismantles a par
 rebuilds it (in reverse order) at a new spot. :class:`GoalTowerPlanner` builds
 one tower instead. :class:`BlockStackExpert` chains a planner and the skills and
 is the registry's expert for ``steer_envs/BlockStack-v0``. Everything is seeded.
+
+:class:`Skill`, :func:`free_table_spot`, the goal-tower rule and the P-control
+step are defined in :mod:`steer_envs.envs.robosuite.plan_execution` (the plan
+tracker and the simulated user share them, and the env layer is below both)
+and re-exported here.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from steer_envs.core.validation import integer, one_of, real_array, real_scalar
-from steer_envs.data.experts.robosuite import _wrap_quarter, _yaw
-from steer_envs.envs.robosuite.blockstack import (
-    CUBE_HALF,
-    MIN_SEPARATION,
-    NUM_CUBES,
-    PLACE_RANGE,
-    BlockStackEnv,
+from steer_envs.data.experts.robosuite import _yaw
+from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, BlockStackEnv
+from steer_envs.envs.robosuite.plan_execution import (
+    TOWER_CLEARANCE,
+    Skill,
+    free_table_spot,
+    goal_tower_skill,
+    move_action,
+    quarter_turn,
 )
+from steer_envs.envs.robosuite.plan_execution import towers as _towers
 
 __all__ = [
     "TOWER_CLEARANCE",
@@ -51,72 +58,11 @@ __all__ = [
     "free_table_spot",
 ]
 
-_GAIN = 10.0
-_YAW_GAIN = 2.0
-
-
-@dataclass(frozen=True)
-class Skill:
-    """One skill: ``kind`` ``"pick"`` or ``"place"``, the ``cube`` it moves, and for a place its target.
-
-    ``onto``: the cube to place on, or None for the table at ``xy``.
-    """
-
-    kind: str
-    cube: int
-    onto: int | None = None
-    xy: tuple[float, float] | None = None
-
-    @property
-    def name(self) -> str:
-        """The skill's name in :data:`steer_envs.envs.robosuite.blockstack.SKILLS`."""
-        if self.kind == "pick":
-            return f"pick_{self.cube}"
-        return f"place_{self.cube}_on_{'table' if self.onto is None else self.onto}"
-
 
 def _check_env(env: Any, owner: str) -> BlockStackEnv:
     if not isinstance(env, BlockStackEnv):
         raise TypeError(f"{owner}: `env` must be a BlockStackEnv, got {type(env).__name__}")
     return env
-
-
-def _towers(env: BlockStackEnv) -> list[list[int]]:
-    """The towers (cube ids bottom to top) standing on the table, from the env's last sensed structure."""
-    support = env.supports
-    above = {s: c for c, s in support.items() if isinstance(s, int)}
-    towers = []
-    for c, s in support.items():
-        if s == "table":
-            tower = [c]
-            while tower[-1] in above:
-                tower.append(above[tower[-1]])
-            towers.append(tower)
-    return towers
-
-
-#: table spots stay this far (m) from cubes stacked on others: the hand, wider than the fingers, would hit them.
-TOWER_CLEARANCE = 0.14
-
-
-def free_table_spot(env: BlockStackEnv, rng: np.random.Generator, *, exclude: int | None = None) -> np.ndarray:
-    """A random table xy within the placement range, clear of every cube but ``exclude``.
-
-    Clear: >= ``MIN_SEPARATION`` from each cube centre and >= :data:`TOWER_CLEARANCE`
-    from cubes above the first level (if no such spot turns up, the first rule alone).
-    """
-    pos = env.cube_pos
-    keep = [i for i in range(NUM_CUBES) if i != exclude]
-    others = pos[keep, :2]
-    high = pos[keep, 2] > env.table_z + 2.5 * CUBE_HALF  # a centre above 5 cm: the cube stands on another
-    need = np.where(high, TOWER_CLEARANCE, MIN_SEPARATION)
-    centre = np.asarray(env.rs_env.table_offset[:2], dtype=np.float64)
-    for tries in range(2000):
-        xy = centre + rng.uniform(-PLACE_RANGE, PLACE_RANGE, size=2)
-        gaps = np.linalg.norm(others - xy, axis=1)
-        if np.all(gaps >= (need if tries < 1000 else MIN_SEPARATION)):
-            return xy
-    raise RuntimeError("free_table_spot: no free spot on the table")  # pragma: no cover - 3 others always leave one
 
 
 class BlockStackSkills:
@@ -195,25 +141,11 @@ class BlockStackSkills:
         return max(max(tops) + self.carry_clearance, self.env.table_z + self.min_carry_z)
 
     def _move(self, target: np.ndarray, gripper: float, yaw_error: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        d = target - self.env.state
-        action = np.zeros(7, dtype=np.float32)
-        action[:3] = np.clip(d * _GAIN, -1.0, 1.0)
-        # keep the fingers pointing straight down (the arm's orientation drifts over a long episode) ...
-        tilt = np.cross(_approach(self.env.robosuite_obs["robot0_eef_quat"]), [0.0, 0.0, -1.0])
-        action[3:5] = np.clip(tilt[:2] * _YAW_GAIN, -1.0, 1.0)
-        # ... and turn about the vertical by `yaw_error`
-        action[5] = np.clip(yaw_error * _YAW_GAIN, -1.0, 1.0)
-        action[6] = gripper
-        return action, d
+        return move_action(self.env, target, gripper, yaw_error)
 
     def _turn(self, eef_yaw: float, yaw: float) -> float:
-        """The eef yaw change to a yaw equal to ``yaw`` modulo 90 degrees, the one nearest the start yaw.
-
-        Always turning the shortest way would wind the wrist up over many skills
-        until a joint limit stops the arm; the target nearest the start yaw keeps it within 45 degrees.
-        """
-        target = self.home_yaw + _wrap_quarter(yaw - self.home_yaw)
-        return float((target - eef_yaw + np.pi) % (2 * np.pi) - np.pi)
+        """The eef yaw change to a yaw equal to ``yaw`` modulo 90 degrees, the one nearest the start yaw."""
+        return quarter_turn(self.home_yaw, eef_yaw, yaw)
 
     def _next(self, phase: str) -> None:
         self.phase, self.count = phase, 0
@@ -374,30 +306,7 @@ class GoalTowerPlanner:
         if self.order is None:
             order = env.goal_order
             self.order = order if order is not None else tuple(int(c) for c in self.rng.permutation(NUM_CUBES))
-        order, support = self.order, env.supports
-        built = 1 if support[order[0]] == "table" else 0
-        while built < NUM_CUBES and support[order[built]] == order[built - 1] and built > 0:
-            built += 1
-        held = env.held_cube
-        towers = _towers(env)
-        top_of = {c: t[-1] for t in towers for c in t}
-        if held is not None:
-            if built > 0 and held == order[built] and top_of.get(order[built - 1]) == order[built - 1]:
-                return Skill("place", held, order[built - 1])
-            return Skill("place", held, None, _xy(free_table_spot(env, self.rng, exclude=held)))
-        if built > 0 and top_of[order[built - 1]] != order[built - 1]:
-            return Skill("pick", top_of[order[built - 1]])  # something wrong sits on the partial goal tower
-        if built == 0:
-            base = order[0]
-            return Skill("pick", top_of[base]) if top_of.get(base, base) != base else Skill("pick", base)
-        nxt = order[built]
-        return Skill("pick", top_of.get(nxt, nxt))
-
-
-def _approach(quat_xyzw: np.ndarray) -> np.ndarray:
-    """The gripper's approach axis (the eef frame's z axis) in the world."""
-    x, y, z, w = (float(v) for v in quat_xyzw)
-    return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        return goal_tower_skill(env, self.order, self.rng)
 
 
 def _level(quat_xyzw: np.ndarray) -> float:

@@ -8,18 +8,25 @@ with ``skills_per_episode`` skills, written atomically as one
 (``--workers``, Ray), resumes where it stopped (a readable shard on disk is
 never rebuilt) and shows the runner's progress bar. :func:`skills_dataset`
 reads the shards of seeds ``0..n_episodes-1`` (building any missing one here)
-and writes the merged file atomically beside them.
+and writes the merged file atomically beside them. Run as a module, it writes
+the skill-plan training set of the BlockStack Diffusion Policy
+(:func:`~steer_envs.data.blockstack_plans.to_plan_dataset`)::
+
+    python -m steer_envs.bench.suites.itps_blockstack.data --cache-dir DIR --episodes 200 --out plans.npz
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from steer_envs.core.validation import integer
+from steer_envs.data import blockstack_plans as plans
 from steer_envs.data import blockstack_skills as bs
+from steer_envs.data.trajectories import save_trajectories
 from steer_envs.io import DatasetError
 
 #: bump when shard contents change for the same settings (old shards are then not reused).
@@ -110,3 +117,50 @@ def skills_dataset(
     meta = {"n_episodes": n_episodes, "skills_per_episode": skills_per_episode, "shard_version": SHARD_VERSION}
     bs.save_skills(merged, out, meta=meta)
     return out, merged
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI: the skill-plan data set of the shards (missing shards are built here); exit 2 on a usage error."""
+    from steer_envs.bench.suites.itps_blockstack.suite import DataParams
+
+    parser = argparse.ArgumentParser(
+        prog="python -m steer_envs.bench.suites.itps_blockstack.data",
+        description="Write the BlockStack skill-plan data set (one plan per successful skill) "
+        "from the itps-blockstack-data shards; build the shards first in parallel with "
+        "`steer-bench run itps-blockstack-data --seeds N --workers 2 --param cache_dir=DIR`.",
+    )
+    parser.add_argument("--cache-dir", required=True, help="the shards' cache folder (the suite's cache_dir)")
+    parser.add_argument("--episodes", type=int, default=200, help="episode seeds 0..N-1 (default 200)")
+    parser.add_argument(
+        "--skills-per-episode",
+        type=int,
+        default=DataParams.skills_per_episode,
+        help=f"skills per shard (default {DataParams.skills_per_episode}, the suite's)",
+    )
+    parser.add_argument(
+        "--permutations",
+        type=int,
+        default=7,
+        help="extra copies of each skill with the cubes listed in another order (default 7; see to_plan_dataset)",
+    )
+    parser.add_argument("--out", required=True, help="output .npz (a steer_envs.data.trajectories file)")
+    args = parser.parse_args(argv)
+    if not str(args.out).endswith(".npz"):
+        parser.error(f"--out must end with .npz, got {args.out!r}")
+    try:
+        records, merged = skills_dataset(args.cache_dir, args.episodes, args.skills_per_episode)
+        meta = {"episodes": args.episodes, "skills_per_episode": args.skills_per_episode}
+        dataset = plans.to_plan_dataset(records, permutations=args.permutations, meta=meta)
+    except (TypeError, ValueError) as err:
+        parser.error(str(err))
+    path = save_trajectories(dataset, Path(args.out))
+    kept = len(dataset.meta["skills"])
+    print(
+        f"wrote {path}: {kept} plans ({args.permutations} cube permutations a skill) of {len(records)} skills "
+        f"({dataset.meta['dropped_too_long']} too long) from {merged.name}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

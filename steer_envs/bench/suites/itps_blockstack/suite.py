@@ -1,4 +1,4 @@
-"""ITPS on BlockStack (thesis §2.3): ``itps-blockstack-data``, the random planner's skill data set.
+"""ITPS on BlockStack (thesis §2.3): ``itps-blockstack-data`` (the skill data) and ``itps-blockstack`` (Table 2.2).
 
 * ``itps-blockstack-data``: one trial = one episode seed: ``skills_per_episode``
   skills of the random planner recorded from that reset seed and written as one
@@ -11,6 +11,18 @@
 ``cache_dir`` defaults to ``$XDG_CACHE_HOME/steer-envs/itps-blockstack``
 (``~/.cache`` when unset). Trials run with one BLAS thread.
 
+* ``itps-blockstack``: one trial = one evaluation scene (the seed) x one
+  method: a simulated user builds a tower of a seeded order by 3D sketches that
+  steer the frozen skill Diffusion Policy
+  (:mod:`~steer_envs.bench.suites.itps_blockstack.protocol`). Methods: RS
+  (unsteered), PR, GD with ``guide_ratio`` at every step (``DP-GD``), GD with
+  guidance off for the last 50 of the 100 DDIM steps (``DP-GD-I50``, the
+  thesis's "beta_{i<50} = 0"), SS. The policy comes from ``loader`` (the
+  committed checkpoint, :func:`steer_envs.baselines.pretrained.load_blockstack`)
+  or a ``checkpoint`` file; while it is missing the suite runs nothing and says
+  so. The ``plot`` hook draws steered plans like thesis Fig. 2.6
+  (:mod:`~steer_envs.bench.suites.itps_blockstack.plots`).
+
 >>> DataParams(skills_per_episode=0)
 Traceback (most recent call last):
 ValueError: itps-blockstack-data: parameter 'skills_per_episode' must be >= 1, got 0
@@ -19,13 +31,24 @@ ValueError: itps-blockstack-data: parameter 'skills_per_episode' must be >= 1, g
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import Metric, Suite, Trial, TrialResult, register_suite
-from steer_envs.utils.threads import single_threaded
+from steer_envs.bench.suite import (
+    Finding,
+    Metric,
+    Reference,
+    Suite,
+    Trial,
+    TrialPlan,
+    TrialRequest,
+    TrialResult,
+    register_suite,
+)
+from steer_envs.utils.threads import limit_threads, single_threaded
 
 DATA_SUITE = "itps-blockstack-data"
 ENV_ID = "steer_envs/BlockStack-v0"
@@ -93,5 +116,180 @@ register_suite(
         default_seeds=50,
         quick={"skills_per_episode": 3},
         quick_seeds=1,
+    )
+)
+
+
+# ------------------------------------------------------------------ itps-blockstack
+SUITE_NAME = "itps-blockstack"
+#: the loader of the committed BlockStack checkpoint
+BLOCKSTACK_LOADER = "steer_envs.baselines.pretrained:load_blockstack"
+
+#: thesis Table 2.2 (Isaac Sim, VR sketches): method -> {metric: share}
+TABLE_2_2: dict[str, dict[str, float]] = {
+    "DP-PR": {"TA": 0.33, "CS": 1.00, "AS": 0.33, "AF": 0.00, "MS": 0.67, "MF": 0.00},
+    "DP-GD-I50": {"TA": 0.83, "CS": 0.84, "AS": 0.67, "AF": 0.16, "MS": 0.17, "MF": 0.00},
+    "DP-GD": {"TA": 0.86, "CS": 0.15, "AS": 0.15, "AF": 0.71, "MS": 0.00, "MF": 0.14},
+}
+
+
+@dataclass(frozen=True)
+class SteerParams(SuiteParams):
+    """Parameters of ``itps-blockstack``.
+
+    ``batch`` plans per steering call; ``max_interactions`` skills per trial
+    (a tower needs 6); ``guide_ratio`` GD's beta (thesis table: 100);
+    ``plot_seeds`` seeds that keep their plans for the figure; ``torch_threads``
+    per trial process (0: torch's default); ``loader`` a ``module:function``
+    returning the policy, ``checkpoint`` a checkpoint file that replaces it.
+    """
+
+    suite_name: ClassVar[str] = SUITE_NAME
+    batch: int = 32
+    max_interactions: int = 8
+    guide_ratio: float = 100.0
+    plot_seeds: int = 2
+    torch_threads: int = 1
+    loader: str = BLOCKSTACK_LOADER
+    checkpoint: str = ""
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "batch")
+        self.require_at_most(4096, "batch")
+        self.require_at_least(1, "max_interactions")
+        self.require_at_most(100, "max_interactions")
+        self.require("guide_ratio", self.guide_ratio >= 0, ">= 0")
+        self.require_at_least(0, "plot_seeds")
+        self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
+
+    def policy(self) -> Any:
+        """The frozen skill policy (cached per process)."""
+        from steer_envs.bench.suites.itps_blockstack.protocol import load_skill_policy
+
+        return load_skill_policy(self.loader, self.checkpoint)
+
+
+def _plan_steer(suite: Suite, request: TrialRequest) -> TrialPlan:
+    from steer_envs.bench.suites.itps_blockstack.protocol import POLICY_UNAVAILABLE
+
+    params: SteerParams = suite.resolve_params(request.params, request.trials, base=request.base)
+    try:
+        params.policy()
+    except POLICY_UNAVAILABLE as exc:
+        note = (
+            f"skipped every method: the BlockStack policy is not available ({type(exc).__name__}: {exc}); "
+            "train it with scripts/train_blockstack_checkpoint.sh or set --param loader=module:function"
+        )
+        return TrialPlan((), (note,))
+    trials = [
+        suite.trial(env, method, seed, params)
+        for env in request.envs
+        for method in request.methods
+        for seed in suite.seed_list(request)
+    ]
+    return TrialPlan(tuple(trials), ())
+
+
+def run_steer_trial(trial: Trial) -> TrialResult:
+    """One evaluation scene x one method: build the user's tower by sketching."""
+    from steer_envs.bench.suites.itps_blockstack.protocol import tower_trial
+
+    if trial.env != ENV_ID:
+        raise ValueError(f"{SUITE_NAME}: unknown env {trial.env!r}; expected {ENV_ID!r}")
+    params = SteerParams.from_json(trial.params)
+    with limit_threads(blas_threads=1, torch_threads=params.torch_threads or None):
+        return tower_trial(
+            trial.seed,
+            params.policy(),
+            str(trial.method),
+            batch=params.batch,
+            max_interactions=params.max_interactions,
+            guide_ratio=params.guide_ratio,
+            keep_plans=trial.seed < params.plot_seeds,
+        )
+
+
+def steer_findings(table: Any) -> list[Finding]:
+    """Table 2.2's trade-off, checked on a run's summary table."""
+    need = ["DP-PR", "DP-GD", "DP-GD-I50"]
+    ta, cs, aligned_success = (table.means(m, need) for m in ("TA", "CS", "AS"))
+    ss = {m: table.means(m, ["DP-SS"]) for m in ("TA", "CS", "AS")}
+
+    def fmt(values: dict[str, float] | None, *methods: str) -> str:
+        return ", ".join(f"{m[3:]} {values[m]:.2f}" for m in methods) if values else ""
+
+    findings = []
+    claim = "guided sampling (GD, GD off after step 50) raises TA above PR"
+    holds = None if ta is None else ta["DP-GD"] > ta["DP-PR"] and ta["DP-GD-I50"] > ta["DP-PR"]
+    findings.append(Finding(claim, holds, fmt(ta, "DP-PR", "DP-GD", "DP-GD-I50")))
+    claim = "GD at full strength drops CS far below PR (by >= 0.25)"
+    holds = None if cs is None else cs["DP-GD"] <= cs["DP-PR"] - 0.25
+    findings.append(Finding(claim, holds, fmt(cs, "DP-PR", "DP-GD")))
+    claim = "GD with guidance off after step 50 keeps CS high (within 0.2 of PR's)"
+    holds = None if cs is None else cs["DP-GD-I50"] >= cs["DP-PR"] - 0.2
+    findings.append(Finding(claim, holds, fmt(cs, "DP-PR", "DP-GD-I50")))
+    claim = "GD off after step 50 has the highest aligned success (AS above PR's and full GD's)"
+    holds = (
+        None
+        if aligned_success is None
+        else aligned_success["DP-GD-I50"] > max(aligned_success["DP-PR"], aligned_success["DP-GD"])
+    )
+    findings.append(Finding(claim, holds, fmt(aligned_success, "DP-GD-I50", "DP-PR", "DP-GD")))
+    claim = "SS keeps CS high (within 0.2 of PR's) while raising TA above PR"
+    if cs is None or ta is None or ss["CS"] is None or ss["TA"] is None:
+        findings.append(Finding(claim, None))
+    else:
+        holds = ss["CS"]["DP-SS"] >= cs["DP-PR"] - 0.2 and ss["TA"]["DP-SS"] > ta["DP-PR"]
+        ss_ta, ss_cs = ss["TA"]["DP-SS"], ss["CS"]["DP-SS"]
+        detail = f"TA SS {ss_ta:.2f} vs PR {ta['DP-PR']:.2f}; CS SS {ss_cs:.2f} vs PR {cs['DP-PR']:.2f}"
+        findings.append(Finding(claim, holds, detail))
+    return findings
+
+
+def _steer_references() -> tuple[Reference, ...]:
+    return tuple(
+        Reference(metric, value, env=ENV_ID, method=method, source="thesis Table 2.2")
+        for method, values in TABLE_2_2.items()
+        for metric, value in values.items()
+    )
+
+
+def _plot_steer(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
+    from steer_envs.bench.suites.itps_blockstack.plots import plot_blockstack
+
+    return plot_blockstack(suite, records, out_dir)
+
+
+_SHARE = "share of the trial's interactions"
+register_suite(
+    Suite(
+        name=SUITE_NAME,
+        description=(
+            "ITPS block stacking (thesis Table 2.2): a simulated user builds a chosen 4-block tower by 3D "
+            "sketches steering the skill Diffusion Policy (batch 32); TA, CS and the AS/AF/MS/MF quadrants."
+        ),
+        metrics=(
+            Metric("TA", f"aligned: the picked plan does the intended skill ({_SHARE})", fmt=".2f"),
+            Metric("CS", f"success: the executed skill happened, nothing dropped or toppled ({_SHARE})", fmt=".2f"),
+            Metric("AS", "aligned success", fmt=".2f"),
+            Metric("AF", "aligned failure", higher_is_better=False, fmt=".2f"),
+            Metric("MS", "misaligned success", higher_is_better=False, fmt=".2f"),
+            Metric("MF", "misaligned failure", higher_is_better=False, fmt=".2f"),
+            Metric("batch_aligned", "share of the batch doing the intended skill", fmt=".2f"),
+            Metric("tower_built", "the user's tower stands at the end", fmt=".2f"),
+            Metric("interactions", "steering calls of the trial", fmt=".1f"),
+            Metric("latency_ms", "ms per steering call (batch 32)", kind="timing", higher_is_better=False, fmt=".0f"),
+        ),
+        run_trial=run_steer_trial,
+        envs=(ENV_ID,),
+        methods=("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-SS"),
+        params=SteerParams(),
+        default_seeds=20,
+        generate=_plan_steer,
+        references=_steer_references(),
+        quick={"batch": 8, "max_interactions": 1, "plot_seeds": 1},
+        quick_seeds=1,
+        plot=_plot_steer,
+        findings=steer_findings,
     )
 )

@@ -1,0 +1,194 @@
+"""One ITPS block-stacking trial: a user builds a chosen 4-block tower by sketching, one skill at a time.
+
+:func:`tower_trial` resets BlockStack at an evaluation scene (``SCENE_SEED_OFFSET
++ seed``: never a training scene), draws the user's tower order from the seed
+and lets a :class:`~steer_envs.users.block_sketcher.TowerSketchUser` steer the
+frozen skill policy: at every interaction the user names the next skill toward
+the tower (recovering from earlier mistakes as a person would), sketches it in
+3D from the end effector, the sampler returns a batch of plans and picks one,
+and the plan is executed open-loop
+(:func:`~steer_envs.envs.robosuite.plan_execution.execute_plan`). The thesis's
+scoring, per interaction:
+
+* *aligned*: the picked plan performs the intended skill, read off the plan
+  (:func:`~steer_envs.envs.robosuite.plan_execution.classify_plan`: the cube
+  nearest to where it closes the gripper, the tower top or table where it
+  opens);
+* *success*: the executed skill happened in the world (a cube picked, or
+  placed and resting) without a drop or a falling tower.
+
+A trial ends when the tower stands or after ``max_interactions``. Its metrics
+are shares of its interactions (TA, CS and the AS/AF/MS/MF quadrants), the
+share of the batch that performs the intended skill (``batch_aligned``: how
+often the intended mode is in the batch at all), whether the tower was built,
+and the mean latency of the steering calls.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from typing import Any
+
+import numpy as np
+
+from steer_envs.bench.suite import TrialResult, resolve_function
+
+__all__ = [
+    "METHOD_SAMPLERS",
+    "POLICY_UNAVAILABLE",
+    "SCENE_SEED_OFFSET",
+    "load_skill_policy",
+    "make_method_sampler",
+    "tower_stands",
+    "tower_trial",
+]
+
+#: exceptions that mean "the policy is not available (yet)": module, function or checkpoint missing
+POLICY_UNAVAILABLE: tuple[type[Exception], ...] = (ImportError, AttributeError, FileNotFoundError)
+
+#: evaluation scenes are reset seeds SCENE_SEED_OFFSET + seed (the skill data uses seeds 0..N-1).
+SCENE_SEED_OFFSET = 100_000
+
+#: method -> (sampler name, keyword arguments): thesis Table 2.2's columns plus RS and SS.
+METHOD_SAMPLERS: dict[str, tuple[str, dict[str, Any]]] = {
+    "DP-RS": ("RS", {}),
+    "DP-PR": ("PR", {}),
+    "DP-GD": ("GD", {"guide_ratio": 100.0}),
+    "DP-GD-I50": ("GD", {"guide_ratio": 100.0, "min_guided_t": 50}),
+    "DP-SS": ("SS", {}),
+}
+
+
+@functools.lru_cache(maxsize=2)
+def load_skill_policy(loader: str, checkpoint: str = "") -> Any:
+    """The frozen skill policy from a checkpoint file or a ``"module:function"`` loader (cached per process).
+
+    A checkpoint file (of ``python -m steer_envs.baselines.training`` on the
+    plan data) wins and gets ``interaction_dims = (0, 1, 2)``; the loader is
+    called without arguments. Raises one of :data:`POLICY_UNAVAILABLE` while
+    the policy is not available.
+    """
+    if checkpoint:
+        from steer_envs.baselines.pretrained import load_checkpoint
+
+        policy = load_checkpoint("dp", checkpoint)
+        policy.interaction_dims = (0, 1, 2)
+        return policy
+    policy = resolve_function(loader)()
+    from steer_envs.core.policy import TrajectoryPolicy
+
+    if not isinstance(policy, TrajectoryPolicy):
+        raise TypeError(f"{loader}() must return a TrajectoryPolicy, got {type(policy).__name__}")
+    return policy
+
+
+def make_method_sampler(method: str, guide_ratio: float | None = None) -> Any:
+    """The sampler of ``method`` (``guide_ratio`` replaces GD's beta when given)."""
+    from steer_envs.wrappers.samplers import make_sampler
+
+    if method not in METHOD_SAMPLERS:
+        raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHOD_SAMPLERS)}")
+    name, kwargs = METHOD_SAMPLERS[method]
+    if guide_ratio is not None and name == "GD":
+        kwargs = {**kwargs, "guide_ratio": float(guide_ratio)}
+    return make_sampler(name, **kwargs)
+
+
+def tower_stands(env: Any, order: tuple[int, ...]) -> bool:
+    """Whether the tower ``order`` (cube ids bottom to top) stands on the table, the hand empty."""
+    support = env.supports
+    if env.held_cube is not None or support[order[0]] != "table":
+        return False
+    return all(support[top] == below for below, top in itertools.pairwise(order))
+
+
+def _plan_list(plans: np.ndarray) -> list[list[list[float]]]:
+    return np.round(np.asarray(plans, dtype=np.float64), 4).tolist()
+
+
+def tower_trial(
+    seed: int,
+    policy: Any,
+    method: str,
+    *,
+    batch: int = 32,
+    max_interactions: int = 8,
+    guide_ratio: float | None = None,
+    keep_plans: bool = False,
+) -> TrialResult:
+    """One tower-building trial of ``method`` from evaluation scene ``seed`` (see the module docstring)."""
+    from steer_envs.data.blockstack_skills import make_env
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, yaw_of
+    from steer_envs.users.block_sketcher import TowerSketchUser
+
+    sampler = make_method_sampler(method, guide_ratio)
+    rng = np.random.default_rng([seed, 7])
+    order = tuple(int(c) for c in rng.permutation(4))
+    env = make_env()
+    try:
+        obs, _ = env.reset(seed=SCENE_SEED_OFFSET + seed)
+        home_yaw = yaw_of(env.robosuite_obs["robot0_eef_quat"])  # yaw targets stay near it, as the expert's
+        user = TowerSketchUser(order, seed=seed)
+        rows: list[dict[str, Any]] = []
+        kept: list[dict[str, Any]] = []
+        for _ in range(max_interactions):
+            if tower_stands(env, order):
+                break
+            skill = user.intended_skill(env)
+            sketch = user.sketch(env, skill)
+            scene = {"cube_pos": env.cube_pos.round(4).tolist(), "eef": env.state.round(4).tolist()}
+            result = sampler(policy, obs, sketch, batch, generator=np.random.default_rng([seed, len(rows)]))
+            kinds = [classify_plan(env, p) for p in result.plans]
+            aligned = kinds[result.chosen] == skill.name
+            outcome = execute_plan(env, result.plan, home_yaw=home_yaw)
+            obs = outcome.obs
+            rows.append(
+                {
+                    "intended": skill.name,
+                    "planned": kinds[result.chosen],
+                    "executed": outcome.executed,
+                    "aligned": aligned,
+                    "success": outcome.success,
+                    "batch_aligned": float(np.mean([k == skill.name for k in kinds])),
+                    "latency_ms": float(result.timings["total_ms"]),
+                }
+            )
+            if keep_plans:
+                kept.append(
+                    {
+                        **scene,
+                        "intended": skill.name,
+                        "sketch": np.round(sketch.points, 4).tolist(),
+                        "plans": _plan_list(result.plans),
+                        "chosen": int(result.chosen),
+                        "aligned": aligned,
+                        "success": outcome.success,
+                    }
+                )
+        built = tower_stands(env, order)
+    finally:
+        env.close()
+    n = len(rows)
+    aligned = np.array([r["aligned"] for r in rows], dtype=bool)
+    success = np.array([r["success"] for r in rows], dtype=bool)
+
+    def share(mask: np.ndarray) -> float | None:
+        return float(mask.mean()) if n else None
+
+    metrics = {
+        "TA": share(aligned),
+        "CS": share(success),
+        "AS": share(aligned & success),
+        "AF": share(aligned & ~success),
+        "MS": share(~aligned & success),
+        "MF": share(~aligned & ~success),
+        "batch_aligned": float(np.mean([r["batch_aligned"] for r in rows])) if n else None,
+        "tower_built": float(built),
+        "interactions": float(n),
+        "latency_ms": float(np.mean([r["latency_ms"] for r in rows])) if n else None,
+    }
+    extra: dict[str, Any] = {"order": list(order), "interactions": rows}
+    if keep_plans:
+        extra["plans"] = kept
+    return TrialResult(metrics, extra)

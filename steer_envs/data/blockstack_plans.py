@@ -1,0 +1,131 @@
+"""BlockStack skill plans: one pick-or-place skill as one fixed-length plan of waypoints (ITPS §2.3).
+
+The block-stacking Diffusion Policy plans a *whole skill* at a time from the
+scene at the skill's start (the thesis's "one pick-or-place skill per plan").
+A plan is ``(PLAN_HORIZON, 4)``: waypoint ``k`` is the end-effector position
+(world frame, m) after ``PLAN_STRIDE * (k + 1)`` control steps and the gripper
+command in force then (-1 open, +1 closed). A skill shorter than
+``PLAN_STRIDE * PLAN_HORIZON`` steps is padded with its last waypoint (the arm
+waits there); a longer one is not made into a plan (:func:`skill_plan` returns
+``None``; 0.3 % of the random planner's skills).
+
+:func:`to_plan_dataset` turns skill records into a
+:class:`~steer_envs.data.trajectories.TrajectoryDataset` with one
+``PLAN_HORIZON``-step episode per skill, so ``PlanWindows`` with ``n_obs=1``
+and ``horizon=PLAN_HORIZON`` yields exactly one window per skill: the
+observation at the skill's start and its plan. The bench's shard module builds
+that file from the ``itps-blockstack-data`` shards::
+
+    python -m steer_envs.bench.suites.itps_blockstack.data --cache-dir DIR --episodes 200 --out plans.npz
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from steer_envs.core.validation import boolean, integer
+from steer_envs.data.blockstack_skills import SkillRecord
+from steer_envs.data.trajectories import TrajectoryDataset
+from steer_envs.envs.robosuite.blockstack import NUM_CUBES
+
+__all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "skill_plan", "to_plan_dataset"]
+
+#: control steps per plan waypoint.
+PLAN_STRIDE = 3
+#: waypoints per plan: ``PLAN_STRIDE * PLAN_HORIZON = 96`` control steps hold 99.7 % of the skills.
+PLAN_HORIZON = 32
+#: a waypoint: eef x, y, z (m) and the gripper command.
+PLAN_DIM = 4
+#: the first observation column of the cube poses (after eef 3 and finger positions 2).
+CUBE_START = 5
+
+
+def skill_plan(
+    record: SkillRecord, *, stride: int = PLAN_STRIDE, horizon: int = PLAN_HORIZON
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(obs, plan)`` of one skill: observations ``(horizon, 33)`` at the waypoints' start steps and the plan.
+
+    ``obs[0]`` is the skill's first observation (what a plan is conditioned on).
+    ``None`` when the skill is empty or longer than ``stride * horizon`` steps.
+    """
+    if not isinstance(record, SkillRecord):
+        raise TypeError(f"skill_plan: `record` must be a SkillRecord, got {type(record).__name__}")
+    stride = integer(stride, "stride", low=1, high=1000, owner="skill_plan")
+    horizon = integer(horizon, "horizon", low=1, high=10_000, owner="skill_plan")
+    steps = len(record)
+    if steps == 0 or steps > stride * horizon:
+        return None
+    ends = np.minimum(stride * np.arange(1, horizon + 1), steps)
+    plan = np.concatenate([record.eef[ends], record.gripper[ends, None]], axis=1).astype(np.float32)
+    obs = record.obs[np.minimum(stride * np.arange(horizon), steps)].astype(np.float32)
+    return obs, plan
+
+
+def _cube_columns(order: np.ndarray) -> np.ndarray:
+    """Observation columns listing the cubes in ``order`` (eef and fingers first, then 7 entries a cube)."""
+    cubes = [np.arange(CUBE_START + 7 * int(i), CUBE_START + 7 * int(i) + 7) for i in order]
+    return np.concatenate([np.arange(CUBE_START), *cubes])
+
+
+def to_plan_dataset(
+    records: Sequence[SkillRecord],
+    *,
+    stride: int = PLAN_STRIDE,
+    horizon: int = PLAN_HORIZON,
+    successful_only: bool = True,
+    permutations: int = 0,
+    seed: int = 0,
+    meta: Mapping[str, Any] | None = None,
+) -> TrajectoryDataset:
+    """One ``horizon``-step episode per skill (see the module docstring); failed skills dropped by default.
+
+    ``permutations``: extra copies of every skill whose observations list the
+    four cubes in another (seeded random) order; the plan is unchanged. The
+    cubes are interchangeable, so this teaches the policy that a skill goes
+    to *a* cube, not to an observation slot: without it a few thousand skills
+    are memorized scene by scene (one plan per scene, no multimodality).
+    The dataset's meta records the plan layout (``plan_stride``, ``plan_horizon``),
+    the augmentation, the skill names and how many skills were dropped as too long.
+    """
+    owner = "to_plan_dataset"
+    successful_only = boolean(successful_only, "successful_only", owner=owner)
+    permutations = integer(permutations, "permutations", low=0, high=1000, owner=owner)
+    rng = np.random.default_rng(integer(seed, "seed", low=0, owner=owner))
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    obs, plans, names, seeds = [], [], [], []
+    too_long = 0
+    for i, r in enumerate(records):
+        if not isinstance(r, SkillRecord):
+            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+        if successful_only and not (r.success and not r.violation):
+            continue
+        made = skill_plan(r, stride=stride, horizon=horizon)
+        if made is None:
+            too_long += len(r) > 0
+            continue
+        for copy in range(permutations + 1):
+            order = np.arange(NUM_CUBES) if copy == 0 else rng.permutation(NUM_CUBES)
+            obs.append(made[0][:, _cube_columns(order)])
+            plans.append(made[1])
+            names.append(r.name)
+            seeds.append(r.seed)
+    if not plans:
+        raise ValueError(f"{owner}: `records` holds no skill to keep (of {len(records)})")
+    info = {
+        **dict(meta or {}),
+        "source": "blockstack_plans",
+        "action": "eef_pos+gripper",
+        "plan_stride": int(stride),
+        "plan_horizon": int(horizon),
+        "cube_permutations": int(permutations),
+        "augment_seed": int(seed),
+        "skills": names,
+        "episode_seeds": seeds,
+        "dropped_too_long": int(too_long),
+    }
+    starts = np.arange(len(plans), dtype=np.int64) * int(horizon)
+    return TrajectoryDataset(np.concatenate(obs), np.concatenate(plans), starts, meta=info)

@@ -1,0 +1,78 @@
+"""``itps-blockstack``: Table 2.2's findings on synthetic tables, parameters, a missing policy, one real trial."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from steer_envs.bench.suites.itps_blockstack.suite import ENV_ID, SUITE_NAME, TABLE_2_2, SteerParams
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
+needs_robosuite = pytest.mark.skipif(
+    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
+)
+CHECKPOINT = Path(__file__).resolve().parents[2] / "baselines" / "checkpoints" / "blockstack" / "dp.safetensors"
+
+
+def _record(method: str, seed: int, values: dict[str, float]) -> dict[str, Any]:
+    config = {"suite": SUITE_NAME, "env": ENV_ID, "method": method, "params": {}}
+    return {"config": config, "seed": seed, "metrics": dict(values), "key": f"{method}-{seed}"}
+
+
+def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
+    from steer_envs.bench.report import summarize
+
+    (table,) = summarize([_record(m, s, v) for m, v in cells.items() for s in (0, 1)])
+    return [f.holds for f in table.findings]
+
+
+def test_findings_check_table_2_2s_trade_off() -> None:
+    thesis = {**TABLE_2_2, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
+    assert _verdicts(thesis) == [True, True, True, True, True]
+    flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25} for key in ("DP-PR", "DP-GD", "DP-GD-I50", "DP-SS")}
+    assert _verdicts(flat) == [False, False, True, False, False]
+    assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 5
+
+
+def test_params_refuse_bad_values() -> None:
+    for bad in ({"batch": 0}, {"max_interactions": 0}, {"guide_ratio": -1.0}, {"torch_threads": -1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            SteerParams.from_json(bad)
+
+
+def test_an_unknown_method_is_refused() -> None:
+    from steer_envs.bench.suites.itps_blockstack.protocol import make_method_sampler
+
+    with pytest.raises(ValueError, match="unknown method 'DP-XX'"):
+        make_method_sampler("DP-XX")
+    assert make_method_sampler("DP-GD-I50").min_guided_t == 50
+    assert make_method_sampler("DP-GD", guide_ratio=25.0).guide_ratio == 25.0
+
+
+def test_a_missing_policy_skips_the_suite_with_a_note(tmp_path: Path) -> None:
+    from steer_envs.bench.runner import run_suite
+
+    params = {"loader": "steer_envs.no_such_module:load"}
+    result = run_suite(SUITE_NAME, tmp_path / "run", seeds=[0], params=params, progress=False)
+    assert result.planned == 0 and any("not available" in n for n in result.notes)
+
+
+@needs_robosuite
+@pytest.mark.skipif(not CHECKPOINT.is_file(), reason="the BlockStack checkpoint is not built")
+def test_one_trial_scores_its_interactions() -> None:
+    from steer_envs.baselines.pretrained import load_blockstack
+    from steer_envs.bench.suites.itps_blockstack.protocol import tower_trial
+
+    res = tower_trial(0, load_blockstack(), "DP-PR", batch=4, max_interactions=2, keep_plans=True)
+    m = res.metrics
+    assert m["interactions"] == 2 and len(res.extra["interactions"]) == 2
+    quadrants = sum(m[k] for k in ("AS", "AF", "MS", "MF"))  # type: ignore[misc]
+    assert quadrants == pytest.approx(1.0)
+    assert m["TA"] == pytest.approx(m["AS"] + m["AF"]) and m["CS"] == pytest.approx(m["AS"] + m["MS"])  # type: ignore[operator]
+    kept = res.extra["plans"][0]
+    assert np.asarray(kept["plans"]).shape == (4, 32, 4) and len(kept["sketch"]) == 32
+    assert sorted(res.extra["order"]) == [0, 1, 2, 3]

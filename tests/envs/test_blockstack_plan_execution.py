@@ -1,0 +1,254 @@
+"""BlockStack plan execution: expert skills replayed as plans, plans classified, outcomes, bad input.
+
+One env and one 2-skill episode (a pick, a place) for the module; skill starts
+are reached again by reset + replaying the recorded actions (MuJoCo is deterministic).
+
+The replay-fidelity measurement (:func:`replay_fidelity`, ``-m slow``) also runs as a script::
+
+    MUJOCO_GL=osmesa python tests/envs/test_blockstack_plan_execution.py --seeds 10 --skills 4 [--noise 0.005]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from steer_envs.envs.robosuite.blockstack import CUBE_HALF
+
+pytestmark = [
+    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
+    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
+]
+SEED = 2
+
+
+@pytest.fixture(scope="module")
+def env() -> Iterator[Any]:
+    from steer_envs.data.blockstack_skills import make_env
+
+    made = make_env()
+    yield made
+    made.close()
+
+
+def replay_fidelity(seeds: Sequence[int], skills_per_seed: int = 4, *, plan_noise: float = 0.0) -> dict[str, Any]:
+    """Replay the expert's recorded skills as plans from their own start states; the agreement rates.
+
+    For each seed the random planner's first ``skills_per_seed`` skills are
+    recorded; skill k's start is reached again by resetting with the seed and
+    replaying the recorded actions of skills ``0..k-1``; its plan
+    (``skill_plan``) is classified and executed. Only the expert's successful,
+    violation-free skills that fit a plan count. ``plan_noise`` (m): std of
+    Gaussian noise on every waypoint's position (seeded), a stand-in for a
+    generated plan's error. Returns the count, the rates ``replay_success``
+    (executed the recorded skill, no violation), ``replay_executed``,
+    ``classified``, and one row per skill.
+    """
+    from steer_envs.data.blockstack_plans import skill_plan
+    from steer_envs.data.blockstack_skills import make_env, record_episode
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, yaw_of
+
+    env = make_env()
+    rows: list[dict[str, Any]] = []
+    try:
+        for seed in seeds:
+            records = record_episode(env, seed, skills_per_seed)
+            rng = np.random.default_rng(seed)
+            for k, rec in enumerate(records):
+                made = skill_plan(rec)
+                if not (rec.success and not rec.violation) or made is None:
+                    continue
+                env.reset(seed=seed)
+                home = yaw_of(env.robosuite_obs["robot0_eef_quat"])  # the expert's home yaw
+                for prev in records[:k]:
+                    for action in prev.actions:
+                        env.step(action)
+                plan = made[1].astype(np.float64)
+                if plan_noise > 0:
+                    plan[:, :3] += rng.normal(scale=plan_noise, size=plan[:, :3].shape)
+                label = classify_plan(env, plan)
+                out = execute_plan(env, plan, home_yaw=home)
+                rows.append(
+                    {
+                        "seed": seed,
+                        "index": k,
+                        "skill": rec.name,
+                        "classified": label,
+                        "executed": out.executed,
+                        "violation": out.violation,
+                        "steps": out.steps,
+                        "same_start": bool(np.allclose(out.trail[0], rec.eef[0], atol=1e-9)),
+                    }
+                )
+    finally:
+        env.close()
+    n = max(len(rows), 1)
+    return {
+        "skills": len(rows),
+        "replay_success": sum(r["executed"] == r["skill"] and not r["violation"] for r in rows) / n,
+        "replay_executed": sum(r["executed"] == r["skill"] for r in rows) / n,
+        "classified": sum(r["classified"] == r["skill"] for r in rows) / n,
+        "rows": rows,
+    }
+
+
+@pytest.fixture(scope="module")
+def records(env: Any) -> list[Any]:
+    from steer_envs.data.blockstack_skills import record_episode
+
+    recs = record_episode(env, SEED, 2)
+    assert [r.kind for r in recs] == ["pick", "place"] and all(r.success and not r.violation for r in recs)
+    return recs
+
+
+def start_of(env: Any, records: list[Any], k: int) -> None:
+    """Reset to skill ``k``'s start state (reset + the earlier skills' actions)."""
+    env.reset(seed=SEED)
+    for rec in records[:k]:
+        for action in rec.actions:
+            env.step(action)
+    assert np.allclose(env.state, records[k].eef[0], atol=1e-9)
+
+
+def plan_of(record: Any) -> np.ndarray:
+    from steer_envs.data.blockstack_plans import skill_plan
+
+    made = skill_plan(record)
+    assert made is not None
+    return made[1]
+
+
+def hold_plan(env: Any, n: int = 8, gripper: float = -1.0) -> np.ndarray:
+    """A plan that keeps the eef where it is with a fixed gripper command."""
+    return np.tile(np.r_[env.state, gripper], (n, 1))
+
+
+def test_expert_pick_and_place_replay_as_plans(env: Any, records: list[Any]) -> None:
+    from steer_envs.data.blockstack_plans import PLAN_HORIZON, PLAN_STRIDE
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan
+
+    for k, rec in enumerate(records):
+        start_of(env, records, k)
+        plan = plan_of(rec)
+        assert classify_plan(env, plan) == rec.name
+        out = execute_plan(gym.Wrapper(env), plan)  # a wrapper is unwrapped
+        assert out.executed == rec.name and not out.violation and out.success, (rec.name, out.executed)
+        assert out.steps >= PLAN_HORIZON * PLAN_STRIDE and out.trail.shape == (out.steps + 1, 3)
+        assert np.allclose(out.trail[0], rec.eef[0]) and np.allclose(out.trail[-1], env.state)
+        # the eef ends near where the expert's did (the plan pads with its last waypoint)
+        assert np.linalg.norm(out.trail[-1] - rec.eef[-1]) < 0.02
+
+
+def test_a_plan_that_does_nothing_executes_nothing(env: Any, records: list[Any]) -> None:
+    from steer_envs.envs.robosuite.plan_execution import PlanOutcome, classify_plan, execute_plan
+
+    start_of(env, records, 0)
+    plan = hold_plan(env, 4)
+    assert classify_plan(env, plan) is None
+    out = execute_plan(env, plan, stride=2)
+    assert out.executed is None and not out.success and out.steps == 8 and out.trail.shape == (9, 3)
+    assert PlanOutcome("pick_1", True, 3, np.zeros((4, 3)), np.zeros(33)).success is False
+    assert PlanOutcome("pick_1", False, 3, np.zeros((4, 3)), np.zeros(33)).success is True
+
+
+def test_classify_reads_the_closing_and_opening_waypoints(env: Any, records: list[Any]) -> None:
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, free_table_spot
+
+    start_of(env, records, 0)
+    pos = env.cube_pos
+    for cube in range(4):  # close at each cube's centre: a pick of it; high above it or beside it: none
+        plan = np.array([[*env.state, -1.0], [*pos[cube], -1.0], [*pos[cube], 1.0]])
+        assert classify_plan(env, plan) == f"pick_{cube}"
+        high = plan.copy()
+        high[1:, 2] += 0.06
+        assert classify_plan(env, high) is None
+        beside = plan.copy()
+        beside[1:, 0] += 0.045
+        assert classify_plan(env, beside) is None
+    start_of(env, records, 1)  # holding: the held cube's centre where the plan opens decides
+    held = env.held_cube
+    offset = env.cube_pos[held] - env.state
+    pos = env.cube_pos
+    for j in (c for c in range(4) if c != held):
+        centre = pos[j] + [0.0, 0.0, 2 * CUBE_HALF + 0.005]
+        plan = np.array([[*env.state, 1.0], [*(centre - offset), 1.0], [*(centre - offset), -1.0]])
+        assert classify_plan(env, plan) == f"place_{held}_on_{j}"
+        plan[1:, 2] += 0.1  # opened far above the cube: a drop, no place
+        assert classify_plan(env, plan) is None
+    xy = free_table_spot(env, np.random.default_rng(0), exclude=held)
+    spot = np.array([xy[0], xy[1], env.table_z + CUBE_HALF])
+    plan = np.array([[*env.state, 1.0], [*(spot - offset), -1.0]])
+    assert classify_plan(env, plan) == f"place_{held}_on_table"
+    plan[1, 2] += 0.1
+    assert classify_plan(env, plan) is None
+    assert classify_plan(env, hold_plan(env, gripper=1.0)) is None  # never opens
+
+
+def test_bad_input_is_refused(env: Any, records: list[Any]) -> None:
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan
+
+    env.reset(seed=SEED)
+    good = hold_plan(env, 2)
+    for fn in (execute_plan, classify_plan):
+        with pytest.raises(TypeError, match="env"):
+            fn(object(), good)
+        with pytest.raises(ValueError, match="plan"):
+            fn(env, good[:, :3])
+        with pytest.raises(ValueError, match="plan"):
+            fn(env, good[0])
+        with pytest.raises(ValueError, match="plan"):
+            fn(env, np.zeros((0, 4)))
+        with pytest.raises(ValueError, match="plan"):
+            fn(env, np.zeros((10_001, 4)))
+        with pytest.raises(ValueError, match="plan"):
+            fn(env, np.where(good == good[0, 0], np.nan, good))
+        with pytest.raises(TypeError, match="plan"):
+            fn(env, "plan")
+        with pytest.raises(TypeError, match="plan"):
+            fn(env, good.astype(bool))
+    with pytest.raises(ValueError, match="stride"):
+        execute_plan(env, good, stride=0)
+    with pytest.raises(TypeError, match="stride"):
+        execute_plan(env, good, stride=2.0)
+    with pytest.raises(TypeError, match="home_yaw"):
+        execute_plan(env, good, home_yaw="0")
+
+
+def test_shared_pieces_are_the_experts_and_the_plan_layout() -> None:
+    import steer_envs.data.blockstack_plans as plans
+    import steer_envs.data.experts.blockstack as expert
+    import steer_envs.envs.robosuite.plan_execution as pe
+
+    assert (pe.PLAN_STRIDE, pe.PLAN_DIM) == (plans.PLAN_STRIDE, plans.PLAN_DIM)
+    assert expert.Skill is pe.Skill and expert.free_table_spot is pe.free_table_spot
+    assert expert.TOWER_CLEARANCE == pe.TOWER_CLEARANCE
+
+
+@pytest.mark.slow
+def test_replay_fidelity_of_forty_expert_skills() -> None:
+    result = replay_fidelity(list(range(10)), 4)
+    assert result["skills"] >= 38 and all(r["same_start"] for r in result["rows"])
+    assert result["replay_success"] >= 0.9 and result["classified"] >= 0.95, result
+
+
+if __name__ == "__main__":
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    parser = argparse.ArgumentParser(description="BlockStack replay fidelity of the expert's skills as plans")
+    parser.add_argument("--seeds", type=int, default=10, help="reset seeds 0..N-1")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--skills", type=int, default=4, help="skills per seed")
+    parser.add_argument("--noise", type=float, default=0.0, help="waypoint noise std (m)")
+    args = parser.parse_args()
+    res = replay_fidelity(range(args.first_seed, args.first_seed + args.seeds), args.skills, plan_noise=args.noise)
+    for row in res["rows"]:
+        if row["executed"] != row["skill"] or row["violation"] or row["classified"] != row["skill"]:
+            print("miss:", row)
+    print({k: v for k, v in res.items() if k != "rows"})
