@@ -33,9 +33,10 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.validation import boolean, integer
-from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner, Skill
+from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner, Skill, free_table_spot
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv
+from steer_envs.envs.robosuite.plan_execution import towers
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 __all__ = [
@@ -44,8 +45,10 @@ __all__ = [
     "ONTO_NONE",
     "ONTO_TABLE",
     "SkillRecord",
+    "alternative_skills",
     "load_skills",
     "make_env",
+    "record_branches",
     "record_episode",
     "save_skills",
     "to_trajectory_dataset",
@@ -145,40 +148,118 @@ def record_episode(env: Any, seed: int, n_skills: int) -> list[SkillRecord]:
     skills = BlockStackSkills(base)
     out: list[SkillRecord] = []
     for index in range(n_skills):
-        skill = planner.next_skill(base)
-        skills.start(skill)
-        target = _target(base, skill)
-        states = [np.asarray(obs, dtype=np.float32)]
-        eef, grip, modes = [base.state], [base._gripper], [int(info["mode"])]
-        actions: list[np.ndarray] = []
-        violation = False
-        while not skills.done:
-            action = skills.act()
-            obs, _, _, _, info = base.step(action)
-            actions.append(np.asarray(action, dtype=np.float32))
-            states.append(np.asarray(obs, dtype=np.float32))
-            eef.append(base.state)
-            grip.append(base._gripper)
-            modes.append(int(info["mode"]))
-            violation |= bool(info["constraint_violation"])
-        out.append(
-            SkillRecord(
-                name=skill.name,
-                cube=skill.cube,
-                onto=ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto),
-                target=np.asarray(target, dtype=np.float64),
-                success=skills.succeeded(),
-                violation=violation,
-                seed=seed,
-                index=index,
-                obs=np.stack(states),
-                actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
-                eef=np.stack(eef).astype(np.float64),
-                gripper=np.asarray(grip, dtype=np.float32),
-                modes=np.asarray(modes, dtype=np.int16),
-            )
-        )
+        record, obs, info = _run_skill(base, skills, planner.next_skill(base), obs, info, seed, index)
+        out.append(record)
     return out
+
+
+def _run_skill(
+    base: BlockStackEnv, skills: BlockStackSkills, skill: Skill, obs: Any, info: dict[str, Any], seed: int, index: int
+) -> tuple[SkillRecord, Any, dict[str, Any]]:
+    """Run ``skill`` to its end from the current state; the record and the last observation and info."""
+    skills.start(skill)
+    target = _target(base, skill)
+    states = [np.asarray(obs, dtype=np.float32)]
+    eef, grip, modes = [base.state], [base._gripper], [int(info["mode"])]
+    actions: list[np.ndarray] = []
+    violation = False
+    while not skills.done:
+        action = skills.act()
+        obs, _, _, _, info = base.step(action)
+        actions.append(np.asarray(action, dtype=np.float32))
+        states.append(np.asarray(obs, dtype=np.float32))
+        eef.append(base.state)
+        grip.append(base._gripper)
+        modes.append(int(info["mode"]))
+        violation |= bool(info["constraint_violation"])
+    record = SkillRecord(
+        name=skill.name,
+        cube=skill.cube,
+        onto=ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto),
+        target=np.asarray(target, dtype=np.float64),
+        success=skills.succeeded(),
+        violation=violation,
+        seed=seed,
+        index=index,
+        obs=np.stack(states),
+        actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
+        eef=np.stack(eef).astype(np.float64),
+        gripper=np.asarray(grip, dtype=np.float32),
+        modes=np.asarray(modes, dtype=np.int16),
+    )
+    return record, obs, info
+
+
+def alternative_skills(env: Any, skill: Skill, rng: np.random.Generator) -> list[Skill]:
+    """The other skills the random planner could have chosen instead of ``skill`` here, in random order.
+
+    Free hand: a pick of every other tower top. Holding: a place on every other
+    tower top (towers lower than 4 without the held cube) and, unless ``skill``
+    is one, a place on the table at a free spot.
+    """
+    base = _unwrapped(env, "alternative_skills")
+    stacks = towers(base)
+    held = base.held_cube
+    if held is None:
+        tops = [t[-1] for t in stacks] or list(range(NUM_CUBES))
+        out = [Skill("pick", c) for c in tops if c != skill.cube]
+    else:
+        out = [Skill("place", held, t[-1]) for t in stacks if held not in t and len(t) < NUM_CUBES]
+        out = [s for s in out if s.onto != skill.onto or skill.onto is None]
+        if skill.onto is not None:
+            xy = free_table_spot(base, rng, exclude=held)
+            out.append(Skill("place", held, None, (float(xy[0]), float(xy[1]))))
+    return [out[int(i)] for i in rng.permutation(len(out))]
+
+
+def record_branches(env: Any, seed: int, n_skills: int, branches: int) -> list[SkillRecord]:
+    """The episode of :func:`record_episode` plus up to ``branches`` other skills from each skill's start.
+
+    Several skills from the *same* state are what a multimodal skill policy
+    learns from (a random-planner episode holds one skill per state). The main
+    episode is exactly :func:`record_episode`'s; the alternatives of each start
+    (:func:`alternative_skills`, their own seeded generator) are chosen while it
+    runs. Skill ``k``'s start is reached again by resetting with ``seed`` and
+    replaying the main episode's actions (MuJoCo is deterministic: the state is
+    the same, checked on the observation); each alternative then runs to its end
+    and is recorded with ``index=k``. The main skills come first, then the branches.
+    """
+    owner = "record_branches"
+    base = _unwrapped(env, owner)
+    seed = integer(seed, "seed", low=0, owner=owner)
+    n_skills = integer(n_skills, "n_skills", low=1, high=10_000, owner=owner)
+    branches = integer(branches, "branches", low=0, high=100, owner=owner)
+    rng = np.random.default_rng([seed, 1])
+    obs, info = base.reset(seed=seed)
+    planner = RandomTowerPlanner(seed)
+    skills = BlockStackSkills(base)
+    main: list[SkillRecord] = []
+    others: list[list[Skill]] = []
+    for index in range(n_skills):
+        skill = planner.next_skill(base)
+        others.append(alternative_skills(base, skill, rng)[:branches])
+        record, obs, info = _run_skill(base, skills, skill, obs, info, seed, index)
+        main.append(record)
+    out = list(main)
+    for k, alternatives in enumerate(others):
+        for skill in alternatives:
+            obs, info, replayed = _replay(base, seed, main[:k])
+            if not np.array_equal(np.asarray(obs, dtype=np.float32), main[k].obs[0]):
+                raise RuntimeError(f"{owner}: replaying seed {seed} did not reach skill {k}'s start state")
+            out.append(_run_skill(base, replayed, skill, obs, info, seed, k)[0])
+    return out
+
+
+def _replay(
+    base: BlockStackEnv, seed: int, done: Sequence[SkillRecord]
+) -> tuple[Any, dict[str, Any], BlockStackSkills]:
+    """Reset with ``seed`` and step the recorded actions of ``done``; the skills runner made at reset."""
+    obs, info = base.reset(seed=seed)
+    skills = BlockStackSkills(base)  # made at reset, as in the main episode (its home yaw)
+    for rec in done:
+        for action in rec.actions:
+            obs, _, _, _, info = base.step(action)
+    return obs, info, skills
 
 
 # ------------------------------------------------------------------------------ files

@@ -55,3 +55,13 @@ def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path) -> None
     records, merged = skills_dataset(tmp_path, 1, 2)  # the shard exists: nothing is recorded
     assert shard.stat().st_mtime_ns == stamp and len(records) == 2 and merged.parent == tmp_path
     assert [r.name for r in load_skills(merged)[0]] == [r.name for r in records]
+
+
+def test_branched_shards_have_their_own_names_and_unbranched_ones_keep_theirs() -> None:
+    from steer_envs.bench.suites.itps_blockstack.data import ShardSettings
+
+    assert ShardSettings(3, 12).file_name() == ShardSettings(3, 12, 0).file_name()
+    assert ShardSettings(3, 12).digest == "8ddf641272"  # the name shards had before branches existed
+    assert ShardSettings(3, 12, 3).digest != ShardSettings(3, 12).digest
+    with pytest.raises(ValueError, match="branches"):
+        DataParams(branches=-1)

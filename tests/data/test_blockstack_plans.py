@@ -88,7 +88,7 @@ def test_cli_writes_a_trajectory_file_from_the_shards(tmp_path: Any, monkeypatch
     from steer_envs.bench.suites.itps_blockstack.data import main
 
     merged = tmp_path / "merged.npz"
-    monkeypatch.setattr(shards, "skills_dataset", lambda cache, n, k: ([record(40), record(50)], merged))
+    monkeypatch.setattr(shards, "skills_dataset", lambda cache, n, k, b: ([record(40), record(50)], merged))
     out = tmp_path / "plans.npz"
     assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--permutations", "1", "--out", str(out)]) == 0
     data = load_trajectories(out)

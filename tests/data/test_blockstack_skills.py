@@ -160,3 +160,18 @@ def test_trajectory_dataset_has_one_episode_per_skill(records: list[Any]) -> Non
     assert np.allclose(ds.actions[: len(first), :3], first.eef[1:]) and np.array_equal(ds.observations[0], first.obs[0])
     plain = to_trajectory_dataset(records, gripper=False)
     assert plain.action_dim == 3 and plain.action_obs_indices == (0, 1, 2)
+
+
+def test_branches_start_from_the_main_episodes_states_and_do_other_skills(env: Any, records: list[Any]) -> None:
+    from steer_envs.data.blockstack_skills import record_branches
+
+    recs = record_branches(env, SEED, 2, 1)
+    main, extra = recs[:2], recs[2:]
+    for a, b in zip(main, records[:2], strict=True):
+        _same(a, b)  # the main line is record_episode's
+    assert [r.index for r in extra] == [0, 1]
+    for r in extra:
+        assert np.array_equal(r.obs[0], main[r.index].obs[0]) and r.name != main[r.index].name
+        assert r.kind == main[r.index].kind and r.success and not r.violation
+    with pytest.raises(ValueError, match="branches"):
+        record_branches(env, SEED, 1, -1)

@@ -39,11 +39,14 @@ class ShardSettings:
 
     seed: int
     skills_per_episode: int
+    branches: int = 0
 
     @property
     def digest(self) -> str:
-        """A hash of what the contents depend on besides the seed (versions, skills per episode)."""
-        key = {"v": SHARD_VERSION, "format": bs.FORMAT_VERSION, "skills": self.skills_per_episode}
+        """A hash of what the contents depend on besides the seed (versions, skills per episode, branches)."""
+        key: dict[str, int] = {"v": SHARD_VERSION, "format": bs.FORMAT_VERSION, "skills": self.skills_per_episode}
+        if self.branches:  # unbranched shards keep the names they had before branches existed
+            key["branches"] = self.branches
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
 
     def file_name(self) -> str:
@@ -66,7 +69,10 @@ def _read(path: Path) -> list[bs.SkillRecord] | None:
 
 
 def _write_shard(path: Path, settings: ShardSettings, env: bs.BlockStackEnv) -> list[bs.SkillRecord]:
-    records = bs.record_episode(env, settings.seed, settings.skills_per_episode)
+    if settings.branches:
+        records = bs.record_branches(env, settings.seed, settings.skills_per_episode, settings.branches)
+    else:
+        records = bs.record_episode(env, settings.seed, settings.skills_per_episode)
     bs.save_skills(path, records, meta={"shard": asdict(settings), "shard_version": SHARD_VERSION})
     return records
 
@@ -85,7 +91,7 @@ def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[b
 
 
 def skills_dataset(
-    cache_dir: str | Path, n_episodes: int, skills_per_episode: int
+    cache_dir: str | Path, n_episodes: int, skills_per_episode: int, branches: int = 0
 ) -> tuple[list[bs.SkillRecord], Path]:
     """Every skill of the shards of seeds ``0..n_episodes-1`` (missing shards built here) and the merged file.
 
@@ -95,7 +101,8 @@ def skills_dataset(
     """
     n_episodes = integer(n_episodes, "n_episodes", low=1, high=100_000, owner="skills_dataset")
     skills_per_episode = integer(skills_per_episode, "skills_per_episode", low=1, high=10_000, owner="skills_dataset")
-    digest = ShardSettings(0, skills_per_episode).digest
+    branches = integer(branches, "branches", low=0, high=100, owner="skills_dataset")
+    digest = ShardSettings(0, skills_per_episode, branches).digest
     merged = Path(cache_dir) / f"blockstack-skills-{n_episodes}x{skills_per_episode}-{digest}.npz"
     found = _read(merged)
     if found is not None:
@@ -104,7 +111,7 @@ def skills_dataset(
     env = None  # made once, for the first missing shard
     try:
         for seed in range(n_episodes):
-            settings = ShardSettings(seed, skills_per_episode)
+            settings = ShardSettings(seed, skills_per_episode, branches)
             path = shard_path(cache_dir, settings)
             records = _read(path)
             if records is None:
@@ -114,7 +121,12 @@ def skills_dataset(
     finally:
         if env is not None:
             env.close()
-    meta = {"n_episodes": n_episodes, "skills_per_episode": skills_per_episode, "shard_version": SHARD_VERSION}
+    meta = {
+        "n_episodes": n_episodes,
+        "skills_per_episode": skills_per_episode,
+        "branches": branches,
+        "shard_version": SHARD_VERSION,
+    }
     bs.save_skills(merged, out, meta=meta)
     return out, merged
 
@@ -138,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
         help=f"skills per shard (default {DataParams.skills_per_episode}, the suite's)",
     )
     parser.add_argument(
+        "--branches", type=int, default=0, help="alternative skills per skill start in the shards (default 0)"
+    )
+    parser.add_argument(
         "--permutations",
         type=int,
         default=7,
@@ -148,8 +163,10 @@ def main(argv: list[str] | None = None) -> int:
     if not str(args.out).endswith(".npz"):
         parser.error(f"--out must end with .npz, got {args.out!r}")
     try:
-        records, merged = skills_dataset(args.cache_dir, args.episodes, args.skills_per_episode)
+        records, merged = skills_dataset(args.cache_dir, args.episodes, args.skills_per_episode, args.branches)
         meta = {"episodes": args.episodes, "skills_per_episode": args.skills_per_episode}
+        if args.branches:
+            meta["branches"] = args.branches
         dataset = plans.to_plan_dataset(records, permutations=args.permutations, meta=meta)
     except (TypeError, ValueError) as err:
         parser.error(str(err))

@@ -62,15 +62,23 @@ def default_cache_dir() -> str:
 
 @dataclass(frozen=True)
 class DataParams(SuiteParams):
-    """What a shard is built from: skills per episode, the cache folder ("": the default)."""
+    """What a shard is built from: skills per episode, alternative skills per skill start, the cache folder.
+
+    ``branches`` > 0 records that many other skills from each skill's start
+    (:func:`~steer_envs.data.blockstack_skills.record_branches`: the multimodal
+    data a skill policy needs); ``cache_dir`` "" is the default folder.
+    """
 
     suite_name: ClassVar[str] = DATA_SUITE
     skills_per_episode: int = 12
+    branches: int = 0
     cache_dir: str = ""
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "skills_per_episode")
         self.require_at_most(10_000, "skills_per_episode")
+        self.require_at_least(0, "branches")
+        self.require_at_most(100, "branches")
 
     @property
     def cache(self) -> str:
@@ -86,7 +94,8 @@ def run_data_trial(trial: Trial) -> TrialResult:
         raise ValueError(f"{DATA_SUITE}: unknown env {trial.env!r}; expected {ENV_ID!r}")
     params = DataParams.from_json(trial.params)
     with single_threaded():
-        records, path, built = ensure_shard(params.cache, ShardSettings(trial.seed, params.skills_per_episode))
+        settings = ShardSettings(trial.seed, params.skills_per_episode, params.branches)
+        records, path, built = ensure_shard(params.cache, settings)
     metrics = {
         "skills": len(records),
         "skill_success": sum(r.success for r in records) / len(records),
