@@ -47,8 +47,9 @@ class Stat:
             raise ValueError("Stat.of needs at least one value")
         try:
             mean = statistics.fmean(values)
-        except OverflowError:  # a sum beyond the float range
-            mean = math.fsum(v / len(values) for v in values)
+        except OverflowError:  # a sum beyond the float range: average the values scaled by the largest one
+            scale = max(abs(v) for v in values)
+            mean = scale * (math.fsum(v / scale for v in values) / len(values))
         try:
             std = statistics.stdev(values) if len(values) > 1 else 0.0
         except OverflowError:  # a spread beyond the float range

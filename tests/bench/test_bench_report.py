@@ -69,3 +69,15 @@ def test_bar_chart_marks_references(tmp_path, toy_suite):
     with pytest.raises(ValueError, match="no metric"):
         metric_bar_chart(table, "nope", tmp_path / "n.png")
     assert [p.name for p in write_plots(records, tmp_path / "all")] == ["toy_value.png"]
+
+
+def test_stat_of_values_at_the_top_of_the_float_range() -> None:
+    """The mean of three max floats is the max float (a plain fsum, even of value / n, overflows)."""
+    import sys
+
+    from steer_envs.bench.report import Stat
+
+    top = sys.float_info.max
+    stat = Stat.of([top, top, top])
+    assert stat.mean == top and stat.std == 0.0
+    assert Stat.of([top, -top, 5e-324]).mean == 0.0
