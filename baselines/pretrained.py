@@ -97,14 +97,16 @@ def load_checkpoint(kind: str, path: str | os.PathLike[str], device: str | torch
     return load_policy(path, name=kind, device=device)
 
 
-def load_blockstack(device: str | torch.device = "cpu") -> TorchPolicy:
-    """The shipped BlockStack Diffusion Policy: one skill per plan, ``(32, 4)`` waypoints ``[x, y, z, gripper]``.
+def load_blockstack(
+    device: str | torch.device = "cpu", checkpoint: str | os.PathLike[str] | None = None
+) -> TorchPolicy:
+    """The shipped BlockStack Diffusion Policy (or a ``checkpoint`` file of the same layout).
 
-    Its ``interaction_dims`` are ``(0, 1, 2)``: a 3D sketch or point steers the
+    One skill per plan, ``(32, 4)`` waypoints ``[x, y, z, gripper]``; its
+    ``interaction_dims`` are ``(0, 1, 2)``: a 3D sketch or point steers the
     waypoints' positions (:mod:`steer_envs.data.blockstack_plans`).
     """
-    policy = load_policy(
-        _shipped(BLOCKSTACK_CHECKPOINT, "scripts/train_blockstack_checkpoint.sh"), name="dp", device=device
-    )
+    path = checkpoint or _shipped(BLOCKSTACK_CHECKPOINT, "scripts/train_blockstack_checkpoint.sh")
+    policy = load_policy(path, name="dp", device=device)
     policy.interaction_dims = (0, 1, 2)
     return policy

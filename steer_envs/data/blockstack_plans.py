@@ -30,15 +30,12 @@ from steer_envs.core.validation import boolean, integer
 from steer_envs.data.blockstack_skills import SkillRecord
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import NUM_CUBES
+from steer_envs.envs.robosuite.plan_execution import PLAN_DIM, PLAN_STRIDE  # the tracker's layout, one layer down
 
 __all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "skill_plan", "to_plan_dataset"]
 
-#: control steps per plan waypoint.
-PLAN_STRIDE = 3
 #: waypoints per plan: ``PLAN_STRIDE * PLAN_HORIZON = 96`` control steps hold 99.7 % of the skills.
 PLAN_HORIZON = 32
-#: a waypoint: eef x, y, z (m) and the gripper command.
-PLAN_DIM = 4
 #: the first observation column of the cube poses (after eef 3 and finger positions 2).
 CUBE_START = 5
 

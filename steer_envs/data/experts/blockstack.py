@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.validation import integer, one_of, real_array, real_scalar
-from steer_envs.data.experts.robosuite import _yaw
 from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, BlockStackEnv
 from steer_envs.envs.robosuite.plan_execution import (
     TOWER_CLEARANCE,
@@ -47,6 +46,7 @@ from steer_envs.envs.robosuite.plan_execution import (
     quarter_turn,
 )
 from steer_envs.envs.robosuite.plan_execution import towers as _towers
+from steer_envs.envs.robosuite.plan_execution import yaw_of as _yaw
 
 __all__ = [
     "TOWER_CLEARANCE",

@@ -60,7 +60,7 @@ __all__ = [
     "yaw_of",
 ]
 
-#: control steps per plan waypoint (the layout of :mod:`steer_envs.data.blockstack_plans`, which sits above this layer).
+#: control steps per plan waypoint (:mod:`steer_envs.data.blockstack_plans`, one layer up, builds plans with it).
 PLAN_STRIDE = 3
 #: a waypoint: eef x, y, z (m) and the gripper command.
 PLAN_DIM = 4

@@ -70,11 +70,9 @@ def load_skill_policy(loader: str, checkpoint: str = "") -> Any:
     the policy is not available.
     """
     if checkpoint:
-        from steer_envs.baselines.pretrained import load_checkpoint
+        from steer_envs.baselines.pretrained import load_blockstack
 
-        policy = load_checkpoint("dp", checkpoint)
-        policy.interaction_dims = (0, 1, 2)
-        return policy
+        return load_blockstack(checkpoint=checkpoint)
     policy = resolve_function(loader)()
     from steer_envs.core.policy import TrajectoryPolicy
 
