@@ -26,18 +26,20 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import boolean, integer
+from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.blockstack_skills import SkillRecord
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import NUM_CUBES
 from steer_envs.envs.robosuite.plan_execution import PLAN_DIM, PLAN_STRIDE  # the tracker's layout, one layer down
 
-__all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "skill_plan", "to_plan_dataset"]
+__all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "TABLE_CENTRE", "move_scene", "skill_plan", "to_plan_dataset"]
 
 #: waypoints per plan: ``PLAN_STRIDE * PLAN_HORIZON = 96`` control steps hold 99.7 % of the skills.
 PLAN_HORIZON = 32
 #: the first observation column of the cube poses (after eef 3 and finger positions 2).
 CUBE_START = 5
+#: the xy (m, world frame) the rigid augmentation rotates about: BlockStack-v0's table centre.
+TABLE_CENTRE = (0.0, 0.0)
 
 
 def skill_plan(
@@ -67,6 +69,35 @@ def _cube_columns(order: np.ndarray) -> np.ndarray:
     return np.concatenate([np.arange(CUBE_START), *cubes])
 
 
+def move_scene(obs: np.ndarray, plan: np.ndarray, angle: float, offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``obs`` (rows of 33) and ``plan`` (rows of ``[x, y, z, gripper]``) turned by ``angle`` (rad) about the
+    vertical axis through :data:`TABLE_CENTRE`, then shifted by ``offset`` (xy, m).
+
+    Positions (end effector, cubes, waypoints) move; cube orientations turn with
+    them; heights, fingers and gripper commands stay. The skill's physics is
+    invariant under such a motion of the whole scene (within the arm's reach).
+    """
+    from scipy.spatial.transform import Rotation
+
+    c, s = np.cos(angle), np.sin(angle)
+    turn = np.array([[c, -s], [s, c]])
+    centre = np.asarray(TABLE_CENTRE)
+    shift = np.asarray(offset, dtype=np.float64).reshape(2)
+
+    def move_xy(xy: np.ndarray) -> np.ndarray:
+        return (xy - centre) @ turn.T + centre + shift
+
+    obs, plan = obs.astype(np.float64), plan.astype(np.float64)
+    obs[:, 0:2] = move_xy(obs[:, 0:2])
+    plan[:, 0:2] = move_xy(plan[:, 0:2])
+    yaw = Rotation.from_euler("z", angle)
+    for i in range(NUM_CUBES):
+        pos, quat = CUBE_START + 7 * i, CUBE_START + 7 * i + 3
+        obs[:, pos : pos + 2] = move_xy(obs[:, pos : pos + 2])
+        obs[:, quat : quat + 4] = (yaw * Rotation.from_quat(obs[:, quat : quat + 4])).as_quat()  # xyzw
+    return obs.astype(np.float32), plan.astype(np.float32)
+
+
 def to_plan_dataset(
     records: Sequence[SkillRecord],
     *,
@@ -74,6 +105,8 @@ def to_plan_dataset(
     horizon: int = PLAN_HORIZON,
     successful_only: bool = True,
     permutations: int = 0,
+    shift: float = 0.0,
+    yaw: float = 0.0,
     seed: int = 0,
     meta: Mapping[str, Any] | None = None,
 ) -> TrajectoryDataset:
@@ -84,12 +117,18 @@ def to_plan_dataset(
     cubes are interchangeable, so this teaches the policy that a skill goes
     to *a* cube, not to an observation slot: without it a few thousand skills
     are memorized scene by scene (one plan per scene, no multimodality).
+    ``shift`` (m) and ``yaw`` (rad) > 0 also move each copy's whole scene
+    rigidly (:func:`move_scene`): a turn drawn uniformly in ``[-yaw, yaw]``
+    and an xy shift in ``[-shift, shift]``, so the policy sees cube layouts
+    beyond the recorded ones and learns to aim at where a cube *is*.
     The dataset's meta records the plan layout (``plan_stride``, ``plan_horizon``),
     the augmentation, the skill names and how many skills were dropped as too long.
     """
     owner = "to_plan_dataset"
     successful_only = boolean(successful_only, "successful_only", owner=owner)
     permutations = integer(permutations, "permutations", low=0, high=1000, owner=owner)
+    shift = real_scalar(shift, "shift", low=0.0, high=0.5, owner=owner)
+    yaw = real_scalar(yaw, "yaw", low=0.0, high=float(np.pi), owner=owner)
     rng = np.random.default_rng(integer(seed, "seed", low=0, owner=owner))
     if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
         raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
@@ -105,9 +144,15 @@ def to_plan_dataset(
             too_long += len(r) > 0
             continue
         for copy in range(permutations + 1):
-            order = np.arange(NUM_CUBES) if copy == 0 else rng.permutation(NUM_CUBES)
-            obs.append(made[0][:, _cube_columns(order)])
-            plans.append(made[1])
+            if copy == 0:
+                obs.append(made[0])
+                plans.append(made[1])
+            else:
+                moved = made
+                if shift or yaw:
+                    moved = move_scene(*made, rng.uniform(-yaw, yaw), rng.uniform(-shift, shift, size=2))
+                obs.append(moved[0][:, _cube_columns(rng.permutation(NUM_CUBES))])
+                plans.append(moved[1])
             names.append(r.name)
             seeds.append(r.seed)
     if not plans:
@@ -119,6 +164,8 @@ def to_plan_dataset(
         "plan_stride": int(stride),
         "plan_horizon": int(horizon),
         "cube_permutations": int(permutations),
+        "augment_shift": float(shift),
+        "augment_yaw": float(yaw),
         "augment_seed": int(seed),
         "skills": names,
         "episode_seeds": seeds,

@@ -23,18 +23,9 @@ from typing import Any
 import numpy as np
 
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+from steer_envs.envs.robosuite.plan_execution import wrap_quarter, yaw_of
 
 __all__ = ["CanExpert", "LiftExpert", "SquareExpert"]
-
-
-def _wrap_quarter(angle: float) -> float:
-    """``angle`` wrapped into [-pi/4, pi/4) (a square's yaw is defined mod 90 degrees)."""
-    return float((angle + np.pi / 4) % (np.pi / 2) - np.pi / 4)
-
-
-def _yaw(quat_xyzw: np.ndarray) -> float:
-    x, y, z, w = (float(v) for v in quat_xyzw)
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 class _PhaseExpert:
@@ -167,9 +158,9 @@ class SquareExpert(_PhaseExpert):
         o = self.env.robosuite_obs
         eef, nut = o["robot0_eef_pos"], o["SquareNut_pos"]
         handle = np.array(rs.sim.data.site_xpos[self._handle])
-        nut_yaw = _yaw(o["SquareNut_quat"])
-        grip_yaw = _wrap_quarter(nut_yaw - _yaw(o["robot0_eef_quat"]))
-        square_yaw = _wrap_quarter(-nut_yaw)
+        nut_yaw = yaw_of(o["SquareNut_quat"])
+        grip_yaw = wrap_quarter(nut_yaw - yaw_of(o["robot0_eef_quat"]))
+        square_yaw = wrap_quarter(-nut_yaw)
         peg = self.peg
         if self.phase == "above":
             action, d = self._move(handle + np.array([0.0, 0.0, 0.08]), -1)

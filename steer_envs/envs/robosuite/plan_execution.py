@@ -57,6 +57,7 @@ __all__ = [
     "move_action",
     "quarter_turn",
     "towers",
+    "wrap_quarter",
     "yaw_of",
 ]
 
@@ -176,7 +177,7 @@ def yaw_of(quat_xyzw: np.ndarray) -> float:
     return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
-def _wrap_quarter(angle: float) -> float:
+def wrap_quarter(angle: float) -> float:
     """``angle`` wrapped into [-pi/4, pi/4) (a square's yaw is defined mod 90 degrees)."""
     return float((angle + np.pi / 4) % (np.pi / 2) - np.pi / 4)
 
@@ -214,7 +215,7 @@ def quarter_turn(home_yaw: float, eef_yaw: float, yaw: float) -> float:
     Always turning the shortest way would wind the wrist up over many skills
     until a joint limit stops the arm; the target nearest the start yaw keeps it within 45 degrees.
     """
-    target = home_yaw + _wrap_quarter(yaw - home_yaw)
+    target = home_yaw + wrap_quarter(yaw - home_yaw)
     return float((target - eef_yaw + np.pi) % (2 * np.pi) - np.pi)
 
 

@@ -158,6 +158,18 @@ def main(argv: list[str] | None = None) -> int:
         default=7,
         help="extra copies of each skill with the cubes listed in another order (default 7; see to_plan_dataset)",
     )
+    parser.add_argument(
+        "--shift",
+        type=float,
+        default=0.0,
+        help="the copies' random xy shift of the whole scene, at most this (m; default 0)",
+    )
+    parser.add_argument(
+        "--yaw",
+        type=float,
+        default=0.0,
+        help="the copies' random turn of the whole scene, at most this (rad; default 0)",
+    )
     parser.add_argument("--out", required=True, help="output .npz (a steer_envs.data.trajectories file)")
     args = parser.parse_args(argv)
     if not str(args.out).endswith(".npz"):
@@ -167,7 +179,9 @@ def main(argv: list[str] | None = None) -> int:
         meta = {"episodes": args.episodes, "skills_per_episode": args.skills_per_episode}
         if args.branches:
             meta["branches"] = args.branches
-        dataset = plans.to_plan_dataset(records, permutations=args.permutations, meta=meta)
+        dataset = plans.to_plan_dataset(
+            records, permutations=args.permutations, shift=args.shift, yaw=args.yaw, meta=meta
+        )
     except (TypeError, ValueError) as err:
         parser.error(str(err))
     path = save_trajectories(dataset, Path(args.out))
