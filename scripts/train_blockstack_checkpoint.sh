@@ -19,7 +19,7 @@ CHECK=0
 if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/blockstack-data}
-EPISODES=400
+EPISODES=150
 SKILLS=4
 BRANCHES=3
 AUGMENT=(--permutations 7 --shift 0.04 --yaw 3.14159)

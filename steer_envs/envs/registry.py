@@ -77,6 +77,14 @@ ENTRIES: tuple[EnvEntry, ...] = (
         kinematic=True,
         expert="steer_envs.data.experts.cooking:CookingExpert",
     ),
+    EnvEntry(
+        "InspectionLine-v0",
+        "steer_envs.envs.inspection_line:InspectionLineEnv",
+        max_episode_steps=1000,
+        vector_entry_point="steer_envs.envs.inspection_line:make_vector_env",
+        kinematic=True,
+        expert="steer_envs.data.experts.inspection_line:InspectionLineExpert",
+    ),
     *(
         EnvEntry(
             f"PolygonNav-{k}Mode-v0",

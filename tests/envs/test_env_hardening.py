@@ -357,6 +357,7 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "SoupScoopEnv",
         "ConvexModeEnv",
         "CookingEnv",
+        "InspectionLineEnv",  # a kinematic domain: its constructor is the shared one tested here
         "PolygonNavEnv",
         "Maze2DEnv",
         "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py

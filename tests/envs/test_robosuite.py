@@ -150,6 +150,27 @@ def test_dropping_the_cube_is_a_constraint_violation(envs: dict[str, gym.Env[Any
     assert info["mode_name"] == "reach" and sum(flags) == 1
 
 
+def test_pressing_the_cube_into_the_table_does_not_lower_its_rest_height(envs: dict[str, gym.Env[Any, Any]]) -> None:
+    """Closed fingers press the cube ~1.5 cm into the soft table contact, then rise: it never reads lifted.
+
+    Before the rest height ignored readings with the robot touching the cube,
+    the press lowered it and the cube flicked up by the fingers read `lifted`.
+    """
+    env = envs["lift"].unwrapped
+    env.reset(seed=3)
+    lifted, heights = [], []
+    for t in range(140):
+        offset = 0.06 if t < 60 else (-0.05 if t < 110 else 0.15)  # above, press through the top, up again
+        d = env.object_pos + np.array([0.0, 0.0, offset]) - env.state
+        _, _, _, _, info = env.step(np.concatenate([np.clip(10 * d, -1, 1), [0, 0, 0, 1.0]]).astype(np.float32))
+        lifted.append(info["sensors"]["lifted"])
+        heights.append(env.object_pos[2])
+    settled = heights[55]
+    assert min(heights[60:110]) < settled - 0.01  # the press sank the cube below where it rests
+    for is_lifted, z in zip(lifted, heights, strict=True):
+        assert not is_lifted or z > settled + 0.009
+
+
 @pytest.mark.parametrize(("task", "seeds"), [("lift", (0, 1)), ("can", (0,)), ("square", (0,))])
 def test_expert_solves_and_walks_the_modes_in_order(
     envs: dict[str, gym.Env[Any, Any]], task: str, seeds: tuple[int, ...]

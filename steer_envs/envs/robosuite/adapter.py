@@ -46,6 +46,8 @@ PERTURB_TOLERANCE = 0.005
 #: ... or for at most this many control steps (0.05 s each).
 PERTURB_MAX_STEPS = 40
 _REST_MARGIN = 0.01  # m above the rest height that count as "in the air" (held latch, Lift's `lifted`)
+#: the object is at rest below this speed (m/s); only such readings, untouched by the robot, set the rest height.
+_REST_SPEED = 0.01
 #: the held latch sets once a grasp has lasted this many control steps (a one-step touch of both pads
 #: while the fingers close on an object resting on the table is no grasp); 1 sets it at the first touch.
 GRASP_HOLD_STEPS = 2
@@ -136,6 +138,8 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         else:
             self._object = rs.nuts[rs.nut_id]
         self._object_geoms, self._pad_geoms = self._grasp_masks()
+        self._robot_geoms = self._robot_mask()
+        self._object_qvel = int(rs.sim.model.get_joint_qvel_addr(self._object.joints[0])[0])
         self.robosuite_obs: dict[str, np.ndarray] = rs.reset()
         dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
@@ -240,6 +244,30 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         return mask(self._object.contact_geoms), pads
 
+    def _robot_mask(self) -> np.ndarray:
+        """Geom-id mask of every contact geom of the arm and its grippers."""
+        model = self.rs_env.sim.model
+        names = set(self._robot.robot_model.contact_geoms)
+        for gripper in self._robot.gripper.values():
+            names.update(gripper.contact_geoms)
+        return np.array([model.geom_id2name(i) in names for i in range(model.ngeom)], dtype=bool)
+
+    def _robot_touches_object(self) -> bool:
+        """Some geom of the arm or a gripper touches the task object."""
+        contact = self.rs_env.sim.data._data.contact
+        g1, g2 = contact.geom1, contact.geom2
+        obj, robot = self._object_geoms, self._robot_geoms
+        return bool(np.any((obj[g1] & robot[g2]) | (robot[g1] & obj[g2])))
+
+    def _at_rest(self) -> bool:
+        """The object is still and untouched by the robot: its height there is a rest height.
+
+        A finger pressing the object into the table, or the bottom of the
+        bounce when a freshly spawned object lands, is not one.
+        """
+        speed = np.linalg.norm(self.rs_env.sim.data.qvel[self._object_qvel : self._object_qvel + 3])
+        return bool(speed < _REST_SPEED) and not self._robot_touches_object()
+
     def _grasped(self) -> bool:
         """robosuite's ``_check_grasp(gripper, object)``, by geom ids over the contact arrays.
 
@@ -265,7 +293,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self._grasp_start = (now if self._grasp_start is None else self._grasp_start) if grasped else None
         lasted = 0 if self._grasp_start is None else round((now - self._grasp_start) * self.control_freq) + 1
         self._held = lasted >= GRASP_HOLD_STEPS or (self._held and (grasped or in_air))
-        if not self._held:
+        if not self._held and self._at_rest():
             self._rest_z = min(self._rest_z, float(pos[2]))
         self._success = bool(rs._check_success())
         sensors = {"held": self._held}

@@ -27,7 +27,7 @@ from steer_envs.data import robosuite_replays as rr
 from steer_envs.io import DatasetError
 
 #: bump when shard contents change for the same settings (old shards are then not reused).
-SHARD_VERSION = 2
+SHARD_VERSION = 3
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,1 @@
+"""TLI re-tasking on Cooking-v0 (thesis appendix "Generalization Results"): see :mod:`.suite`."""

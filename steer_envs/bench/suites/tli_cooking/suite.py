@@ -1,0 +1,149 @@
+"""``tli-cooking``: reuse learned DS skills for new tasks by editing the automaton (thesis appendix "Generalization").
+
+One trial = one experiment seed (two expert demonstrations, chicken first and
+broccoli first, and the transition skills fitted on them: the same skills for
+every method) x one edited automaton (the method: ``phi_cb``, ``phi_bc``,
+``phi_c``, ``phi_cc``), run from ``n_starts`` starts without and with random
+pushes through :func:`~steer_envs.bench.suites.tli_cooking.protocol.cooking_trial`.
+
+>>> CookingParams(n_starts=4).to_json()["n_starts"]
+4
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.utils.threads import single_threaded
+
+ENV_ID = "steer_envs/Cooking-v0"
+VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
+THESIS_SOURCE = "thesis appendix 'Generalization Results', Fig. (c)-(f)"
+
+
+@dataclass(frozen=True)
+class CookingParams(SuiteParams):
+    """Parameters of ``tli-cooking``.
+
+    ``n_starts`` episodes per condition (no pushes / pushes); ``n_pushes``
+    pushes at steps ``1..push_window`` of length up to ``magnitude``;
+    ``horizon`` steps per episode; ``deliveries`` chicken deliveries that make
+    ``phi_cc`` a success; ``modulation`` learns cuts; the first ``plot_seeds``
+    experiments keep their first episode for the figure.
+    """
+
+    suite_name: ClassVar[str] = "tli-cooking"
+    n_starts: int = 10
+    n_pushes: int = 2
+    push_window: int = 400
+    magnitude: float = 8.0
+    horizon: int = 3000
+    deliveries: int = 3
+    modulation: bool = True
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_starts", "horizon", "deliveries", "push_window")
+        self.require_at_least(0, "n_pushes", "plot_seeds", "magnitude")
+
+
+def run_cooking_trial(trial: Trial) -> TrialResult:
+    """One experiment under one edited automaton, with and without pushes."""
+    from steer_envs.bench.suites.tli_cooking.protocol import cooking_trial
+
+    if trial.method not in VARIANTS:
+        raise ValueError(f"tli-cooking: unknown method {trial.method!r}; expected one of {VARIANTS}")
+    p = CookingParams.from_json(trial.params)
+    record = trial.seed < p.plot_seeds
+    with single_threaded():
+        res = cooking_trial(
+            trial.seed,
+            str(trial.method),
+            n_starts=p.n_starts,
+            n_pushes=p.n_pushes,
+            push_window=p.push_window,
+            magnitude=p.magnitude,
+            horizon=p.horizon,
+            deliveries=p.deliveries,
+            modulation=p.modulation,
+            record=record,
+        )
+    clean, push = res["clean"], res["push"]
+    metrics = {
+        "success": 100.0 * clean["success"],
+        "invalid": clean["invalid"],
+        "replans": clean["replans"],
+        "success_push": 100.0 * push["success"],
+        "invalid_push": push["invalid"],
+        "replans_push": push["replans"],
+        "loops_push": push["failures"],
+        "num_cuts": float(res["num_cuts"]),
+        "deliveries": clean["deliveries"],
+    }
+    extra: dict[str, Any] = {"skills": res["skills"], "fingerprint": res["fingerprint"]}
+    if record:
+        extra["figure"] = {
+            "clean": clean["figure"],
+            "push": push["figure"],
+            "attractors": res["attractors"],
+        }
+    return TrialResult(metrics, extra)
+
+
+def cooking_findings(table: Any) -> list[Finding]:
+    """Every edited task succeeds from every start without retraining (and, reported beside, under pushes)."""
+    out = []
+    for metric, claim in (
+        ("success", "every edited task (phi_cb, phi_bc, phi_c, phi_cc) succeeds from every start without retraining"),
+        ("success_push", "every edited task recovers from random pushes by replanning (thesis Fig. (c)-(f))"),
+    ):
+        means = table.means(metric, VARIANTS)
+        if means is None:
+            out.append(Finding(claim, None))
+            continue
+        detail = ", ".join(f"{v} {means[v]:.0f} %" for v in VARIANTS)
+        out.append(Finding(claim, all(means[v] >= 100.0 - 1e-9 for v in VARIANTS), detail))
+    return out
+
+
+def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
+    from steer_envs.bench.suites.tli_cooking.plots import plot_cooking
+
+    return plot_cooking(suite, records, out_dir)
+
+
+TLI_COOKING = register_suite(
+    Suite(
+        name="tli-cooking",
+        description=(
+            "TLI re-tasking on Cooking-v0: DS skills learned once per mode transition from two demonstrations, run "
+            "under the edited automata phi_cb, phi_bc, phi_c, phi_cc without / with random pushes; "
+            "seeds are experiments."
+        ),
+        metrics=(
+            Metric("success", "success (%) from the start box, no pushes", fmt=".0f"),
+            Metric("invalid", "automaton-invalid transitions per episode, no pushes", higher_is_better=False),
+            Metric("replans", "replans (unexpected transitions) per episode, no pushes", higher_is_better=False),
+            Metric("success_push", "success (%) under random pushes", fmt=".0f"),
+            Metric("invalid_push", "invalid transitions (not caused by a push) per episode", higher_is_better=False),
+            Metric("replans_push", "replans per episode under pushes", higher_is_better=False),
+            Metric("loops_push", "invariance failures (discrete loops) per episode", higher_is_better=False),
+            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            Metric("deliveries", "chicken deliveries per episode, no pushes", fmt=".1f"),
+        ),
+        run_trial=run_cooking_trial,
+        envs=(ENV_ID,),
+        methods=VARIANTS,
+        params=CookingParams(),
+        trials_param="n_starts",
+        default_seeds=3,
+        references=tuple(Reference("success", 100.0, env=ENV_ID, method=v, source=THESIS_SOURCE) for v in VARIANTS),
+        quick={"n_starts": 3, "horizon": 2000},
+        quick_seeds=1,
+        plot=_plot,
+        findings=cooking_findings,
+    )
+)

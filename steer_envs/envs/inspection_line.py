@@ -1,0 +1,169 @@
+"""InspectionLine-v0: carry an object to the inspection entry, slide it along the line, release it (TLI robot exp. 2).
+
+The end-effector (holding the object) moves in ``[-8, 8]^2``. Regions (closed
+rectangles, later wins)::
+
+    track    [-5, 4] x [-0.5, 0.5]   the inspection line
+    entry    [-5, -4] x [-0.5, 0.5]  its left end, where the object is put on the line
+    release  [4, 7] x [-1.5, 1.5]    the release station, right of the line's end
+
+Starts (the grasping region) are uniform in ``[-7, -5] x [-7, -5]``.
+
+Physics (task memory ``[object on the line, released]``):
+
+* reaching the entry puts the object on the line (sensor ``l``);
+* the object stays on the line while the end-effector stays in the track; leaving
+  the track anywhere but across its right end into the release station takes it
+  off the line (an interrupted inspection: ``constraint_violation``);
+* crossing from the track's last 0.5 into the release station with the object on
+  the line releases it: the inspection is done, ``success``; the memory freezes;
+* entering the release station with an uninspected object (sensor ``r`` without
+  ``l``) is a ``constraint_violation`` (released uninspected), not a success.
+
+Sensor APs ``l`` (the object is on the inspection line) and ``r`` (the
+end-effector is at the release station). Modes (the thesis's two, plus the
+goal): ``reach_entry`` (``!l``), ``inspect`` (``l & !r``), ``released`` (``l & r``).
+
+Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10``.
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+import numpy as np
+
+from steer_envs.core.task import TaskSpec
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.render import REGION_PALETTE, Canvas
+
+WORKSPACE_HALF_WIDTH = 8.0
+WHITE, TRACK, ENTRY, RELEASE = 0, 1, 2, 3
+REGION_NAMES: tuple[str, ...] = ("white", "track", "entry", "release")
+RECTS: MappingProxyType[str, tuple[float, float, float, float]] = MappingProxyType(
+    {
+        "track": (-5.0, -0.5, 4.0, 0.5),
+        "entry": (-5.0, -0.5, -4.0, 0.5),
+        "release": (4.0, -1.5, 7.0, 1.5),
+    }
+)
+#: the object is released only when it crosses into the station from this close to the track's end
+END_ZONE = 0.5
+START_BOX = ((-7.0, -7.0), (-5.0, -5.0))
+SENSORS: tuple[str, ...] = ("l", "r")
+MODES: tuple[str, ...] = ("reach_entry", "inspect", "released")
+REACH, INSPECT, RELEASED = 0, 1, 2
+
+INSPECTION_TASK = TaskSpec(
+    name="InspectionLine",
+    modes=MODES,
+    sensors=SENSORS,
+    sensor_modes={
+        frozenset(): "reach_entry",
+        frozenset({"r"}): "reach_entry",  # at the station with an uninspected object: still to be inspected
+        frozenset({"l"}): "inspect",
+        frozenset({"l", "r"}): "released",
+    },
+    transitions=frozenset({("reach_entry", "inspect"), ("inspect", "released"), ("inspect", "reach_entry")}),
+    initial="reach_entry",
+    goal=("released",),
+)
+
+
+class InspectionLineModel(KinematicTaskModel):
+    """Batched task physics of InspectionLine; see the module docstring.
+
+    Public geometry: ``rects`` (region name -> ``(x0, y0, x1, y1)``), ``start_low`` / ``start_high``.
+    Task memory (2 slots): ``[object on the line, released]``.
+    """
+
+    memory_size = 2
+    region_names = REGION_NAMES
+    region_palette = REGION_PALETTE[[0, 4, 5, 3]]
+
+    def __init__(self) -> None:
+        self.task = INSPECTION_TASK
+        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
+        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
+        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
+        self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])
+        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
+        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
+
+    def regions(self, pos: np.ndarray) -> np.ndarray:
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
+        r = self._rect_stack
+        inside = (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
+        return np.max(inside * np.arange(1, len(r) + 1), axis=1, initial=WHITE).astype(np.int64)
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
+
+    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        prev_reg, reg = self.regions(prev_pos), self.regions(pos)
+        on, released = memory[:, 0] == 1, memory[:, 1] == 1
+        prev = np.asarray(prev_pos, dtype=np.float64).reshape(-1, 2)
+        at_end = ((prev_reg == TRACK) | (prev_reg == ENTRY)) & (prev[:, 0] >= self.rects["track"][2] - END_ZONE)
+        release = on & (reg == RELEASE) & at_end
+        on_track = (reg == TRACK) | (reg == ENTRY)
+        dropped = on & ~release & ~on_track
+        new_on = (on & ~dropped) | (reg == ENTRY)
+        uninspected = ~on & (reg == RELEASE) & (prev_reg != RELEASE)
+        new_memory = np.stack([new_on, released | release], axis=1).astype(np.int64)
+        new_memory[released] = memory[released]
+        return new_memory, (dropped | uninspected) & ~released
+
+    def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
+        on, released = memory[:, 0] == 1, memory[:, 1] == 1
+        at_station = (self.regions(pos) == RELEASE) | released
+        mode = np.where(released, RELEASED, np.where(on, INSPECT, REACH))
+        return TaskReading(mode=mode.astype(np.int64), sensors=np.stack([on, at_station], axis=1), success=released)
+
+    def draw(self, canvas: Canvas) -> None:
+        x0, _, x1, _ = self.rects["track"]
+        canvas.polyline(np.array([[x0, 0.0], [x1, 0.0]]), (40, 40, 40), thickness=1)
+
+
+class InspectionLineEnv(Kinematic2DEnv):
+    """InspectionLine-v0 (TLI robot experiment 2, go to the entry -> follow the line -> release); see the module doc.
+
+    Args:
+        dt, max_speed: integration step and speed limit (0.01, 10).
+        render_mode: ``None`` or ``"rgb_array"``.
+        render_size: side of the rendered square image in pixels.
+
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/InspectionLine-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> info["mode_name"], info["sensors"]
+    ('reach_entry', {'l': False, 'r': False})
+    >>> env.unwrapped.perturb(to=[-4.5, 0.0])["mode_name"]  # put at the entry: the object is on the line
+    'inspect'
+    """
+
+    def __init__(
+        self, dt: float = 0.01, max_speed: float = 10.0, render_mode: str | None = None, render_size: int = 256
+    ) -> None:
+        super().__init__(
+            InspectionLineModel(),
+            dt=dt,
+            max_speed=max_speed,
+            terminate_on_violation=False,
+            render_mode=render_mode,
+            render_size=render_size,
+        )
+        self.model: InspectionLineModel
+
+
+make_vector_env = vector_factory(InspectionLineEnv)
+
+__all__ = [
+    "INSPECTION_TASK",
+    "MODES",
+    "RECTS",
+    "SENSORS",
+    "InspectionLineEnv",
+    "InspectionLineModel",
+    "make_vector_env",
+]
