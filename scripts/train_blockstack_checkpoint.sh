@@ -1,10 +1,9 @@
 #!/usr/bin/env bash
 # Reproduce the shipped BlockStack skill policy (baselines/checkpoints/blockstack/dp.*).
 #
-# 1. the random planner's skill data: EPISODES episode seeds x 4 skills, from each skill's start
-#    3 alternative skills too (steer-bench suite itps-blockstack-data, one shard per seed, resumable);
-# 2. the plan data set: one (32 x [x, y, z, gripper]) plan per successful skill, plus 7 copies with
-#    the cubes listed in another order and the whole scene turned (any yaw) and shifted (<= 4 cm)
+# 1. the random planner's skill data: 200 episode seeds x 12 skills (steer-bench suite
+#    itps-blockstack-data, one shard per seed, resumable; ~25 min on one core, ~13 on two);
+# 2. the plan data set: one (32 x [x, y, z, gripper]) plan per successful skill
 #    (python -m steer_envs.bench.suites.itps_blockstack.data);
 # 3. the Diffusion Policy, preset `blockstack` (baselines/diffusion/configuration.py), seed 0,
 #    ONE torch thread (bit-identical for the same thread count, torch version and CPU kind).
@@ -19,19 +18,14 @@ CHECK=0
 if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/blockstack-data}
-EPISODES=150
-SKILLS=4
-BRANCHES=3
-AUGMENT=(--permutations 7 --shift 0.04 --yaw 3.14159)
-DATA="$DATA_DIR/blockstack-plans-${EPISODES}x${SKILLS}b${BRANCHES}.npz"
+EPISODES=200
+DATA="$DATA_DIR/blockstack-plans-${EPISODES}.npz"
 OUT=baselines/checkpoints/blockstack
 
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-blockstack-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
-    --param "skills_per_episode=$SKILLS" --param "branches=$BRANCHES" --param "cache_dir=$DATA_DIR" \
-    --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
-    --skills-per-episode "$SKILLS" --branches "$BRANCHES" "${AUGMENT[@]}" --out "$DATA"
+    --param "cache_dir=$DATA_DIR" --out "$DATA_DIR/run"
+"$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --out "$DATA"
 if [ "$CHECK" = 1 ]; then
   exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
 fi
