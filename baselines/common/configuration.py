@@ -24,7 +24,7 @@ import numpy as np
 from steer_envs.baselines.common.normalize import MAX_FEATURE_DIM, NORMALIZATION_MODES
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_scalar
 
-__all__ = ["PolicyConfig", "Preset", "TrainSettings", "check_int", "int_tuple"]
+__all__ = ["PRECISIONS", "PolicyConfig", "Preset", "TrainSettings", "check_int", "int_tuple"]
 
 #: the longest tuple field of a config (``down_dims``, index lists)
 _MAX_TUPLE = 4096
@@ -175,6 +175,8 @@ class PolicyConfig(_FieldsMixin):
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
 
+#: the arithmetic of the training forward pass: float32, or bfloat16 autocast (AMX units on recent CPUs)
+PRECISIONS = ("fp32", "bf16")
 #: the most optimizer steps and the largest batch :class:`TrainSettings` accepts
 MAX_TRAIN_STEPS = 10**9
 MAX_BATCH_SIZE = 2**20
@@ -190,12 +192,19 @@ class TrainSettings(_FieldsMixin):
     exponential moving average of the weights (Diffusion Policy's warm-up
     decay ``1 - (1 + step) ** -power``) and saves it instead of the raw weights.
 
+    Speed options (recorded, since each changes the numerics slightly):
+    ``precision="bf16"`` runs the forward pass under bfloat16 autocast (the
+    weights and the optimizer stay float32), ``fused_optimizer`` uses torch's
+    fused AdamW kernel, ``compile_model`` trains a ``torch.compile`` of the
+    network (the first steps pay for the compilation).
+
     Accepted: ints for ``steps`` (at most :data:`MAX_TRAIN_STEPS`),
     ``batch_size`` (at most :data:`MAX_BATCH_SIZE`), ``log_every`` (>= 1),
     ``warmup_steps`` and ``seed`` (>= 0); finite reals for ``lr`` and
     ``grad_clip`` (> 0), ``weight_decay`` (>= 0), ``betas`` (two in [0, 1)),
     ``static_history_prob`` and ``ema_power`` (in [0, 1]). Strings, bools
-    and NaN are refused (``TypeError`` / ``ValueError`` naming the field).
+    and NaN are refused (``TypeError`` / ``ValueError`` naming the field);
+    ``precision`` is one of :data:`PRECISIONS`, the two speed switches bools.
 
     >>> TrainSettings(steps=100, lr=1e-4).batch_size
     64
@@ -212,6 +221,9 @@ class TrainSettings(_FieldsMixin):
     ema_power: float = 0.0
     seed: int = 0
     log_every: int = 50
+    precision: str = "fp32"
+    fused_optimizer: bool = False
+    compile_model: bool = False
 
     def __post_init__(self) -> None:
         for name, low, high in (
@@ -232,6 +244,9 @@ class TrainSettings(_FieldsMixin):
         prob = real_scalar(self.static_history_prob, "static_history_prob", low=0.0, high=1.0)
         object.__setattr__(self, "static_history_prob", prob)
         object.__setattr__(self, "ema_power", real_scalar(self.ema_power, "ema_power", low=0.0, high=1.0))
+        one_of(self.precision, "precision", PRECISIONS)
+        for name in ("fused_optimizer", "compile_model"):
+            object.__setattr__(self, name, boolean(getattr(self, name), name))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""

@@ -8,6 +8,12 @@
   ``--train KEY=VALUE`` or ``--steps``, ``--lr``, ... one training setting;
 * ``--dataset``: a :mod:`steer_envs.data.trajectories` file or a Maze2D random walk.
 
+``--run-dir DIR`` makes a run resumable (its full state saved in ``DIR`` every
+``--save-every`` seconds and on SIGINT / SIGTERM); ``--resume DIR`` continues
+it, ending with the weights an uninterrupted run would have. ``--precision
+bf16``, ``--fused-optimizer`` and ``--compile`` trade exact reproduction of
+an fp32 run for speed (they are recorded, so ``--check`` replays them).
+
 ``... --policy dp --dataset FILE --check dp.json --check-steps 200`` re-runs
 the first steps of the run recorded in ``dp.json`` and compares the logged
 losses (a cheap check that a recorded command reproduces a checkpoint).
@@ -36,20 +42,21 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
 
 from steer_envs.baselines.common.checkpoint import MAX_PARAMETERS
 from steer_envs.baselines.common.checkpoint import read_record as read_record_file
-from steer_envs.baselines.common.configuration import PolicyConfig, TrainSettings
+from steer_envs.baselines.common.configuration import PRECISIONS, PolicyConfig, TrainSettings
 from steer_envs.baselines.common.torch_policy import TorchPolicy
 from steer_envs.baselines.factory import (
     get_policy_class,
@@ -58,16 +65,27 @@ from steer_envs.baselines.factory import (
     policy_names,
     with_dataset_features,
 )
-from steer_envs.core.validation import integer
+from steer_envs.baselines.training.run_state import (
+    RUN_FILE,
+    RUN_FORMAT,
+    STATE_FILE,
+    RunProgress,
+    check_losses,
+    load_state,
+    save_state,
+)
+from steer_envs.core.validation import integer, real_scalar
 from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
 from steer_envs.io import CheckpointError, atomic_write_text
 from steer_envs.utils.cli import parse_key_value
 
 __all__ = [
+    "TrainingInterrupted",
     "check_record",
     "main",
     "parse_overrides",
     "read_record",
+    "require_same_data",
     "sidecar_path",
     "train_policy",
 ]
@@ -75,8 +93,6 @@ __all__ = [
 PROG = "python -m steer_envs.baselines.training"
 #: the most torch threads a run (or a recorded run) may ask for
 MAX_THREADS = 1024
-#: the most logged loss points a training record may hold
-_MAX_LOSSES = 10**7
 
 
 def train_policy(
@@ -87,6 +103,8 @@ def train_policy(
     progress: bool = True,
     stop_after: int | None = None,
     raw_weights: dict[str, torch.Tensor] | None = None,
+    run_dir: str | os.PathLike[str] | None = None,
+    save_every: float = 300.0,
 ) -> dict[str, Any]:
     """Train ``policy`` in place on windows of ``dataset``; returns the training record (losses, wall time).
 
@@ -98,6 +116,14 @@ def train_policy(
     average of its weights (``diffusers.training_utils.EMAModel``, capped at
     0.9999); the logged losses are the raw weights' and do not change. Pass a
     dict as ``raw_weights`` to get the raw (un-averaged) state dict as well.
+
+    With ``run_dir`` the run is resumable: its full state
+    (:mod:`~steer_envs.baselines.training.run_state`) is saved there at least
+    every ``save_every`` seconds, at ``stop_after`` and at the end, and a state
+    already in ``run_dir`` is continued, so a stopped-and-resumed run ends
+    with the same weights as an uninterrupted one. In the main thread, SIGINT
+    or SIGTERM then saves the state after the current step and raises
+    :class:`TrainingInterrupted` (a second SIGINT interrupts at once).
     """
     if not isinstance(policy, TorchPolicy):
         raise TypeError(f"policy must be a TorchPolicy (e.g. DiffusionPolicy, ACTPolicy), got {type(policy).__name__}")
@@ -112,6 +138,8 @@ def train_policy(
         )
     if stop_after is not None:
         integer(stop_after, "stop_after", low=1, high=settings.steps)
+    save_every = real_scalar(save_every, "save_every", low=0.0)
+    state_file = None if run_dir is None else Path(run_dir) / STATE_FILE
     last = settings.steps if stop_after is None else stop_after
     windows = PlanWindows(dataset, **policy.window_layout)
     if len(windows) == 0:
@@ -121,13 +149,15 @@ def train_policy(
     model = policy.model
     rng = np.random.default_rng(settings.seed)
     gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
-    bar = _progress(last, progress)
-    losses: list[list[float]] = []
     tic = time.perf_counter()
-    with torch.random.fork_rng(devices=[]):
+    with torch.random.fork_rng(devices=[]), _StopSignals(enabled=state_file is not None) as stop:
         torch.manual_seed(settings.seed)
         opt = torch.optim.AdamW(
-            model.parameters(), lr=settings.lr, betas=settings.betas, weight_decay=settings.weight_decay
+            model.parameters(),
+            lr=settings.lr,
+            betas=settings.betas,
+            weight_decay=settings.weight_decay,
+            fused=settings.fused_optimizer or None,
         )
         sched = get_cosine_schedule_with_warmup(opt, min(settings.warmup_steps, settings.steps), settings.steps)
         ema = None
@@ -135,15 +165,37 @@ def train_policy(
             from diffusers.training_utils import EMAModel
 
             ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
+        parts = {"model": model, "optimizer": opt, "scheduler": sched, "ema": ema, "rng": rng, "generator": gen}
+        done = RunProgress()
+        if state_file is not None and state_file.exists():
+            done = load_state(state_file, settings=settings, **parts)
+            if done.step > last:
+                raise ValueError(f"stop_after={last}, but the state in {run_dir} is already at step {done.step}")
+            if done.step < last:
+                done.resumed_at.append(done.step)
+        losses = done.losses
+
+        def save() -> None:
+            if state_file is not None:
+                done.wall_s += time.perf_counter() - segment[0]
+                segment[0] = time.perf_counter()
+                save_state(state_file, settings=settings, progress=done, **parts)
+
+        segment = [tic]
+        last_save = time.monotonic()
+        bar = _progress(last, progress, initial=min(done.step, last))
+        autocast = torch.autocast(policy.device.type, dtype=torch.bfloat16, enabled=settings.precision == "bf16")
+        if settings.compile_model:
+            policy.model = cast(torch.nn.Module, torch.compile(model))
         model.train()
         try:
-            running = 0.0
-            for step in range(1, last + 1):
+            for step in range(done.step + 1, last + 1):
                 obs, plans = windows.gather(rng.integers(len(windows), size=settings.batch_size))
                 if settings.static_history_prob > 0 and obs.shape[1] > 1:
                     still = rng.random(len(obs)) < settings.static_history_prob
                     obs[still] = obs[still, -1:]
-                loss = policy.loss(torch.from_numpy(obs), torch.from_numpy(plans), gen)
+                with autocast:
+                    loss = policy.loss(torch.from_numpy(obs), torch.from_numpy(plans), gen).float()
                 if not torch.isfinite(loss):
                     raise FloatingPointError(f"training loss became {loss.item()} at step {step}")
                 opt.zero_grad(set_to_none=True)
@@ -153,16 +205,25 @@ def train_policy(
                 sched.step()
                 if ema is not None:
                     ema.step(model.parameters())
-                running += loss.item()
-                if step % settings.log_every == 0 or step == last:
+                done.running += loss.item()
+                done.step = step
+                if step % settings.log_every == 0 or step == settings.steps or (step == last and state_file is None):
                     n = step - (losses[-1][0] if losses else 0)
-                    losses.append([step, running / n])
-                    running = 0.0
+                    losses.append([step, done.running / n])
+                    done.running = 0.0
                     if bar is not None:
                         bar.set_postfix(loss=f"{losses[-1][1]:.4f}")
                 if bar is not None:
                     bar.update(1)
+                if stop.requested and state_file is not None:
+                    save()
+                    raise TrainingInterrupted(step, state_file.parent, stop.requested)
+                if state_file is not None and time.monotonic() - last_save >= save_every and step < last:
+                    save()
+                    last_save = time.monotonic()
+            save()
         finally:
+            policy.model = model
             model.eval()
             if bar is not None:
                 bar.close()
@@ -170,25 +231,62 @@ def train_policy(
         raw_weights.update({k: v.detach().clone() for k, v in model.state_dict().items()})
     if ema is not None:
         ema.copy_to(model.parameters())
-    return {
+    if state_file is None:
+        done.wall_s += time.perf_counter() - segment[0]
+    record = {
         "settings": settings.to_dict(),
         "losses": losses,
-        "final_loss": losses[-1][1],
-        "wall_s": round(time.perf_counter() - tic, 1),
+        "final_loss": losses[-1][1] if losses else None,
+        "wall_s": round(done.wall_s, 1),
         "threads": torch.get_num_threads(),
         "device": str(policy.device),
         "torch": torch.__version__,
         "windows": len(windows),
         "data": dataset.provenance(),
     }
+    if done.resumed_at:
+        record["resumed_at"] = list(done.resumed_at)
+    return record
 
 
-def _progress(total: int, enabled: bool) -> Any:
+class TrainingInterrupted(Exception):
+    """A resumable run stopped on a signal after saving its state; ``--resume`` the folder to continue."""
+
+    def __init__(self, step: int, run_dir: Path, signal_name: str) -> None:
+        super().__init__(f"{signal_name}: training state saved after step {step} in {run_dir}")
+        self.step, self.run_dir, self.signal_name = step, run_dir, signal_name
+
+
+class _StopSignals:
+    """While active (main thread only), the first SIGINT / SIGTERM sets :attr:`requested` instead of killing."""
+
+    def __init__(self, *, enabled: bool) -> None:
+        self.enabled = enabled and threading.current_thread() is threading.main_thread()
+        self.requested = ""
+        self._previous: dict[int, Any] = {}
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.requested = signal.Signals(signum).name
+
+    def __enter__(self) -> _StopSignals:
+        if self.enabled:
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+
+def _progress(total: int, enabled: bool, initial: int = 0) -> Any:
     if not enabled:
         return None
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, unit="step", desc="training", mininterval=2.0)
+    return tqdm(total=total, initial=initial, unit="step", desc="training", mininterval=2.0)
 
 
 def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
@@ -228,7 +326,7 @@ def read_record(summary: Mapping[str, Any]) -> tuple[str, PolicyConfig, TrainSet
             if not isinstance(name, str):
                 raise TypeError(f"'kind' must be a string, got {type(name).__name__}")
             config = get_policy_class(name).upgrade_legacy_config(summary["model"])
-        record["losses"] = _check_losses(record["losses"])
+        record["losses"] = check_losses(record["losses"])
         if "threads" in record:
             record["threads"] = integer(record["threads"], "threads", low=1, high=MAX_THREADS)
         if record.get("data") is not None and not isinstance(record["data"], Mapping):
@@ -237,23 +335,6 @@ def read_record(summary: Mapping[str, Any]) -> tuple[str, PolicyConfig, TrainSet
         what = f"missing {err}" if isinstance(err, KeyError) else f"malformed: {err}"
         raise ValueError(f"not a training record ({what})") from None
     return name, config, settings, record
-
-
-def _check_losses(value: Any) -> list[list[float]]:
-    if not isinstance(value, list) or len(value) > _MAX_LOSSES:
-        raise TypeError(f"'losses' must be a list of [step, loss] pairs, got {type(value).__name__}")
-    out: list[list[float]] = []
-    for item in value:
-        if not (isinstance(item, list) and len(item) == 2):
-            raise TypeError(f"'losses' entries must be [step, loss] pairs, got {item!r}")
-        step = integer(item[0], "losses step", low=1)
-        loss = item[1]
-        if isinstance(loss, bool) or not isinstance(loss, (int, float)) or not math.isfinite(loss):
-            raise ValueError(f"'losses' values must be finite numbers, got {loss!r} at step {step}")
-        if out and step <= out[-1][0]:
-            raise ValueError(f"'losses' steps must increase, got {step} after {out[-1][0]}")
-        out.append([step, float(loss)])
-    return out
 
 
 def check_record(
@@ -290,13 +371,7 @@ def check_record(
         raise ValueError(f"--policy is {policy!r} but {path} records a {name!r} run")
     steps = integer(steps, "steps", low=1, high=settings.steps)
     dataset = data if isinstance(data, TrajectoryDataset) else load_trajectories(data)
-    recorded_data = {k: v for k, v in dict(record.get("data") or {}).items() if k != "file"}
-    for key, value in recorded_data.items():
-        if dataset.meta.get(key) != value:
-            raise ValueError(
-                f"the dataset has {key}={dataset.meta.get(key)!r}; the record was trained on {value!r} "
-                "(regenerate the data with the recorded command)"
-            )
+    require_same_data(dataset, record.get("data"))
     try:
         size = with_dataset_features(config, dataset).parameter_count()
     except ValueError as err:
@@ -318,6 +393,16 @@ def check_record(
         raise ValueError(f"no logged step <= {steps} to compare (the record logs every {settings.log_every})")
     rel = max(abs(b - a) / max(abs(a), 1e-12) for _, a, b in compared)
     return {"policy": name, "compared": compared, "max_rel_diff": rel, "wall_s": rerun["wall_s"]}
+
+
+def require_same_data(dataset: TrajectoryDataset, recorded: Mapping[str, Any] | None) -> None:
+    """``ValueError`` unless ``dataset``'s provenance matches a record's ``data`` entry (its file name aside)."""
+    for key, value in dict(recorded or {}).items():
+        if key != "file" and dataset.meta.get(key) != value:
+            raise ValueError(
+                f"the dataset has {key}={dataset.meta.get(key)!r}; the record was trained on {value!r} "
+                "(regenerate the data with the recorded command)"
+            )
 
 
 def parse_overrides(items: list[str] | None, fields: set[str], flag: str) -> dict[str, Any]:
@@ -345,20 +430,35 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Train a trajectory policy (Diffusion Policy, ACT) on a trajectory dataset, "
-        "or check that a recorded training run reproduces.",
+        "continue a stopped run, or check that a recorded training run reproduces.",
     )
     parser.add_argument("--policy", choices=policy_names(), help="policy to train (with --check: optional)")
     parser.add_argument(
         "--dataset",
-        required=True,
         metavar="FILE",
         help="training data: a steer_envs.data.trajectories .npz or a maze2d random walk "
-        "(python -m steer_envs.data.maze_random_walk)",
+        "(python -m steer_envs.data.maze_random_walk); with --resume: default the run's own",
     )
-    parser.add_argument("--out", help="checkpoint path (.safetensors); a .json record goes beside it")
+    parser.add_argument(
+        "--out", help="checkpoint path (.safetensors); a .json record goes beside it (default with --run-dir: in it)"
+    )
+    parser.add_argument(
+        "--run-dir",
+        metavar="DIR",
+        help="make the run resumable: its full state is saved in DIR every --save-every seconds and on "
+        "SIGINT / SIGTERM; continue it with --resume DIR",
+    )
+    parser.add_argument(
+        "--resume",
+        metavar="DIR",
+        help="continue the run in DIR (started with --run-dir); it ends with the weights an uninterrupted run "
+        "would have. Takes only --dataset, --threads, --save-every, --no-progress",
+    )
+    parser.add_argument(
+        "--save-every", type=float, default=300.0, metavar="SECONDS", help="state save interval (default 300)"
+    )
     parser.add_argument(
         "--preset",
-        default="cpu",
         help="registered (model, training) preset of the policy, e.g. cpu (the shipped checkpoints, default) "
         "or itps (ITPS's full size; a GPU job)",
     )
@@ -375,8 +475,13 @@ def _parser() -> argparse.ArgumentParser:
         help="override one training setting, VALUE as JSON (repeatable), e.g. static_history_prob=0",
     )
     parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of weights, batches and noise (default 0)")
-    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    parser.add_argument("--seed", type=int, default=None, help="seed of weights, batches and noise (default 0)")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="torch CPU threads (default 1: on a machine doing anything else, more threads are often slower)",
+    )
     parser.add_argument("--batch-size", type=int, default=None, help="default: the preset's")
     parser.add_argument("--lr", type=float, default=None, help="peak learning rate (default: the preset's)")
     parser.add_argument("--warmup-steps", type=int, default=None, help="linear warm-up steps (default: the preset's)")
@@ -386,7 +491,12 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="save the EMA of the weights with this warm-up power (Diffusion Policy: 0.75; default 0 = no EMA)",
     )
-    parser.add_argument("--device", default="cpu", help="torch device, e.g. cuda (default cpu)")
+    parser.add_argument(
+        "--precision", choices=PRECISIONS, default=None, help="bf16: bfloat16 autocast forward (default: the preset's)"
+    )
+    parser.add_argument("--fused-optimizer", action="store_true", default=None, help="torch's fused AdamW kernel")
+    parser.add_argument("--compile", action="store_true", default=None, help="train a torch.compile of the network")
+    parser.add_argument("--device", default=None, help="torch device, e.g. cuda (default cpu)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument(
         "--check",
@@ -401,7 +511,30 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: the flags that define a run: --resume takes them from the run folder instead
+_RUN_FLAGS = (
+    "policy",
+    "preset",
+    "out",
+    "run_dir",
+    "model",
+    "train",
+    "steps",
+    "seed",
+    "batch_size",
+    "lr",
+    "warmup_steps",
+    "ema_power",
+    "precision",
+    "fused_optimizer",
+    "compile",
+    "device",
+)
+
+
 def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    if args.dataset is None:
+        parser.error("--dataset is required")
     try:
         res = check_record(
             args.check, args.dataset, args.check_steps, policy=args.policy, progress=not args.no_progress
@@ -432,28 +565,20 @@ def _unwritable(out: Path) -> str | None:
     return None
 
 
-def main(argv: list[str] | None = None) -> int:
-    """CLI entry point (see the module docstring); exit 0 done, 1 ``--check`` differs, 2 usage error."""
-    parser = _parser()
-    args = parser.parse_args(argv)
-    if args.check is not None:
-        return _check_main(parser, args)
+def _new_run(parser: argparse.ArgumentParser, args: argparse.Namespace, argv: list[str]) -> dict[str, Any]:
+    """The description of a run from the command line (what --resume reads back from ``run.json``)."""
     if args.policy is None:
-        parser.error("--policy is required (unless --check)")
-    if args.out is None:
-        parser.error("--out is required (unless --check)")
-    out = Path(args.out)
-    if out.suffix != ".safetensors":
-        parser.error(f"--out must end with .safetensors, got {args.out!r}")
-    problem = _unwritable(out)
-    if problem:
-        parser.error(f"--out {args.out!r}: {problem}")
-    if args.threads is not None:
-        if not 1 <= args.threads <= MAX_THREADS:
-            parser.error(f"--threads must be in [1, {MAX_THREADS}], got {args.threads}")
-        torch.set_num_threads(args.threads)
+        parser.error("--policy is required (unless --check or --resume)")
+    if args.dataset is None:
+        parser.error("--dataset is required (unless --resume)")
+    if args.out is None and args.run_dir is None:
+        parser.error("--out is required (unless --check, --resume or --run-dir)")
+    if args.run_dir is not None and (Path(args.run_dir) / RUN_FILE).exists():
+        parser.error(f"--run-dir {args.run_dir!r} holds a run already: continue it with --resume {args.run_dir}")
+    out = Path(args.out) if args.out is not None else Path(args.run_dir) / f"{args.policy}.safetensors"
+    preset_name = args.preset or "cpu"
     try:
-        preset = get_preset(args.policy, args.preset)
+        preset = get_preset(args.policy, preset_name)
         config = preset.model.replace(**parse_overrides(args.model, preset.model.field_names(), "--model"))
         flags = {
             "steps": args.steps,
@@ -461,27 +586,108 @@ def main(argv: list[str] | None = None) -> int:
             "lr": args.lr,
             "warmup_steps": args.warmup_steps,
             "ema_power": args.ema_power,
+            "precision": args.precision,
+            "fused_optimizer": args.fused_optimizer,
+            "compile_model": args.compile,
+            "seed": args.seed if args.seed is not None else 0,
         }
         changes = {
             **parse_overrides(args.train, TrainSettings.field_names(), "--train"),
             **{k: v for k, v in flags.items() if v is not None},
-            "seed": args.seed,
         }
         settings = preset.train.replace(**changes)
-        dataset = load_trajectories(args.dataset)
-        policy = make_policy(config, dataset=dataset, seed=args.seed, device=args.device)
     except (TypeError, ValueError) as err:
         parser.error(str(err))
-    print(
-        f"{args.policy} ({args.preset}): {policy.num_parameters():,} parameters, {len(dataset):,} steps "
-        f"(obs {policy.obs_dim}, action {policy.action_dim}), {settings.steps} training steps"
-    )
-    record = train_policy(policy, dataset, settings, progress=not args.no_progress)
-    record["data"]["file"] = Path(args.dataset).name
-    record["preset"] = args.preset
-    record["command"] = f"{PROG} " + " ".join(argv if argv is not None else sys.argv[1:])
-    summary = {
+    return {
+        "format": RUN_FORMAT,
         "policy": args.policy,
+        "preset": preset_name,
+        "config": config.to_dict(),
+        "settings": settings.to_dict(),
+        "dataset": str(Path(args.dataset).resolve()),
+        "out": str(out.resolve()),
+        "device": args.device or "cpu",
+        "command": f"{PROG} " + " ".join(argv),
+    }
+
+
+def _read_run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, Any]:
+    """The run folder's ``run.json``, checked; usage errors name the folder."""
+    given = [f"--{name.replace('_', '-')}" for name in _RUN_FLAGS if getattr(args, name) is not None]
+    if given:
+        parser.error(f"--resume takes the run's settings from its folder; drop {', '.join(given)}")
+    path = Path(args.resume) / RUN_FILE
+    try:
+        run = read_record_file(path)
+        if run.get("format") != RUN_FORMAT:
+            raise ValueError(f"format {run.get('format')!r}, expected {RUN_FORMAT!r}")
+        for key in ("policy", "preset", "dataset", "out", "device", "command"):
+            if not isinstance(run.get(key), str):
+                raise ValueError(f"{key!r} must be a string")
+        get_policy_class(run["policy"]).config_class.from_dict(run["config"])
+        TrainSettings.from_dict(run["settings"])
+    except (CheckpointError, TypeError, ValueError) as err:
+        parser.error(f"--resume {args.resume!r}: not a run folder ({err})")
+    return run
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point (see the module docstring); exit 0 done, 1 ``--check`` differs, 2 usage error, 130 stopped."""
+    parser = _parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
+    if args.check is not None:
+        return _check_main(parser, args)
+    if args.resume is not None and args.run_dir is not None:
+        parser.error("--resume DIR continues the run in DIR; --run-dir starts a new one: give one of them")
+    if not 1 <= args.threads <= MAX_THREADS:
+        parser.error(f"--threads must be in [1, {MAX_THREADS}], got {args.threads}")
+    if not args.save_every >= 0:
+        parser.error(f"--save-every must be a number of seconds >= 0, got {args.save_every}")
+    run = _read_run(parser, args) if args.resume is not None else _new_run(parser, args, argv)
+    run_dir = args.resume if args.resume is not None else args.run_dir
+    out = Path(run["out"])
+    if out.suffix != ".safetensors":
+        parser.error(f"--out must end with .safetensors, got {str(out)!r}")
+    problem = _unwritable(out)
+    if problem:
+        parser.error(f"--out {str(out)!r}: {problem}")
+    torch.set_num_threads(args.threads)
+    try:
+        config = get_policy_class(run["policy"]).config_class.from_dict(run["config"])
+        settings = TrainSettings.from_dict(run["settings"])
+        dataset = load_trajectories(args.dataset or run["dataset"])
+        if args.resume is not None:
+            require_same_data(dataset, run.get("data"))
+        policy = make_policy(config, dataset=dataset, seed=settings.seed, device=run["device"])
+    except (TypeError, ValueError) as err:
+        parser.error(str(err))
+    if run_dir is not None and args.resume is None:
+        run["config"] = policy.config.to_dict()
+        run["data"] = dataset.provenance()
+        try:
+            atomic_write_text(Path(run_dir) / RUN_FILE, json.dumps(run, indent=1) + "\n")
+        except OSError as err:
+            parser.error(f"cannot write --run-dir {run_dir!r}: {err}")
+    print(
+        f"{run['policy']} ({run['preset']}): {policy.num_parameters():,} parameters, {len(dataset):,} steps "
+        f"(obs {policy.obs_dim}, action {policy.action_dim}), {settings.steps} training steps"
+        + (f", resumable in {run_dir}" if run_dir is not None else "")
+    )
+    try:
+        record = train_policy(
+            policy, dataset, settings, progress=not args.no_progress, run_dir=run_dir, save_every=args.save_every
+        )
+    except TrainingInterrupted as stopped:
+        print(f"{stopped}; continue with: {PROG} --resume {run_dir}")
+        return 130
+    except CheckpointError as err:
+        parser.error(str(err))
+    record["data"]["file"] = Path(args.dataset or run["dataset"]).name
+    record["preset"] = run["preset"]
+    record["command"] = run["command"]
+    summary = {
+        "policy": run["policy"],
         "config": policy.config.to_dict(),
         "stats": {k: v.to_dict() for k, v in policy.stats.items()},
         "training": record,
@@ -490,7 +696,7 @@ def main(argv: list[str] | None = None) -> int:
         policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})
         atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
     except OSError as err:
-        parser.error(f"cannot write --out {args.out!r}: {err}")
+        parser.error(f"cannot write --out {str(out)!r}: {err}")
     print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
     print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")
     return 0
