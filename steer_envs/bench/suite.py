@@ -39,6 +39,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites.smoke",
     "steer_envs.bench.suites.quick",
     "steer_envs.bench.suites.itps.suite",
+    "steer_envs.bench.suites.itps.scaling",
     "steer_envs.bench.suites.ltl",
     "steer_envs.bench.suites.tli.suite",
     "steer_envs.bench.suites.glide.suite",
