@@ -359,3 +359,78 @@ def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
     assert 0.11 < np.mean(steps) < 0.18  # the data moves about 0.14 cells per step
     assert np.median(spread) > 1.0  # cells: several modes per start, unlike ACT
     assert np.mean(collided) < 0.45
+
+
+# ---------------------------------------------------------------- inference acceleration
+def _steered_plans(policy: DiffusionPolicy, n: int, start: tuple[float, float]) -> dict[str, np.ndarray]:
+    """RS, GD and SS plans (the samplers with and without guidance) for one sketch and seed."""
+    from steer_envs.core.interaction import Sketch
+    from steer_envs.wrappers.samplers import make_sampler
+
+    sketch = Sketch(np.linspace(start, np.add(start, (2.0, 3.0)), 12))
+    return {
+        name: make_sampler(name)(policy, start, sketch, n, generator=np.random.default_rng(3)).plans
+        for name in ("RS", "GD", "SS")
+    }
+
+
+def _assert_same_plans(fast: DiffusionPolicy, eager: DiffusionPolicy, n: int, start: tuple[float, float]) -> None:
+    expected = _steered_plans(eager, n, start)
+    for name, plans in _steered_plans(fast, n, start).items():
+        np.testing.assert_allclose(plans, expected[name], rtol=0, atol=1e-5, err_msg=name)
+
+
+def test_accelerate_checks_its_mode() -> None:
+    policy = _tiny()
+    assert policy.acceleration == "none"
+    for bad in ("jit", "", None, 1):
+        with pytest.raises(ValueError, match=r"accelerate: mode must be one of \['compile', 'none', 'trace'\]"):
+            policy.accelerate(bad)  # type: ignore[arg-type]
+    assert policy.accelerate("trace") is policy and policy.acceleration == "trace"
+    assert policy.accelerate("none").acceleration == "none"
+
+
+def test_trace_gives_the_eager_plans_and_leaves_gradients_and_training_alone() -> None:
+    eager, fast = _tiny(), _tiny().accelerate("trace")
+    for n in (4, 7):  # one trace per batch size
+        _assert_same_plans(fast, eager, n, (2.0, 3.0))
+    x = torch.randn(3, 16, 2, requires_grad=True)  # gradient calls run eagerly
+    fast.predict_noise(x, 50, fast.encode_obs([3.0, 3.0])).square().sum().backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0
+    obs, plans = torch.rand(4, 2, 2) * 7 + 0.5, torch.rand(4, 16, 2) * 7 + 0.5
+    losses = [p.loss(obs, plans, torch.Generator().manual_seed(0)) for p in (eager, fast)]
+    torch.testing.assert_close(losses[0], losses[1], rtol=0, atol=0)
+    with torch.no_grad():  # weights changed after tracing (a training step, a load): the traces follow them
+        for policy in (eager, fast):
+            for w in policy.model.parameters():
+                w.mul_(1.01)
+    _assert_same_plans(fast, eager, 4, (2.0, 3.0))
+
+
+def test_trace_gives_the_eager_plans_of_the_shipped_checkpoint() -> None:
+    eager, fast = load_pretrained("dp"), load_pretrained("dp")
+    assert isinstance(eager, DiffusionPolicy) and isinstance(fast, DiffusionPolicy)
+    _assert_same_plans(fast.accelerate("trace"), eager, 8, (3.0, 4.0))
+
+
+@pytest.mark.slow
+def test_compile_gives_the_eager_noise_estimates() -> None:
+    """``torch.compile`` (about a minute per batch size on CPU): float32 rounding apart, eager's outputs.
+
+    Its fused kernels round differently, and SS's re-noising amplifies that on
+    an untrained network (~1e-3 here), so SS is left to ``"trace"``'s test.
+    """
+    eager, fast = _tiny(), _tiny().accelerate("compile")
+    x, cond = torch.randn(4, 16, 2), eager.encode_obs([2.0, 3.0])
+    with torch.no_grad():
+        for t in (90, 40, 0):
+            torch.testing.assert_close(
+                fast.predict_noise(x, t, cond), eager.predict_noise(x, t, cond), rtol=0, atol=1e-5
+            )
+    expected = _steered_plans(eager, 4, (2.0, 3.0))
+    for name, plans in _steered_plans(fast, 4, (2.0, 3.0)).items():
+        if name != "SS":
+            np.testing.assert_allclose(plans, expected[name], rtol=0, atol=1e-4, err_msg=name)
+    x.requires_grad_(True)  # gradient calls run eagerly
+    fast.predict_noise(x, 50, cond).square().sum().backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0

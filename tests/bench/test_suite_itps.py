@@ -186,6 +186,36 @@ def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Pat
         plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params={**params, "dp_checkpoint": "x"}))
 
 
+def test_dp_accelerate_reaches_the_policy_with_the_same_plans(suite: Any, tmp_path: Path) -> None:
+    """--param dp_accelerate=trace: the DP's denoiser is traced; plans and metrics as in eager mode."""
+    from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
+    from steer_envs.bench.suites.itps.protocol import load_policy
+
+    tiny = DiffusionConfig(
+        obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
+    )
+    bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
+    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
+    base = {**FAST, "dp_checkpoint": str(path)}
+    records = {}
+    for mode in ("none", "trace"):
+        params = {**base, "dp_accelerate": mode}
+        assert load_policy(LOADER, "dp", str(path), mode).acceleration == mode
+        plan = plan_trials(suite, build_request(suite, methods=["DP-SS"], seeds=1, params=params))
+        outcome = execute_trial(plan.trials[0])
+        assert outcome.ok, outcome.error
+        records[mode] = outcome.record
+    fast, eager = records["trace"], records["none"]
+    np.testing.assert_allclose(fast["extra"]["plans"], eager["extra"]["plans"], atol=1e-3)  # stored to 3 decimals
+    for metric in ("min_l2", "avg_l2", "collision"):
+        assert fast["metrics"][metric] == pytest.approx(eager["metrics"][metric], abs=1e-6)
+    assert fast["metrics"]["latency_ms"] > 0 and fast["metrics"]["ss_gd_latency"] > 0
+    with pytest.raises(ValueError, match="dp_accelerate"):
+        plan_trials(suite, build_request(suite, params={**base, "dp_accelerate": "jit"}))
+    with pytest.raises(TypeError, match="accelerate"):  # the exact test policy has no accelerate method
+        plan_trials(suite, build_request(suite, methods=["DP-RS"], params={**FAST, "dp_accelerate": "trace"}))
+
+
 def _summary_record(method: str, seed: int, min_l2: float, avg_l2: float, collision: float) -> dict[str, Any]:
     metrics = {"min_l2": min_l2, "avg_l2": avg_l2, "collision": collision}
     config = {"suite": "itps-maze2d", "env": suites_itps.ENV_ID, "method": method, "params": {}}

@@ -32,13 +32,16 @@ POLICY_UNAVAILABLE: tuple[type[Exception], ...] = (ImportError, AttributeError, 
 
 
 @functools.lru_cache(maxsize=4)
-def load_policy(loader: str, kind: str, checkpoint: str = "") -> Any:
+def load_policy(loader: str, kind: str, checkpoint: str = "", accelerate: str = "none") -> Any:
     """The frozen policy ``kind`` from a checkpoint file or the ``"module:function"`` loader (cached per process).
 
     A non-empty ``checkpoint`` (a file written by ``python -m
     steer_envs.baselines.training``) wins; else the loader is called as
     ``loader(kind)`` when it takes an argument, else ``loader()``. Raises one
     of :data:`POLICY_UNAVAILABLE` while the policy is not available.
+    ``accelerate`` other than ``"none"`` is passed to the policy's
+    ``accelerate`` method (:meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`);
+    ``TypeError`` for a policy without one.
 
     >>> load_policy("steer_envs.no_such_module:load", "dp")
     Traceback (most recent call last):
@@ -47,28 +50,36 @@ def load_policy(loader: str, kind: str, checkpoint: str = "") -> Any:
     if checkpoint:
         from steer_envs.baselines.pretrained import load_checkpoint
 
-        return load_checkpoint(kind, checkpoint)  # a wrong path is a ValueError, not a skipped policy
-    fn = resolve_function(loader)
-    try:
-        takes_arg = bool(inspect.signature(fn).parameters)
-    except (TypeError, ValueError):
-        takes_arg = True
-    policy = fn(kind) if takes_arg else fn()
-    from steer_envs.core.policy import TrajectoryPolicy
+        policy: Any = load_checkpoint(kind, checkpoint)  # a wrong path is a ValueError, not a skipped policy
+    else:
+        fn = resolve_function(loader)
+        try:
+            takes_arg = bool(inspect.signature(fn).parameters)
+        except (TypeError, ValueError):
+            takes_arg = True
+        policy = fn(kind) if takes_arg else fn()
+        from steer_envs.core.policy import TrajectoryPolicy
 
-    if not isinstance(policy, TrajectoryPolicy):
-        raise TypeError(f"{loader}({kind!r}) must return a TrajectoryPolicy, got {type(policy).__name__}")
+        if not isinstance(policy, TrajectoryPolicy):
+            raise TypeError(f"{loader}({kind!r}) must return a TrajectoryPolicy, got {type(policy).__name__}")
+    if accelerate != "none":
+        if not callable(getattr(policy, "accelerate", None)):
+            raise TypeError(
+                f"accelerate={accelerate!r} needs a policy with an accelerate method, got {type(policy).__name__}"
+            )
+        policy.accelerate(accelerate)
     return policy
 
 
-_warm: set[tuple[int, str]] = set()
+_warm: set[tuple[int, str, int]] = set()
 
 
-def _warm_up(policy: Any, sampler: Any, obs: Any, sketch: Any) -> None:
-    """One small untimed call per (policy, sampler) and process: lazy initialisation stays out of latency_ms."""
-    key = (id(policy), sampler.name)
+def _warm_up(policy: Any, sampler: Any, obs: Any, sketch: Any, batch: int) -> None:
+    """One untimed call per (policy, sampler, batch) and process: lazy initialisation (per-shape kernels,
+    traces, compilation) stays out of latency_ms."""
+    key = (id(policy), sampler.name, batch)
     if key not in _warm:
-        sampler(policy, obs, sketch, 2, generator=np.random.default_rng(0))
+        sampler(policy, obs, sketch, batch, generator=np.random.default_rng(0))
         _warm.add(key)
 
 
@@ -109,7 +120,7 @@ def steering_trial(
         drawn = user.draw(env.state)
         sampler = OutputPerturbation(collides=env.is_wall) if sampler_name == "OP" else make_sampler(sampler_name)
         obs_in = policy_observation(policy, [obs])
-        _warm_up(policy, sampler, obs_in, drawn.sketch)
+        _warm_up(policy, sampler, obs_in, drawn.sketch, batch)
         generator = np.random.default_rng(np.random.SeedSequence([seed, 0x1795]))
         result = sampler(policy, obs_in, drawn.sketch, batch, generator=generator)
         # ITPS scores the executed waypoints (LeRobot's DP restates the current position in plan[0])
@@ -125,7 +136,7 @@ def steering_trial(
             "network_evals": result.timings.get("network_evals"),
         }
         if sampler_name == "SS":
-            _warm_up(policy, GuidedDiffusion(), obs_in, drawn.sketch)
+            _warm_up(policy, GuidedDiffusion(), obs_in, drawn.sketch, batch)
             ms = benchmark_latency(
                 policy,
                 {"GD": GuidedDiffusion(), "SS": sampler},

@@ -27,7 +27,10 @@ plans scored from the policy's ``exec_start``, i.e. the executed waypoints):
 Timings run with ``torch_threads`` intra-op threads per trial process (default
 1: the local executor already runs one trial per core, and extra spinning
 OpenMP threads per process contend for the cores and distort the SS/GD ratio;
-0 keeps torch's default).
+0 keeps torch's default). ``dp_accelerate`` runs the DP's denoiser
+``"none"`` (eager), ``"compile"`` or ``"trace"``
+(:meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`: the same
+plans, faster calls; compilation and tracing happen in the warm-up).
 
 Policies come from :func:`steer_envs.baselines.pretrained.load_pretrained`
 (``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the
@@ -101,7 +104,8 @@ class ItpsParams(SuiteParams):
     ``torch_threads`` per trial process (0: torch's default);
     ``latency_repeats`` interleaved SS/GD calls; ``{dp,act}_loader`` a
     ``module:function`` returning the policy and ``{dp,act}_checkpoint`` a
-    checkpoint file that replaces it.
+    checkpoint file that replaces it; ``dp_accelerate`` the DP's inference
+    acceleration (``"none"``, ``"compile"``, ``"trace"``).
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -114,6 +118,7 @@ class ItpsParams(SuiteParams):
     act_loader: str = PRETRAINED_LOADER
     dp_checkpoint: str = ""
     act_checkpoint: str = ""
+    dp_accelerate: str = "none"
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "batch")
@@ -121,12 +126,17 @@ class ItpsParams(SuiteParams):
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
         self.require_at_least(1, "latency_repeats")
         self.require_at_least(0, "plot_seeds")
+        if self.dp_accelerate != "none":  # the import pulls in torch: only for a non-default value
+            from steer_envs.baselines.diffusion.modeling import ACCELERATIONS
+
+            self.require_in("dp_accelerate", ACCELERATIONS)
 
     def policy(self, kind: str) -> Any:
         """The policy ``kind`` (``"dp"`` / ``"act"``) these parameters name (cached per process)."""
         if kind not in ("dp", "act"):
             raise ValueError(f"{SUITE_NAME}: policy kind must be 'dp' or 'act', got {kind!r}")
-        return load_policy(getattr(self, f"{kind}_loader"), kind, getattr(self, f"{kind}_checkpoint"))
+        accelerate = self.dp_accelerate if kind == "dp" else "none"
+        return load_policy(getattr(self, f"{kind}_loader"), kind, getattr(self, f"{kind}_checkpoint"), accelerate)
 
 
 def split_method(method: str) -> tuple[str, str]:
