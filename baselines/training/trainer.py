@@ -605,10 +605,17 @@ def _new_run(parser: argparse.ArgumentParser, args: argparse.Namespace, argv: li
         "config": config.to_dict(),
         "settings": settings.to_dict(),
         "dataset": str(Path(args.dataset).resolve()),
-        "out": str(out.resolve()),
+        "out": _stored_out(out, args.run_dir),
         "device": args.device or "cpu",
         "command": f"{PROG} " + " ".join(argv),
     }
+
+
+def _stored_out(out: Path, run_dir: str | None) -> str:
+    """``out`` as ``run.json`` keeps it: relative to the run folder when inside it, else absolute."""
+    if run_dir is not None and out.resolve().is_relative_to(Path(run_dir).resolve()):
+        return str(out.resolve().relative_to(Path(run_dir).resolve()))
+    return str(out.resolve())
 
 
 def _read_run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, Any]:
@@ -646,7 +653,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--save-every must be a number of seconds >= 0, got {args.save_every}")
     run = _read_run(parser, args) if args.resume is not None else _new_run(parser, args, argv)
     run_dir = args.resume if args.resume is not None else args.run_dir
-    out = Path(run["out"])
+    out = Path(run_dir or ".") / run["out"]  # relative: inside the run folder (the folder may move)
     if out.suffix != ".safetensors":
         parser.error(f"--out must end with .safetensors, got {str(out)!r}")
     problem = _unwritable(out)

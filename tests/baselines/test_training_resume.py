@@ -190,6 +190,11 @@ def test_cli_resume_usage_errors(data_file: Path, tmp_path: Path, capsys: pytest
     before = (run / "dp.safetensors").read_bytes()
     assert main(["--resume", str(run), "--no-progress"]) == 0
     assert (run / "dp.safetensors").read_bytes() == before
+    # the run folder may move (another machine, another checkout): its checkpoint goes with it
+    moved = run.rename(tmp_path / "moved")
+    (moved / "dp.safetensors").unlink()
+    assert main(["--resume", str(moved), "--no-progress"]) == 0
+    assert (moved / "dp.safetensors").read_bytes() == before
 
 
 @pytest.mark.slow
