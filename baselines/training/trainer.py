@@ -249,8 +249,12 @@ def train_policy(
     return record
 
 
-class TrainingInterrupted(Exception):
-    """A resumable run stopped on a signal after saving its state; ``--resume`` the folder to continue."""
+class TrainingInterrupted(KeyboardInterrupt):
+    """A resumable run stopped on a signal after saving its state; ``--resume`` the folder to continue.
+
+    A ``KeyboardInterrupt``: code that calls :func:`train_policy` (a benchmark
+    trial, a notebook) stops as on Ctrl-C instead of treating it as a failure.
+    """
 
     def __init__(self, step: int, run_dir: Path, signal_name: str) -> None:
         super().__init__(f"{signal_name}: training state saved after step {step} in {run_dir}")
