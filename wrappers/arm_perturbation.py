@@ -215,11 +215,13 @@ class ArmPerturbationWrapper(
     def _after_push(self, info: dict[str, Any]) -> dict[str, Any]:
         """The step's ``info`` updated to the pushed state (mode, sensors); the step's violation and success kept."""
         push = self._push_info
+        success = bool(info["success"] or push["success"])
         return {
             **info,
             **push,
             "constraint_violation": bool(info["constraint_violation"] or push["constraint_violation"]),
-            "success": bool(info["success"] or push["success"]),
+            "success": success,
+            "is_success": success,
         }
 
     def _observation(self) -> np.ndarray:

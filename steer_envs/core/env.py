@@ -47,6 +47,7 @@ __all__ = [
     "CONSTRAINT_VIOLATION",
     "INFO_KEYS",
     "INTERACTION_KINDS",
+    "IS_SUCCESS",
     "MODE",
     "MODE_NAME",
     "PERTURBED",
@@ -72,12 +73,15 @@ MODE_NAME = "mode_name"
 SENSORS = "sensors"
 #: ``bool``: the task is complete (a goal mode was reached).
 SUCCESS = "success"
+#: ``bool``: the same value as ``info["success"]``, under the name stable-baselines3 reads
+#: (``Monitor`` / ``ep_success_buffer``, as ``is_success`` in its episode info).
+IS_SUCCESS = "is_success"
 #: ``bool``: the step broke a task constraint (an invalid mode transition, a spill, a wall contact).
 CONSTRAINT_VIOLATION = "constraint_violation"
 #: ``bool``: the info came from :meth:`PerturbableEnv.perturb` (True there); optional elsewhere.
 PERTURBED = "perturbed"
 #: keys every ``reset``, ``step`` and ``perturb`` info carries.
-INFO_KEYS: tuple[str, ...] = (MODE, MODE_NAME, SENSORS, SUCCESS, CONSTRAINT_VIOLATION)
+INFO_KEYS: tuple[str, ...] = (MODE, MODE_NAME, SENSORS, SUCCESS, IS_SUCCESS, CONSTRAINT_VIOLATION)
 #: every interaction kind an env may accept (see :mod:`steer_envs.core.interaction`).
 INTERACTION_KINDS: tuple[InteractionKind, ...] = get_args(InteractionKind)
 #: the members a :class:`SteerEnv` has.

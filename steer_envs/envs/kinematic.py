@@ -167,11 +167,13 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     def _info(self, violation: bool, perturbed: bool = False) -> dict[str, Any]:
         reading = self.model.read(self._memory, self._pos)
         mode = int(reading.mode[0])
+        success = bool(reading.success[0])
         return {
             "mode": mode,
             "mode_name": self.task.modes[mode],
             "sensors": {ap: bool(v) for ap, v in zip(self.task.sensors, reading.sensors[0], strict=True)},
-            "success": bool(reading.success[0]),
+            "success": success,
+            "is_success": success,  # stable-baselines3's name (Monitor, ep_success_buffer)
             "constraint_violation": bool(violation),
             "perturbed": perturbed,
         }
@@ -249,7 +251,7 @@ class Kinematic2DVectorEnv(VectorEnv):
 
     Same dynamics, rewards and termination as :class:`Kinematic2DEnv`;
     autoreset is ``NEXT_STEP`` (Gymnasium's default). ``infos`` holds arrays:
-    ``mode``, ``success``, ``constraint_violation`` and ``sensors`` (an
+    ``mode``, ``success`` (and ``is_success``, the same), ``constraint_violation`` and ``sensors`` (an
     ``(num_envs, num_aps)`` bool array, columns in ``task.sensors`` order).
     >>> import gymnasium as gym
     >>> import numpy as np
@@ -286,10 +288,12 @@ class Kinematic2DVectorEnv(VectorEnv):
 
     def _infos(self, violation: np.ndarray) -> dict[str, Any]:
         reading = self.model.read(self._memory, self._pos)
+        success = reading.success.astype(bool)
         return {
             "mode": reading.mode.astype(np.int64),
             "sensors": reading.sensors.astype(bool),
-            "success": reading.success.astype(bool),
+            "success": success,
+            "is_success": success.copy(),  # the single env's key (a sync vector env of them has it too)
             "constraint_violation": violation.astype(bool),
         }
 

@@ -453,6 +453,7 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
             "mode_name": "navigate",
             "sensors": {"at_goal": at_goal, "in_wall_contact": self.physics.in_contact()},
             "success": at_goal,
+            "is_success": at_goal,  # stable-baselines3's name (Monitor, ep_success_buffer)
             "constraint_violation": bool(violation),
             "perturbed": perturbed,
         }

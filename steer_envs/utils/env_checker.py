@@ -32,6 +32,7 @@ from steer_envs.core.env import (
     CONSTRAINT_VIOLATION,
     INFO_KEYS,
     INTERACTION_KINDS,
+    IS_SUCCESS,
     MODE,
     MODE_NAME,
     PERTURBED,
@@ -51,11 +52,13 @@ CONVENTIONS: Mapping[str, str] = {
     "members": "the unwrapped env has `task` (a TaskSpec), `state`, `perturb` and `interaction_kinds`",
     "interaction_kinds": "`interaction_kinds` is a non-empty tuple of distinct kinds from 'point', 'sketch', 'nudge'",
     "gymnasium_api": "the unwrapped env passes gymnasium.utils.env_checker.check_env",
-    "info_keys": "every reset/step/perturb info carries mode, mode_name, sensors, success, constraint_violation",
+    "info_keys": "every reset/step/perturb info carries mode, mode_name, sensors, success, is_success, "
+    "constraint_violation",
     "mode": "info['mode'] is an int in [0, task.num_modes) and info['mode_name'] is task.modes[info['mode']]",
     "sensors": "info['sensors'] maps exactly the APs of task.sensors to bool",
     "sensor_labelling": "where task.sensor_modes is given, task.mode_of(info['sensors']) == info['mode_name']",
     "flags": "info['success'] and info['constraint_violation'] are bool; info['perturbed'], if present, is False",
+    "is_success": "info['is_success'] (the key stable-baselines3's Monitor reads) is the bool info['success']",
     "determinism": "the same seed (reset and action space) gives the same trajectory, another seed another one",
     "state": "`state` is a finite float 1-D array, returned as a copy",
     "perturb": "perturb(to=x) moves the agent to a reachable x, perturb(delta=d) equals perturb(to=state + d), "
@@ -158,6 +161,12 @@ class _Checker:
         for key in (SUCCESS, CONSTRAINT_VIOLATION):
             if not isinstance(info[key], bool):
                 raise self.fail("flags", f"{where}: info[{key!r}] = {info[key]!r} ({type(info[key]).__name__})")
+        if not isinstance(info[IS_SUCCESS], bool) or info[IS_SUCCESS] != info[SUCCESS]:
+            raise self.fail(
+                "is_success",
+                f"{where}: info['is_success'] = {info[IS_SUCCESS]!r} ({type(info[IS_SUCCESS]).__name__}), "
+                f"info['success'] = {info[SUCCESS]!r}",
+            )
         if perturbed:
             if info.get(PERTURBED) is not True:
                 raise self.fail("perturb", f"perturb returned info['perturbed'] = {info.get(PERTURBED)!r}")

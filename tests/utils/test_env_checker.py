@@ -47,6 +47,7 @@ class ToyEnv(gym.Env[np.ndarray, np.ndarray]):
             "mode_name": TASK.modes[mode],
             "sensors": {"r": mode == 1},
             "success": mode == 1,
+            "is_success": mode == 1,
             "constraint_violation": False,
             "perturbed": perturbed,
         }
@@ -130,6 +131,27 @@ class NumpySuccess(ToyEnv):
     def _info(self, perturbed: bool = False) -> dict[str, Any]:
         info = super()._info(perturbed)
         return {**info, "success": np.bool_(info["success"])}
+
+
+class NoIsSuccess(ToyEnv):
+    """Only the steer-envs name: stable-baselines3's Monitor would never see a success."""
+
+    def _info(self, perturbed: bool = False) -> dict[str, Any]:
+        info = super()._info(perturbed)
+        del info["is_success"]
+        return info
+
+
+class IsSuccessDiffers(ToyEnv):
+    def _info(self, perturbed: bool = False) -> dict[str, Any]:
+        info = super()._info(perturbed)
+        return {**info, "is_success": not info["success"]}
+
+
+class IsSuccessNumpy(ToyEnv):
+    def _info(self, perturbed: bool = False) -> dict[str, Any]:
+        info = super()._info(perturbed)
+        return {**info, "is_success": np.bool_(info["success"])}
 
 
 class AlwaysPerturbed(ToyEnv):
@@ -223,6 +245,9 @@ BROKEN: list[tuple[type[ToyEnv], str, str]] = [
     (InvertedSensor, "sensor_labelling", "label"),
     (NumpySuccess, "flags", "success"),
     (AlwaysPerturbed, "flags", "perturbed"),
+    (NoIsSuccess, "info_keys", "is_success"),
+    (IsSuccessDiffers, "is_success", "info\\['is_success'\\] = True .*info\\['success'\\] = False"),
+    (IsSuccessNumpy, "is_success", "bool_"),
     (UnseededReset, "determinism", "seed 0"),
     (SharedState, "state", "copy"),
     (PerturbNotFlagged, "perturb", "perturbed"),

@@ -58,6 +58,7 @@ def test_pushes_move_the_eef_and_are_reported(lift: gym.Env[Any, Any]) -> None:
     floor = float(env.arm.object_pos[2])
     obs, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))
     assert info["perturbation"] == "push" and info["perturbed"] and info["perturbation_count"] == 1
+    assert info["is_success"] is info["success"]  # the merged step + push info keeps stable-baselines3's key in step
     ((step, kind, delta),) = env.log
     assert (step, kind) == (1, "push") and 0.05 <= float(np.linalg.norm(delta)) <= 0.1
     np.testing.assert_allclose(obs[:3], env.arm.state, atol=1e-6)  # the observation is the pushed state

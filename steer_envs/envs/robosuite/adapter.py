@@ -94,7 +94,8 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     replays across instances.
 
     ``info``: ``mode`` / ``mode_name`` (ground truth, see :mod:`steer_envs.envs.robosuite.tasks`),
-    ``sensors``, ``success`` (robosuite's ``_check_success``), ``constraint_violation``
+    ``sensors``, ``success`` (robosuite's ``_check_success``; ``is_success`` the same, for
+    stable-baselines3), ``constraint_violation``
     (a mode change the task does not allow, e.g. the object dropped after being
     grasped), ``perturbed``.
 
@@ -328,6 +329,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
             "mode_name": name,
             "sensors": sensors,
             "success": self._success,
+            "is_success": self._success,  # stable-baselines3's name (Monitor, ep_success_buffer)
             "constraint_violation": bool(violation),
             "perturbed": perturbed,
         }
