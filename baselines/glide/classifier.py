@@ -49,7 +49,6 @@ from typing import Any, Protocol
 import numpy as np
 import torch
 from torch import nn
-from tqdm.auto import tqdm
 
 from steer_envs.baselines.common.checkpoint import (
     check_parameter_count,
@@ -57,6 +56,7 @@ from steer_envs.baselines.common.checkpoint import (
     read_safetensors,
     write_safetensors,
 )
+from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import integer, real_array
 from steer_envs.io import CheckpointError
 
@@ -146,7 +146,8 @@ class GlideTrainConfig:
         seed: seeds the initial weights.
         num_threads: torch intra-op threads during training (None: leave torch's setting); 1 by
             default: the networks are small and extra threads mostly spin on a shared CPU.
-        progress: show a tqdm bar over epochs.
+        progress: a tqdm bar over epochs: True shown, None shown only when stderr is a terminal, False
+            (default) hidden.
 
     >>> GlideTrainConfig().n_heads, GlideTrainConfig().prune_to, GlideTrainConfig(n_heads=1).epochs
     (5, 2, 2000)
@@ -171,9 +172,10 @@ class GlideTrainConfig:
     dyn_input_lag: int = 1
     seed: int = 0
     num_threads: int | None = 1
-    progress: bool = False
+    progress: bool | None = False
 
     def __post_init__(self) -> None:
+        check_progress(self.progress)
         for name in ("epochs", "hidden", "n_heads", "stride", "n_batches"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -760,7 +762,7 @@ def train_mode_classifier(
         prune_step = round(config.prune_at * steps) if config.prune_to < config.n_heads else -1
         history: dict[str, list[Any]] = {t: [] for t in (*LOSS_TERMS, "total", "heads")}
         b = config.best_head_weight
-        bar = tqdm(range(steps), desc="GLiDE classifier", disable=not config.progress, leave=False)
+        bar = progress_bar(range(steps), enabled=config.progress, desc="GLiDE classifier", leave=False)
         for step in bar:
             if step == prune_step:
                 with torch.no_grad():
@@ -785,7 +787,7 @@ def train_mode_classifier(
                 history[t].append(float(losses[t][best].detach()))
             if step % 50 == 0 or step == steps - 1:
                 history["heads"].append([float(v) for v in losses["total"].detach()])
-            if config.progress:
+            if not bar.disable:
                 bar.set_postfix(loss=f"{float(total.min().detach()):.4g}")
         with torch.no_grad():
             final = glide_losses(clf(data.states), data, feas_t, weights, **loss_kwargs)["total"]

@@ -47,8 +47,8 @@ from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
-from tqdm.auto import tqdm
 
+from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import BoundExceeded, boolean, integer, real_array, real_scalar
 from steer_envs.envs.kinematic import Kinematic2DEnv, Kinematic2DVectorEnv
 
@@ -667,17 +667,21 @@ class CounterfactualReplayer:
         *,
         seed: int,
         batch_size: int = 256,
-        progress: bool = False,
+        progress: bool | None = False,
     ) -> list[Replay]:
-        """``n`` replays of random perturbations of ``demos`` (demo drawn uniformly), seeded."""
+        """``n`` replays of random perturbations of ``demos`` (demo drawn uniformly), seeded.
+
+        ``progress``: ``True`` a bar, ``None`` a bar only when stderr is a terminal, ``False`` (default) none.
+        """
         paths = [_check_path(d, f"demos[{i}]") for i, d in enumerate(demos)]
         if not paths:
             raise ValueError("demos must hold at least one demonstration")
         n = integer(n, "n", low=0, owner="CounterfactualReplayer.rollouts")
         batch_size = integer(batch_size, "batch_size", low=1, owner="CounterfactualReplayer.rollouts")
+        progress = check_progress(progress, owner="CounterfactualReplayer.rollouts")
         rng = np.random.default_rng(seed)
         out: list[Replay] = []
-        with tqdm(total=int(n), desc="counterfactual replays", disable=not progress, leave=False) as bar:
+        with progress_bar(total=int(n), enabled=progress, desc="counterfactual replays", leave=False) as bar:
             while len(out) < n:
                 m = min(int(batch_size), int(n) - len(out))
                 sources = rng.integers(0, len(paths), size=m)

@@ -41,8 +41,8 @@ from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
-from tqdm.auto import tqdm
 
+from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import integer, one_of
 from steer_envs.data.counterfactual import EXECUTIONS, CounterfactualReplayer, Execution, Replay
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
@@ -219,7 +219,7 @@ def build_counterfactual_dataset(
     batch_size: int = 512,
     max_replays: int = 50_000,
     max_episode_steps: int = 5000,
-    progress: bool = False,
+    progress: bool | None = False,
     **make_kwargs: Any,
 ) -> CounterfactualDataset:
     """Demos plus a balanced set of perturbed replays (``n_success`` + ``n_failure``).
@@ -230,7 +230,8 @@ def build_counterfactual_dataset(
     for every detour. Replays are drawn in seeded batches until both quotas are
     filled (surplus of the more frequent outcome is dropped in draw order).
     The demos are replayed too (kind ``"demo"``) and must all succeed.
-    ``make_kwargs`` go to ``gymnasium.make``.
+    ``make_kwargs`` go to ``gymnasium.make``. ``progress``: ``True`` a bar,
+    ``None`` a bar only when stderr is a terminal, ``False`` (default) none.
 
     >>> from steer_envs.data.demos import collect_demonstrations
     >>> env_id = "steer_envs/PolygonNav-3Mode-v0"
@@ -248,6 +249,7 @@ def build_counterfactual_dataset(
     batch_size = integer(batch_size, "batch_size", low=1, owner=owner)
     max_episode_steps = integer(max_episode_steps, "max_episode_steps", low=1, owner=owner)
     seed = integer(seed, "seed", low=0, owner=owner)
+    progress = check_progress(progress, owner=owner)
     if isinstance(demos, (str, bytes)) or len(demos) == 0:
         raise ValueError(f"{owner}: demos must hold at least one demonstration")
     one_of(execution, "execution", EXECUTIONS, owner=owner)
@@ -263,7 +265,7 @@ def build_counterfactual_dataset(
         succ: list[Replay] = []
         fail: list[Replay] = []
         drawn = raw_success = raw_total = 0
-        with tqdm(total=n_success + n_failure, desc=f"counterfactuals {env_id}", disable=not progress) as bar:
+        with progress_bar(total=n_success + n_failure, enabled=progress, desc=f"counterfactuals {env_id}") as bar:
             while len(succ) < n_success or len(fail) < n_failure:
                 if drawn >= max_replays:
                     raise RuntimeError(

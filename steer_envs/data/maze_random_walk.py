@@ -54,7 +54,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import boolean, integer, one_of, real_scalar
+from steer_envs.core.progress import check_progress, progress_bar
+from steer_envs.core.validation import integer, one_of, real_scalar
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
 from steer_envs.io import DatasetError, atomic_directory, atomic_write_npz, npz_json, read_npz, require_arrays
@@ -253,7 +254,7 @@ def generate_random_walk(
     *,
     subsample: int = 4,
     max_leg_steps: int | None = None,
-    progress: bool = True,
+    progress: bool | None = None,
 ) -> RandomWalkDataset:
     """Run the D4RL random walk for ``steps`` raw (0.01 s) steps and keep every ``subsample``-th state.
 
@@ -261,7 +262,8 @@ def generate_random_walk(
     the maze) ends a leg whose goal was not reached. Accepted: ``maze`` one of
     :data:`MAX_LEG_STEPS`; ints ``subsample >= 1``, ``subsample <= steps <=``
     :data:`MAX_STEPS`, ``seed >= 0``, ``max_leg_steps >= 1`` (bools, floats
-    and strings are a ``TypeError``).
+    and strings are a ``TypeError``). ``progress``: ``None`` a bar only when
+    stderr is a terminal, ``True`` always, ``False`` never.
     """
     owner = "generate_random_walk"
     subsample = integer(subsample, "subsample", low=1, owner=owner)
@@ -269,7 +271,7 @@ def generate_random_walk(
     seed = integer(seed, "seed", low=0, owner=owner)
     one_of(maze, "maze", tuple(MAX_LEG_STEPS), owner=owner)
     leg_limit = MAX_LEG_STEPS[maze] if max_leg_steps is None else integer(max_leg_steps, "max_leg_steps", low=1)
-    progress = boolean(progress, "progress", owner=owner)
+    progress = check_progress(progress, owner=owner)
 
     grid = MazeGrid(maze_map(maze))
     physics = MazePhysics(grid, name=f"maze2d_{maze}")
@@ -295,7 +297,7 @@ def generate_random_walk(
     model, data = physics.model, physics.data
     step = _mj_step()
     leg_t, replan = 0, False
-    bar = _progress(n * subsample, progress)
+    bar = progress_bar(total=n * subsample, enabled=progress, unit="step", unit_scale=True, desc="maze2d random walk")
     try:
         for k in range(n * subsample):
             x, y = float(qpos[0]), float(qpos[1])
@@ -319,12 +321,11 @@ def generate_random_walk(
                 first = -(-(k + 1) // subsample)  # first sample whose state belongs to the new leg
                 if first < n:
                     leg_starts.append(first)
-            if bar is not None and k % 10_000 == 9_999:
+            if k % 10_000 == 9_999:
                 bar.update(10_000)
         obs[n] = (qpos[0], qpos[1], qvel[0], qvel[1])
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     meta = {
         "format": FORMAT,
         "maze": maze,
@@ -353,14 +354,6 @@ def _mj_step() -> Any:
     import mujoco
 
     return mujoco.mj_step
-
-
-def _progress(total: int, enabled: bool) -> Any:
-    if not enabled:
-        return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, unit="step", unit_scale=True, desc="maze2d random walk")
 
 
 # ------------------------------------------------------------------ file I/O
@@ -563,7 +556,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=1_000_000, help="raw 100 Hz steps (default: 1000000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     parser.add_argument("--subsample", type=int, default=4, help="keep every k-th raw step (default: 4)")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show (or hide) the progress bar (default: shown only when stderr is a terminal)",
+    )
     parser.add_argument(
         "--minari-id",
         default=None,
@@ -584,9 +582,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--out {args.out!r}: {blocker} is not a folder")
     tic = time.perf_counter()
     try:
-        ds = generate_random_walk(
-            args.maze, args.steps, args.seed, subsample=args.subsample, progress=not args.no_progress
-        )
+        ds = generate_random_walk(args.maze, args.steps, args.seed, subsample=args.subsample, progress=args.progress)
     except (TypeError, ValueError) as err:
         parser.error(str(err))
     elapsed = time.perf_counter() - tic

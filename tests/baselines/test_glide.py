@@ -208,6 +208,16 @@ def test_training_recovers_the_band_modes_from_success_labels_only() -> None:
     np.testing.assert_array_equal(again.classifier.predict(grid), result.classifier.predict(grid))
 
 
+def test_progress_bar_is_opt_in_and_quiet_in_logs_on_auto(capsys: pytest.CaptureFixture[str]) -> None:
+    trajs, labels = _toy_band_data(np.random.default_rng(1), 40)
+    for progress, drawn in ((False, False), (None, False), (True, True)):  # stderr is no terminal under pytest
+        config = GlideTrainConfig(epochs=2, n_heads=1, stride=1, seed=0, progress=progress)
+        train_mode_classifier(trajs, labels, F3, config=config)
+        assert ("GLiDE classifier" in capsys.readouterr().err) is drawn, progress
+    with pytest.raises(TypeError, match="progress must be True, False or None"):
+        GlideTrainConfig(progress="yes")  # type: ignore[arg-type]
+
+
 def test_pruning_keeps_the_heads_with_the_lowest_training_loss() -> None:
     trajs, labels = _toy_band_data(np.random.default_rng(3), 200)
     config = GlideTrainConfig(epochs=120, n_heads=4, prune_at=0.5, prune_to=2, seed=1)

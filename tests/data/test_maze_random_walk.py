@@ -160,6 +160,14 @@ def test_cli_writes_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert "--out" in help_text and "--steps" in help_text and "--seed" in help_text
 
 
+def test_cli_progress_bar_only_on_a_terminal_or_when_asked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["--out", str(tmp_path), "--maze", "umaze", "--steps", "400"]
+    assert main(argv) == 0
+    assert "maze2d random walk" not in capsys.readouterr().err  # stderr is no terminal here: no bar by default
+    assert main([*argv, "--progress"]) == 0
+    assert "maze2d random walk" in capsys.readouterr().err
+
+
 def test_minari_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("h5py", reason="Minari needs its hdf5 backend (pip install 'minari[hdf5]')")
     import minari
@@ -185,7 +193,7 @@ def test_itps_scale_walk_is_collision_free() -> None:
 
 
 def test_generator_refuses_coercions_and_huge_walks() -> None:
-    with pytest.raises(TypeError, match="progress must be a bool"):
+    with pytest.raises(TypeError, match="progress must be True, False or None"):
         generate_random_walk("umaze", 100, progress="no")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="steps must be an int in"):
         generate_random_walk("umaze", 10**12, progress=False)
