@@ -176,12 +176,13 @@ def train_policy(
         losses = done.losses
 
         def save() -> None:
+            """Add this segment's time to ``done.wall_s``; write the state (with a run folder)."""
+            nonlocal tic
+            now = time.perf_counter()
+            done.wall_s, tic = done.wall_s + now - tic, now
             if state_file is not None:
-                done.wall_s += time.perf_counter() - segment[0]
-                segment[0] = time.perf_counter()
                 save_state(state_file, settings=settings, progress=done, **parts)
 
-        segment = [tic]
         last_save = time.monotonic()
         bar = _progress(last, progress, initial=min(done.step, last))
         autocast = torch.autocast(policy.device.type, dtype=torch.bfloat16, enabled=settings.precision == "bf16")
@@ -231,8 +232,6 @@ def train_policy(
         raw_weights.update({k: v.detach().clone() for k, v in model.state_dict().items()})
     if ema is not None:
         ema.copy_to(model.parameters())
-    if state_file is None:
-        done.wall_s += time.perf_counter() - segment[0]
     record = {
         "settings": settings.to_dict(),
         "losses": losses,

@@ -40,6 +40,7 @@ from steer_envs.bench.executors import EXECUTORS, ExecutorStartError
 from steer_envs.bench.report import FORMATS, render, render_markdown, summarize
 from steer_envs.bench.store import (
     DISCARDED_FILE,
+    PLOTS_DIR,
     RESULTS_FILE,
     SUMMARY_FILE,
     StoreLockedError,
@@ -123,7 +124,8 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         parents=[plugin],
         help="run (or resume) a suite",
-        description="Run SUITE into --out; an existing --out is resumed (finished trials skipped).",
+        description="Run SUITE into --out; an existing --out is resumed (finished trials skipped; when all "
+        "are done, nothing runs and the report is printed). --fresh starts over.",
     )
     p_run.add_argument("suite", help="suite name (see `steer-bench list`)")
     p_run.add_argument("--env", nargs="+", action="extend", metavar="ID", help="only these env ids (default: all)")
@@ -154,7 +156,19 @@ def build_parser() -> argparse.ArgumentParser:
         "--address", metavar="ADDR", help="Ray cluster address ('auto', 'ray://host:10001'); default: start a local Ray"
     )
     p_run.add_argument("--out", type=_path, metavar="DIR", help="results directory (default: runs/SUITE)")
-    p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_run.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start over instead of resuming: the earlier results of DIR (results.jsonl, failures.jsonl, "
+        "discarded.jsonl, summary.md, manifest.json, plots/) are moved to DIR/previous/<UTC time>/ "
+        "(nothing is deleted; other files stay) and every planned trial runs",
+    )
+    p_run.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show (or hide) the progress bar (default: shown only when stderr is a terminal)",
+    )
 
     p_report = sub.add_parser("report", parents=[plugin], help="tables (and plots) from a results directory")
     p_report.add_argument("dir", type=_path, help="a --out directory of `steer-bench run`")
@@ -241,7 +255,8 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         executor=args.executor,
         workers=args.workers,
         address=args.address,
-        progress=not args.no_progress,
+        progress=args.progress,
+        fresh=args.fresh,
         argv=list(argv),
     )
     tables = summarize(summary.records)
@@ -249,11 +264,17 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     text = render_markdown(tables, title=title, notes=summary.notes)
     atomic_write_text(out / SUMMARY_FILE, text)
     print(text)
-    print(
-        f"{summary.planned} trials planned: {summary.skipped} already done, {summary.completed} run now, "
-        f"{len(summary.failures)} failed -> {out}",
-        file=sys.stderr,
-    )
+    if summary.all_done:
+        print(
+            f"all {summary.planned} trials already done in {out}; nothing was run (--fresh starts over)",
+            file=sys.stderr,
+        )
+    else:
+        print(
+            f"{summary.planned} trials planned: {summary.skipped} already done, {summary.completed} run now, "
+            f"{len(summary.failures)} failed -> {out}",
+            file=sys.stderr,
+        )
     if summary.interrupted:
         print("interrupted: finished trials are saved; run the same command again to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -272,7 +293,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     plots_dir = None
     if args.plots:
         plots_dir = check_output_dir(
-            args.plots_dir if args.plots_dir is not None else args.dir / "plots", "--plots-dir"
+            args.plots_dir if args.plots_dir is not None else args.dir / PLOTS_DIR, "--plots-dir"
         )
     elif args.plots_dir is not None:
         print("note: --plots-dir is ignored without --plots", file=sys.stderr)

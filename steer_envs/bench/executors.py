@@ -332,6 +332,8 @@ class RayExecutor(Executor):
             raise ExecutorStartError(f"cannot start {where}: {type(exc).__name__}: {detail}") from exc
 
     def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
+        if not trials:  # nothing to run: no reason to start Ray
+            return
         self.start()
         ray = self._ray
         in_flight = 2 * (self.workers or max(1, int(ray.cluster_resources().get("CPU", 1))))

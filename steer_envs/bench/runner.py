@@ -26,6 +26,7 @@ import numpy as np
 from steer_envs.bench.executors import EXECUTORS, Executor, Outcome, make_executor
 from steer_envs.bench.store import ResultStore, check_output_dir
 from steer_envs.bench.suite import Suite, Trial, TrialPlan, TrialRequest, get_suite
+from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import boolean, describe, integer
 from steer_envs.envs.registry import NAMESPACE
 
@@ -43,11 +44,17 @@ class RunSummary:
     notes: list[str] = field(default_factory=list)
     records: list[dict[str, Any]] = field(default_factory=list)  # every record of the directory
     interrupted: bool = False
+    previous: Path | None = None  # where ``fresh=True`` moved the earlier results (None: nothing moved)
 
     @property
     def ok(self) -> bool:
         """Every planned trial is recorded."""
         return not self.failures and not self.interrupted
+
+    @property
+    def all_done(self) -> bool:
+        """Every planned trial was already in the directory: nothing ran (and no executor was started)."""
+        return self.planned > 0 and self.skipped == self.planned
 
 
 #: the most trials one run may plan (a bound that keeps a typo in ``--seeds`` from exhausting memory)
@@ -207,7 +214,8 @@ def run_suite(
     executor: str | Executor = "local",
     workers: int | None = None,
     address: str | None = None,
-    progress: bool = True,
+    progress: bool | None = None,
+    fresh: bool = False,
     argv: Sequence[str] | None = None,
 ) -> RunSummary:
     """Run (or resume) ``suite`` into ``out_dir``; see the module docstring.
@@ -220,6 +228,14 @@ def run_suite(
     :class:`~steer_envs.bench.store.ResultsDirError`; an executor that cannot
     start :class:`~steer_envs.bench.executors.ExecutorStartError`.
 
+    When every planned trial is already recorded, no executor is started (no
+    process pool, no Ray) and the summary says :attr:`RunSummary.all_done`.
+    ``fresh=True`` starts over: the directory's earlier results move to
+    ``out_dir/previous/<UTC time>/`` first (nothing is deleted; see
+    :mod:`steer_envs.bench.store`) and every planned trial runs.
+    ``progress``: ``None`` a bar only when stderr is a terminal, ``True``
+    always, ``False`` never (:mod:`steer_envs.core.progress`).
+
     >>> import tempfile
     >>> with tempfile.TemporaryDirectory() as out:
     ...     summary = run_suite("selftest", out, methods=["stratified"], seeds=1, trials=100, progress=False)
@@ -230,7 +246,8 @@ def run_suite(
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a name or a Suite, got {type(suite).__name__}")
     out = check_output_dir(out_dir)
-    progress = boolean(progress, "progress")
+    progress = check_progress(progress)
+    fresh = boolean(fresh, "fresh")
     if argv is not None and (isinstance(argv, (str, bytes)) or not all(isinstance(a, str) for a in argv)):
         raise TypeError(f"argv must be a list of strs or None, got {describe(argv)}")
     if not isinstance(executor, (str, Executor)):
@@ -240,8 +257,9 @@ def run_suite(
     runner = make_executor(executor, workers, address) if isinstance(executor, str) else executor
     summary = RunSummary(suite.name, out, planned=len(plan.trials), skipped=0, completed=0)
     summary.notes.extend(plan.notes)
-    with ResultStore(out, suite.name, accepts_suite=suite.accepts_records_of) as store:
+    with ResultStore(out, suite.name, accepts_suite=suite.accepts_records_of, fresh=fresh) as store:
         summary.notes.extend(store.notes)
+        summary.previous = store.previous
         done = store.finished_keys
         todo: list[Trial] = [t for t in plan.trials if t.key not in done]
         summary.skipped = len(plan.trials) - len(todo)
@@ -260,12 +278,24 @@ def run_suite(
                 },
                 "planned": len(plan.trials),
                 "skipped": summary.skipped,
+                "fresh": fresh,
                 "notes": list(summary.notes),
             }
         )
         for note in summary.notes:
             _write(None, f"note: {note}")
-        bar = _progress_bar(suite.name, len(todo), enabled=progress and bool(todo))
+        if not todo:  # all done: nothing to start (a Ray executor would start Ray in map)
+            runner.close()
+            summary.records = list(store.records)
+            return summary
+        bar = progress_bar(
+            total=len(todo),
+            enabled=progress,
+            desc=suite.name,
+            unit="trial",
+            file=sys.stderr,
+            dynamic_ncols=True,
+        )
         try:
             with runner:
                 for outcome in runner.map(todo):
@@ -284,14 +314,12 @@ def run_suite(
                         )
                         first = (outcome.error or "").splitlines()[0] if outcome.error else "unknown error"
                         _write(bar, f"FAILED {outcome.trial.label}: {first}")
-                    if bar is not None:
-                        bar.update(1)
-                        bar.set_postfix_str(f"failed={len(summary.failures)}" if summary.failures else "")
+                    bar.update(1)
+                    bar.set_postfix_str(f"failed={len(summary.failures)}" if summary.failures else "")
         except KeyboardInterrupt:
             summary.interrupted = True
         finally:
-            if bar is not None:
-                bar.close()
+            bar.close()
         summary.records = list(store.records)
     return summary
 
@@ -307,16 +335,8 @@ def _store_outcome(store: ResultStore, outcome: Outcome) -> Outcome:
     return outcome
 
 
-def _progress_bar(name: str, total: int, *, enabled: bool) -> Any:
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=name, unit="trial", file=sys.stderr, dynamic_ncols=True)
-
-
 def _write(bar: Any, message: str) -> None:
-    if bar is not None:
+    if bar is not None and not bar.disable:
         bar.write(message, file=sys.stderr)
     else:
         print(message, file=sys.stderr)

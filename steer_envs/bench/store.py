@@ -7,6 +7,17 @@ Layout of ``--out DIR``::
     manifest.json   which suite the directory holds and one entry per session
     discarded.jsonl the quarantine: every line moved out of results.jsonl while repairing it, with the reason
     summary.md      the last run's table (written by ``steer-bench run``)
+    plots/          the figures of ``steer-bench report --plots`` (its default ``--plots-dir``)
+    previous/       earlier results that ``run --fresh`` moved aside, one ``previous/<UTC time>/`` each
+
+``steer-bench run --fresh`` (``ResultStore(..., fresh=True)``) starts a
+directory over without deleting anything: under the lock, ``results.jsonl``,
+``failures.jsonl``, ``discarded.jsonl``, ``summary.md``, ``plots/`` and
+``manifest.json`` (last) move into ``previous/<UTC time>/``, a steer-bench
+directory of its own (``steer-bench report DIR/previous/<UTC time>`` reads
+it), and the run starts from an empty ``results.jsonl``. Any other file stays
+where it is. A directory of another suite, or with JSON lines but no
+manifest, is refused as it is without ``--fresh``.
 
 Every line is written with one ``os.write`` on an ``O_APPEND`` descriptor and
 ``fsync``-ed before the next trial is recorded, so the good lines of
@@ -60,6 +71,8 @@ __all__ = [
     "DISCARDED_FILE",
     "FAILURES_FILE",
     "MANIFEST_FILE",
+    "PLOTS_DIR",
+    "PREVIOUS_DIR",
     "RESULTS_FILE",
     "SUMMARY_FILE",
     "BadLine",
@@ -82,9 +95,14 @@ MANIFEST_FILE = "manifest.json"
 DISCARDED_FILE = "discarded.jsonl"
 SUMMARY_FILE = "summary.md"
 LOCK_FILE = ".lock"
+PLOTS_DIR = "plots"
+PREVIOUS_DIR = "previous"
 SCHEMA_VERSION = 1
 #: files of a results directory that must be regular files when they exist
 _DIR_FILES = (RESULTS_FILE, FAILURES_FILE, MANIFEST_FILE, DISCARDED_FILE, SUMMARY_FILE, LOCK_FILE)
+#: what ``--fresh`` moves aside: everything steer-bench writes into a directory but the lock (the manifest last,
+#: so a move cut short leaves a directory that is still resumable, never JSON lines without a manifest)
+_FRESH_ITEMS = (RESULTS_FILE, FAILURES_FILE, DISCARDED_FILE, SUMMARY_FILE, PLOTS_DIR, MANIFEST_FILE)
 #: bad lines named one by one in a note (the rest are counted)
 _NOTE_LINES = 5
 
@@ -452,6 +470,9 @@ class ResultStore:
     :class:`StoreLockedError`; an unusable directory :class:`ResultsDirError`).
     ``accepts_suite`` says which ``config.suite`` a record may carry (default:
     only ``suite``; a tour such as ``quick`` holds records of other suites).
+    ``fresh=True`` starts the directory over: its earlier results move to
+    ``previous/<UTC time>/`` when it is opened (see the module docstring;
+    :attr:`notes` says where).
 
     >>> import tempfile
     >>> from steer_envs.bench.suite import Trial
@@ -466,14 +487,23 @@ class ResultStore:
     """
 
     def __init__(
-        self, out_dir: str | os.PathLike[str], suite: str, *, accepts_suite: Callable[[str], bool] | None = None
+        self,
+        out_dir: str | os.PathLike[str],
+        suite: str,
+        *,
+        accepts_suite: Callable[[str], bool] | None = None,
+        fresh: bool = False,
     ) -> None:
         if not isinstance(suite, str) or not suite:
             raise ValueError(f"suite must be a non-empty string, got {suite!r}")
         if accepts_suite is not None and not callable(accepts_suite):
             raise TypeError(f"accepts_suite must be a function str -> bool, got {describe(accepts_suite)}")
+        if not isinstance(fresh, bool):
+            raise TypeError(f"fresh must be a bool, got {describe(fresh)}")
         self.out_dir = check_output_dir(out_dir)
         self.suite = suite
+        self.fresh = fresh
+        self.previous: Path | None = None  # where fresh=True moved the earlier results (None: nothing moved)
         self.accepts_suite: Callable[[str], bool] = accepts_suite or suite.__eq__
         self.records: list[dict[str, Any]] = []
         self.notes: list[str] = []
@@ -507,6 +537,8 @@ class ResultStore:
             _require_regular(self.out_dir / name)
         self._lock()
         try:
+            if self.fresh:
+                self._start_over()
             self._check_manifest()
             self._repair_and_load()
             self._fd = _open_append(self.results_path)
@@ -549,15 +581,50 @@ class ResultStore:
             raise StoreLockedError(f"another steer-bench run is writing to {self.out_dir}") from None
         self._lock_fd = fd
 
+    def _own_manifest(self, path: Path) -> dict[str, Any]:
+        manifest = _read_manifest(path)
+        if manifest["suite"] != self.suite:
+            raise ResultsDirError(
+                f"{self.out_dir} holds results of suite {manifest['suite']!r}, not {self.suite!r}; choose another --out"
+            )
+        return manifest
+
+    def _start_over(self) -> None:
+        """``fresh``: move the earlier results of this suite into ``previous/<UTC time>/``; delete nothing."""
+        manifest = self.out_dir / MANIFEST_FILE
+        if not os.path.lexists(manifest):  # nothing of ours to move (JSON lines alone are refused next)
+            return
+        self._own_manifest(manifest)
+        results = self.out_dir / RESULTS_FILE
+        count = len(_scan(_read_regular(results), key="key", validate=self.problem)[0]) if results.exists() else 0
+        stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+        parent = self.out_dir / PREVIOUS_DIR
+        parent.mkdir(exist_ok=True)
+        for n in range(1, 1000):
+            target = parent / (stamp if n == 1 else f"{stamp}-{n}")
+            try:
+                target.mkdir()
+                break
+            except FileExistsError:
+                continue
+        else:  # pragma: no cover - a thousand --fresh runs within one second
+            raise ResultsDirError(f"--out {self.out_dir}: no free name for the earlier results in {parent}")
+        moved = [name for name in _FRESH_ITEMS if os.path.lexists(self.out_dir / name)]
+        for name in moved:
+            os.replace(self.out_dir / name, target / name)
+        fsync_dir(target)
+        fsync_dir(self.out_dir)
+        self.previous = target
+        trials = f"{count} trial" + ("" if count == 1 else "s")
+        self.notes.append(
+            f"started over (fresh): moved the earlier results ({trials}; {', '.join(moved)}) to {target}; "
+            "nothing was deleted"
+        )
+
     def _check_manifest(self) -> None:
         path = self.out_dir / MANIFEST_FILE
         if os.path.lexists(path):
-            manifest = _read_manifest(path)
-            if manifest["suite"] != self.suite:
-                raise ResultsDirError(
-                    f"{self.out_dir} holds results of suite {manifest['suite']!r}, not {self.suite!r}; "
-                    "choose another --out"
-                )
+            manifest = self._own_manifest(path)
         elif any(self.out_dir.glob("*.jsonl")):
             raise ResultsDirError(f"{self.out_dir} has JSON lines but no {MANIFEST_FILE}; not a steer-bench directory")
         else:

@@ -142,3 +142,92 @@ def test_sigkill_mid_run_then_resume_gives_exactly_the_trial_set(tmp_path):
     assert after[: len(before)] == before  # what was written before the kill is kept as is
     manifest = json.loads((out / "manifest.json").read_text())
     assert [s["skipped"] for s in manifest["sessions"]] == [0, len(before)]
+
+
+# ------------------------------------------------------------------------------- resume UX: all done, --fresh
+def _selftest(out, *extra):
+    return ["run", "selftest", "--seeds", "2", "--trials", "400", "--out", str(out), "--no-progress", *extra]
+
+
+def test_all_done_says_so_prints_the_report_and_starts_no_executor(tmp_path, monkeypatch, capsys):
+    import types
+
+    from steer_envs.bench import executors
+
+    out = tmp_path / "st"
+    assert main(_selftest(out)) == 0
+    first = capsys.readouterr().out
+
+    def boom(self):
+        raise AssertionError(f"{type(self).__name__} started with nothing to run")
+
+    monkeypatch.setattr(executors.ProcessPoolExecutor, "start", boom)
+    monkeypatch.setattr(executors.RayExecutor, "start", boom)
+    fake_ray = types.SimpleNamespace(is_initialized=lambda: False, init=boom, shutdown=boom)
+    monkeypatch.setitem(sys.modules, "ray", fake_ray)
+    for extra in ([], ["--workers", "2"], ["--executor", "ray"]):
+        assert main(_selftest(out, *extra)) == 0
+        captured = capsys.readouterr()
+        assert f"all 4 trials already done in {out}; nothing was run (--fresh starts over)" in captured.err
+        assert "run now" not in captured.err
+        assert captured.out == first  # the same report as the run that did the work
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [s["skipped"] for s in manifest["sessions"]] == [0, 4, 4, 4]
+
+
+def test_fresh_moves_the_earlier_results_aside_and_deletes_nothing(tmp_path, capsys):
+    out = tmp_path / "st"
+    assert main(_selftest(out)) == 0
+    (out / "plots").mkdir()
+    (out / "plots" / "mine.png").write_bytes(PNG_MAGIC)
+    (out / "notes.txt").write_text("my notes")
+    earlier = {name: (out / name).read_bytes() for name in ("results.jsonl", "manifest.json", "summary.md")}
+    capsys.readouterr()
+
+    assert main(_selftest(out, "--fresh")) == 0
+    err = capsys.readouterr().err
+    (previous,) = (out / "previous").iterdir()
+    assert f"started over (fresh): moved the earlier results (4 trials; results.jsonl, summary.md, plots, " \
+           f"manifest.json) to {previous}; nothing was deleted" in err  # fmt: skip
+    assert "4 trials planned: 0 already done, 4 run now, 0 failed" in err
+    assert {name: (previous / name).read_bytes() for name in earlier} == earlier
+    assert (previous / "plots" / "mine.png").read_bytes() == PNG_MAGIC
+    assert (out / "notes.txt").read_text() == "my notes"  # not steer-bench's: left where it was
+    assert not (out / "plots").exists()
+    assert len(read_jsonl(out / RESULTS_FILE)[0]) == 4
+    assert len(json.loads((out / "manifest.json").read_text())["sessions"]) == 1
+    assert main(["report", str(previous), "--format", "json"]) == 0  # the earlier results are a directory of their own
+    assert json.loads(capsys.readouterr().out)["rows"]
+
+    assert main(_selftest(out, "--fresh")) == 0  # again: a second folder beside the first
+    assert len(list((out / "previous").iterdir())) == 2
+
+
+def test_fresh_on_a_new_folder_runs_and_on_another_suite_refuses(tmp_path, capsys):
+    new = tmp_path / "new"
+    assert main(_selftest(new, "--fresh")) == 0
+    assert not (new / "previous").exists() and "started over" not in capsys.readouterr().err
+    other = tmp_path / "toy"
+    argv = ["run", "toy", "--plugin", "steer_bench_testplugin", "--env", "toy/A-v0", "--seeds", "1"]
+    assert main([*argv, "--out", str(other), "--no-progress"]) == 0
+    before = sorted(p.name for p in other.iterdir())
+    capsys.readouterr()
+    assert main(_selftest(other, "--fresh")) == 2
+    assert "holds results of suite 'toy', not 'selftest'; choose another --out" in capsys.readouterr().err
+    assert sorted(p.name for p in other.iterdir()) == before  # nothing moved
+
+
+def test_run_help_explains_fresh_and_progress(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--fresh" in text and "moved to DIR/previous/<UTC time>/ (nothing is deleted; other files stay)" in text
+    assert "--progress, --no-progress" in text and "shown only when stderr is a terminal" in text
+
+
+def test_progress_bar_only_on_a_terminal_unless_asked(tmp_path, capsys):
+    argv = ["run", "selftest", "--seeds", "1", "--trials", "100"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0  # stderr is no terminal under pytest
+    assert "%|" not in capsys.readouterr().err
+    assert main([*argv, "--out", str(tmp_path / "b"), "--progress"]) == 0
+    assert "selftest: 100%|" in capsys.readouterr().err

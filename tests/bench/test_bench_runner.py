@@ -193,7 +193,7 @@ def test_run_suite_argument_errors(tmp_path, toy_suite):
         run_suite(toy_suite, tmp_path, seeds=[1, 1], progress=False)
     with pytest.raises(TypeError, match="seeds must be an int count or a sequence"):
         run_suite(toy_suite, tmp_path, seeds="3", progress=False)
-    with pytest.raises(TypeError, match="progress must be a bool"):
+    with pytest.raises(TypeError, match="progress must be True, False or None"):
         run_suite(toy_suite, tmp_path, progress="no")
     with pytest.raises(TypeError, match="params must be a mapping"):
         run_suite(toy_suite, tmp_path, params=[("scale", 2)], progress=False)
