@@ -202,3 +202,43 @@ def test_run_suite_argument_errors(tmp_path, toy_suite):
     with pytest.raises(ValueError, match="must not be empty"):
         run_suite(toy_suite, "", progress=False)
     assert not (tmp_path / "results.jsonl").exists()
+
+
+class _NeverRun(Executor):
+    """An executor that must not be touched: a run with nothing to do starts nothing."""
+
+    name = "never"
+
+    def start(self) -> None:
+        raise AssertionError("started")
+
+    def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
+        raise AssertionError(f"asked to run {len(trials)} trials")
+
+
+def test_all_done_starts_no_executor_and_fresh_starts_over(tmp_path, toy_suite):
+    first = run_suite(toy_suite, tmp_path, progress=False)
+    assert not first.all_done and first.previous is None
+    again = run_suite(toy_suite, tmp_path, progress=False, executor=_NeverRun())
+    assert again.all_done and again.ok and (again.skipped, again.completed) == (8, 0)
+    assert _values(again.records) == _values(first.records)
+    fresh = run_suite(toy_suite, tmp_path, progress=False, fresh=True)
+    assert not fresh.all_done and (fresh.skipped, fresh.completed) == (0, 8)
+    assert fresh.previous is not None and fresh.previous.parent == tmp_path / "previous"
+    assert _values(read_jsonl(fresh.previous / "results.jsonl")[0]) == _values(first.records)
+    assert _values(fresh.records) == _values(first.records)  # trials are pure functions of config and seed
+    assert any(note.startswith("started over (fresh): moved the earlier results (8 trials;") for note in fresh.notes)
+    with pytest.raises(TypeError, match="fresh must be a bool"):
+        run_suite(toy_suite, tmp_path, progress=False, fresh="yes")
+
+
+def test_ray_executor_with_no_trials_does_not_start_ray(monkeypatch):
+    import types
+
+    from steer_envs.bench.executors import RayExecutor
+
+    def boom(**kwargs: object) -> None:
+        raise AssertionError("ray.init called")
+
+    monkeypatch.setitem(sys.modules, "ray", types.SimpleNamespace(is_initialized=lambda: False, init=boom))
+    assert list(RayExecutor(workers=1).map([])) == []
