@@ -74,6 +74,7 @@ from steer_envs.baselines.training.run_state import (
     load_state,
     save_state,
 )
+from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import integer, real_scalar
 from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
 from steer_envs.io import CheckpointError, atomic_write_text
@@ -100,7 +101,7 @@ def train_policy(
     dataset: TrajectoryDataset,
     settings: TrainSettings,
     *,
-    progress: bool = True,
+    progress: bool | None = None,
     stop_after: int | None = None,
     raw_weights: dict[str, torch.Tensor] | None = None,
     run_dir: str | os.PathLike[str] | None = None,
@@ -108,7 +109,8 @@ def train_policy(
 ) -> dict[str, Any]:
     """Train ``policy`` in place on windows of ``dataset``; returns the training record (losses, wall time).
 
-    The record's ``losses`` are ``[step, mean loss over the last log_every steps]`` pairs.
+    The record's ``losses`` are ``[step, mean loss over the last log_every steps]`` pairs;
+    ``progress`` shows a bar (``None``: only on a terminal, see :mod:`steer_envs.core.progress`).
     ``stop_after`` ends training after that many steps of the *same* run (the
     learning-rate schedule still spans ``settings.steps``): the prefix of a
     long run, to check a recorded loss curve without paying for all of it.
@@ -138,6 +140,7 @@ def train_policy(
         )
     if stop_after is not None:
         integer(stop_after, "stop_after", low=1, high=settings.steps)
+    progress = check_progress(progress, owner="train_policy")
     save_every = real_scalar(save_every, "save_every", low=0.0)
     state_file = None if run_dir is None else Path(run_dir) / STATE_FILE
     last = settings.steps if stop_after is None else stop_after
@@ -184,7 +187,7 @@ def train_policy(
                 save_state(state_file, settings=settings, progress=done, **parts)
 
         last_save = time.monotonic()
-        bar = _progress(last, progress, initial=min(done.step, last))
+        bar = progress_bar(total=last, initial=min(done.step, last), enabled=progress, unit="step", desc="training")
         autocast = torch.autocast(policy.device.type, dtype=torch.bfloat16, enabled=settings.precision == "bf16")
         if settings.compile_model:
             policy.model = cast(torch.nn.Module, torch.compile(model))
@@ -212,10 +215,8 @@ def train_policy(
                     n = step - (losses[-1][0] if losses else 0)
                     losses.append([step, done.running / n])
                     done.running = 0.0
-                    if bar is not None:
-                        bar.set_postfix(loss=f"{losses[-1][1]:.4f}")
-                if bar is not None:
-                    bar.update(1)
+                    bar.set_postfix(loss=f"{losses[-1][1]:.4f}")
+                bar.update(1)
                 if stop.requested and state_file is not None:
                     save()
                     raise TrainingInterrupted(step, state_file.parent, stop.requested)
@@ -226,8 +227,7 @@ def train_policy(
         finally:
             policy.model = model
             model.eval()
-            if bar is not None:
-                bar.close()
+            bar.close()
     if raw_weights is not None:
         raw_weights.update({k: v.detach().clone() for k, v in model.state_dict().items()})
     if ema is not None:
@@ -282,14 +282,6 @@ class _StopSignals:
     def __exit__(self, *exc: object) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
-
-
-def _progress(total: int, enabled: bool, initial: int = 0) -> Any:
-    if not enabled:
-        return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, initial=initial, unit="step", desc="training", mininterval=2.0)
 
 
 def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
@@ -500,7 +492,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--fused-optimizer", action="store_true", default=None, help="torch's fused AdamW kernel")
     parser.add_argument("--compile", action="store_true", default=None, help="train a torch.compile of the network")
     parser.add_argument("--device", default=None, help="torch device, e.g. cuda (default cpu)")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show a progress bar (default: only when stderr is a terminal)",
+    )
     parser.add_argument(
         "--check",
         metavar="RECORD",
@@ -539,9 +536,7 @@ def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> in
     if args.dataset is None:
         parser.error("--dataset is required")
     try:
-        res = check_record(
-            args.check, args.dataset, args.check_steps, policy=args.policy, progress=not args.no_progress
-        )
+        res = check_record(args.check, args.dataset, args.check_steps, policy=args.policy, progress=args.progress)
     except (OSError, TypeError, ValueError) as err:
         parser.error(str(err))
     for step, recorded, rerun in res["compared"]:
@@ -686,7 +681,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         record = train_policy(
-            policy, dataset, settings, progress=not args.no_progress, run_dir=run_dir, save_every=args.save_every
+            policy, dataset, settings, progress=args.progress, run_dir=run_dir, save_every=args.save_every
         )
     except TrainingInterrupted as stopped:
         print(f"{stopped}; continue with: {PROG} --resume {run_dir}")
