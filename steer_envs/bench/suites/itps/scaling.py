@@ -20,6 +20,7 @@ and a finding with the samples each width would need for RS collision
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import math
@@ -135,10 +136,9 @@ def pilot_checkpoint(params: ScalingParams, pilot: str, seed: int) -> Path:
         compile_model=params.compile_model,
         seed=seed,
     )
-    tag = f"{pilot.replace('@', '-')}-seed{seed}-{settings.precision}{'-compiled' if settings.compile_model else ''}"
-    if params.walk_steps != 1_000_000:
-        tag += f"-walk{params.walk_steps}"
-    run_dir = params.cache / "pilots" / tag
+    recipe = json.dumps({"settings": settings.to_dict(), "walk_steps": params.walk_steps}, sort_keys=True)
+    tag = f"{pilot.replace('@', '-')}-seed{seed}-{hashlib.sha256(recipe.encode()).hexdigest()[:10]}"
+    run_dir = params.cache / "pilots" / tag  # one folder per recipe: another batch size never resumes this one
     out = run_dir / "dp.safetensors"
     if out.exists():
         return out
