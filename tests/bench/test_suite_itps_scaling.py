@@ -89,3 +89,12 @@ def test_the_suite_is_registered_with_its_pilots() -> None:
     suite = get_suite("itps-maze2d-scaling")
     assert suite.method_list() == list(PILOTS)
     assert suite.quick is None  # hours of training: never in the quick tour
+
+
+def test_the_figure_is_drawn_from_the_pilots(tmp_path: Path) -> None:
+    from steer_envs.bench.suites.itps.scaling import _plot
+
+    records = _records({"w16@0.5M": 0.6, "w16@1M": 0.4})
+    (path,) = _plot(get_suite("itps-maze2d-scaling"), records, str(tmp_path))
+    assert Path(path).name == "itps-maze2d-scaling_collision.png" and Path(path).stat().st_size > 10_000
+    assert _plot(get_suite("itps-maze2d-scaling"), [], str(tmp_path)) == []

@@ -259,7 +259,12 @@ def _plot(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> l
     ax = fig.add_subplot()
     for width, pts in sorted(curves.items()):
         xs = [s for s, _ in pts]
-        ax.plot(xs, [c for _, c in pts], "o-", label=f"RS, down dims {width}/{2 * width}/{4 * width}")
+        (line,) = ax.plot(xs, [c for _, c in pts], "o-", label=f"RS, down dims {width}/{2 * width}/{4 * width}")
+        needed = samples_needed(pts)
+        if needed is not None:  # the power law through the pilots, out to where it meets the target
+            fit = np.geomspace(min(xs), max(needed, ITPS_SAMPLES_M), 50)
+            slope, intercept = np.polyfit(np.log(xs), np.log([c for _, c in pts]), 1)
+            ax.plot(fit, np.exp(intercept) * fit**slope, ":", color=line.get_color(), label=f"RS fit, width {width}")
         ss = [table.mean("collision_SS", f"w{width}@{s:g}M") for s in xs]
         if all(v is not None for v in ss):
             ax.plot(xs, ss, "s--", alpha=0.7, label=f"SS, width {width}")
@@ -269,7 +274,7 @@ def _plot(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> l
     ax.set_yscale("log")
     ax.set_xlabel("training samples (millions, log)")
     ax.set_ylabel("fraction of plans in a wall (log)")
-    ax.set_title("Maze2D DP: collision of unsteered (RS) and SS plans vs training samples")
+    ax.set_title("Maze2D DP: RS and SS collision vs training samples")
     ax.legend(fontsize=8)
     return [str(save_figure(fig, Path(out_dir) / f"{suite.name}_collision.png"))]
 
