@@ -35,6 +35,7 @@ __all__ = [
     "STATE_FILE",
     "STATE_FORMAT",
     "RunProgress",
+    "TrainingParts",
     "check_losses",
     "load_state",
     "save_state",
@@ -88,19 +89,27 @@ def _params(optimizer: torch.optim.Optimizer) -> list[torch.Tensor]:
     return [p for group in optimizer.param_groups for p in group["params"]]
 
 
+@dataclass
+class TrainingParts:
+    """The objects a training step changes (besides :class:`RunProgress`): what a state is saved from and loaded into.
+
+    ``ema`` is diffusers' ``EMAModel`` or ``None``; ``rng`` draws the batches,
+    ``generator`` the diffusion noise.
+    """
+
+    model: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    scheduler: torch.optim.lr_scheduler.LRScheduler
+    ema: Any | None
+    rng: np.random.Generator
+    generator: torch.Generator
+
+
 def save_state(
-    path: str | os.PathLike[str],
-    *,
-    settings: TrainSettings,
-    progress: RunProgress,
-    model: torch.nn.Module,
-    optimizer: torch.optim.Optimizer,
-    scheduler: torch.optim.lr_scheduler.LRScheduler,
-    ema: Any | None,
-    rng: np.random.Generator,
-    generator: torch.Generator,
+    path: str | os.PathLike[str], *, settings: TrainSettings, progress: RunProgress, parts: TrainingParts
 ) -> Path:
     """Write the state after ``progress.step`` atomically (see the module docstring); returns the path."""
+    model, optimizer, scheduler, ema = parts.model, parts.optimizer, parts.scheduler, parts.ema
     tensors: dict[str, torch.Tensor] = {f"model.{k}": v.detach().cpu() for k, v in model.state_dict().items()}
     opt_state = optimizer.state_dict()
     for index, entry in opt_state["state"].items():
@@ -112,7 +121,7 @@ def save_state(
         for i, shadow in enumerate(ema_state.pop("shadow_params")):
             tensors[f"ema.{i}"] = shadow.detach().cpu()
         ema_meta = ema_state
-    tensors["torch_generator"] = generator.get_state()
+    tensors["torch_generator"] = parts.generator.get_state()
     tensors["torch_rng"] = torch.get_rng_state()
     meta = {
         "format": STATE_FORMAT,
@@ -125,7 +134,7 @@ def save_state(
         "param_groups": opt_state["param_groups"],
         "scheduler": scheduler.state_dict(),
         "ema": ema_meta,
-        "numpy_rng": rng.bit_generator.state,
+        "numpy_rng": parts.rng.bit_generator.state,
     }
     return write_safetensors(path, {k: v.contiguous() for k, v in tensors.items()}, "training_state", meta)
 
@@ -144,23 +153,14 @@ def _expected_tensors(model: torch.nn.Module, optimizer: torch.optim.Optimizer, 
     return expected
 
 
-def load_state(
-    path: str | os.PathLike[str],
-    *,
-    settings: TrainSettings,
-    model: torch.nn.Module,
-    optimizer: torch.optim.Optimizer,
-    scheduler: torch.optim.lr_scheduler.LRScheduler,
-    ema: Any | None,
-    rng: np.random.Generator,
-    generator: torch.Generator,
-) -> RunProgress:
-    """Restore the state in ``path`` into the given objects (built as for a fresh run); returns the progress.
+def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: TrainingParts) -> RunProgress:
+    """Restore the state in ``path`` into ``parts`` (built as for a fresh run); returns the progress.
 
     :class:`CheckpointError` naming the file when it is not a training state,
     was saved with other settings, or does not fit the network, optimizer or
     RNGs; nothing is changed then except what the error names.
     """
+    model, optimizer, scheduler, ema = parts.model, parts.optimizer, parts.scheduler, parts.ema
     src = Path(path)
     tensors, meta = read_safetensors(src, "training_state")
     try:
@@ -200,8 +200,8 @@ def load_state(
         if ema is not None:
             n = len(_params(optimizer))
             ema.load_state_dict({**meta["ema"], "shadow_params": [tensors[f"ema.{i}"] for i in range(n)]})
-        rng.bit_generator.state = meta["numpy_rng"]
-        generator.set_state(tensors["torch_generator"])
+        parts.rng.bit_generator.state = meta["numpy_rng"]
+        parts.generator.set_state(tensors["torch_generator"])
         torch.set_rng_state(tensors["torch_rng"])
     except (KeyError, TypeError, ValueError, RuntimeError) as err:
         raise CheckpointError(f"{src}: the training state does not fit this run ({err})") from None

@@ -70,6 +70,7 @@ from steer_envs.baselines.training.run_state import (
     RUN_FORMAT,
     STATE_FILE,
     RunProgress,
+    TrainingParts,
     check_losses,
     load_state,
     save_state,
@@ -168,10 +169,10 @@ def train_policy(
             from diffusers.training_utils import EMAModel
 
             ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
-        parts = {"model": model, "optimizer": opt, "scheduler": sched, "ema": ema, "rng": rng, "generator": gen}
+        parts = TrainingParts(model, opt, sched, ema, rng, gen)
         done = RunProgress()
         if state_file is not None and state_file.exists():
-            done = load_state(state_file, settings=settings, **parts)
+            done = load_state(state_file, settings=settings, parts=parts)
             if done.step > last:
                 raise ValueError(f"stop_after={last}, but the state in {run_dir} is already at step {done.step}")
             if done.step < last:
@@ -184,7 +185,7 @@ def train_policy(
             now = time.perf_counter()
             done.wall_s, tic = done.wall_s + now - tic, now
             if state_file is not None:
-                save_state(state_file, settings=settings, progress=done, **parts)
+                save_state(state_file, settings=settings, progress=done, parts=parts)
 
         last_save = time.monotonic()
         bar = progress_bar(total=last, initial=min(done.step, last), enabled=progress, unit="step", desc="training")
