@@ -156,6 +156,7 @@ def run_scaling_trial(trial: Trial) -> TrialResult:
     from steer_envs.baselines.diffusion import DiffusionPolicy
     from steer_envs.baselines.training.trainer import sidecar_path
     from steer_envs.bench.suites.itps.protocol import steering_trial
+    from steer_envs.bench.suites.itps.suite import table_2_1_checks
 
     params = ScalingParams.from_json(trial.params)
     pilot = str(trial.method)
@@ -181,19 +182,9 @@ def run_scaling_trial(trial: Trial) -> TrialResult:
     }
     for sampler in SAMPLERS:
         metrics[f"collision_{sampler}"] = mean[sampler]["collision"]
-    metrics["findings_held"] = float(sum(table_2_1_holds(mean)))
+    per_metric = ({s: mean[s][key] for s in SAMPLERS} for key in ("min_l2", "avg_l2", "collision"))
+    metrics["findings_held"] = float(sum(bool(v) for v in table_2_1_checks(*per_metric)))
     return TrialResult(metrics, {"scores": mean, "width": width})
-
-
-def table_2_1_holds(mean: Mapping[str, Mapping[str, float]]) -> list[bool]:
-    """Table 2.1's four findings (as ``itps-maze2d`` checks them) on one pilot's sampler means."""
-    others = [s for s in SAMPLERS if s != "SS"]
-    return [
-        all(mean["SS"][k] < min(mean[s][k] for s in others) for k in ("min_l2", "avg_l2")),
-        abs(mean["SS"]["collision"] - mean["RS"]["collision"]) <= 0.02,
-        mean["GD"]["collision"] > mean["SS"]["collision"] and mean["BI"]["collision"] > mean["SS"]["collision"],
-        mean["PR"]["min_l2"] < mean["RS"]["min_l2"] and mean["PR"]["avg_l2"] >= mean["RS"]["avg_l2"] - 0.005,
-    ]
 
 
 def samples_needed(points: Sequence[tuple[float, float]], target: float = TARGET_COLLISION) -> float | None:
