@@ -230,7 +230,10 @@ def scaling_findings(table: Any) -> list[Finding]:
     if not any(n is not None for n in needs.values()):
         out.append(Finding(claim, None))
     else:
-        detail = "; ".join(f"w{w}: {'no fall' if n is None else f'{n:.1f} M'}" for w, n in needs.items())
+        words = {
+            w: "one pilot" if len(curves[w]) < 2 else "no fall" if n is None else f"{n:.1f} M" for w, n in needs.items()
+        }
+        detail = "; ".join(f"w{w}: {text}" for w, text in words.items())
         out.append(Finding(claim, any(n is not None and n <= ITPS_SAMPLES_M for n in needs.values()), detail))
     return out
 
