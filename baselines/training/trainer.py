@@ -88,6 +88,7 @@ __all__ = [
     "parse_overrides",
     "read_record",
     "require_same_data",
+    "save_trained",
     "sidecar_path",
     "train_policy",
 ]
@@ -283,6 +284,25 @@ class _StopSignals:
     def __exit__(self, *exc: object) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
+
+
+def save_trained(policy: TorchPolicy, out: str | os.PathLike[str], name: str, record: Mapping[str, Any]) -> Path:
+    """Write a trained policy's checkpoint and, beside it, its JSON record (policy ``name``, config, stats, training).
+
+    ``record`` is :func:`train_policy`'s (plus anything the caller adds, e.g. the command); both files are written
+    atomically. Returns the checkpoint path.
+    """
+    settings = record["settings"]
+    extra = {"final_loss": record["final_loss"], "steps": settings["steps"], "seed": settings["seed"]}
+    path = policy.save(out, extra=extra)
+    summary = {
+        "policy": name,
+        "config": policy.config.to_dict(),
+        "stats": {k: v.to_dict() for k, v in policy.stats.items()},
+        "training": dict(record),
+    }
+    atomic_write_text(sidecar_path(path), json.dumps(summary, indent=1) + "\n")
+    return path
 
 
 def sidecar_path(checkpoint: str | os.PathLike[str]) -> Path:
@@ -692,15 +712,8 @@ def main(argv: list[str] | None = None) -> int:
     record["data"]["file"] = Path(args.dataset or run["dataset"]).name
     record["preset"] = run["preset"]
     record["command"] = run["command"]
-    summary = {
-        "policy": run["policy"],
-        "config": policy.config.to_dict(),
-        "stats": {k: v.to_dict() for k, v in policy.stats.items()},
-        "training": record,
-    }
     try:
-        policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": settings.seed})
-        atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
+        save_trained(policy, out, run["policy"], record)
     except OSError as err:
         parser.error(f"cannot write --out {str(out)!r}: {err}")
     print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")

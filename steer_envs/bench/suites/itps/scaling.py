@@ -99,7 +99,10 @@ class ScalingParams(SuiteParams):
     def __post_init__(self) -> None:
         self.require_at_least(1, "batch_size", "eval_starts", "batch", "torch_threads")
         self.require_at_least(1000, "walk_steps")
-        self.require_in("precision", ("fp32", "bf16"))
+        if self.precision != "fp32":  # the import pulls in torch: only for a non-default value
+            from steer_envs.baselines.common.configuration import PRECISIONS
+
+            self.require_in("precision", PRECISIONS)
         self.require("through_wall", 0.0 <= self.through_wall <= 1.0, "in [0, 1]")
 
     @property
@@ -122,8 +125,7 @@ def _dataset(cache: Path, steps: int) -> Any:
 def pilot_checkpoint(params: ScalingParams, pilot: str, seed: int) -> Path:
     """The pilot's checkpoint, trained (or resumed) under ``params.cache`` unless it exists."""
     from steer_envs.baselines.factory import get_preset, make_policy
-    from steer_envs.baselines.training.trainer import sidecar_path, train_policy
-    from steer_envs.io import atomic_write_text
+    from steer_envs.baselines.training.trainer import save_trained, train_policy
 
     width, millions = parse_pilot(pilot)
     preset = get_preset("dp", "cpu")
@@ -145,10 +147,7 @@ def pilot_checkpoint(params: ScalingParams, pilot: str, seed: int) -> Path:
     dataset = _dataset(params.cache, params.walk_steps)
     policy = make_policy(config, dataset=dataset, seed=seed)
     record = train_policy(policy, dataset, settings, progress=False, run_dir=run_dir, save_every=300.0)
-    summary = {"policy": "dp", "config": policy.config.to_dict(), "training": {**record, "preset": "cpu"}}
-    policy.save(out, extra={"final_loss": record["final_loss"], "steps": settings.steps, "seed": seed})
-    atomic_write_text(sidecar_path(out), json.dumps(summary, indent=1) + "\n")
-    return out
+    return save_trained(policy, out, "dp", {**record, "preset": "cpu"})
 
 
 def run_scaling_trial(trial: Trial) -> TrialResult:
@@ -195,13 +194,20 @@ def samples_needed(points: Sequence[tuple[float, float]], target: float = TARGET
     >>> round(samples_needed([(1.0, 0.4), (4.0, 0.2)]), 1)
     64.0
     """
+    fit = power_law(points)
+    if fit is None or fit[0] >= 0:
+        return None
+    slope, intercept = fit
+    return float(math.exp((math.log(target) - intercept) / slope))
+
+
+def power_law(points: Sequence[tuple[float, float]]) -> tuple[float, float] | None:
+    """``(b, log a)`` of ``c = a * S**b`` fitted in log-log to the positive ``(S, c)`` points; ``None`` below two S."""
     pts = [(s, c) for s, c in points if s > 0 and c > 0]
     if len({s for s, _ in pts}) < 2:
         return None
     slope, intercept = np.polyfit(np.log([s for s, _ in pts]), np.log([c for _, c in pts]), 1)
-    if slope >= 0:
-        return None
-    return float(math.exp((math.log(target) - intercept) / slope))
+    return float(slope), float(intercept)
 
 
 def _curves(table: Any) -> dict[int, list[tuple[float, float]]]:
@@ -254,11 +260,10 @@ def _plot(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> l
     for width, pts in sorted(curves.items()):
         xs = [s for s, _ in pts]
         (line,) = ax.plot(xs, [c for _, c in pts], "o-", label=f"RS, down dims {width}/{2 * width}/{4 * width}")
-        needed = samples_needed(pts)
-        if needed is not None:  # the power law through the pilots, out to where it meets the target
+        needed, law = samples_needed(pts), power_law(pts)
+        if needed is not None and law is not None:  # the power law through the pilots, out to where it meets the target
             fit = np.geomspace(min(xs), max(needed, ITPS_SAMPLES_M), 50)
-            slope, intercept = np.polyfit(np.log(xs), np.log([c for _, c in pts]), 1)
-            ax.plot(fit, np.exp(intercept) * fit**slope, ":", color=line.get_color(), label=f"RS fit, width {width}")
+            ax.plot(fit, np.exp(law[1]) * fit ** law[0], ":", color=line.get_color(), label=f"RS fit, width {width}")
         ss = [table.mean("collision_SS", f"w{width}@{s:g}M") for s in xs]
         if all(v is not None for v in ss):
             ax.plot(xs, ss, "s--", alpha=0.7, label=f"SS, width {width}")
