@@ -27,6 +27,7 @@ from steer_envs.data.counterfactual_dataset import CounterfactualDataset
 from steer_envs.data.maze_random_walk import (
     RandomWalkDataset,
     generate_random_walk,
+    goal_episodes,
     load_random_walk,
     save_random_walk,
     to_minari,
@@ -149,7 +150,8 @@ def test_minari_export_killed_leaves_no_dataset_and_the_rerun_succeeds(
     assert not (tmp_path / "steer" / "walk-v0").exists()
     assert len(_temps(tmp_path / "steer")) == 1
     data = to_minari(walk, "steer/walk-v0")  # the re-run works and removes the leftover
-    assert data.total_episodes == 1 and data.total_steps == len(walk)
+    episodes = goal_episodes(walk)
+    assert data.total_episodes == len(episodes) and data.total_steps == sum(len(e) for e in episodes)
     assert _temps(tmp_path / "steer") == []
     with pytest.raises(FileExistsError, match="already exists"):
         to_minari(walk, "steer/walk-v0")
@@ -164,7 +166,7 @@ def test_minari_export_replaces_a_torn_export_of_an_earlier_version(
     torn.mkdir(parents=True)
     (torn / "metadata.json").write_text('{"total_episodes": 0, "author": ["steer-envs (x)"]}')
     walk = generate_random_walk("umaze", 80, seed=0, progress=False)
-    assert to_minari(walk, "walk-v0").total_episodes == 1
+    assert to_minari(walk, "walk-v0").total_episodes == len(goal_episodes(walk))
     foreign = tmp_path / "theirs-v0" / "data"
     foreign.mkdir(parents=True)
     (foreign / "metadata.json").write_text('{"total_episodes": 0, "author": "someone else"}')

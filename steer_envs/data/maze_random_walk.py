@@ -26,9 +26,12 @@ Policies train on :meth:`RandomWalkDataset.to_trajectories`, a
 :class:`~steer_envs.data.trajectories.TrajectoryDataset` whose observation is
 the position (entries 0, 1 of the env observation) and whose action is the
 next position (a position target for those entries). :func:`to_minari`
-stores a dataset as a Minari dataset (needs Minari's ``hdf5`` backend).
+stores a dataset as a Minari dataset (needs Minari's ``hdf5`` backend), cut
+into goal episodes by :func:`goal_episodes`.
 
-CLI: ``python -m steer_envs.data.maze_random_walk --out data/ --steps 1000000``.
+CLI: ``python -m steer_envs.data.maze_random_walk --out data/ --steps 1000000``; with
+``--minari-id steer/maze2d-large-v0`` it also stores the walk as a Minari
+dataset (one episode per goal, the env's reward; ``docs/minari.md``).
 
 >>> walk = generate_random_walk("umaze", 400, seed=0, progress=False)
 >>> traj = walk.to_trajectories()
@@ -43,6 +46,8 @@ import importlib.util
 import json
 import math
 import os
+import re
+import shlex
 import shutil
 import sys
 import time
@@ -424,9 +429,75 @@ def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
 
 # -------------------------------------------------------------------- Minari
 def minari_root() -> Path:
-    """The folder Minari keeps local datasets in: ``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``."""
+    """The folder Minari keeps local datasets in: ``MINARI_DATASETS_PATH``, else ``~/.minari/datasets`` (absolute)."""
     root = os.environ.get("MINARI_DATASETS_PATH")
-    return Path(root) if root else Path.home() / ".minari" / "datasets"
+    return Path(os.path.abspath(os.path.expanduser(root))) if root else Path.home() / ".minari" / "datasets"
+
+
+@dataclass(frozen=True)
+class GoalEpisode:
+    """One goal-reaching episode of a walk: samples ``start`` to ``stop - 1`` (and the next observation).
+
+    ``rewards`` are the env's sparse reward of each step (1.0 on the step
+    whose next position lies in the goal cell, else 0.0); ``terminated``: the
+    last step reached the goal (the env ends the episode there), else the leg
+    timed out or the walk ended (truncated).
+    """
+
+    start: int
+    stop: int
+    rewards: np.ndarray
+    terminated: bool
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+
+def goal_rewards(dataset: RandomWalkDataset) -> np.ndarray:
+    """The env's sparse reward ``(N,)`` of each sample: 1.0 when the next position is in the goal's cell.
+
+    The rule of ``steer_envs/Maze2D-*`` (reward 1 and ``success`` when the
+    agent is in the goal cell), with the walk's goal of that sample; the
+    next position is the sample's action (the next xy).
+    """
+    if not isinstance(dataset, RandomWalkDataset):
+        raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
+    grid = MazeGrid(maze_map(str(dataset.meta.get("maze", "large"))))
+    if len(dataset) == 0:
+        return np.zeros(0, dtype=np.float64)
+    reached = np.all(grid.xy_to_cell(dataset.actions) == grid.xy_to_cell(dataset.goals), axis=-1)
+    return reached.astype(np.float64)
+
+
+def goal_episodes(dataset: RandomWalkDataset) -> list[GoalEpisode]:
+    """The walk cut into episodes as the env would run them: one per goal (leg), ending where it is reached.
+
+    A leg starts where the walk drew a new goal (``leg_starts``, and every
+    ``episode_starts``); its episode ends (terminated) at the first step whose
+    reward is 1, so the samples the walk spent in the goal cell settling
+    after that are not in any episode; a leg that never reaches its goal is
+    truncated at its end. The last sample of each continuous walk is dropped
+    (its next observation was not kept); empty episodes are skipped.
+
+    >>> walk = generate_random_walk("umaze", 2000, seed=0, progress=False)
+    >>> episodes = goal_episodes(walk)
+    >>> all(e.rewards.sum() == float(e.terminated) for e in episodes)
+    True
+    """
+    rewards = goal_rewards(dataset)
+    n = len(dataset)
+    walk_ends = {*(int(s) for s in dataset.episode_starts[1:].tolist()), n}
+    cuts = sorted({0, *(int(s) for s in dataset.leg_starts.tolist()), *walk_ends} - {n})
+    episodes = []
+    for a, b in zip(cuts, [*cuts[1:], n], strict=True):
+        stop = b - 1 if b in walk_ends else b  # the next observation of b - 1 is kept only inside a walk
+        hit = np.flatnonzero(rewards[a:stop])
+        terminated = len(hit) > 0
+        if terminated:
+            stop = a + int(hit[0]) + 1
+        if stop > a:
+            episodes.append(GoalEpisode(a, stop, rewards[a:stop].copy(), terminated))
+    return episodes
 
 
 def _torn_minari_export(folder: Path) -> bool:
@@ -444,26 +515,56 @@ def _torn_minari_export(folder: Path) -> bool:
     return ours and not meta.get("total_episodes")
 
 
-def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None = None) -> Any:
-    """Store ``dataset`` as a local Minari dataset (one episode per continuous walk); returns it.
+def _check_minari_id(dataset_id: Any) -> str:
+    if not isinstance(dataset_id, str) or not dataset_id or dataset_id != dataset_id.strip("/"):
+        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
+    parts = dataset_id.split("/")
+    if any(part in ("", ".", "..") for part in parts) or not re.fullmatch(r"[A-Za-z0-9_.\-/]+", dataset_id):
+        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
+    return dataset_id
 
-    Needs a Minari storage backend (``pip install "minari[hdf5]"``); Minari
-    writes under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``).
+
+def to_minari(
+    dataset: RandomWalkDataset,
+    dataset_id: str,
+    *,
+    env_id: str | None = None,
+    root: str | os.PathLike[str] | None = None,
+) -> Any:
+    """Store ``dataset`` as a local Minari dataset, one episode per goal (:func:`goal_episodes`); returns it.
+
+    Needs a Minari storage backend (``pip install "minari[hdf5]"``). The
+    dataset goes to ``<root>/<dataset_id>``; ``root`` (a relative path is
+    taken from the working directory) defaults to Minari's own data path
+    (:func:`minari_root`: ``MINARI_DATASETS_PATH``, else
+    ``~/.minari/datasets``), where ``minari.load_dataset(dataset_id)`` finds
+    it; for another ``root``, load with ``MINARI_DATASETS_PATH=<root>``.
+
+    Episodes follow the env's rules: rewards are the env's sparse reward
+    (:func:`goal_rewards`), an episode terminates on the step that reaches its
+    goal and is truncated when the walk's leg timed out. Observations are
+    ``(x, y, vx, vy)`` (the env made with ``observe_velocity=True``), actions
+    the next xy, step infos ``waypoint`` and ``goal``; ``env_id`` defaults to
+    the maze's id.
+
     The dataset is built in a temp folder next to its final place and renamed
     there when complete (:func:`steer_envs.io.atomic_directory`), so a killed
     export leaves no dataset (and its leftovers are removed by the next
     export into the same folder); an existing complete dataset of that id is
     refused (``FileExistsError``), a torn one left by a killed export of an
-    earlier version (no episodes) is replaced. Observations are ``(x, y, vx,
-    vy)`` (the env made with ``observe_velocity=True``), actions the next xy,
-    step infos ``waypoint`` and ``goal``; ``env_id`` defaults to the maze's id.
+    earlier version (no episodes) is replaced. ``MINARI_DATASETS_PATH`` is
+    the same after the call as before.
     """
     if not isinstance(dataset, RandomWalkDataset):
         raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
-    if not isinstance(dataset_id, str) or not dataset_id or dataset_id != dataset_id.strip("/"):
-        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
-    if any(part in ("", ".", "..") for part in dataset_id.split("/")):
-        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
+    dataset_id = _check_minari_id(dataset_id)
+    if env_id is not None and (not isinstance(env_id, str) or not env_id):
+        raise ValueError(f"env_id must be a registered env id or None, got {env_id!r}")
+    if root is not None and (not isinstance(root, (str, os.PathLike)) or not str(root).strip()):
+        raise TypeError(f"root must be a folder path or None (Minari's data path), got {root!r}")
+    episodes = goal_episodes(dataset)
+    if not episodes:
+        raise ValueError(f"dataset has no complete step to export ({len(dataset)} samples)")
     if importlib.util.find_spec("h5py") is None and importlib.util.find_spec("pyarrow") is None:
         raise ImportError('to_minari needs a Minari storage backend: pip install "minari[hdf5]"')
     import gymnasium as gym
@@ -475,8 +576,10 @@ def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None
     if env_id is None:
         names = {"umaze": "Umaze", "medium": "Medium", "large": "Large"}
         env_id = f"steer_envs/Maze2D-{names[dataset.meta.get('maze', 'large')]}-v0"
-    root = minari_root()
-    final = root.joinpath(*dataset_id.split("/"))
+    # absolute from here on: Minari joins its data path with the id itself, and a relative path taken
+    # once from the working directory and once from the temp folder was the doubled path of #21
+    base = minari_root() if root is None else Path(os.path.abspath(os.path.expanduser(os.fspath(root))))
+    final = base.joinpath(*dataset_id.split("/"))
     overwrite = False
     if final.exists():
         if not (final.is_dir() and _torn_minari_export(final)):
@@ -486,30 +589,34 @@ def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None
         overwrite = True
     namespace = dataset_id.rsplit("/", 1)[0] if "/" in dataset_id else None
     buffers = []
-    for k, sl in enumerate(dataset.episode_slices()):
-        obs = dataset.observations[sl]
-        last = np.concatenate([dataset.actions[sl][-1], [0.0, 0.0]]).astype(np.float32)
-        n = len(obs)
+    for k, ep in enumerate(episodes):
+        sl = slice(ep.start, ep.stop)
+        n = len(ep)
         buffers.append(
             EpisodeBuffer(
                 id=k,
-                observations=list(np.concatenate([obs, last[None]])),
+                observations=list(dataset.observations[ep.start : ep.stop + 1]),
                 actions=list(dataset.actions[sl]),
-                rewards=list(np.zeros(n)),
-                terminations=list(np.zeros(n, dtype=bool)),
-                truncations=list(np.arange(n) == n - 1),
+                rewards=list(ep.rewards),
+                terminations=list((np.arange(n) == n - 1) & ep.terminated),
+                truncations=list((np.arange(n) == n - 1) & (not ep.terminated)),
                 infos={"waypoint": dataset.waypoints[sl], "goal": dataset.goals[sl]},
             )
         )
+    reached = sum(ep.terminated for ep in episodes)
+    description = (
+        f"steer-envs maze2d random walk cut into {len(episodes)} goal episodes ({reached} reach their goal; "
+        f"reward: the env's sparse goal-cell reward): {json.dumps(dataset.meta)}"
+    )
     env = gym.make(env_id, observe_velocity=True)
     previous = os.environ.get("MINARI_DATASETS_PATH")
     try:
         if namespace is not None:
-            os.environ["MINARI_DATASETS_PATH"] = str(root)
+            os.environ["MINARI_DATASETS_PATH"] = str(base)
             if namespace not in list_local_namespaces():
                 create_namespace(namespace)
         with atomic_directory(final, overwrite=overwrite) as build:
-            scratch = build / "_minari"
+            scratch = build.absolute() / "_minari"
             os.environ["MINARI_DATASETS_PATH"] = str(scratch)
             with warnings.catch_warnings():  # Minari recommends author/e-mail/permalink metadata; none applies here
                 warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
@@ -519,7 +626,7 @@ def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None
                     env=env,
                     algorithm_name="D4RL maze2d waypoint controller (random walk)",
                     author="steer-envs (steer_envs.data.maze_random_walk)",
-                    description=f"steer-envs maze2d random walk: {json.dumps(dataset.meta)}",
+                    description=description,
                 )
                 del created  # its storage points into the temp folder
             scratch.joinpath(*dataset_id.split("/"), "data").rename(build / "data")
@@ -531,6 +638,20 @@ def to_minari(dataset: RandomWalkDataset, dataset_id: str, *, env_id: str | None
             os.environ["MINARI_DATASETS_PATH"] = previous
         env.close()
     return minari.MinariDataset(MinariStorage.read(final / "data"))
+
+
+def minari_load_command(dataset_id: str, root: str | os.PathLike[str] | None = None) -> str:
+    """A shell line that loads the dataset ``dataset_id`` stored under ``root`` (default: Minari's data path).
+
+    >>> print(minari_load_command("steer/walk-v0", "/data/minari"))
+    MINARI_DATASETS_PATH=/data/minari python -c "import minari; print(minari.load_dataset('steer/walk-v0'))"
+    """
+    dataset_id = _check_minari_id(dataset_id)
+    code = f"import minari; print(minari.load_dataset({dataset_id!r}))"
+    line = f'python -c "{code}"'
+    if root is None:
+        return line
+    return f"MINARI_DATASETS_PATH={shlex.quote(os.path.abspath(os.path.expanduser(os.fspath(root))))} {line}"
 
 
 # ----------------------------------------------------------------------- CLI
@@ -565,8 +686,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--minari-id",
         default=None,
-        help="also store a Minari dataset with this id (needs minari[hdf5]); MINARI_DATASETS_PATH defaults to "
-        "<out dir>/minari",
+        help="also store a Minari dataset with this id, one episode per goal with the env's reward (needs "
+        "minari[hdf5]); it goes to Minari's data path (MINARI_DATASETS_PATH, default ~/.minari/datasets) unless "
+        "--minari-root says otherwise",
+    )
+    parser.add_argument(
+        "--minari-root",
+        default=None,
+        help="folder to store the Minari dataset in instead (load it with MINARI_DATASETS_PATH=<folder>; the "
+        "line to do so is printed)",
     )
     args = parser.parse_args(argv)
 
@@ -580,6 +708,13 @@ def main(argv: list[str] | None = None) -> int:
     blocker = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
     if blocker is not None:
         parser.error(f"--out {args.out!r}: {blocker} is not a folder")
+    if args.minari_root is not None and not args.minari_id:
+        parser.error("--minari-root needs --minari-id")
+    if args.minari_id is not None:
+        try:
+            _check_minari_id(args.minari_id)
+        except ValueError as err:
+            parser.error(f"--minari-id: {err}")
     tic = time.perf_counter()
     try:
         ds = generate_random_walk(args.maze, args.steps, args.seed, subsample=args.subsample, progress=args.progress)
@@ -597,12 +732,20 @@ def main(argv: list[str] | None = None) -> int:
     print(f"speed: {raw / elapsed:,.0f} raw steps/s ({elapsed:.1f} s)")
     print(f"waypoints in wall cells: {in_wall:.4%}; samples touching a wall: {float(ds.wall_contact.mean()):.4%}")
     if args.minari_id:
-        os.environ.setdefault("MINARI_DATASETS_PATH", str(out.parent / "minari"))
+        root = None if args.minari_root is None else Path(os.path.abspath(args.minari_root))
         try:
-            to_minari(ds, args.minari_id)
-        except (ImportError, OSError, ValueError) as err:
+            data = to_minari(ds, args.minari_id, root=root)
+        except (ImportError, OSError, ValueError, TypeError) as err:
             return _fail(f"Minari dataset {args.minari_id!r}: {err}")
-        print(f"wrote Minari dataset {args.minari_id!r} under {os.environ['MINARI_DATASETS_PATH']}")
+        where = root if root is not None else minari_root()
+        reached = sum(ep.terminated for ep in goal_episodes(ds))
+        print(
+            f"wrote Minari dataset {args.minari_id!r} to {where.joinpath(*args.minari_id.split('/'))}: "
+            f"{data.total_episodes} episodes ({reached} reach their goal), {data.total_steps} steps"
+        )
+        # name the folder whenever it is not where a plain minari.load_dataset looks
+        default = root is None and "MINARI_DATASETS_PATH" not in os.environ
+        print(f"load it with: {minari_load_command(args.minari_id, None if default else where)}")
     return 0
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import subprocess
@@ -17,6 +18,8 @@ from steer_envs.data.maze_random_walk import (
     WaypointController,
     cell_path,
     generate_random_walk,
+    goal_episodes,
+    goal_rewards,
     load_random_walk,
     load_transitions,
     main,
@@ -168,6 +171,27 @@ def test_cli_progress_bar_only_on_a_terminal_or_when_asked(tmp_path: Path, capsy
     assert "maze2d random walk" in capsys.readouterr().err
 
 
+def test_goal_episodes_follow_the_env_rules() -> None:
+    ds = generate_random_walk("umaze", 6000, seed=1, progress=False)
+    episodes = goal_episodes(ds)
+    rewards = goal_rewards(ds)
+    assert rewards.sum() > 0 and len(episodes) >= 3
+    grid = MazeGrid(maze_map("umaze"))
+    for ep in episodes:
+        assert len(ep) == len(ep.rewards) > 0
+        np.testing.assert_array_equal(ep.rewards, rewards[ep.start : ep.stop])
+        # terminated exactly when the last step enters the goal cell, and no earlier step does
+        assert ep.rewards[:-1].sum() == 0 and ep.rewards[-1] == float(ep.terminated)
+        goal_cell = tuple(grid.xy_to_cell(ds.goals[ep.stop - 1]).tolist())
+        assert (tuple(grid.xy_to_cell(ds.actions[ep.stop - 1]).tolist()) == goal_cell) == ep.terminated
+    starts = [ep.start for ep in episodes]
+    assert starts == sorted(starts) and all(a.stop <= b.start for a, b in itertools.pairwise(episodes))
+    assert episodes[-1].stop <= len(ds) - 1  # the walk's last sample has no kept next observation
+    assert set(starts) <= {0, *ds.leg_starts.tolist()}
+    with pytest.raises(TypeError, match="dataset must be a RandomWalkDataset"):
+        goal_episodes("walk")  # type: ignore[arg-type]
+
+
 def test_minari_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("h5py", reason="Minari needs its hdf5 backend (pip install 'minari[hdf5]')")
     import minari
@@ -176,11 +200,96 @@ def test_minari_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> N
     ds = generate_random_walk("umaze", 4000, seed=0, progress=False)
     to_minari(ds, "steer_envs/maze2d-umaze/randomwalk-v0")
     loaded = minari.load_dataset("steer_envs/maze2d-umaze/randomwalk-v0")
-    episode = next(loaded.iterate_episodes())
-    np.testing.assert_allclose(episode.observations[:-1], ds.observations)
-    np.testing.assert_allclose(episode.actions, ds.actions)
-    np.testing.assert_allclose(episode.infos["waypoint"], ds.waypoints)
+    episodes = goal_episodes(ds)
+    assert loaded.total_episodes == len(episodes) > 1
+    for ep, stored in zip(episodes, loaded.iterate_episodes(), strict=True):
+        np.testing.assert_allclose(stored.observations, ds.observations[ep.start : ep.stop + 1])
+        np.testing.assert_allclose(stored.actions, ds.actions[ep.start : ep.stop])
+        np.testing.assert_allclose(stored.rewards, ep.rewards)
+        np.testing.assert_allclose(stored.infos["waypoint"], ds.waypoints[ep.start : ep.stop])
+        assert bool(stored.terminations[-1]) == ep.terminated != bool(stored.truncations[-1])
     assert os.path.isdir(tmp_path / "minari")
+    with pytest.raises(ValueError, match="dataset_id"):
+        to_minari(ds, "steer/it's-v0")
+    with pytest.raises(TypeError, match="root"):
+        to_minari(ds, "steer/x-v0", root=3)  # type: ignore[arg-type]
+
+
+_LOAD_CHECK = """
+import json, sys
+import minari
+data = minari.load_dataset(sys.argv[1])
+episodes = list(data.iterate_episodes())
+print(json.dumps({
+    "episodes": len(episodes),
+    "steps": int(data.total_steps),
+    "rewards": [float(e.rewards.sum()) for e in episodes],
+    "terminated": [bool(e.terminations[-1]) for e in episodes],
+    "truncated": [bool(e.truncations[-1]) for e in episodes],
+}))
+"""
+
+
+@pytest.mark.parametrize("how", ["--minari-root", "MINARI_DATASETS_PATH"])
+def test_cli_minari_export_with_relative_paths_loads_in_a_fresh_shell(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], how: str
+) -> None:
+    """#21: a relative ``--out`` / data path crashed with a doubled path; the printed line must load the data."""
+    pytest.importorskip("h5py", reason="Minari needs its hdf5 backend (pip install 'minari[hdf5]')")
+    monkeypatch.chdir(tmp_path)
+    argv = ["--out", "out/data", "--maze", "umaze", "--steps", "4000", "--seed", "2", "--no-progress"]
+    argv += ["--minari-id", "steer/walk-v0"]
+    if how == "--minari-root":
+        monkeypatch.delenv("MINARI_DATASETS_PATH", raising=False)
+        argv += ["--minari-root", "out/minari"]
+        root = tmp_path / "out" / "minari"
+    else:
+        monkeypatch.setenv("MINARI_DATASETS_PATH", "out/data/minari")
+        root = tmp_path / "out" / "data" / "minari"
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert f"to {root / 'steer' / 'walk-v0'}:" in out
+    (line,) = [x.split("load it with: ", 1)[1] for x in out.splitlines() if x.startswith("load it with: ")]
+    assert line.startswith(f"MINARI_DATASETS_PATH={root} python -c ")
+    assert not [p for p in root.rglob("*") if p.name.endswith(".tmp")]  # no leftovers of the build
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "MINARI_DATASETS_PATH"}
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # `python` is this one
+    shown = subprocess.run(line, shell=True, cwd=elsewhere, env=env, capture_output=True, text=True, timeout=120)
+    assert shown.returncode == 0, shown.stderr
+    assert "steer/walk-v0" in shown.stdout or "MinariDataset" in shown.stdout
+
+    env["MINARI_DATASETS_PATH"] = str(root)
+    res = subprocess.run(
+        [sys.executable, "-c", _LOAD_CHECK, "steer/walk-v0"],
+        cwd=elsewhere,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert res.returncode == 0, res.stderr
+    stored = json.loads(res.stdout.strip().splitlines()[-1])
+    expected = goal_episodes(load_random_walk(tmp_path / "out" / "data" / "maze2d-umaze-randomwalk-seed2.npz"))
+    assert stored["episodes"] == len(expected) > 1
+    assert stored["steps"] == sum(len(e) for e in expected)
+    assert stored["rewards"] == [float(e.terminated) for e in expected]
+    assert stored["terminated"] == [e.terminated for e in expected] and any(stored["terminated"])
+    assert stored["truncated"] == [not e.terminated for e in expected]
+
+
+def test_cli_refuses_a_bad_minari_id_before_generating(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    base = ["--out", str(tmp_path), "--maze", "umaze", "--steps", "40", "--no-progress"]
+    for extra, match in (
+        (["--minari-id", "../up"], "--minari-id"),
+        (["--minari-root", str(tmp_path / "m")], "--minari-root needs --minari-id"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            main([*base, *extra])
+        assert exc.value.code == 2 and match in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.npz"))
 
 
 @pytest.mark.slow
