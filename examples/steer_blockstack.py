@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
 from steer_envs.bench.suites.itps_blockstack.protocol import (
     METHOD_SAMPLERS,
     load_skill_policy,
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     assert final is not None
 
     cols = len(frames) + 1
-    fig = new_figure(2.3 * cols, 2.7)
+    fig = new_figure(max(2.3 * cols, 6.0), 3.1)
     axes = fig.subplots(1, cols, squeeze=False)[0]
     for ax, (image, sketch_points, plan, name, aligned) in zip(axes, frames, strict=False):
         ax.imshow(image)
@@ -114,6 +114,15 @@ def main(argv: list[str] | None = None) -> int:
     axes[-1].set_title(f"end: tower {'built' if built else 'not built'}", fontsize=8)
     axes[-1].axis("off")
     fig.suptitle(f"BlockStack, tower {args.order} by sketching ({args.method}, seed {args.seed})", fontsize=10)
+    figure_legend(
+        fig,
+        [
+            key_line("user sketch", color="magenta", lw=2),
+            key_line("steered plan, aligned", color="cyan", lw=1.5),
+            key_line("steered plan, misaligned", color="orange", lw=1.5),
+        ],
+        ncol=3,
+    )
     path = save_figure(fig, args.out / f"steer_blockstack_{args.method}_seed{args.seed}.png")
     print(f"wrote {path}")
     env.close()

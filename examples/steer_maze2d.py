@@ -7,7 +7,7 @@ wall), :class:`~steer_envs.wrappers.SteeringWrapper` samples a batch of plans
 from the committed Diffusion Policy (or ACT) checkpoint with the chosen sampler
 and executes the best plan in the MuJoCo maze. The PNG shows the sketch
 (magenta), the sampled plans (teal; orange = in collision) and, on the right,
-the executed rollout (blue trail). Alignment and collision numbers are printed
+the executed rollout (blue trail) and the agent (red); a legend names them. Alignment and collision numbers are printed
 as in thesis Table 2.1.
 """
 
@@ -16,16 +16,28 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 from steer_envs.bench.suites.itps.protocol import load_policy
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.users.sketcher import SketchUser
 from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler
 from steer_envs.wrappers.samplers import SAMPLERS
+
+#: the colours ``Maze2DEnv.render_overlay`` draws with (RGB 0-255), named in the figure's legend
+OVERLAY_COLOURS = {
+    "sketch": (200, 30, 200),
+    "plan": (20, 160, 160),
+    "collision": (240, 140, 30),
+    "trail": (40, 40, 200),
+    "agent": (220, 30, 30),
+    "wall": (90, 90, 100),
+}
 
 #: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
 DEFAULT_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
@@ -48,6 +60,32 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--through-wall", action="store_true", help="make the user sketch straight through walls")
     parser.add_argument("--out", type=Path, default=Path("runs/steer_maze2d"), help="output directory")
     return parser.parse_args(argv)
+
+
+def steering_figure(before: np.ndarray, after: np.ndarray, title: str) -> Any:
+    """The two panels (sketch + steered batch; chosen plan + rollout) with a legend of every colour."""
+    fig = new_figure(10.0, 4.8)
+    panels = ("sketch + steered batch", "chosen plan + executed rollout")
+    for ax, image, name in zip(fig.subplots(1, 2), (before, after), panels, strict=True):
+        ax.imshow(image)
+        ax.set_title(name, fontsize=10)
+        ax.axis("off")
+    fig.suptitle(title, fontsize=11)
+    rgb = {name: tuple(c / 255 for c in value) for name, value in OVERLAY_COLOURS.items()}
+    figure_legend(
+        fig,
+        [
+            key_line("user sketch (dot: its start)", color=rgb["sketch"], lw=3, marker="o", markersize=4),
+            key_line("sampled plan", color=rgb["plan"], lw=1.5),
+            key_line("plan through a wall (collision)", color=rgb["collision"], lw=1.5),
+            key_line("executed rollout", color=rgb["trail"], lw=2),
+            key_line("agent", color=rgb["agent"], marker="o", ls="none", markersize=7),
+            key_patch("wall", facecolor=rgb["wall"]),
+        ],
+        ncol=3,
+        fontsize=8,
+    )
+    return fig
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -82,14 +120,8 @@ def main(argv: list[str] | None = None) -> int:
 
     before = maze.render_overlay(drawn.sketch.points, plans)
     after = maze.render_overlay(drawn.sketch.points, plans[info["chosen"]][None])
-    fig = new_figure(10.0, 4.2)
-    for ax, image, title in zip(
-        fig.subplots(1, 2), (before, after), ("sketch + steered batch", "chosen plan + executed rollout"), strict=True
-    ):
-        ax.imshow(image)
-        ax.set_title(title, fontsize=10)
-        ax.axis("off")
-    fig.suptitle(f"Maze2D-Large, {args.policy.upper()} steered with {args.sampler} (seed {args.seed})", fontsize=11)
+    title = f"Maze2D-Large, {args.policy.upper()} steered with {args.sampler} (seed {args.seed})"
+    fig = steering_figure(before, after, title)
     path = save_figure(fig, args.out / f"steer_{args.policy}_{args.sampler}_seed{args.seed}.png")
     print(f"wrote {path}")
     steer.close()

@@ -322,7 +322,7 @@ def smoke_findings(table: Any) -> list[Finding]:
 
 def plot_throughput(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """Per-suite figure: single vs. vectorized steps/s per env (log scale), speed-up on top."""
-    from steer_envs.bench.plots import new_figure, save_figure
+    from steer_envs.bench.plots import figure_legend, new_figure, save_figure
     from steer_envs.bench.report import summarize
 
     tables = [t for t in summarize(records) if t.suite == suite.name]
@@ -347,7 +347,7 @@ def plot_throughput(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir:
     ax.set_ylabel("steps / s (random actions)")
     ax.set_title("smoke: step throughput, single vs. vectorized", fontsize=10)
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8)
+    figure_legend(fig, ax.get_legend_handles_labels()[0], fontsize=8)  # below the axes: covers no bar
     return [str(save_figure(fig, Path(out_dir) / f"{suite.name}_throughput.png"))]
 
 

@@ -31,20 +31,23 @@ from typing import Any
 import numpy as np
 
 from steer_envs.baselines.glide.classifier import ModePredictor, mode_overlap, workspace_grid
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
-#: mode colours (free space first), as in the thesis figures: light free space, saturated polygons.
+#: mode colours (free space first): light pastels, so no mode shares a colour with a rollout's
+#: success (:data:`SUCCESS_COLOR`) or failure (:data:`FAILURE_COLOR`); no red among them.
 MODE_COLORS: tuple[str, ...] = (
     "#f2f2f2",
-    "#e41a1c",
-    "#377eb8",
-    "#4daf4a",
-    "#984ea3",
-    "#ff7f00",
-    "#a65628",
-    "#f781bf",
-    "#999999",
+    "#8dd3c7",
+    "#ffffb3",
+    "#bebada",
+    "#fdb462",
+    "#b3de69",
+    "#fccde5",
+    "#d9d9d9",
+    "#bc80bd",
 )
+#: rollouts drawn on the mode maps: a successful one dark blue, a failed one red
+SUCCESS_COLOR, FAILURE_COLOR = "#1f3fbf", "#d62728"
 
 
 def encode_labels(labels: np.ndarray) -> str:
@@ -81,7 +84,7 @@ class ModeMapRow:
             panel is added in front.
         title: row title (shown on the ground-truth panel).
         trajectories: ``(T_i, 2)`` paths drawn on the ground-truth panel (or every panel).
-        trajectory_success: colours those paths blue (success) / red (failure).
+        trajectory_success: colours those paths dark blue (success) / red (failure).
     """
 
     model: Any
@@ -100,13 +103,17 @@ def plot_mode_maps(
     title: str | None = None,
     panel_size: float = 2.6,
     trajectories_on_every_panel: bool = False,
+    mode_names: Sequence[str] | None = None,
 ) -> Path:
     """Write a PNG with one row per :class:`ModeMapRow`: ground truth, then each labelling.
 
     Each learned panel's title carries its overlap with the ground truth
     (plus the row's ``notes`` for that panel, e.g. the mean over several layouts).
     Rows may have different panel names; columns follow the first row's
-    order, then any new names.
+    order, then any new names. A legend below names each mode colour
+    (``mode_names``, e.g. ``env.unwrapped.task.modes``; default "free space",
+    "polygon 1", ...) and the rollouts' success / failure colours; ``title``
+    defaults to a generic one.
     """
     path = Path(path)
     if path.suffix != ".png":
@@ -118,13 +125,17 @@ def plot_mode_maps(
             raise TypeError(f"rows must be ModeMapRow objects, got {type(r).__name__}")
         if r.trajectory_success is not None and len(r.trajectory_success) != len(r.trajectories):
             raise ValueError("trajectory_success must have one flag per trajectory")
+    if mode_names is not None and (
+        isinstance(mode_names, str) or len(mode_names) < max(int(r.model.num_modes) for r in rows)
+    ):
+        raise ValueError("mode_names must be a sequence with one name per mode")
     names: list[str] = []
     for r in rows:
         names += [n for n in r.panels if n not in names]
     from matplotlib.colors import ListedColormap
 
     n_cols = 1 + len(names)
-    fig = new_figure(panel_size * n_cols, (panel_size + 0.45) * len(rows) + (0.4 if title else 0.0), layout="tight")
+    fig = new_figure(max(panel_size * n_cols, 5.0), (panel_size + 0.45) * len(rows) + 1.0)
     axes = fig.subplots(len(rows), n_cols, squeeze=False)
     for row_axes, row in zip(axes, rows, strict=True):
         model = row.model
@@ -156,14 +167,22 @@ def plot_mode_maps(
                 for i, tr in enumerate(row.trajectories):
                     tr = np.asarray(tr)
                     ok = True if row.trajectory_success is None else bool(row.trajectory_success[i])
-                    ax.plot(tr[:, 0], tr[:, 1], color="#1f3fbf" if ok else "#bf1f1f", lw=0.7, alpha=0.8)
+                    ax.plot(tr[:, 0], tr[:, 1], color=SUCCESS_COLOR if ok else FAILURE_COLOR, lw=0.7, alpha=0.8)
             text = name if overlap is None else f"{name}\noverlap {overlap:.3f}"
             if col > 0 and row.notes.get(name):
                 text += f" ({row.notes[name]})"
             ax.set_title(text, fontsize=8)
             ax.set_aspect("equal")
-    if title:
-        fig.suptitle(title, fontsize=10)
+    fig.suptitle(title or "Mode boundaries: ground truth vs learned", fontsize=10)
+    k_max = max(int(r.model.num_modes) for r in rows)
+    names = list(mode_names) if mode_names is not None else ["free space", *(f"polygon {m}" for m in range(1, k_max))]
+    handles = [key_patch(f"mode {m}: {names[m]}", facecolor=MODE_COLORS[m], edgecolor="0.4") for m in range(k_max)]
+    if any(len(r.trajectories) for r in rows):
+        handles += [
+            key_line("rollout, success", color=SUCCESS_COLOR),
+            key_line("rollout, failure", color=FAILURE_COLOR),
+        ]
+    figure_legend(fig, handles, ncol=min(len(handles), 4))
     return save_figure(fig, path)
 
 
@@ -204,4 +223,13 @@ def plot_groundings(
     )
 
 
-__all__ = ["MODE_COLORS", "ModeMapRow", "decode_labels", "encode_labels", "plot_groundings", "plot_mode_maps"]
+__all__ = [
+    "FAILURE_COLOR",
+    "MODE_COLORS",
+    "SUCCESS_COLOR",
+    "ModeMapRow",
+    "decode_labels",
+    "encode_labels",
+    "plot_groundings",
+    "plot_mode_maps",
+]

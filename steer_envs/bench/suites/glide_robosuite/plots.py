@@ -54,7 +54,8 @@ def save_mode_strips(labels: Mapping[str, Sequence[Mapping[str, Any]]], task: st
     for i, ax in enumerate(axes):
         rows = [("ground truth", np.asarray(first[i]["true"]))]
         rows += [(v, np.asarray(lab[i]["pred"])) for v, lab in labels.items() if i < len(lab)]
-        draw_mode_strips(ax, rows, TASKS[task].modes, title=f"{name}: demo {i}, learned vs true modes")
+        draw_mode_strips(ax, rows, TASKS[task].modes, title=f"demo {i}")
+    fig.suptitle(f"{name}: learned vs ground-truth modes along the demos", fontsize=10)
     return save_figure(fig, path)
 
 

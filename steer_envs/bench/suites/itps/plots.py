@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 from steer_envs.bench.report import summarize
 from steer_envs.bench.suite import Suite
 from steer_envs.bench.suites.itps.suite import ENV_ID, METHODS, TABLE_2_1
@@ -74,10 +74,27 @@ def _draw_plans(ax: Any, record: Mapping[str, Any]) -> None:
         width = 0.6 + 2.4 * (1.0 - (dist[b] - dist.min()) / spread)
         ax.add_collection(LineCollection(segments, colors=colors, linewidths=width, zorder=2))
     start = np.asarray(extra["start"], dtype=np.float64)
-    ax.plot(start[1], start[0], "o", color="red", markersize=6, zorder=3)
+    ax.plot(start[1], start[0], "o", color="black", markersize=6, zorder=3)
     if extra.get("perturbed_state") is not None:
         moved = np.asarray(extra["perturbed_state"], dtype=np.float64)
-        ax.plot(moved[1], moved[0], "o", color="red", markersize=6, markerfacecolor="none", zorder=3)
+        ax.plot(moved[1], moved[0], "o", color="black", markersize=6, markerfacecolor="none", zorder=3)
+
+
+def _plans_key() -> list[Any]:
+    """Legend entries of the qualitative grid (what :func:`_draw_plans` draws)."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["rainbow"]
+    faded = 0.25 * np.asarray(cmap(0.5)[:3]) + 0.75
+    return [
+        key_line("user sketch", color="0.4", lw=4, alpha=0.7),
+        key_line("plan, first waypoint", color=cmap(0.0), lw=2),
+        key_line("plan, last waypoint", color=cmap(1.0), lw=2),
+        key_line("plan in collision (faded)", color=tuple(faded), lw=2),
+        key_line("agent start", color="black", marker="o", ls="none"),
+        key_line("pushed to", color="black", marker="o", markerfacecolor="none", ls="none"),
+        key_patch("wall", facecolor="0.35"),
+    ]
 
 
 def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
@@ -109,7 +126,7 @@ def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) 
         methods = [m for m in METHODS if any(r["config"]["method"] == m for r in with_plans)]
         seeds = sorted({int(r["seed"]) for r in with_plans})[:3]
         walls = _maze_walls(with_plans)
-        fig = new_figure(2.4 * len(methods) + 0.5, 1.9 * len(seeds) + 0.6)
+        fig = new_figure(max(2.4 * len(methods) + 0.5, 6.5), 1.9 * len(seeds) + 1.2)
         axes = fig.subplots(len(seeds), len(methods), squeeze=False)
         for i, seed in enumerate(seeds):
             for j, method in enumerate(methods):
@@ -122,6 +139,7 @@ def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) 
                     ax.set_title(method, fontsize=9)
                 if j == 0:
                     ax.set_ylabel(f"seed {seed}", fontsize=8)
-        fig.suptitle("itps-maze2d: sketch (gray), plans blue->red over time, collisions tinted white", fontsize=9)
+        fig.suptitle(f"{suite.name}: steered plans per sampler (thicker: closer to the sketch)", fontsize=9)
+        figure_legend(fig, _plans_key(), ncol=4)
         written.append(str(save_figure(fig, Path(out_dir) / f"{suite.name}_qualitative.png")))
     return written

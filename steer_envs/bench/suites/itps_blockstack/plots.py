@@ -3,8 +3,9 @@
 * ``<suite>_plans.png``: one 3D panel per method (columns) and kept
   interaction (rows, the first interactions of the first ``plot_seeds``
   seeds): the cubes, the user's sketch (black, dashed), the batch of plans
-  (thin grey) and the picked plan (green when aligned with the intended
-  skill, red when not; a dot where the gripper closes or opens);
+  (thin grey) and the picked plan (purple when aligned with the intended
+  skill, brown dash-dotted when not; a dot where the gripper closes or opens),
+  all named in the legend below;
 * ``<suite>_quadrants.png``: stacked AS/AF/MS/MF bars per method, the
   thesis's TA and CS as hollow markers.
 
@@ -21,13 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
 from steer_envs.bench.report import summarize
 from steer_envs.bench.suite import Suite
 
 __all__ = ["plot_blockstack"]
 
 _CUBE_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:orange")
+#: the picked plan's (colour, line style) when aligned / misaligned: no cube colour means a verdict
+_ALIGNED, _MISALIGNED = ("tab:purple", "-"), ("tab:brown", "-.")
 _QUADRANTS = (("AS", "tab:green"), ("AF", "tab:olive"), ("MS", "tab:cyan"), ("MF", "tab:gray"))
 
 
@@ -46,8 +49,8 @@ def _draw_interaction(ax: Any, item: Mapping[str, Any]) -> None:
     for p in plans:
         ax.plot(p[:, 0], p[:, 1], p[:, 2], color="0.6", linewidth=0.5, alpha=0.6)
     chosen = plans[int(item["chosen"])]
-    color = "tab:green" if item["aligned"] else "tab:red"
-    ax.plot(chosen[:, 0], chosen[:, 1], chosen[:, 2], color=color, linewidth=2.2)
+    color, style = _ALIGNED if item["aligned"] else _MISALIGNED
+    ax.plot(chosen[:, 0], chosen[:, 1], chosen[:, 2], color=color, linestyle=style, linewidth=2.2)
     k = _switch(chosen)
     if k is not None:
         ax.scatter(*chosen[k, :3], color=color, s=25, depthshade=False)
@@ -86,10 +89,19 @@ def _plans_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: s
             verdict = ("aligned" if item["aligned"] else "misaligned") + (", ok" if item["success"] else ", failed")
             title = f"{method}\n" if i == 0 else ""
             ax.set_title(f"{title}seed {seed} #{k + 1}: {item['intended']}\n{verdict}", fontsize=7)
-    fig.suptitle(
-        f"{suite.name}: sketch (dashed), batch (grey), picked plan (green aligned / red not); cubes 0-3 red, "
-        "green, blue, orange",
-        fontsize=8,
+    fig.suptitle(f"{suite.name}: steered plans per method and interaction", fontsize=9)
+    figure_legend(
+        fig,
+        [
+            key_line("user sketch", color="black", ls="--", lw=1.4),
+            key_line("sampled batch", color="0.6", lw=0.8),
+            key_line("picked plan, aligned", color=_ALIGNED[0], ls=_ALIGNED[1], lw=2.2),
+            key_line("picked plan, misaligned", color=_MISALIGNED[0], ls=_MISALIGNED[1], lw=2.2),
+            key_line("gripper closes / opens", color="0.3", marker="o", ls="none", markersize=4),
+            key_line("end effector", color="black", marker="^", ls="none", markersize=5),
+            *(key_line(f"cube {i}", color=c, marker="s", ls="none", markersize=6) for i, c in enumerate(_CUBE_COLORS)),
+        ],
+        ncol=5,
     )
     return str(save_figure(fig, Path(out_dir) / f"{suite.name}_plans.png"))
 
@@ -120,7 +132,7 @@ def _quadrant_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("share of interactions")
     ax.set_title(f"{suite.name}: aligned / misaligned x success / failure", fontsize=10)
-    ax.legend(fontsize=7, ncol=3, loc="upper right")
+    figure_legend(fig, ax.get_legend_handles_labels()[0], ncol=3)  # below the axes: the stacks reach 1.0
     ax.grid(alpha=0.3, axis="y")
     return str(save_figure(fig, Path(out_dir) / f"{suite.name}_quadrants.png"))
 

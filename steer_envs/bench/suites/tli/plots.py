@@ -7,10 +7,11 @@
 * :func:`plot_single_mode` draws, per layout, a grid policy (rows: BC,
   BC+mod, DS, DS+mod) x noise level (columns): the convex mode, the
   demonstrations (black), rollouts (blue: success, red: failure), failures as
-  red crosses (the first state outside the mode), the cuts (blue lines) and the
-  last in-mode states they go through (yellow circles), the attractor (orange).
+  red crosses (the first state outside the mode), the cuts (green lines) and the
+  last in-mode states they go through (yellow circles), the attractor (orange),
+  all named in a legend below the grid.
 * :func:`plot_scoop` draws SoupScoop rollouts of LTL-DS without and with
-  modulation under pushes (red dashed jumps), invariance failures (red crosses)
+  modulation under pushes (purple dashed jumps), invariance failures (red crosses)
   and the learned cuts.
 
 Figures come from :func:`steer_envs.bench.plots.new_figure` and are written
@@ -28,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 __all__ = [
     "NOISE_LABELS",
@@ -41,6 +42,8 @@ __all__ = [
 #: noise level (start-state sigma, workspace units) -> the thesis's label (% of the workspace).
 NOISE_LABELS: Mapping[float, str] = {0.0: "0%", 1.0: "5%", 5.0: "30%"}
 _ROW_ORDER = ("bc", "bc+mod", "ds", "ds+mod")
+#: colour of a push (red is a failure's)
+_PUSH = "#9467bd"
 
 
 # ---------------------------------------------------------------------- data
@@ -169,7 +172,7 @@ def _draw_single_panel(ax: Any, data: Mapping[str, Any], title: str) -> None:
         ax.plot(fails[:, 0], fails[:, 1], "x", color="#d62728", markersize=5, zorder=4)
     span = float(np.ptp(verts, axis=0).max())
     for cut in data["cuts"]:
-        _draw_cut(ax, cut["point"], cut["normal"], 0.6 * span, color="#1f5fbf", linewidth=1.6, zorder=5)
+        _draw_cut(ax, cut["point"], cut["normal"], 0.6 * span, color="#2ca02c", linewidth=1.6, zorder=5)
     pts = np.asarray(data["cut_points"]).reshape(-1, 2)
     if len(pts):
         ax.plot(pts[:, 0], pts[:, 1], "o", markerfacecolor="#ffd700", markeredgecolor="black", markersize=5, zorder=6)
@@ -208,9 +211,22 @@ def plot_single_mode(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: 
                 cuts = f", {data['num_cuts']} cuts" if method.endswith("+mod") else ""
                 _draw_single_panel(ax, data, f"{method}, noise {label}: {100 * data['success_rate']:.0f}%{cuts}")
         fig.suptitle(
-            f"{getattr(suite, 'name', 'tli-single-mode')}: layout {layout} - demos black, success blue, failure red, "
-            "exits x, cuts blue lines, last in-mode states yellow, attractor orange",
-            fontsize=8,
+            f"{getattr(suite, 'name', 'tli-single-mode')}: layout {layout}, rollouts per policy and start noise",
+            fontsize=9,
+        )
+        figure_legend(
+            fig,
+            [
+                key_patch("mode (convex region)", facecolor="#eeeeee", edgecolor="0.3"),
+                key_line("demonstration", color="black", lw=1.6),
+                key_line("rollout, success", color="#1f5fbf", lw=1),
+                key_line("rollout, failure", color="#d62728", lw=1),
+                key_line("first state outside", color="#d62728", marker="x", ls="none"),
+                key_line("cut (learned boundary)", color="#2ca02c", lw=1.6),
+                key_line("last in-mode state", marker="o", markerfacecolor="#ffd700", color="black", ls="none"),
+                key_line("attractor", marker="*", color="#ff8c00", markeredgecolor="black", ls="none", markersize=10),
+            ],
+            ncol=4,
         )
         name = f"{getattr(suite, 'name', 'tli-single-mode')}_rollouts_layout{layout}.png"
         written.append(str(save_figure(fig, Path(out_dir) / name)))
@@ -270,8 +286,8 @@ def plot_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -
                 ax.plot(s[:, 0], s[:, 1], color="black", linewidth=0.8, zorder=3)
             for push in data["pushes"]:
                 a, b = np.asarray(push["from"]), np.asarray(push["to"])
-                ax.plot([a[0], b[0]], [a[1], b[1]], color="#d62728", linestyle="--", linewidth=0.9, zorder=4)
-                ax.plot(b[0], b[1], "o", color="#d62728", markersize=3, zorder=4)
+                ax.plot([a[0], b[0]], [a[1], b[1]], color=_PUSH, linestyle="--", linewidth=0.9, zorder=4)
+                ax.plot(b[0], b[1], "o", color=_PUSH, markersize=3, zorder=4)
             fails = np.asarray(data["failures"]).reshape(-1, 2)
             if len(fails):
                 ax.plot(fails[:, 0], fails[:, 1], "x", color="#d62728", markersize=5, zorder=5)
@@ -282,9 +298,19 @@ def plot_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -
                 ax.plot(att[0], att[1], "*", color="#ff8c00", markersize=9, markeredgecolor="black", zorder=7)
             verdict = "success" if data["success"] else "FAILED (cap)"
             ax.set_title(f"{method}, experiment {seed}: {verdict}, {data['invariance_failures']} loops", fontsize=8)
-    fig.suptitle(
-        f"{getattr(suite, 'name', 'tli-scoop')}: rollout black, pushes red dashed, invariance failures x, "
-        "cuts blue, attractors orange",
-        fontsize=8,
+    fig.suptitle(f"{getattr(suite, 'name', 'tli-scoop')}: SoupScoop rollouts under pushes", fontsize=9)
+    figure_legend(
+        fig,
+        [
+            key_patch("region yellow", facecolor="#fff3a0", edgecolor="0.5"),
+            key_patch("region pink", facecolor="#f7c6d9", edgecolor="0.5"),
+            key_patch("region green", facecolor="#c8f0c0", edgecolor="0.5"),
+            key_line("rollout", color="black", lw=0.8),
+            key_line("push (to the dot)", color=_PUSH, ls="--", marker="o", markersize=3),
+            key_line("invariance failure", color="#d62728", marker="x", ls="none"),
+            key_line("cut (learned boundary)", color="#1f5fbf", lw=1.4),
+            key_line("attractor", marker="*", color="#ff8c00", markeredgecolor="black", ls="none", markersize=9),
+        ],
+        ncol=4,
     )
     return [str(save_figure(fig, Path(out_dir) / f"{getattr(suite, 'name', 'tli-scoop')}_rollouts.png"))]

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import figure_legend, new_figure, save_figure
 
 __all__ = ["plot_cooking"]
 
@@ -72,7 +72,7 @@ def plot_cooking(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str)
                 ax.set_ylabel("y")
         handles, labels = axes[1][0].get_legend_handles_labels()
         unique = dict(zip(labels, handles, strict=True))
-        fig.legend(list(unique.values()), list(unique.keys()), loc="lower center", ncol=3, fontsize=7)
+        figure_legend(fig, list(unique.values()), ncol=3)
         fig.suptitle(f"{name}: one skill set, four edited automata (experiment {seed})", fontsize=9)
         paths.append(str(save_figure(fig, Path(out_dir) / f"{name}_rollouts_seed{seed}.png")))
     return paths
