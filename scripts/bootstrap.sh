@@ -8,17 +8,20 @@ cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3.11}
 command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
 
-# Offscreen MuJoCo rendering on CPUs needs OSMesa.
-if ! dpkg -s libosmesa6 >/dev/null 2>&1; then
-  if [ "$(id -u)" = 0 ]; then
-    echo "[bootstrap] apt-get install libosmesa6"
-    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libosmesa6 >/dev/null) \
-      || echo "[bootstrap] warning: could not install libosmesa6; MuJoCo rendering will be unavailable" >&2
-  elif command -v sudo >/dev/null 2>&1; then
-    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libosmesa6 >/dev/null \
-      || echo "[bootstrap] warning: could not install libosmesa6" >&2
+# Offscreen MuJoCo rendering on CPUs needs OSMesa; steer-ui's browser test drives Debian's chromium.
+APT_PACKAGES=(libosmesa6 chromium chromium-driver)
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg"); done
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo_cmd=()
+  [ "$(id -u)" = 0 ] || sudo_cmd=(sudo)
+  if [ "$(id -u)" = 0 ] || command -v sudo >/dev/null 2>&1; then
+    echo "[bootstrap] apt-get install ${missing[*]}"
+    ("${sudo_cmd[@]}" apt-get update -qq \
+      && "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null) \
+      || echo "[bootstrap] warning: could not install ${missing[*]}; MuJoCo rendering / the browser test may be unavailable" >&2
   else
-    echo "[bootstrap] warning: libosmesa6 missing and no root; MuJoCo rendering will be unavailable" >&2
+    echo "[bootstrap] warning: ${missing[*]} missing and no root; MuJoCo rendering / the browser test may be unavailable" >&2
   fi
 fi
 
@@ -34,7 +37,7 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   log=.venv/bootstrap.log
   # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
   if ! { .venv/bin/python -m pip install -q --upgrade "pip>=24" \
-         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray]"; } >"$log" 2>&1; then
+         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui]"; } >"$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "[bootstrap] pip install failed; full log in $log" >&2
     exit 1

@@ -21,7 +21,8 @@ RANKS = {
     "utils": 3,
     "wrappers": 4,
     "baselines": 5,
-    "bench": 6,
+    "ui": 6,
+    "bench": 7,
 }
 
 

@@ -1,0 +1,91 @@
+"""``steer-ui``: steer a policy by hand in the browser (``python -m steer_envs.ui``).
+
+    steer-ui                    # http://127.0.0.1:8765, Maze2D-Large, the shipped DP
+    steer-ui --policy act --port 9000 --open
+
+Binds to 127.0.0.1 unless ``--host`` says otherwise (then it warns: anyone who
+can reach the port can drive the server's CPU).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import webbrowser
+from collections.abc import Sequence
+
+from steer_envs.ui.session import DEFAULT_ENV
+
+LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``steer-ui`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="steer-ui", description="Steer a frozen robot policy by hand in the browser: sketch, point, nudge."
+    )
+    parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default: 127.0.0.1, this machine only)")
+    parser.add_argument("--port", type=int, default=8765, help="TCP port (default: 8765; 0 picks a free one)")
+    parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id with a 2D view (default: {DEFAULT_ENV})")
+    parser.add_argument("--policy", choices=("dp", "act"), default="dp", help="shipped policy kind (default: dp)")
+    parser.add_argument("--checkpoint", default=None, help="a checkpoint of --policy (default: the shipped one)")
+    parser.add_argument(
+        "--accelerate",
+        choices=("none", "trace", "compile"),
+        default="trace",
+        help="the DP network's inference mode (default: trace, the same plans ~1.25x faster)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="first start state and noise seed (default: 0)")
+    parser.add_argument("--workers", type=int, default=2, help="steering calls run at once (default: 2)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads per call (default: 1)")
+    parser.add_argument("--open", action="store_true", help="open the page in the default browser")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the server until Ctrl-C; exit code 2 for usage errors."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not 0 <= args.port <= 65535:
+        parser.error(f"--port must be in [0, 65535], got {args.port}")
+    if args.workers < 1 or args.threads < 1 or args.seed < 0:
+        parser.error("--workers and --threads must be >= 1 and --seed >= 0")
+    try:
+        import uvicorn
+
+        from steer_envs.ui.server import UIConfig, create_app
+    except ImportError as exc:  # the web extra is missing
+        print(f"steer-ui needs the 'ui' extra: pip install 'steer-envs[ui]' ({exc})", file=sys.stderr)
+        return 2
+    import torch
+
+    torch.set_num_threads(args.threads)
+    if args.host not in LOCAL_HOSTS:
+        print(
+            f"warning: binding to {args.host}: anyone who can reach port {args.port} can use this server's CPU",
+            file=sys.stderr,
+        )
+    config = UIConfig(
+        env=args.env,
+        policy=args.policy,
+        checkpoint=args.checkpoint,
+        accelerate=args.accelerate,
+        seed=args.seed,
+        workers=args.workers,
+    )
+    try:
+        app = create_app(config)
+    except (ValueError, TypeError) as exc:
+        print(f"steer-ui: {exc}", file=sys.stderr)
+        return 2
+    server = uvicorn.Server(uvicorn.Config(app, host=args.host, port=args.port, log_level="warning"))
+    url = f"http://{'127.0.0.1' if args.host in ('0.0.0.0', '::') else args.host}:{args.port}"
+    print(f"steer-ui: loading the policy, then serving {url} (Ctrl-C stops)", flush=True)
+    if args.open:
+        webbrowser.open(url)
+    server.run()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

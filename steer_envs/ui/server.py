@@ -1,0 +1,338 @@
+"""steer-ui's web server: FastAPI serves the page, a WebSocket per tab drives one :class:`Session`.
+
+Each connection gets its own session (env, sampler state, noise generator);
+the policy's weights are loaded once and shared. Session calls run in a
+thread pool, so a slow SS call never blocks the event loop or another tab;
+messages are validated on the event loop first (:func:`parse_message`), so a
+bad message is answered at once with an ``error`` and changes nothing.
+Closing the tab closes its env.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import collections
+import contextlib
+import functools
+import logging
+import math
+import time
+from collections.abc import AsyncIterator, Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any, TypeVar
+
+import numpy as np
+from fastapi import FastAPI, WebSocket, WebSocketDisconnect
+from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
+
+from steer_envs.core.validation import integer
+from steer_envs.ui.messages import Message, MessageError, parse_message
+from steer_envs.ui.session import DEFAULT_ENV, MAX_BATCH, Session, SessionError, SteerOutcome, shared_policy
+from steer_envs.wrappers.samplers import SAMPLERS
+
+__all__ = ["MAX_PENDING", "UIConfig", "create_app"]
+
+log = logging.getLogger("steer_envs.ui")
+T = TypeVar("T")
+
+#: requests one connection may have waiting; beyond it the page is told to wait
+MAX_PENDING = 32
+#: seconds between play ticks (on top of the steering call itself)
+PLAY_PAUSE_S = 0.02
+
+
+@dataclass(frozen=True)
+class UIConfig:
+    """What the server serves: env id, policy name or checkpoint, and its limits."""
+
+    env: str = DEFAULT_ENV
+    policy: str = "dp"
+    checkpoint: str | None = None
+    accelerate: str = "trace"
+    seed: int = 0
+    #: session calls running at once (the rest wait in line; one torch thread each)
+    workers: int = 2
+    #: open connections at once; more are refused with a message
+    max_sessions: int = 32
+
+
+def _pixels(arr: np.ndarray) -> list[Any]:
+    return np.round(np.asarray(arr, dtype=np.float64), 2).tolist()  # type: ignore[no-any-return]
+
+
+def _finite_or_none(values: np.ndarray) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in np.asarray(values, dtype=np.float64)]
+
+
+class _Connection:
+    """One tab: its session, a queue of requests and the play loop."""
+
+    def __init__(self, websocket: WebSocket, app_state: _AppState) -> None:
+        self.ws = websocket
+        self.app = app_state
+        self.session: Session | None = None
+        self.pending: collections.deque[Message] = collections.deque()
+        self.wake = asyncio.Event()
+        self.send_lock = asyncio.Lock()
+        self.playing = False
+        self.interaction: tuple[str, Any] = ("none", None)
+        self.counter = 0
+
+    async def call(self, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        loop = asyncio.get_running_loop()
+        return await loop.run_in_executor(self.app.pool, functools.partial(fn, *args, **kwargs))
+
+    async def send(self, payload: dict[str, Any]) -> None:
+        async with self.send_lock:
+            await self.ws.send_json(payload)
+
+    async def error(self, message: str) -> None:
+        await self.send({"type": "error", "message": message})
+
+    # ---------------------------------------------------------------- serve
+    async def serve(self) -> None:
+        await self.ws.accept()
+        if len(self.app.active) >= self.app.config.max_sessions:
+            await self.error(f"the server is full ({self.app.config.max_sessions} sessions); try again later")
+            await self.ws.close(code=1013)
+            return
+        self.app.active.add(self)
+        worker: asyncio.Task[None] | None = None
+        try:
+            config = self.app.config
+            self.session = await self.call(
+                Session,
+                config.env,
+                config.policy,
+                checkpoint=config.checkpoint,
+                accelerate=config.accelerate,
+                seed=config.seed,
+            )
+            worker = asyncio.create_task(self.work())
+            await self.read()
+        except WebSocketDisconnect:
+            pass
+        finally:
+            self.app.active.discard(self)
+            if worker is not None:
+                worker.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await worker
+            if self.session is not None:
+                await self.call(self.session.close)
+
+    async def read(self) -> None:
+        while True:
+            event = await self.ws.receive()
+            if event["type"] == "websocket.disconnect":
+                raise WebSocketDisconnect(int(event.get("code", 1000)))
+            text = event.get("text")
+            try:
+                message = parse_message(text if text is not None else event.get("bytes"))
+            except MessageError as exc:
+                await self.error(str(exc))
+                continue
+            if message.type == "pause":  # at once, even while a call runs
+                self.playing = False
+                await self.send({"type": "playing", "playing": False})
+                continue
+            if len(self.pending) >= MAX_PENDING:
+                await self.error(f"{MAX_PENDING} requests are already waiting; wait for the plans before sending more")
+                continue
+            self.pending.append(message)
+            self.wake.set()
+
+    async def work(self) -> None:
+        while True:
+            if not self.pending:
+                if self.playing:
+                    await self.guarded(self.tick)
+                    await asyncio.sleep(PLAY_PAUSE_S)
+                    continue
+                self.wake.clear()
+                await self.wake.wait()
+                continue
+            message = self.pending.popleft()
+            if message.type == "steer" and any(m.type == "steer" for m in self.pending):
+                continue  # a newer sketch is waiting: skip the stale one
+            await self.guarded(self.handle, message)
+
+    async def guarded(self, fn: Callable[..., Any], *args: Any) -> None:
+        try:
+            await fn(*args)
+        except (SessionError, MessageError, ValueError, TypeError) as exc:
+            self.playing = False
+            await self.error(str(exc))
+        except WebSocketDisconnect:
+            raise
+        except Exception as exc:  # a bug must not take the server down: log it and tell the page
+            log.exception("steer-ui request failed")
+            self.playing = False
+            await self.error(f"internal error ({type(exc).__name__}: {exc})")
+
+    # -------------------------------------------------------------- requests
+    async def handle(self, message: Message) -> None:
+        session = self.session
+        assert session is not None
+        fields = message.fields
+        if message.type == "hello":
+            await self.send(await self.call(self.ready_payload))
+        elif message.type == "configure":
+            settings = await self.call(session.configure, **fields)
+            await self.send({"type": "settings", "settings": settings.as_dict()})
+        elif message.type == "reset":
+            self.playing = False
+            seed = fields.get("seed")
+            await self.call(session.reset, None if seed is None else integer(seed, "`seed`", low=0, high=2**31 - 1))
+            await self.send(await self.call(self.frame_payload, None, "reset"))
+        elif message.type == "steer":
+            started = time.perf_counter()
+            kind, points = fields["kind"], fields.get("points")
+            outcome = await self.call(session.steer_pixels, kind, points)
+            self.interaction = (kind, points)
+            await self.send(self.plans_payload(outcome, started))
+        elif message.type == "step":
+            await self.send(await self.call(self.step_payload))
+        elif message.type == "play":
+            self.playing = True
+            await self.send({"type": "playing", "playing": True})
+        elif message.type == "nudge":
+            to = fields["to"]
+            if not isinstance(to, list) or len(to) != 2:
+                raise MessageError(f"'to' must be a [u, v] pixel pair, got {str(to)[:80]}")
+            info = await self.call(session.nudge_pixel, to[0], to[1])
+            await self.send(await self.call(self.frame_payload, info, "nudge"))
+
+    async def tick(self) -> None:
+        session = self.session
+        assert session is not None
+        started = time.perf_counter()
+        kind, points = self.interaction
+        outcome = await self.call(session.steer_pixels, kind, points)
+        await self.send(self.plans_payload(outcome, started))
+        payload = await self.call(self.step_payload)
+        await self.send(payload)
+        if payload["done"]:
+            self.playing = False
+            await self.send({"type": "playing", "playing": False})
+
+    # -------------------------------------------------------------- payloads
+    def ready_payload(self) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        policy = session.policy
+        return {
+            **self.frame_payload(None, "ready"),
+            "type": "ready",
+            "env": self.app.config.env,
+            "policy": self.app.config.policy,
+            "samplers": list(SAMPLERS),
+            "diffusion": bool(hasattr(policy, "predict_noise")),
+            "max_batch": MAX_BATCH,
+            "horizon": int(policy.horizon) - int(getattr(policy, "exec_start", 0)),
+            "width": session.pixels.width,
+            "height": session.pixels.height,
+            "settings": session.settings.as_dict(),
+        }
+
+    def frame_payload(self, info: dict[str, Any] | None, why: str, executed: Any = None) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        encode = time.perf_counter()
+        png = base64.b64encode(session.frame_png()).decode("ascii")
+        info = info or {}
+        return {
+            "type": "frame",
+            "why": why,
+            "image": "data:image/png;base64," + png,
+            "agent": _pixels(session.pixels.to_pixels(session.state)),
+            "executed": [] if executed is None or len(executed) == 0 else _pixels(session.pixels.to_pixels(executed)),
+            "seed": session.seed,
+            "success": bool(info.get("success", False)),
+            "violation": bool(info.get("constraint_violation", False)),
+            "mode": str(info.get("mode_name", "")),
+            "done": session.done,
+            "encode_ms": (time.perf_counter() - encode) * 1e3,
+        }
+
+    def step_payload(self) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        step = session.execute()
+        payload = self.frame_payload(step.info, "step", step.executed[:, :2] if len(step.executed) else None)
+        payload["reward"] = step.reward
+        return payload
+
+    def plans_payload(self, outcome: SteerOutcome, started: float) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        self.counter += 1
+        interaction = outcome.interaction
+        drawn: list[Any] = []
+        if interaction is not None:
+            data = getattr(interaction, "points", None)
+            if data is None:
+                data = np.asarray(interaction.target)[None]  # type: ignore[union-attr]
+            drawn = _pixels(session.pixels.to_pixels(data))
+        costs = outcome.costs
+        payload: dict[str, Any] = {
+            "type": "plans",
+            "id": self.counter,
+            "sampler": outcome.settings.sampler if interaction is not None else "RS",
+            "kind": "none" if interaction is None else interaction.kind,
+            "plans": _pixels(session.pixels.to_pixels(outcome.plans)),
+            "chosen": outcome.chosen,
+            "collides": None if outcome.collides is None else [bool(c) for c in outcome.collides],
+            "costs": _finite_or_none(costs),
+            "interaction": drawn,
+            "timings": {**outcome.timings, "server_ms": (time.perf_counter() - started) * 1e3},
+        }
+        return payload
+
+
+@dataclass
+class _AppState:
+    config: UIConfig
+    pool: ThreadPoolExecutor
+    active: set[_Connection]
+
+
+def create_app(config: UIConfig | None = None) -> FastAPI:
+    """The steer-ui FastAPI app (serve it with uvicorn); loads the policy once, before the first connection."""
+    config = config or UIConfig()
+    integer(config.workers, "`workers`", low=1, high=64)
+    integer(config.max_sessions, "`max_sessions`", low=1, high=1024)
+    state = _AppState(config, ThreadPoolExecutor(config.workers, thread_name_prefix="steer-ui"), set())
+
+    @contextlib.asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        loop = asyncio.get_running_loop()
+        await loop.run_in_executor(state.pool, shared_policy, config.policy, config.checkpoint, config.accelerate)
+        try:
+            yield
+        finally:
+            state.pool.shutdown(wait=False, cancel_futures=True)
+
+    app = FastAPI(title="steer-ui", lifespan=lifespan, docs_url=None, redoc_url=None)
+    static = resources.files("steer_envs.ui") / "static"
+    app.mount("/static", StaticFiles(directory=str(static)), name="static")
+    index = (static / "index.html").read_text(encoding="utf-8")
+
+    @app.get("/", response_class=HTMLResponse)
+    async def page() -> HTMLResponse:
+        return HTMLResponse(index)
+
+    @app.get("/api/health")
+    async def health() -> JSONResponse:
+        return JSONResponse({"status": "ok", "sessions": len(state.active), "env": config.env})
+
+    @app.websocket("/ws")
+    async def steer_socket(websocket: WebSocket) -> None:
+        await _Connection(websocket, state).serve()
+
+    app.state.steer_ui = state
+    return app

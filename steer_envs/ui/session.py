@@ -1,0 +1,549 @@
+"""One person's steering loop, without a browser: an env, a frozen policy, a sampler and its knobs.
+
+A :class:`Session` is what ``steer-ui`` keeps per browser tab, and what a
+notebook or a test drives directly:
+
+>>> session = Session(policy=my_policy)                       # doctest: +SKIP
+>>> session.reset(seed=3)                                      # doctest: +SKIP
+>>> outcome = session.steer(Sketch([[2, 1], [2, 6], [5, 6]]))  # plans, costs, collisions, timings
+>>> session.execute()                                          # run the chosen plan in the env
+
+Interactions come in world coordinates (:meth:`Session.steer`) or as pixels of
+the rendered view (:meth:`Session.steer_pixels`, :meth:`Session.nudge_pixel`);
+:class:`PixelMap` converts between the two for any env with an affine
+``pixel_to_xy`` (the 2D views). A session is not thread-safe: one call at a time.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from steer_envs.core.env import PerturbableEnv
+from steer_envs.core.interaction import Point, Sketch
+from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
+from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
+from steer_envs.wrappers.samplers import (
+    MAX_MCMC_STEPS,
+    SAMPLERS,
+    OutputPerturbation,
+    Sampler,
+    make_sampler,
+    place_observation,
+)
+from steer_envs.wrappers.steering import policy_observation
+
+__all__ = [
+    "DEFAULT_ENV",
+    "MAX_BATCH",
+    "MAX_INPUT_POINTS",
+    "PixelMap",
+    "Session",
+    "SessionError",
+    "SteerOutcome",
+    "SteerSettings",
+    "StepOutcome",
+    "resample_by_arclength",
+    "shared_policy",
+]
+
+#: the env steer-ui opens by default (the one the shipped checkpoints plan in)
+DEFAULT_ENV = "steer_envs/Maze2D-Large-v0"
+#: the most plans one call may sample in the UI (a batch is drawn on the page)
+MAX_BATCH = 256
+#: the most mouse points one sketch may have before resampling
+MAX_INPUT_POINTS = 4096
+#: the sketch the samplers get: this many points, evenly spaced along the drawn path
+SKETCH_POINTS = 64
+#: guide ratios beyond this only saturate the plans (ITPS uses 20-60)
+MAX_GUIDE_RATIO = 10_000.0
+
+
+class SessionError(ValueError):
+    """A request the session cannot serve (bad interaction, wrong state); the message says why."""
+
+
+# ----------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class SteerSettings:
+    """The sampler and its knobs (thesis Table 2.1 defaults; ``None``: the sampler's own default).
+
+    Attributes:
+        sampler: ``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ``"GD"`` or ``"SS"``.
+        batch: plans sampled per call (ITPS: 32).
+        guide_ratio: ``beta`` of GD / SS (defaults 20 / 60).
+        mcmc_steps: SS's iterations per noise level (default 4).
+        execute: waypoints of the chosen plan one :meth:`Session.execute` runs (``None``: all).
+    """
+
+    sampler: str = "SS"
+    batch: int = 32
+    guide_ratio: float | None = None
+    mcmc_steps: int | None = None
+    execute: int | None = None
+
+    def checked(self) -> SteerSettings:
+        """These settings validated (``TypeError``/``ValueError`` naming the knob)."""
+        owner = "SteerSettings"
+        sampler = one_of(self.sampler, "sampler", tuple(SAMPLERS), owner=owner)
+        batch = integer(self.batch, "`batch`", low=1, high=MAX_BATCH)
+        ratio = None
+        if self.guide_ratio is not None:
+            ratio = real_scalar(self.guide_ratio, "guide_ratio", owner=owner)
+            if not 0.0 <= ratio <= MAX_GUIDE_RATIO:
+                raise ValueError(f"{owner}: `guide_ratio` must be in [0, {MAX_GUIDE_RATIO:g}], got {ratio!r}")
+        mcmc = None if self.mcmc_steps is None else integer(self.mcmc_steps, "`mcmc_steps`", low=1, high=MAX_MCMC_STEPS)
+        execute = None if self.execute is None else integer(self.execute, "`execute`", low=1)
+        return SteerSettings(sampler, batch, ratio, mcmc, execute)
+
+    def make_sampler(self) -> Sampler:
+        """A fresh sampler of these settings (knobs a sampler does not have are ignored)."""
+        kwargs: dict[str, Any] = {}
+        if self.sampler in ("GD", "SS") and self.guide_ratio is not None:
+            kwargs["guide_ratio"] = self.guide_ratio
+        if self.sampler == "SS" and self.mcmc_steps is not None:
+            kwargs["mcmc_steps"] = self.mcmc_steps
+        return make_sampler(self.sampler, **kwargs)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready settings."""
+        return {
+            "sampler": self.sampler,
+            "batch": self.batch,
+            "guide_ratio": self.guide_ratio,
+            "mcmc_steps": self.mcmc_steps,
+            "execute": self.execute,
+        }
+
+
+# ------------------------------------------------------------------- pixels
+@dataclass(frozen=True)
+class PixelMap:
+    """An affine map between image pixels ``(u = column, v = row)`` and world ``(x, y)`` of a 2D view.
+
+    Built by probing the env's ``pixel_to_xy`` at three pixels and checked at a
+    fourth, so any env whose view is an axis-aligned or rotated scaling works.
+    """
+
+    width: int
+    height: int
+    matrix: np.ndarray  # (2, 2): world = matrix @ [u, v] + offset
+    offset: np.ndarray
+
+    @classmethod
+    def from_env(cls, base: Any, width: int, height: int) -> PixelMap:
+        """Probe ``base.pixel_to_xy``; ``SessionError`` when the env has none or it is not affine."""
+        to_xy = getattr(base, "pixel_to_xy", None)
+        if not callable(to_xy):
+            raise SessionError(
+                f"{type(base).__name__} has no pixel_to_xy(u, v): steer-ui needs a 2D view it can map clicks into"
+            )
+        origin = np.asarray(to_xy(0.0, 0.0), dtype=np.float64)
+        du = np.asarray(to_xy(1.0, 0.0), dtype=np.float64) - origin
+        dv = np.asarray(to_xy(0.0, 1.0), dtype=np.float64) - origin
+        matrix = np.stack([du, dv], axis=1)
+        probe = np.asarray(to_xy(float(width), float(height)), dtype=np.float64)
+        if matrix.shape != (2, 2) or abs(np.linalg.det(matrix)) < 1e-12:
+            raise SessionError(f"{type(base).__name__}.pixel_to_xy is not an invertible 2D map")
+        if not np.allclose(matrix @ np.array([width, height]) + origin, probe, atol=1e-6):
+            raise SessionError(f"{type(base).__name__}.pixel_to_xy is not affine; steer-ui maps 2D views only")
+        return cls(int(width), int(height), matrix, origin)
+
+    def to_world(self, pixels: Any) -> np.ndarray:
+        """``(..., 2)`` pixels -> world points."""
+        return np.asarray(pixels, dtype=np.float64) @ self.matrix.T + self.offset
+
+    def to_pixels(self, points: Any) -> np.ndarray:
+        """``(..., 2)`` world points -> pixels (fractional)."""
+        return (np.asarray(points, dtype=np.float64) - self.offset) @ np.linalg.inv(self.matrix).T
+
+    def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
+        """``pixels`` as a finite ``(N, 2)`` array inside the image; ``ValueError`` naming ``name`` otherwise."""
+        arr = real_array(pixels, name, owner="steer-ui")
+        if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
+            raise SessionError(f"`{name}` must be a list of [u, v] pixel pairs, got shape {arr.shape}")
+        if len(arr) > MAX_INPUT_POINTS:
+            raise SessionError(f"`{name}` may hold at most {MAX_INPUT_POINTS} points, got {len(arr)}")
+        inside = (arr[:, 0] >= 0) & (arr[:, 0] <= self.width) & (arr[:, 1] >= 0) & (arr[:, 1] <= self.height)
+        if not inside.all():
+            bad = arr[~inside][0]
+            raise SessionError(
+                f"`{name}` must lie inside the {self.width}x{self.height} image, "
+                f"got a point at ({bad[0]:g}, {bad[1]:g})"
+            )
+        return arr
+
+
+def resample_by_arclength(points: Any, n: int) -> np.ndarray:
+    """``n`` points evenly spaced along the polyline ``points`` ``(G, d)`` (a mouse path drawn at any speed).
+
+    Repeated points are dropped first; a path of zero length gives ``SessionError``
+    (a click is a point, not a sketch).
+
+    >>> resample_by_arclength([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [1.0, 3.0]], 3).tolist()
+    [[0.0, 0.0], [1.0, 1.0], [1.0, 3.0]]
+    """
+    pts = real_array(points, "points", owner="resample_by_arclength")
+    n = integer(n, "`n`", low=2)
+    if pts.ndim != 2 or len(pts) == 0:
+        raise SessionError(f"`points` must have shape (G, d), got {pts.shape}")
+    keep = np.concatenate([[True], np.any(np.diff(pts, axis=0) != 0.0, axis=1)])
+    pts = pts[keep]
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    total = float(seg.sum())
+    if len(pts) < 2 or total <= 0.0:
+        raise SessionError("a sketch needs a path of non-zero length (for a single click, use a point)")
+    at = np.concatenate([[0.0], np.cumsum(seg)])
+    want = np.linspace(0.0, total, n)
+    return np.stack([np.interp(want, at, pts[:, k]) for k in range(pts.shape[1])], axis=1)
+
+
+# ----------------------------------------------------------------- policies
+_POLICIES: dict[tuple[str, str, str], TrajectoryPolicy] = {}
+_POLICIES_LOCK = threading.Lock()
+
+
+def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "trace") -> TrajectoryPolicy:
+    """The shipped Maze2D-Large ``kind`` policy (or ``checkpoint``), loaded once per process and shared.
+
+    ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"trace"``: the same
+    plans as eager, ~1.25x faster on a CPU); ACT ignores it.
+    """
+    from steer_envs.baselines.pretrained import load_checkpoint, load_pretrained
+
+    kind = one_of(kind, "policy", ("dp", "act"), owner="steer-ui")
+    accelerate = one_of(accelerate, "accelerate", ("none", "trace", "compile"), owner="steer-ui")
+    key = (kind, str(checkpoint or ""), accelerate)
+    with _POLICIES_LOCK:
+        policy = _POLICIES.get(key)
+        if policy is None:
+            policy = load_checkpoint(kind, checkpoint) if checkpoint else load_pretrained(kind)
+            speed_up = getattr(policy, "accelerate", None)
+            if callable(speed_up):
+                speed_up(accelerate)
+            _POLICIES[key] = policy
+        return policy
+
+
+class _NetworkClock:
+    """Adds up the wall time a policy spends in its network (``predict_noise``, ``encode_obs``, ``sample``)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def wrap(self, fn: Callable[..., Any]) -> Callable[..., Any]:
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.seconds += time.perf_counter() - t0
+
+        return timed
+
+
+def _session_view(policy: TrajectoryPolicy, clock: _NetworkClock) -> TrajectoryPolicy:
+    """A shallow copy of ``policy`` with its own scheduler (sessions share the weights, not the sampler state)."""
+    view = copy.copy(policy)
+    scheduler = getattr(policy, "scheduler", None)
+    if scheduler is not None:
+        view.scheduler = copy.deepcopy(scheduler)  # type: ignore[attr-defined]
+    if isinstance(policy, DiffusionPolicyLike):
+        for name in ("predict_noise", "encode_obs"):
+            setattr(view, name, clock.wrap(getattr(view, name)))
+    else:
+        view.sample = clock.wrap(view.sample)  # type: ignore[method-assign]
+    return view
+
+
+# ----------------------------------------------------------------- outcomes
+@dataclass
+class SteerOutcome:
+    """One steering call: the batch of plans and how it was made.
+
+    Attributes:
+        plans: ``(B, H, 2)`` plans in world units (the executed part: from the policy's ``exec_start``).
+        chosen: index of the plan the sampler selects.
+        costs: ``(B,)`` alignment cost of every plan (NaN unsteered).
+        collides: ``(B,)`` bool, a plan crosses a wall (``None`` when the env cannot tell).
+        interaction: the interaction in world units (a sketch resampled by arc length), or ``None``.
+        timings: ``network_ms`` (the policy's network), ``sampler_ms`` (the rest of the call),
+            ``total_ms``, ``network_evals``.
+        settings: the settings of the call.
+    """
+
+    plans: np.ndarray
+    chosen: int
+    costs: np.ndarray
+    collides: np.ndarray | None
+    interaction: Point | Sketch | None
+    timings: dict[str, float]
+    settings: SteerSettings
+
+    @property
+    def plan(self) -> np.ndarray:
+        """The chosen plan ``(H, 2)``."""
+        return self.plans[self.chosen]
+
+
+@dataclass
+class StepOutcome:
+    """What executing (part of) the chosen plan did."""
+
+    executed: np.ndarray
+    reward: float
+    terminated: bool
+    truncated: bool
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------ session
+class Session:
+    """An env, a frozen policy and steering settings: steer, look at the plans, execute, nudge.
+
+    Args:
+        env: a registered env id (default Maze2D-Large) or an env made with
+            ``render_mode="rgb_array"`` whose action is the next waypoint.
+        policy: ``"dp"`` / ``"act"`` (the shipped checkpoints, shared by all sessions of
+            the process) or any :class:`~steer_envs.core.policy.TrajectoryPolicy`.
+        checkpoint: a checkpoint file of ``policy`` (with a name only).
+        settings: the sampler and knobs (default SS, batch 32).
+        seed: the first reset's seed (start state and sampling noise).
+        env_kwargs: passed to ``gymnasium.make`` with an id (default for Maze2D: no goal).
+        accelerate: the network's inference mode for a named policy (``"trace"`` by default).
+    """
+
+    def __init__(
+        self,
+        env: str | gym.Env[Any, Any] = DEFAULT_ENV,
+        policy: str | TrajectoryPolicy = "dp",
+        *,
+        checkpoint: str | None = None,
+        settings: SteerSettings | None = None,
+        seed: int = 0,
+        env_kwargs: Mapping[str, Any] | None = None,
+        accelerate: str = "trace",
+    ) -> None:
+        if isinstance(policy, str):
+            shared = shared_policy(policy, checkpoint, accelerate)
+        elif isinstance(policy, TrajectoryPolicy):
+            if checkpoint is not None:
+                raise TypeError("Session: `checkpoint` goes with a policy name ('dp' or 'act'), not a policy object")
+            shared = policy
+        else:
+            raise TypeError(f"Session: `policy` must be 'dp', 'act' or a TrajectoryPolicy, got {describe(policy)}")
+        self.settings = (settings or SteerSettings()).checked()
+        self._clock = _NetworkClock()
+        self.policy = _session_view(shared, self._clock)
+        if isinstance(env, str):
+            kwargs = dict(env_kwargs or {})
+            if env.startswith("steer_envs/Maze2D"):
+                kwargs.setdefault("sample_goal", False)
+            self.env: gym.Env[Any, Any] = gym.make(env, render_mode="rgb_array", **kwargs)
+        elif isinstance(env, gym.Env):
+            if env_kwargs:
+                raise TypeError("Session: `env_kwargs` goes with an env id, not an env object")
+            self.env = env
+        else:
+            raise TypeError(f"Session: `env` must be an env id or a gymnasium.Env, got {describe(env)}")
+        box = self.env.action_space
+        if not isinstance(box, gym.spaces.Box) or box.shape != (int(self.policy.action_dim),):
+            raise SessionError(
+                f"the env's action space must be a Box of shape ({self.policy.action_dim},) like the policy's plans, "
+                f"got {box}"
+            )
+        self._box = box
+        self._sampler = self.settings.make_sampler()
+        self._history: list[Any] = []
+        self._rng = np.random.default_rng(0)
+        self._last: SteerOutcome | None = None
+        self._done = False
+        self._seed = integer(seed, "`seed`", low=0)
+        self.reset(seed=self._seed)
+        image = self.frame()
+        self.pixels = PixelMap.from_env(self.env.unwrapped, image.shape[1], image.shape[0])
+
+    # -------------------------------------------------------------- state
+    @property
+    def seed(self) -> int:
+        """The seed of the last reset."""
+        return self._seed
+
+    @property
+    def state(self) -> np.ndarray:
+        """The agent's world position."""
+        return np.asarray(getattr(self.env.unwrapped, "state", self._history[-1]), dtype=np.float64)[:2].copy()
+
+    @property
+    def last(self) -> SteerOutcome | None:
+        """The latest steering outcome not yet executed (``None`` after a step, nudge or reset)."""
+        return self._last
+
+    @property
+    def done(self) -> bool:
+        """The episode ended (terminated or truncated): :meth:`reset` to go on."""
+        return self._done
+
+    def configure(self, **knobs: Any) -> SteerSettings:
+        """Change sampler / knobs (``SteerSettings`` fields); unknown names give ``TypeError``."""
+        unknown = sorted(set(knobs) - set(SteerSettings.__dataclass_fields__))
+        if unknown:
+            raise TypeError(
+                f"Session.configure: unknown knob(s) {unknown}; known: {list(SteerSettings.__dataclass_fields__)}"
+            )
+        settings = replace(self.settings, **knobs).checked()
+        sampler = settings.make_sampler()
+        sampler._check_policy(self.policy)  # BI/GD/SS need a diffusion policy: refuse here, not at the next call
+        self.settings, self._sampler = settings, sampler
+        return settings
+
+    def reset(self, seed: int | None = None) -> dict[str, Any]:
+        """Reset the env (``seed``: start state and sampling noise); returns the env's info."""
+        if seed is not None:
+            self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
+        obs, info = self.env.reset(seed=self._seed)
+        self._rng = np.random.default_rng(np.random.SeedSequence([self._seed, 0x5E55]))
+        self._history = [obs]
+        self._last = None
+        self._done = False
+        return dict(info)
+
+    # ------------------------------------------------------------ steering
+    def steer(self, interaction: Point | Sketch | None) -> SteerOutcome:
+        """Sample a batch of plans from the current state, steered by ``interaction`` (``None``: unsteered)."""
+        if interaction is not None and not isinstance(interaction, Point | Sketch):
+            raise TypeError(
+                f"Session.steer: `interaction` must be a Point, Sketch or None, got {describe(interaction)}"
+            )
+        if self._done:
+            raise SessionError("the episode has ended: reset to steer again")
+        sampler = self._sampler if interaction is not None else make_sampler("RS")
+        if isinstance(sampler, OutputPerturbation):
+            if not isinstance(interaction, Sketch):
+                raise SessionError("OP moves the agent onto a sketch: draw a sketch (a point does not work with OP)")
+            is_wall = getattr(self.env.unwrapped, "is_wall", None)
+            if sampler.collides is None and callable(is_wall):
+                sampler = OutputPerturbation(sampler.index, collides=is_wall, obs_at=sampler.obs_at)
+        obs = policy_observation(self.policy, self._history)
+        self._clock.seconds = 0.0
+        try:
+            result = sampler(self.policy, obs, interaction, self.settings.batch, generator=self._rng)
+        except TypeError as exc:  # e.g. BI/GD/SS with a policy that has no denoiser
+            raise SessionError(str(exc)) from exc
+        start = int(getattr(self.policy, "exec_start", 0))
+        plans = np.asarray(result.plans, dtype=np.float64)[:, start:, :2]
+        collide = getattr(self.env.unwrapped, "plan_collides", None)
+        total = float(result.timings.get("total_ms", float("nan")))
+        network = self._clock.seconds * 1e3
+        timings = {
+            "network_ms": network,
+            "sampler_ms": max(0.0, total - network),
+            "total_ms": total,
+            "network_evals": float(result.timings.get("network_evals", 0.0)),
+        }
+        outcome = SteerOutcome(
+            plans=plans,
+            chosen=int(result.chosen),
+            costs=np.asarray(result.costs, dtype=np.float64),
+            collides=np.asarray(collide(plans), dtype=bool) if callable(collide) else None,
+            interaction=interaction,
+            timings=timings,
+            settings=self.settings,
+        )
+        outcome._perturbed_state = result.perturbed_state  # type: ignore[attr-defined]
+        self._last = outcome
+        return outcome
+
+    def steer_pixels(self, kind: str, pixels: Any) -> SteerOutcome:
+        """Steer with mouse input on the rendered view: ``kind`` ``"sketch"`` (a path), ``"point"`` or ``"none"``."""
+        kind = one_of(kind, "kind", ("sketch", "point", "none"), owner="Session.steer_pixels")
+        if kind == "none":
+            return self.steer(None)
+        arr = self.pixels.check_pixels(pixels, "points")
+        world = self.pixels.to_world(arr)
+        if kind == "point":
+            if len(world) != 1:
+                raise SessionError(f"a point is one [u, v] pair, got {len(world)} points")
+            return self.steer(Point(world[0]))
+        return self.steer(Sketch(resample_by_arclength(world, SKETCH_POINTS)))
+
+    # ------------------------------------------------------------ execution
+    def execute(self) -> StepOutcome:
+        """Run the chosen plan of the last :meth:`steer` (unsteered if none) in the env; the plans then expire."""
+        if self._done:
+            raise SessionError("the episode has ended: reset to go on")
+        outcome = self._last if self._last is not None else self.steer(None)
+        perturbed = getattr(outcome, "_perturbed_state", None)
+        if perturbed is not None:  # OP moved the agent onto the sketch before sampling
+            self._perturbable().perturb(to=perturbed)
+            self._history.append(place_observation(self._history[-1], self.state))
+        plan = outcome.plan
+        if self.settings.execute is not None:
+            plan = plan[: self.settings.execute]
+        reward, terminated, truncated = 0.0, False, False
+        info: dict[str, Any] = {}
+        executed: list[np.ndarray] = []
+        for waypoint in plan:
+            action = np.clip(waypoint, self._box.low, self._box.high).astype(self._box.dtype)
+            obs, r, terminated, truncated, info = self.env.step(action)
+            executed.append(action)
+            self._history.append(obs)
+            reward += float(r)
+            if terminated or truncated:
+                break
+        keep = max(2, int(getattr(self.policy, "n_obs_steps", 1)))
+        self._history = self._history[-keep:]
+        self._last = None
+        self._done = bool(terminated or truncated)
+        return StepOutcome(np.asarray(executed), reward, bool(terminated), bool(truncated), dict(info))
+
+    def nudge(self, to: Any) -> dict[str, Any]:
+        """Move the agent to world point ``to`` (a physical correction through ``perturb``); plans expire."""
+        target = real_array(to, "to", owner="Session.nudge")
+        if target.shape != (2,):
+            raise SessionError(f"`to` must be a world point [x, y], got shape {target.shape}")
+        if self._done:
+            raise SessionError("the episode has ended: reset to go on")
+        info = self._perturbable().perturb(to=target)
+        self._history.append(place_observation(self._history[-1], self.state))
+        self._last = None
+        return dict(info)
+
+    def nudge_pixel(self, u: Any, v: Any) -> dict[str, Any]:
+        """:meth:`nudge` to the world point under pixel ``(u, v)`` of the view."""
+        pixel = self.pixels.check_pixels([[u, v]], "to")
+        return self.nudge(self.pixels.to_world(pixel)[0])
+
+    def _perturbable(self) -> PerturbableEnv:
+        base = self.env.unwrapped
+        if not isinstance(base, PerturbableEnv):
+            raise SessionError(f"{type(base).__name__} cannot be nudged (it has no perturb())")
+        return base
+
+    # ------------------------------------------------------------- drawing
+    def frame(self) -> np.ndarray:
+        """The env's rendered view ``(H, W, 3)`` uint8 (walls, trail, agent)."""
+        image = self.env.render()
+        if not isinstance(image, np.ndarray) or image.ndim != 3:
+            raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+        return image
+
+    def frame_png(self) -> bytes:
+        """:meth:`frame` as PNG bytes."""
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(self.frame()).save(buffer, format="PNG", optimize=False, compress_level=1)
+        return buffer.getvalue()
+
+    def close(self) -> None:
+        """Close the env."""
+        self.env.close()
