@@ -87,6 +87,12 @@ class TaskSpec:
         ltl: optional LTL text (Spot syntax) of the task specification.
         ltl_variants: optional named alternative specifications (e.g. the
             cooking re-taskings ``phi_cb``, ``phi_bc``...).
+        labels: optional descriptive name of each mode, in ``modes`` order (e.g.
+            SoupScoop's ``reach``, ``scoop``, ``transport``, ``done`` for the thesis's
+            ``a``-``d``). The mode names stay the ids (``info["mode_name"]``, LTL
+            specs); everywhere a mode is looked up (:meth:`mode_index`,
+            :meth:`is_allowed`, :meth:`shortest_plan`, ...) a label is accepted as an
+            alias of its mode, and :meth:`label_of` gives it. Default: the mode names.
 
     Bad input (duplicate or unknown modes, unknown APs) raises ``ValueError``;
     names that are not non-empty strings raise ``TypeError``. A ``goal`` given
@@ -106,6 +112,9 @@ class TaskSpec:
     array([[ 0.,  0., -1.],
            [-1.,  0.,  0.],
            [ 0., -1.,  0.]])
+    >>> letters = TaskSpec.linear("soup", "abcd", labels=("reach", "scoop", "transport", "done"))
+    >>> letters.mode_index("scoop"), letters.label_of("c"), letters.shortest_plan("reach")
+    (1, 'transport', ['a', 'b', 'c', 'd'])
     """
 
     name: str
@@ -117,6 +126,7 @@ class TaskSpec:
     goal: tuple[str, ...] = ()
     ltl: str | None = None
     ltl_variants: Mapping[str, str] = field(default_factory=dict, hash=False)
+    labels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -170,6 +180,15 @@ class TaskSpec:
         if self.ltl is not None and not isinstance(self.ltl, str):
             raise TypeError(f"TaskSpec: `ltl` must be LTL text (str) or None, got {describe(self.ltl)}")
         object.__setattr__(self, "ltl_variants", dict(self.ltl_variants))
+        labels = modes if self.labels is None or self.labels == () else _names(self.labels, "labels")
+        if len(labels) != len(modes):
+            raise ValueError(f"TaskSpec: `labels` must name each of the {len(modes)} modes, got {len(labels)} labels")
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"TaskSpec: `labels` has duplicates: {labels}")
+        for i, label in enumerate(labels):
+            if label in modes and modes.index(label) != i:
+                raise ValueError(f"TaskSpec: label {label!r} of mode {modes[i]!r} is the name of another mode")
+        object.__setattr__(self, "labels", labels)
 
     # ------------------------------------------------------------------ modes
     @property
@@ -177,14 +196,21 @@ class TaskSpec:
         return len(self.modes)
 
     def mode_index(self, mode: str | int) -> int:
-        """Index of a mode given by name or index (validated)."""
+        """Index of a mode given by name, label or index (validated)."""
         if isinstance(mode, (int, np.integer)) and not isinstance(mode, bool):
             if not 0 <= int(mode) < self.num_modes:
                 raise ValueError(f"mode index must be in [0, {self.num_modes}), got {mode}")
             return int(mode)
-        if mode not in self.modes:
-            raise ValueError(f"unknown mode {mode!r}; expected one of {self.modes}")
-        return self.modes.index(mode)
+        if mode in self.modes:
+            return self.modes.index(mode)
+        if isinstance(mode, str) and mode in self.labels:
+            return self.labels.index(mode)
+        aliases = "" if self.labels == self.modes else f" or a label of {self.labels}"
+        raise ValueError(f"unknown mode {mode!r}; expected one of {self.modes}{aliases}")
+
+    def label_of(self, mode: str | int) -> str:
+        """The descriptive label of a mode given by name, label or index (see ``labels``)."""
+        return self.labels[self.mode_index(mode)]
 
     def mode_of(self, sensors: Mapping[str, bool] | Iterable[str]) -> str:
         """The mode labelled by a sensor reading (thesis: sigma = L(alpha))."""

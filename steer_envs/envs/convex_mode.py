@@ -12,6 +12,31 @@ The geometry is a pure function of ``layout_seed`` (``gym.make(id,
 layout_seed=7)``), independent of the reset seed that draws start states.
 :func:`convex_halfspaces` and :func:`in_halfspaces` are the batched
 point-in-convex-polygon test the domain (and PolygonNav) uses.
+
+Description
+    See above; the mode names (``task.modes``) are descriptive already.
+
+Observation
+    ``Box(float32)``: the agent's ``(x1, x2)`` in the workspace (``x1`` right, ``x2`` up, as plotted);
+    with ``observe_sensors=True`` followed by the sensor APs ``in_mode`` as 0/1.
+
+Action
+    ``Box(-20, 20, (2,), float32)``: a velocity, ``x' = x + 0.01 u`` with ``|u|`` clipped to 20;
+    ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 20.
+
+Rewards
+    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
+    ``"dense"``: the sparse reward plus ``10 * (phi(s') - phi(s))`` and -10 per violation, ``phi(s) =
+    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
+    ``KinematicTaskModel.potential``): stage 1 at success, else 0, sub-goal = the attractor (``phi =
+    -1`` once the agent has left the mode: success is then out of reach).
+
+Termination
+    On success (within 0.4 of the attractor, never having left the mode) and, with the default
+    ``terminate_on_violation=True``, on leaving the mode; truncation at 1000 steps (registered).
+
+Registered ids
+    ``steer_envs/ConvexMode-v0``, ``steer_envs/ConvexModeDense-v0`` (``reward_type="dense"``).
 """
 
 from __future__ import annotations
@@ -24,7 +49,7 @@ from shapely.geometry.polygon import orient
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -220,6 +245,16 @@ class ConvexModeModel(KinematicTaskModel):
             success=inside & near & (memory[:, 0] == 0),
         )
 
+    num_stages = 1
+
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stage 1 at success, else 0; sub-goal = the attractor (the diagonal once the agent has left the mode)."""
+        success = self.read(memory, pos).success
+        distance = np.linalg.norm(np.asarray(pos, dtype=np.float64).reshape(-1, 2) - self.attractor, axis=1)
+        failed = memory[:, 0] != 0
+        distance = np.where(success, 0.0, np.where(failed, self.diagonal, distance))
+        return success.astype(np.int64), distance
+
     def trajectory_success(self, xy: np.ndarray) -> bool:
         """The env's success rule on a whole path ``(T, 2)`` (e.g. a demo or a replay)."""
         xy = np.asarray(xy, dtype=np.float64)
@@ -268,6 +303,9 @@ class ConvexModeEnv(Kinematic2DEnv):
         max_speed: float = 20.0,
         render_mode: str | None = None,
         render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         super().__init__(
             ConvexModeModel(layout_seed=layout_seed, start_noise=start_noise),
@@ -276,6 +314,9 @@ class ConvexModeEnv(Kinematic2DEnv):
             terminate_on_violation=terminate_on_violation,
             render_mode=render_mode,
             render_size=render_size,
+            reward_type=reward_type,
+            observe_sensors=observe_sensors,
+            normalize_actions=normalize_actions,
         )
         self.model: ConvexModeModel
 

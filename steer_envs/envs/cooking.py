@@ -65,6 +65,36 @@ delivering, spilling, entering/leaving the pot); the plan chicken-first is
 ``w0 y0 dc wc gc done`` or, through the pot, ``w0 y0 dc gc done``.
 
 Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10`` (as SoupScoop).
+
+Description
+    See above. The modes keep their short ids (``w0``, ``y0``, ``dc``, ...: ``info["mode_name"]``);
+    ``task.labels`` (:data:`MODE_LABELS`) spell them out, e.g. ``w0`` = ``empty_spoon``, ``y0`` =
+    ``carry_chicken``, ``dc`` = ``spoon_in_pot_chicken_done``, ``wc`` = ``empty_spoon_chicken_done``,
+    ``gc`` = ``carry_broccoli_chicken_done``; either name is accepted wherever a mode is looked up.
+
+Observation
+    ``Box(float32)``: the agent's ``(x1, x2)`` in the workspace (``x1`` right, ``x2`` up, as plotted);
+    with ``observe_sensors=True`` followed by the sensor APs ``hc``, ``hb``, ``p``, ``ch``, ``br`` as
+    0/1. The pot contents (``ch``, ``br``) and the spoon's load are task memory: observe them this way.
+
+Action
+    ``Box(-10, 10, (2,), float32)``: a velocity, ``x' = x + 0.01 u`` with ``|u|`` clipped to 10;
+    ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
+
+Rewards
+    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
+    ``"dense"``: the sparse reward plus ``10 * (phi(s') - phi(s))`` and -10 per violation, ``phi(s) =
+    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
+    ``KinematicTaskModel.potential``): stage = 2 x foods in the pot + 1 while holding a food still to
+    deliver, sub-goal = the pot's entry from the held food's corridor, else the nearest loading point of
+    a food not yet in the pot.
+
+Termination
+    On success (both foods in the pot). Spills are reported, never terminal; truncation at 2000 steps
+    (registered).
+
+Registered ids
+    ``steer_envs/Cooking-v0``, ``steer_envs/CookingDense-v0`` (``reward_type="dense"``).
 """
 
 from __future__ import annotations
@@ -75,7 +105,7 @@ import numpy as np
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import one_of
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -130,6 +160,11 @@ SENSORS: tuple[str, ...] = ("hc", "hb", "p", "ch", "br")
 _SPOON_LETTERS = ("w", "y", "g", "d")
 _POT_SUFFIXES = ("0", "c", "b")
 MODES: tuple[str, ...] = (*(s + p for p in _POT_SUFFIXES for s in _SPOON_LETTERS), "done")
+_SPOON_LABELS = ("empty_spoon", "carry_chicken", "carry_broccoli", "spoon_in_pot")
+_POT_LABELS = ("", "_chicken_done", "_broccoli_done")
+#: descriptive labels of :data:`MODES` (aliases of the thesis-style names), e.g. ``y0`` = ``carry_chicken``,
+#: ``gc`` = ``carry_broccoli_chicken_done`` (broccoli on the spoon, chicken already in the pot).
+MODE_LABELS: tuple[str, ...] = (*(s + p for p in _POT_LABELS for s in _SPOON_LABELS), "done")
 DONE = len(MODES) - 1
 
 
@@ -158,6 +193,7 @@ def _cooking_task() -> TaskSpec:
         transitions=frozenset(transitions),
         initial="w0",
         goal=("done",),
+        labels=MODE_LABELS,
     )
 
 
@@ -240,6 +276,31 @@ class CookingModel(KinematicTaskModel):
         mode = np.where(done, DONE, 4 * suffix + letter)
         return TaskReading(mode=mode.astype(np.int64), sensors=np.stack([hc, hb, p, ch, br], axis=1), success=done)
 
+    num_stages = 4
+
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stage = 2 x foods in the pot + 1 while holding a food still to deliver; sub-goal = the pot's
+        entry from the held food's corridor (``"y->d"``, ``"g->d"``) or, with an empty spoon, the nearest
+        loading point (``"w->y"``, ``"d->y"``, ``"w->g"``, ``"d->g"``) of a food not yet in the pot."""
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
+        spoon, ch, br = memory[:, 0], memory[:, 1] == 1, memory[:, 2] == 1
+        att = self.attractors
+
+        def dist(name: str) -> np.ndarray:
+            return np.linalg.norm(p - att[name], axis=1)
+
+        load_chicken = np.where(ch, np.inf, np.minimum(dist("w->y"), dist("d->y")))
+        load_broccoli = np.where(br, np.inf, np.minimum(dist("w->g"), dist("d->g")))
+        distance = np.where(
+            spoon == CHICKEN,
+            dist("y->d"),
+            np.where(spoon == BROCCOLI, dist("g->d"), np.minimum(load_chicken, load_broccoli)),
+        )
+        holding_new = ((spoon == CHICKEN) & ~ch) | ((spoon == BROCCOLI) & ~br)
+        stage = 2 * (ch.astype(np.int64) + br.astype(np.int64)) + holding_new.astype(np.int64)
+        done = ch & br
+        return np.where(done, self.num_stages, stage), np.where(done, 0.0, distance)
+
     def draw(self, canvas: Canvas) -> None:
         x0, y0, x1, y1 = self.rects["dark"]
         canvas.polyline(np.array([[x0, y1], [x0, y0], [x1, y0], [x1, y1]]), (40, 40, 40), thickness=2)
@@ -270,6 +331,9 @@ class CookingEnv(Kinematic2DEnv):
         max_speed: float = 10.0,
         render_mode: str | None = None,
         render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         super().__init__(
             CookingModel(),
@@ -278,6 +342,9 @@ class CookingEnv(Kinematic2DEnv):
             terminate_on_violation=False,
             render_mode=render_mode,
             render_size=render_size,
+            reward_type=reward_type,
+            observe_sensors=observe_sensors,
+            normalize_actions=normalize_actions,
         )
         self.model: CookingModel
 
@@ -289,6 +356,7 @@ __all__ = [
     "FOODS",
     "MODES",
     "MODE_AP_FORMULAS",
+    "MODE_LABELS",
     "RECTS",
     "REGION_NAMES",
     "SENSORS",

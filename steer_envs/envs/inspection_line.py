@@ -25,6 +25,31 @@ end-effector is at the release station). Modes (the thesis's two, plus the
 goal): ``reach_entry`` (``!l``), ``inspect`` (``l & !r``), ``released`` (``l & r``).
 
 Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10``.
+
+Description
+    See above; the mode names (``task.modes``) are descriptive already.
+
+Observation
+    ``Box(float32)``: the agent's ``(x1, x2)`` in the workspace (``x1`` right, ``x2`` up, as plotted);
+    with ``observe_sensors=True`` followed by the sensor APs ``l``, ``r`` as 0/1.
+
+Action
+    ``Box(-10, 10, (2,), float32)``: a velocity, ``x' = x + 0.01 u`` with ``|u|`` clipped to 10;
+    ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
+
+Rewards
+    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
+    ``"dense"``: the sparse reward plus ``10 * (phi(s') - phi(s))`` and -10 per violation, ``phi(s) =
+    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
+    ``KinematicTaskModel.potential``): stage = the mode (reach_entry 0, inspect 1, released 2), sub-goal
+    = the entry's centre ``(-4.5, 0)``, then ``(4.5, 0)`` just inside the release station.
+
+Termination
+    On success (released after the inspection). Violations are reported, never terminal; truncation at
+    1000 steps (registered).
+
+Registered ids
+    ``steer_envs/InspectionLine-v0``, ``steer_envs/InspectionLineDense-v0`` (``reward_type="dense"``).
 """
 
 from __future__ import annotations
@@ -34,7 +59,7 @@ from types import MappingProxyType
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 WORKSPACE_HALF_WIDTH = 8.0
@@ -119,6 +144,17 @@ class InspectionLineModel(KinematicTaskModel):
         mode = np.where(released, RELEASED, np.where(on, INSPECT, REACH))
         return TaskReading(mode=mode.astype(np.int64), sensors=np.stack([on, at_station], axis=1), success=released)
 
+    num_stages = 2
+    #: sub-goals of the dense reward: the entry's centre, then just inside the release station.
+    SUBGOALS = np.array([[-4.5, 0.0], [4.5, 0.0]])
+
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stage = the mode (reach_entry 0, inspect 1, released 2); sub-goal = the entry, then the station."""
+        mode = self.read(memory, pos).mode
+        goal = self.SUBGOALS[np.minimum(mode, 1)]
+        distance = np.linalg.norm(np.asarray(pos, dtype=np.float64).reshape(-1, 2) - goal, axis=1)
+        return mode, np.where(mode == RELEASED, 0.0, distance)
+
     def draw(self, canvas: Canvas) -> None:
         x0, _, x1, _ = self.rects["track"]
         canvas.polyline(np.array([[x0, 0.0], [x1, 0.0]]), (40, 40, 40), thickness=1)
@@ -143,7 +179,14 @@ class InspectionLineEnv(Kinematic2DEnv):
     """
 
     def __init__(
-        self, dt: float = 0.01, max_speed: float = 10.0, render_mode: str | None = None, render_size: int = 256
+        self,
+        dt: float = 0.01,
+        max_speed: float = 10.0,
+        render_mode: str | None = None,
+        render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         super().__init__(
             InspectionLineModel(),
@@ -152,6 +195,9 @@ class InspectionLineEnv(Kinematic2DEnv):
             terminate_on_violation=False,
             render_mode=render_mode,
             render_size=render_size,
+            reward_type=reward_type,
+            observe_sensors=observe_sensors,
+            normalize_actions=normalize_actions,
         )
         self.model: InspectionLineModel
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -36,6 +36,12 @@ MAX_NUM_ENVS = 1_000_000
 #: action space's float32 bounds overflow
 MAX_DT = 1e3
 MAX_SPEED = 1e6
+#: accepted ``reward_type`` values (Gymnasium-Robotics' names): ``"sparse"`` (the default) or ``"dense"``.
+REWARD_TYPES: tuple[str, ...] = ("sparse", "dense")
+RewardType = Literal["sparse", "dense"]
+#: dense reward: the reward of one mode advanced (the potential's unit, see :meth:`KinematicTaskModel.potential`);
+#: a constraint violation costs the same.
+DENSE_REWARD_SCALE = 10.0
 
 
 @dataclass
@@ -92,6 +98,29 @@ class KinematicTaskModel(ABC):
     def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
         """Mode, sensor APs and success for agents at ``pos`` with ``memory``."""
 
+    #: mode advances from the start to the goal along the task's plan (the stages of :meth:`progress`).
+    num_stages: int = 1
+
+    @abstractmethod
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How far each agent is through the task, for the dense reward.
+
+        Returns ``(stage, distance)``: ``stage`` ``(N,)`` int in ``[0, num_stages]``, the
+        number of modes advanced along the task's plan (``num_stages`` at the
+        goal); ``distance`` ``(N,)`` float, the distance to the current stage's
+        sub-goal (0 at the goal; the workspace diagonal after an unrecoverable failure).
+        """
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the workspace diagonal: distances of the dense reward are measured in it."""
+        return float(np.linalg.norm(np.asarray(self.high) - np.asarray(self.low)))
+
+    def potential(self, memory: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Dense-reward potential ``stage - min(distance / diagonal, 1)``, ``(N,)`` float in ``[-1, num_stages]``."""
+        stage, distance = self.progress(memory, pos)
+        return stage.astype(np.float64) - np.minimum(np.asarray(distance, dtype=np.float64) / self.diagonal, 1.0)
+
     def teleport(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Task memory after an external displacement (``perturb``).
 
@@ -108,14 +137,30 @@ class KinematicTaskModel(ABC):
 class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     """Gymnasium env around a :class:`KinematicTaskModel` (one agent).
 
-    Observation: the agent's xy (float32). Action: a velocity (float32), whose
-    norm is clipped to ``max_speed``. ``info`` carries ``mode`` (int),
-    ``mode_name``, ``sensors`` (AP -> bool), ``success`` and
-    ``constraint_violation``. Reward: +1 on success, -1 on a violation, else 0.
+    Observation: the agent's xy (float32); with ``observe_sensors=True`` followed
+    by the task's sensor APs as 0/1 (``task.sensors`` order), which makes task
+    memory such as "soup on the spoon" observable. Action: a velocity
+    (float32), whose norm is clipped to ``max_speed``; with
+    ``normalize_actions=True`` the action space is ``[-1, 1]^2`` and the
+    velocity is ``max_speed * action``. ``info`` carries ``mode`` (int),
+    ``mode_name``, ``sensors`` (AP -> bool), ``success`` (and ``is_success``) and
+    ``constraint_violation``.
+
+    Reward (``reward_type``): ``"sparse"`` (default) +1 on success, -1 on a
+    violation, else 0. ``"dense"``: the sparse reward plus potential-based
+    shaping, ``DENSE_REWARD_SCALE * (phi(s') - phi(s))`` with ``phi = stage -
+    min(distance / diagonal, 1)`` (:meth:`KinematicTaskModel.potential`: modes
+    advanced along the task's plan, minus the distance to the current mode's
+    sub-goal in workspace diagonals), and a violation costs another
+    ``DENSE_REWARD_SCALE``. So each mode advanced earns ``DENSE_REWARD_SCALE``
+    (a mode lost costs as much), moving toward the sub-goal earns a little
+    every step, and the shaping of a whole episode telescopes (it cannot be
+    farmed by going back and forth).
 
     Accepted inputs (anything else raises ``TypeError`` for the wrong kind,
     ``ValueError`` for a wrong value, naming the argument): ``dt`` and
-    ``max_speed`` positive finite reals (at most :data:`MAX_DT` / :data:`MAX_SPEED`); ``terminate_on_violation`` a bool;
+    ``max_speed`` positive finite reals (at most :data:`MAX_DT` / :data:`MAX_SPEED`); ``terminate_on_violation``,
+    ``observe_sensors`` and ``normalize_actions`` bools; ``reward_type`` ``"sparse"`` or ``"dense"``;
     ``render_mode`` ``None`` or ``"rgb_array"``; ``render_size`` an int in
     :data:`RENDER_SIZE_RANGE`. Actions, ``perturb`` displacements/targets and
     ``options["state"]`` are arrays of 2 finite real numbers (lists, numpy
@@ -137,6 +182,9 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         terminate_on_violation: bool,
         render_mode: str | None = None,
         render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         owner = type(self).__name__
         if not isinstance(model, KinematicTaskModel):
@@ -147,12 +195,19 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
         low, high = RENDER_SIZE_RANGE
         self.render_size = integer(render_size, "render_size", low=low, high=high, owner=owner)
+        self.reward_type: RewardType = check_reward_type(reward_type, owner)
+        self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
+        self.normalize_actions = boolean(normalize_actions, "normalize_actions", owner=owner)
         self.model = model
         self.task: TaskSpec = model.task
-        self.observation_space = spaces.Box(
-            model.low.astype(np.float32), model.high.astype(np.float32), dtype=np.float32
-        )
-        self.action_space = spaces.Box(-self.max_speed, self.max_speed, shape=(2,), dtype=np.float32)
+        obs_low, obs_high = model.low.astype(np.float32), model.high.astype(np.float32)
+        if self.observe_sensors:
+            k = len(model.task.sensors)
+            obs_low = np.concatenate([obs_low, np.zeros(k, dtype=np.float32)])
+            obs_high = np.concatenate([obs_high, np.ones(k, dtype=np.float32)])
+        self.observation_space = spaces.Box(obs_low, obs_high, dtype=np.float32)
+        bound = 1.0 if self.normalize_actions else self.max_speed
+        self.action_space = spaces.Box(-bound, bound, shape=(2,), dtype=np.float32)
         self._pos = np.zeros((1, 2))
         self._memory = np.zeros((1, model.memory_size), dtype=np.int64)
         self._trail: list[np.ndarray] = []
@@ -179,7 +234,22 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         }
 
     def _obs(self) -> np.ndarray:
-        return self._pos[0].astype(np.float32)
+        sensors = self.model.read(self._memory, self._pos).sensors if self.observe_sensors else None
+        return observe(self._pos, sensors)[0]
+
+    def velocity_of(self, actions: np.ndarray) -> np.ndarray:
+        """The velocities ``(..., 2)`` that actions ask for: scaled by ``max_speed`` if normalised, speed clipped."""
+        return _clip_speed(actions * self.max_speed if self.normalize_actions else actions, self.max_speed)
+
+    def rewards(
+        self, success: np.ndarray, violation: np.ndarray, potential_before: np.ndarray, potential_after: np.ndarray
+    ) -> np.ndarray:
+        """Batched rewards of this env's ``reward_type`` (see the class docstring), ``(N,)`` float64."""
+        sparse = np.where(success, 1.0, np.where(violation, -1.0, 0.0))
+        if self.reward_type == "sparse":
+            return sparse
+        shaping = DENSE_REWARD_SCALE * (potential_after - potential_before)
+        return sparse + shaping - DENSE_REWARD_SCALE * violation.astype(np.float64)
 
     # ------------------------------------------------------------------- API
     def reset(
@@ -203,13 +273,17 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Move by ``dt * action``; the action (2 finite reals) is clipped to speed ``max_speed``."""
-        velocity = _clip_speed(_check_action(action, self.action_space, f"{type(self).__name__}.step"), self.max_speed)
-        prev = self._pos
+        velocity = self.velocity_of(_check_action(action, self.action_space, f"{type(self).__name__}.step"))
+        prev, prev_memory = self._pos, self._memory
         self._pos = np.clip(prev + self.dt * velocity[None, :], self.model.low, self.model.high)
         self._memory, violation = self.model.advance(self._memory, prev, self._pos)
         self._trail.append(self._pos[0].copy())
         info = self._info(bool(violation[0]))
-        reward = 1.0 if info["success"] else (-1.0 if info["constraint_violation"] else 0.0)
+        if self.reward_type == "dense":
+            before, after = self.model.potential(prev_memory, prev), self.model.potential(self._memory, self._pos)
+        else:
+            before = after = np.zeros(1)
+        reward = float(self.rewards(np.array([info["success"]]), violation, before, after)[0])
         terminated = info["success"] or (self.terminate_on_violation and info["constraint_violation"])
         return self._obs(), reward, bool(terminated), False, info
 
@@ -286,6 +360,10 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._needs_reset = np.zeros(n, dtype=bool)
 
+    def _obs(self) -> np.ndarray:
+        sensors = self.model.read(self._memory, self._pos).sensors if self.env.observe_sensors else None
+        return observe(self._pos, sensors)
+
     def _infos(self, violation: np.ndarray) -> dict[str, Any]:
         reading = self.model.read(self._memory, self._pos)
         success = reading.success.astype(bool)
@@ -312,13 +390,15 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._memory = self.model.reset_memory(self._pos)
         self._elapsed[:] = 0
         self._needs_reset[:] = False
-        return self._pos.astype(np.float32), self._infos(np.zeros(self.num_envs, dtype=bool))
+        return self._obs(), self._infos(np.zeros(self.num_envs, dtype=bool))
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every agent; ``actions`` is ``(num_envs, 2)`` finite reals (the single env's rules, per row)."""
         actions = real_array(actions, "actions", shape=(self.num_envs, 2), owner=f"{type(self).__name__}.step")
-        velocity = _clip_speed(actions, self.env.max_speed)
+        velocity = self.env.velocity_of(actions)
         prev = self._pos
+        dense = self.env.reward_type == "dense"
+        before = self.model.potential(self._memory, prev) if dense else np.zeros(self.num_envs)
         moved = np.clip(prev + self.env.dt * velocity, self.model.low, self.model.high)
         memory, violation = self.model.advance(self._memory, prev, moved)
         # agents whose episode ended last step are reset instead of moved
@@ -331,7 +411,8 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._pos, self._memory = moved, memory
         self._elapsed = np.where(resetting, 0, self._elapsed + 1)
         infos = self._infos(violation)
-        rewards = np.where(infos["success"], 1.0, np.where(violation, -1.0, 0.0))
+        after = self.model.potential(self._memory, self._pos) if dense else before
+        rewards = self.env.rewards(infos["success"], violation, before, after)
         terminated = infos["success"] | (self.env.terminate_on_violation & violation)
         truncated = np.zeros(self.num_envs, dtype=bool)
         if self.max_episode_steps is not None:
@@ -340,7 +421,7 @@ class Kinematic2DVectorEnv(VectorEnv):
         truncated &= ~resetting
         rewards = np.where(resetting, 0.0, rewards)
         self._needs_reset = terminated | truncated
-        return self._pos.astype(np.float32), rewards, terminated, truncated, infos
+        return self._obs(), rewards, terminated, truncated, infos
 
     def perturb(self, to: np.ndarray, mask: np.ndarray) -> dict[str, Any]:
         """Move the agents selected by ``mask`` (``(num_envs,)`` bool) to ``to[mask]``: a push from outside.
@@ -362,6 +443,21 @@ class Kinematic2DVectorEnv(VectorEnv):
 
 
 _KINEMATIC_OPTIONS = frozenset({"state"})
+
+
+def observe(pos: np.ndarray, sensors: np.ndarray | None) -> np.ndarray:
+    """Observations ``(N, 2 [+ k])`` float32: xy, then the sensor bits as 0/1 when ``sensors`` ``(N, k)`` is given."""
+    if sensors is None:
+        return pos.astype(np.float32)
+    return np.concatenate([pos, sensors], axis=1).astype(np.float32)
+
+
+def check_reward_type(reward_type: Any, owner: str) -> RewardType:
+    """``reward_type``: ``"sparse"`` or ``"dense"`` (:data:`REWARD_TYPES`); anything else is a ``ValueError``."""
+    if not isinstance(reward_type, str):
+        raise TypeError(f"{owner}: reward_type must be one of {list(REWARD_TYPES)}, got {describe(reward_type)}")
+    one_of(reward_type, "reward_type", REWARD_TYPES, owner=owner)
+    return "dense" if reward_type == "dense" else "sparse"
 
 
 def check_seed(seed: Any, owner: str) -> int | None:

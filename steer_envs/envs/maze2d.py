@@ -18,12 +18,51 @@ Action = the next absolute xy *waypoint*. It is tracked by D4RL's PD law
 gear), implemented as a MuJoCo affine actuator so it is re-evaluated at every
 physics step. One env step is ``frame_skip`` physics steps (default 4:
 0.04 s, the ITPS data rate, which is D4RL's 100 Hz subsampled x4).
+
+Description
+    Navigate a point mass to a goal cell drawn at every reset (``sample_goal=True``,
+    the registered default); one mode, ``navigate``. Coordinates: ``x`` is the *row*
+    (pointing down the map as printed) and ``y`` the *column*, in cell units with cell
+    ``(r, c)`` centred on ``(r, c)``. This differs from gymnasium-robotics' PointMaze,
+    whose ``(x, y)`` are metric, centred on the maze and ``x`` runs along the columns:
+    PointMaze's ``(x, y)`` is our ``(rows - 1) / 2 - y_pm, x_pm + (cols - 1) / 2``
+    (with its default ``maze_size_scaling=1``).
+
+Observation
+    ``Box(float32)``: ``(x, y)`` (``observe_velocity=True``: ``(x, y, vx, vy)``; with
+    ``observe_sensors=True`` followed by ``at_goal``, ``in_wall_contact`` as 0/1).
+    ``goal_conditioned=True`` (:class:`Maze2DGoalEnv`): a Dict of ``observation`` (that
+    box), ``achieved_goal`` (the agent's xy) and ``desired_goal`` (the goal cell's
+    centre). The goal is in ``info["goal"]`` either way.
+
+Action
+    ``Box(float32)``: the next absolute waypoint in ``[0, rows-1] x [0, cols-1]``,
+    tracked by the PD law; ``normalize_actions=True``: ``[-1, 1]^2`` mapped linearly onto it.
+
+Rewards
+    ``reward_type="sparse"`` (default): 1 in the goal cell, else 0 (D4RL). ``"dense"``:
+    ``-MazeGrid.path_distance(xy, goal) / extent``, the distance along the maze's free
+    cells in maze heights (never positive). Both are :meth:`Maze2DEnv.goal_reward` of the
+    achieved and desired goal (``compute_reward`` of the goal-conditioned env).
+
+Termination
+    On reaching the goal cell (``info["success"]``); wall contacts are reported
+    (``constraint_violation``), never terminal; truncation at 300 / 600 / 800 steps (Umaze /
+    Medium / Large, registered).
+
+Registered ids
+    ``steer_envs/Maze2D-{Umaze,Medium,Large}-v0`` and, for each maze, ``...Dense-v0``
+    (``reward_type="dense"``), ``...Goal-v0`` (goal-conditioned, sparse) and
+    ``...GoalDense-v0``, e.g. ``steer_envs/Maze2D-UmazeGoalDense-v0``. Gymnasium-Robotics
+    names its dense variant ``PointMaze_UMazeDense-v3`` and has no separate goal id (its
+    mazes are always goal-conditioned); here the plain ids keep the ITPS Box observation.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
@@ -35,7 +74,15 @@ from gymnasium import spaces
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
-from steer_envs.envs.kinematic import _check_action, _check_xy, check_options, check_render_mode, check_seed
+from steer_envs.envs.kinematic import (
+    RewardType,
+    _check_action,
+    _check_xy,
+    check_options,
+    check_render_mode,
+    check_reward_type,
+    check_seed,
+)
 from steer_envs.envs.render import Canvas
 
 #: D4RL maze2d physics.
@@ -192,6 +239,55 @@ class MazeGrid:
             return True
         return bool(self.walls[r, c])
 
+    def _paths_to(self, goal: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Breadth-first search from free cell ``goal``: steps ``(R, C)`` (-1 where unreachable) and each
+        cell's next cell ``(R, C, 2)`` on a shortest path to ``goal`` (cached per goal)."""
+        cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = self.__dict__.setdefault("_path_cache", {})
+        if goal in cache:
+            return cache[goal]
+        steps = np.full(self.shape, -1, dtype=np.int64)
+        nxt = np.zeros((*self.shape, 2), dtype=np.int64)
+        steps[goal] = 0
+        nxt[goal] = goal
+        queue = deque([goal])
+        while queue:
+            r, c = queue.popleft()
+            for nr, nc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
+                if not self._wall_at(nr, nc) and steps[nr, nc] < 0:
+                    steps[nr, nc] = steps[r, c] + 1
+                    nxt[nr, nc] = (r, c)
+                    queue.append((nr, nc))
+        cache[goal] = (steps, nxt)
+        return steps, nxt
+
+    def path_distance(self, xy: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """Distance ``(N,)`` from points ``xy`` to points ``goal`` (both ``(N, 2)``) along the maze.
+
+        In the goal's cell the straight-line distance; otherwise ``s - 1 + |xy - next|``
+        with ``s`` the number of cell steps of a shortest path of free cells to the
+        goal's cell and ``next`` the centre of the first cell on it (or the goal
+        itself when ``s = 1``). Unreachable pairs (a point in a wall cell) get the
+        straight-line distance plus the number of cells.
+        """
+        p = _points(xy, "xy").reshape(-1, 2)
+        g = _points(goal, "goal").reshape(-1, 2)
+        if p.shape != g.shape:
+            raise ValueError(f"xy and goal must have the same shape, got {p.shape} and {g.shape}")
+        straight = np.linalg.norm(p - g, axis=1)
+        out = straight + float(self.walls.size)
+        cells, goal_cells = self.xy_to_cell(p), self.xy_to_cell(g)
+        for key in {tuple(c) for c in goal_cells.tolist()}:
+            if self.walls[key]:
+                continue
+            steps, nxt = self._paths_to((int(key[0]), int(key[1])))
+            rows = np.flatnonzero((goal_cells == key).all(axis=1))
+            r, c = cells[rows, 0], cells[rows, 1]
+            s = steps[r, c]
+            target = np.where((s <= 1)[:, None], g[rows], nxt[r, c].astype(np.float64))
+            via = np.maximum(s - 1, 0) + np.linalg.norm(p[rows] - target, axis=1)
+            out[rows] = np.where(s >= 0, via, out[rows])
+        return out
+
 
 def maze_mjcf(grid: MazeGrid, name: str = "maze2d") -> str:
     """MJCF of the D4RL point mass in ``grid`` (walls as boxes, PD actuators on ``ctrl = waypoint``).
@@ -295,7 +391,7 @@ class MazePhysics:
         return self.data.actuator_force[:2] / GEAR
 
 
-class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
+class Maze2DEnv(gym.Env[Any, np.ndarray]):
     """MuJoCo point mass in a D4RL maze; the action is the next absolute xy waypoint.
 
     Args:
@@ -311,6 +407,18 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
             (the ITPS setting: free navigation, never "successful"). A bool.
         render_mode: ``"rgb_array"`` or None.
         cell_px: rendered pixels per cell, an int in :data:`CELL_PX_RANGE`.
+        reward_type: ``"sparse"`` (default: 1 in the goal cell, else 0) or ``"dense"``
+            (``-path_distance / extent``, see below).
+        goal_conditioned: a ``GoalEnv``-style Dict observation (``observation``,
+            ``achieved_goal`` = the agent's xy, ``desired_goal`` = the goal cell's centre)
+            and ``compute_reward`` for hindsight relabelling (stable-baselines3's
+            ``HerReplayBuffer``); needs ``sample_goal=True``. A bool. ``True`` makes a
+            :class:`Maze2DGoalEnv` (stable-baselines3 takes any env with a
+            ``compute_reward`` for a goal env, so only that subclass has one).
+        observe_sensors: append the sensor APs (``at_goal``, ``in_wall_contact``) as 0/1
+            to the (inner) observation. A bool.
+        normalize_actions: the action space is ``[-1, 1]^2``, mapped linearly onto the
+            waypoint box ``[0, rows-1] x [0, cols-1]``. A bool.
 
     Booleans must be real bools (``"no"`` is refused, not read as True);
     numbers are never parsed from strings. Actions, ``perturb`` arguments and
@@ -318,12 +426,18 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
     tensors, read detached); strings, bools, complex numbers and objects
     raise ``TypeError``, NaN/inf and wrong shapes ``ValueError``.
 
-    Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity.
+    Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity (+ sensors);
+    with ``goal_conditioned`` a Dict of it and the achieved / desired goal.
     Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it).
-    Reward: 1 when the goal cell is reached, else 0 (D4RL sparse).
+    Reward: ``"sparse"``: 1 when the goal cell is reached, else 0 (D4RL sparse).
+    ``"dense"``: ``-MazeGrid.path_distance(xy, goal) / extent`` (the distance along
+    the maze, in maze heights; 0 without a goal): non-positive, so reaching the goal
+    (which ends the episode) soon is best. Both are :meth:`goal_reward` of the
+    achieved and desired goal.
     ``info``: ``mode`` (always 0, ``"navigate"``), ``sensors``
     (``at_goal``, ``in_wall_contact``), ``success``, ``constraint_violation``
-    (the agent had a MuJoCo contact with a wall during the step), ``perturbed``.
+    (the agent had a MuJoCo contact with a wall during the step), ``perturbed``,
+    ``goal`` (the goal cell's centre xy, float64, or None without a goal).
     Reset options: ``state`` (xy start; must not be in a wall cell, it is nudged
     off walls closer than the agent's radius), ``goal_cell`` ((row, col) or None).
     >>> import gymnasium as gym
@@ -342,6 +456,12 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     _OPTION_KEYS = frozenset({"state", "goal_cell"})
 
+    def __new__(cls, *args: Any, **kwargs: Any) -> Maze2DEnv:
+        """``Maze2DEnv(..., goal_conditioned=True)`` makes a :class:`Maze2DGoalEnv`."""
+        if cls is Maze2DEnv and kwargs.get("goal_conditioned") is True:
+            cls = Maze2DGoalEnv
+        return super().__new__(cls)
+
     def __init__(
         self,
         maze: str | Sequence[Sequence[int | str]] = "large",
@@ -351,6 +471,10 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         sample_goal: bool = True,
         render_mode: str | None = None,
         cell_px: int = 32,
+        reward_type: RewardType = "sparse",
+        goal_conditioned: bool = False,
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         owner = type(self).__name__
         layout: Sequence[Sequence[int | str]]
@@ -367,6 +491,12 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self.sample_goal = boolean(sample_goal, "sample_goal", owner=owner)
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
         self.cell_px = integer(cell_px, "cell_px", low=CELL_PX_RANGE[0], high=CELL_PX_RANGE[1], owner=owner)
+        self.reward_type: RewardType = check_reward_type(reward_type, owner)
+        self.goal_conditioned = boolean(goal_conditioned, "goal_conditioned", owner=owner)
+        self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
+        self.normalize_actions = boolean(normalize_actions, "normalize_actions", owner=owner)
+        if self.goal_conditioned and not self.sample_goal:
+            raise ValueError(f"{owner}: goal_conditioned=True needs sample_goal=True (a goal every episode)")
         self.grid = MazeGrid(layout)
         self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
         self.dt = TIMESTEP * self.frame_skip
@@ -389,10 +519,24 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
             hi = np.concatenate([pos_hi, [GEAR, GEAR]]).astype(np.float32)
         else:
             lo, hi = pos_lo.astype(np.float32), pos_hi.astype(np.float32)
-        self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
-        self.action_space = spaces.Box(
-            self.grid.low.astype(np.float32), self.grid.high.astype(np.float32), dtype=np.float32
-        )
+        if self.observe_sensors:
+            lo = np.concatenate([lo, np.zeros(2, dtype=np.float32)])
+            hi = np.concatenate([hi, np.ones(2, dtype=np.float32)])
+        inner = spaces.Box(lo, hi, dtype=np.float32)
+        self.observation_space: spaces.Space[Any]
+        if self.goal_conditioned:
+            goal_space = spaces.Box(pos_lo.astype(np.float32), pos_hi.astype(np.float32), dtype=np.float32)
+            self.observation_space = spaces.Dict(
+                {"observation": inner, "achieved_goal": goal_space, "desired_goal": goal_space}
+            )
+        else:
+            self.observation_space = inner
+        if self.normalize_actions:
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Box(
+                self.grid.low.astype(np.float32), self.grid.high.astype(np.float32), dtype=np.float32
+            )
         self.goal_cell: tuple[int, int] | None = None
         self._contact = False
         self._trail: list[np.ndarray] = []
@@ -436,10 +580,41 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         """Centre of the goal cell, or None without a goal."""
         return None if self.goal_cell is None else np.array(self.goal_cell, dtype=np.float64)
 
-    def _obs(self) -> np.ndarray:
+    def _obs(self) -> Any:
         d = self.physics.data
         state = np.concatenate([d.qpos[:2], d.qvel[:2]]) if self.observe_velocity else d.qpos[:2]
-        return state.astype(np.float32)
+        if self.observe_sensors:
+            state = np.concatenate([state, [float(self._at_goal()), float(self.physics.in_contact())]])
+        if not self.goal_conditioned:
+            return state.astype(np.float32)
+        goal = self.goal_xy
+        return {
+            "observation": state.astype(np.float32),
+            "achieved_goal": d.qpos[:2].astype(np.float32),
+            "desired_goal": (d.qpos[:2] if goal is None else goal).astype(np.float32),
+        }
+
+    def goal_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None) -> np.ndarray:
+        """The reward (of this env's ``reward_type``) of reaching ``achieved_goal`` when ``desired_goal`` is asked.
+
+        Vectorised (``GoalEnv`` / hindsight relabelling): goals are xy ``(2,)`` or
+        ``(..., 2)``; returns float64 of shape ``(...)`` (a 0-d array for single goals).
+        ``info`` is not used. Sparse: 1 where both lie in the same cell, else 0.
+        Dense: ``-MazeGrid.path_distance / extent``.
+        """
+        achieved = _points(achieved_goal, "achieved_goal")
+        desired = _points(desired_goal, "desired_goal")
+        if achieved.shape != desired.shape:
+            raise ValueError(
+                f"goal_reward: achieved_goal and desired_goal must have the same shape, "
+                f"got {achieved.shape} and {desired.shape}"
+            )
+        batch = achieved.shape[:-1]
+        if self.reward_type == "sparse":
+            same = (self.grid.xy_to_cell(achieved) == self.grid.xy_to_cell(desired)).all(axis=-1)
+            return same.astype(np.float64)
+        flat = self.grid.path_distance(achieved.reshape(-1, 2), desired.reshape(-1, 2))
+        return (-flat / self.extent).reshape(batch)
 
     def _at_goal(self) -> bool:
         if self.goal_cell is None:
@@ -456,6 +631,7 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
             "is_success": at_goal,  # stable-baselines3's name (Monitor, ep_success_buffer)
             "constraint_violation": bool(violation),
             "perturbed": perturbed,
+            "goal": self.goal_xy,
         }
 
     def _check_cell(self, value: Any, name: str) -> tuple[int, int]:
@@ -472,9 +648,7 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return r, c
 
     # ------------------------------------------------------------------- API
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Start an episode at a random free cell (+-U(0.1) noise, D4RL) at rest.
 
         ``seed``: None or an int >= 0. ``options``: None or a dict with ``state``
@@ -496,6 +670,10 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self.physics.set_state(start)
         if "goal_cell" in options:
             goal = options["goal_cell"]
+            if goal is None and self.goal_conditioned:
+                raise ValueError(
+                    f"{owner}: options['goal_cell'] must be a (row, col) cell, not None, when goal_conditioned"
+                )
             self.goal_cell = None if goal is None else self._check_cell(goal, "options['goal_cell']")
         elif self.sample_goal:
             start_cell = tuple(self.grid.xy_to_cell(start).tolist())
@@ -506,14 +684,26 @@ class Maze2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self._trail = [self.state]
         return self._obs(), self._info(False)
 
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """Track the waypoint ``action`` (2 finite reals, clipped into the grid) for ``frame_skip`` physics steps."""
+    def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Track the waypoint ``action`` (2 finite reals, clipped into the grid) for ``frame_skip`` physics steps.
+
+        With ``normalize_actions`` the action is in ``[-1, 1]^2`` (clipped into it) and mapped onto the grid.
+        """
         action = _check_action(action, self.action_space, f"{type(self).__name__}.step")
+        if self.normalize_actions:
+            action = self.grid.low + (np.clip(action, -1.0, 1.0) + 1.0) / 2.0 * (self.grid.high - self.grid.low)
         waypoint = np.clip(action, self.grid.low, self.grid.high)
         touched = self.physics.step(waypoint, self.frame_skip)
         self._trail.append(self.state)
         info = self._info(touched)
-        reward = 1.0 if info["success"] else 0.0
+        goal = self.goal_xy
+        if goal is None:
+            reward = 0.0
+        elif self.reward_type == "sparse":
+            reward = 1.0 if info["success"] else 0.0
+        else:
+            # from the float32 goals the observation shows, so compute_reward(obs goals) is this reward exactly
+            reward = float(self.goal_reward(self.state.astype(np.float32), goal.astype(np.float32), info))
         return self._obs(), reward, bool(info["success"]), False, info
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
@@ -617,3 +807,34 @@ def _points(value: Any, name: str) -> np.ndarray:
     if arr.ndim == 0 or arr.shape[-1] != 2:
         raise ValueError(f"{name} must have shape (..., 2), got {arr.shape}")
     return arr
+
+
+class Maze2DGoalEnv(Maze2DEnv):
+    """Goal-conditioned Maze2D (``Maze2D-<maze>Goal-v0``, ``...GoalDense-v0``): a ``GoalEnv``-style env.
+
+    The observation is a Dict: ``observation`` (the :class:`Maze2DEnv` observation),
+    ``achieved_goal`` (the agent's xy) and ``desired_goal`` (the goal cell's centre),
+    as gymnasium-robotics' ``PointMaze`` (in this package's coordinates: ``x = row``,
+    ``y = column``). :meth:`compute_reward` is vectorised, so stable-baselines3's
+    ``HerReplayBuffer`` relabels goals with it. Takes :class:`Maze2DEnv`'s arguments
+    (``goal_conditioned`` must stay True, ``sample_goal`` True).
+
+    >>> import gymnasium as gym
+    >>> import numpy as np
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/Maze2D-UmazeGoal-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> sorted(obs), bool(np.allclose(obs["desired_goal"], info["goal"]))
+    (['achieved_goal', 'desired_goal', 'observation'], True)
+    >>> env.unwrapped.compute_reward(np.array([[1.0, 1.0], [3.0, 3.0]]), np.array([[1.2, 0.9], [1.0, 1.0]]), None)
+    array([1., 0.])
+    """
+
+    def __init__(self, *args: Any, goal_conditioned: bool = True, **kwargs: Any) -> None:
+        if goal_conditioned is not True:
+            raise ValueError(f"Maze2DGoalEnv: goal_conditioned must be True, got {describe(goal_conditioned)}")
+        super().__init__(*args, goal_conditioned=True, **kwargs)
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None) -> np.ndarray:
+        """:meth:`Maze2DEnv.goal_reward` under ``GoalEnv``'s name (vectorised over leading axes)."""
+        return self.goal_reward(achieved_goal, desired_goal, info)

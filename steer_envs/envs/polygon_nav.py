@@ -22,6 +22,33 @@ until every polygon lies ``workspace_margin`` inside ``[-8, 8]^2``,
 non-consecutive polygons are at least ``min_gap`` apart, and each polygon has
 area >= 1; the union of the chain is then a disk away from the walls, so the
 free space is connected.
+
+Description
+    See above; the mode names (``task.modes``) are descriptive already.
+
+Observation
+    ``Box(float32)``: the agent's ``(x1, x2)`` in the workspace (``x1`` right, ``x2`` up, as plotted);
+    with ``observe_sensors=True`` followed by the sensor APs ``in_p1``, ``in_p2``, ... as 0/1.
+
+Action
+    ``Box(-0.1, 0.1, (2,), float32)``: a velocity, ``x' = x + 1 u`` with ``|u|`` clipped to 0.1;
+    ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 0.1.
+
+Rewards
+    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
+    ``"dense"``: the sparse reward plus ``10 * (phi(s') - phi(s))`` and -10 per violation, ``phi(s) =
+    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
+    ``KinematicTaskModel.potential``): stage = the mode (free 0, polygon j = j), sub-goal = polygon 1's
+    centroid from free space, then a point 0.2 past the middle of the edge shared with the next polygon
+    (``phi = -1`` after an invalid transition).
+
+Termination
+    On success (in the last polygon with no invalid transition) and, with the default
+    ``terminate_on_violation=True``, on an invalid transition; truncation at 500 steps (registered).
+
+Registered ids
+    ``steer_envs/PolygonNav-{3,4,5}Mode-v0`` (``num_modes`` 3, 4, 5) and
+    ``steer_envs/PolygonNav-{3,4,5}ModeDense-v0`` (``reward_type="dense"``).
 """
 
 from __future__ import annotations
@@ -34,7 +61,7 @@ from shapely.ops import unary_union
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.convex_mode import check_layout_seed, convex_halfspaces, in_halfspaces
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import Canvas
 
 WORKSPACE_HALF_WIDTH = 8.0
@@ -149,6 +176,7 @@ class PolygonNavModel(KinematicTaskModel):
         # num_modes in [2, 9]: free space + 1..8 polygons
         self.num_modes = integer(num_modes, "num_modes", low=2, high=9, owner=owner)
         self.num_polygons = self.num_modes - 1
+        self.num_stages = self.num_polygons  # mode advances from free space to the last polygon
         self.layout_seed = check_layout_seed(layout_seed, owner)
         self.workspace_margin = real_scalar(
             workspace_margin, "workspace_margin", low=0.0, high=2.0, high_inclusive=False, owner=owner
@@ -172,6 +200,12 @@ class PolygonNavModel(KinematicTaskModel):
         self.free_space = box(-WORKSPACE_HALF_WIDTH, -WORKSPACE_HALF_WIDTH, WORKSPACE_HALF_WIDTH, WORKSPACE_HALF_WIDTH)
         self.free_space = self.free_space.difference(self.union)
         self.allowed = self.task.allowed_matrix()
+        centroids = np.array([np.asarray(p.centroid.coords[0]) for p in self.polygons])
+        mids = self.shared_edges.mean(axis=1)  # (P - 1, 2)
+        inward = centroids[1:] - mids
+        past_edges = mids + 0.2 * inward / np.linalg.norm(inward, axis=1, keepdims=True)
+        #: dense-reward sub-goal of each mode but the last: polygon 1's centroid, then just past each shared edge
+        self.subgoals = np.concatenate([centroids[:1], past_edges]).reshape(-1, 2)
 
     def _generate(self, rng: np.random.Generator) -> list[np.ndarray]:
         lim = WORKSPACE_HALF_WIDTH - self.workspace_margin
@@ -260,6 +294,17 @@ class PolygonNavModel(KinematicTaskModel):
         sensors = mode[:, None] == np.arange(1, self.num_modes)[None, :]
         return TaskReading(mode=mode, sensors=sensors, success=(mode == self.num_modes - 1) & (memory[:, 0] == 0))
 
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stage = the mode; sub-goal = polygon 1's centroid from free space, then a point 0.2 past the
+        middle of the edge shared with the next polygon (the diagonal after an invalid transition)."""
+        mode = self.mode_of(pos)
+        failed = memory[:, 0] != 0
+        goal = self.subgoals[np.minimum(mode, self.num_modes - 2)]
+        distance = np.linalg.norm(np.asarray(pos, dtype=np.float64).reshape(-1, 2) - goal, axis=1)
+        done = mode == self.num_modes - 1
+        distance = np.where(failed, self.diagonal, np.where(done, 0.0, distance))
+        return np.where(failed, 0, mode), distance
+
     def trajectory_success(self, xy: np.ndarray) -> bool:
         """GLiDE's success check on a whole path ``(T, 2)``: every transition allowed up to
         reaching the last polygon (used to label demonstration replays)."""
@@ -304,6 +349,9 @@ class PolygonNavEnv(Kinematic2DEnv):
         min_gap: float = 0.5,
         render_mode: str | None = None,
         render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         super().__init__(
             PolygonNavModel(num_modes, layout_seed, workspace_margin=workspace_margin, min_gap=min_gap),
@@ -312,6 +360,9 @@ class PolygonNavEnv(Kinematic2DEnv):
             terminate_on_violation=terminate_on_violation,
             render_mode=render_mode,
             render_size=render_size,
+            reward_type=reward_type,
+            observe_sensors=observe_sensors,
+            normalize_actions=normalize_actions,
         )
         self.model: PolygonNavModel
 

@@ -6,7 +6,7 @@ or geometry libraries; an env's module is imported when it is made.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import gymnasium as gym
@@ -28,6 +28,8 @@ class EnvEntry:
         kinematic: a 2D numpy domain with a batched vector path.
         expert: ``"module:Class"`` of its scripted expert (:func:`steer_envs.data.experts.make_expert`),
             or None; imported only when an expert is made.
+        variant_of: for a variant id (``...Dense-v0``, ``Maze2D-...Goal-v0``), the name of the entry it
+            varies (same env class and expert, other ``kwargs``); None for a base id.
 
     >>> entry("ConvexMode-v0").expert
     'steer_envs.data.experts.convex_mode:ConvexModeExpert'
@@ -40,6 +42,7 @@ class EnvEntry:
     kwargs: dict[str, Any] = field(default_factory=dict)
     kinematic: bool = False
     expert: str | None = None
+    variant_of: str | None = None
 
     def __post_init__(self) -> None:
         for label, value in (("entry_point", self.entry_point), ("expert", self.expert)):
@@ -52,7 +55,7 @@ class EnvEntry:
         return f"{NAMESPACE}/{self.name}"
 
 
-ENTRIES: tuple[EnvEntry, ...] = (
+BASE_ENTRIES: tuple[EnvEntry, ...] = (
     EnvEntry(
         "SoupScoop-v0",
         "steer_envs.envs.soup_scoop:SoupScoopEnv",
@@ -130,17 +133,49 @@ ENTRIES: tuple[EnvEntry, ...] = (
 )
 
 
-def env_ids(kinematic_only: bool = False) -> list[str]:
-    """Every registered steer-envs id (optionally only the 2D kinematic ones).
+def _variant(base: EnvEntry, suffix: str, **kwargs: Any) -> EnvEntry:
+    """``base`` under the name ``<name><suffix>-v0`` (Gymnasium-Robotics style: ``PointMaze_UMazeDense-v3``)."""
+    stem, version = base.name.rsplit("-", 1)
+    return replace(base, name=f"{stem}{suffix}-{version}", kwargs={**base.kwargs, **kwargs}, variant_of=base.name)
+
+
+def _variants() -> tuple[EnvEntry, ...]:
+    out: list[EnvEntry] = []
+    for e in BASE_ENTRIES:
+        if e.kinematic:
+            out.append(_variant(e, "Dense", reward_type="dense"))
+        elif e.entry_point.startswith("steer_envs.envs.maze2d:"):
+            out.append(_variant(e, "Dense", reward_type="dense"))
+            goal = replace(e, entry_point="steer_envs.envs.maze2d:Maze2DGoalEnv")
+            out.append(_variant(goal, "Goal"))
+            out.append(_variant(goal, "GoalDense", reward_type="dense"))
+    return tuple(out)
+
+
+#: the variant ids: ``reward_type="dense"`` of every 2D env (``SoupScoopDense-v0``, ``Maze2D-UmazeDense-v0``,
+#: ...) and the goal-conditioned Maze2D (``Maze2D-UmazeGoal-v0``, ``Maze2D-UmazeGoalDense-v0``, ...).
+VARIANT_ENTRIES: tuple[EnvEntry, ...] = _variants()
+#: every registered entry, base ids first.
+ENTRIES: tuple[EnvEntry, ...] = BASE_ENTRIES + VARIANT_ENTRIES
+
+
+def env_ids(kinematic_only: bool = False, variants: bool = False) -> list[str]:
+    """The registered steer-envs ids (optionally only the 2D kinematic ones).
+
+    The base ids by default; ``variants=True`` adds the variant ids
+    (:data:`VARIANT_ENTRIES`: the ``...Dense-v0`` and Maze2D ``...Goal-v0`` ids).
 
     >>> env_ids(kinematic_only=True)[:2]
     ['steer_envs/SoupScoop-v0', 'steer_envs/ConvexMode-v0']
+    >>> [i for i in env_ids(variants=True) if "Umaze" in i]  # doctest: +NORMALIZE_WHITESPACE
+    ['steer_envs/Maze2D-Umaze-v0', 'steer_envs/Maze2D-UmazeDense-v0', 'steer_envs/Maze2D-UmazeGoal-v0',
+     'steer_envs/Maze2D-UmazeGoalDense-v0']
     """
-    if not isinstance(kinematic_only, bool):
-        raise TypeError(
-            f"env_ids: kinematic_only must be a bool, got {type(kinematic_only).__name__} {kinematic_only!r}"
-        )
-    return [e.id for e in ENTRIES if e.kinematic or not kinematic_only]
+    for name, value in (("kinematic_only", kinematic_only), ("variants", variants)):
+        if not isinstance(value, bool):
+            raise TypeError(f"env_ids: {name} must be a bool, got {type(value).__name__} {value!r}")
+    chosen = ENTRIES if variants else BASE_ENTRIES
+    return [e.id for e in chosen if e.kinematic or not kinematic_only]
 
 
 def entry(env_id: str) -> EnvEntry:
@@ -152,7 +187,7 @@ def entry(env_id: str) -> EnvEntry:
     for e in ENTRIES:
         if env_id in (e.id, e.name):
             return e
-    raise ValueError(f"unknown steer-envs id {env_id!r}; registered: {env_ids()}")
+    raise ValueError(f"unknown steer-envs id {env_id!r}; registered: {env_ids(variants=True)}")
 
 
 def register_all() -> None:

@@ -52,6 +52,34 @@ Dynamics: ``x' = x + dt * u``, ``dt = 0.01``, ``|u| <= 10`` (a step long
 enough for perturbed DS rollouts to fit the registered 1000-step limit). Starts are uniform in
 ``[-7.5, -5.5] x [1, 5]`` (white, above the first segment attractor, where
 the reach segment of the demonstrations begins).
+
+Description
+    See above. The modes keep the thesis's ids ``a``-``d`` (``info["mode_name"]``, the LTL specs);
+    ``task.labels`` are ``reach``, ``scoop``, ``transport``, ``done`` and either name is accepted wherever a
+    mode is looked up (``task.mode_index("scoop") == 1``, ``task.label_of(info["mode"])``).
+
+Observation
+    ``Box(float32)``: the agent's ``(x1, x2)`` in the workspace (``x1`` right, ``x2`` up, as plotted);
+    with ``observe_sensors=True`` followed by the sensor APs ``r``, ``s``, ``t`` as 0/1. "Soup on the
+    spoon" (``s``) is task memory, not a function of xy: observe it this way.
+
+Action
+    ``Box(-10, 10, (2,), float32)``: a velocity, ``x' = x + 0.01 u`` with ``|u|`` clipped to 10;
+    ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
+
+Rewards
+    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
+    ``"dense"``: the sparse reward plus ``10 * (phi(s') - phi(s))`` and -10 per violation, ``phi(s) =
+    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
+    ``KinematicTaskModel.potential``): stage = the mode (reach 0, scoop 1, transport 2, done 3),
+    sub-goal = the mode's segment attractor (yellow's, pink's, green's).
+
+Termination
+    On success (soup delivered to the target). Spills are reported, never terminal; truncation at 1000
+    steps (registered).
+
+Registered ids
+    ``steer_envs/SoupScoop-v0``, ``steer_envs/SoupScoopDense-v0`` (``reward_type="dense"``).
 """
 
 from __future__ import annotations
@@ -63,7 +91,7 @@ import numpy as np
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import describe, one_of
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, TaskReading, vector_factory
+from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -104,6 +132,7 @@ SOUP_TASK = TaskSpec(
     transitions=frozenset({("a", "b"), ("b", "c"), ("c", "d"), ("b", "a"), ("c", "a"), ("c", "b")}),
     initial="a",
     goal=("d",),
+    labels=("reach", "scoop", "transport", "done"),
 )
 
 MODE_A, MODE_B, MODE_C, MODE_D = range(4)
@@ -201,6 +230,15 @@ class SoupScoopModel(KinematicTaskModel):
         sensors = np.stack([in_soup, s, delivered], axis=1)
         return TaskReading(mode=mode.astype(np.int64), sensors=sensors, success=delivered.copy())
 
+    num_stages = 3
+
+    def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Stage = the mode (reach 0 ... done 3); sub-goal = the mode's attractor (:attr:`attractors`)."""
+        mode = self.read(memory, pos).mode
+        goals = np.stack([self.attractors[m] for m in ("a", "b", "c", "d")])[mode]
+        distance = np.where(mode == MODE_D, 0.0, np.linalg.norm(np.asarray(pos, dtype=np.float64) - goals, axis=1))
+        return mode, distance
+
     def draw(self, canvas: Canvas) -> None:
         radius = max(2, round(self.attractor_radius / (self.high[0] - self.low[0]) * canvas.width))
         for name in ("yellow", "pink", "green"):
@@ -238,6 +276,9 @@ class SoupScoopEnv(Kinematic2DEnv):
         sensor_convention: SensorConvention = "public",
         render_mode: str | None = None,
         render_size: int = 256,
+        reward_type: RewardType = "sparse",
+        observe_sensors: bool = False,
+        normalize_actions: bool = False,
     ) -> None:
         super().__init__(
             SoupScoopModel(sensor_convention=sensor_convention),
@@ -246,6 +287,9 @@ class SoupScoopEnv(Kinematic2DEnv):
             terminate_on_violation=False,
             render_mode=render_mode,
             render_size=render_size,
+            reward_type=reward_type,
+            observe_sensors=observe_sensors,
+            normalize_actions=normalize_actions,
         )
         self.model: SoupScoopModel
 

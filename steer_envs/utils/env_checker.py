@@ -19,6 +19,7 @@ members
 
 from __future__ import annotations
 
+import copy
 import re
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -27,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
+from gymnasium.utils.env_checker import data_equivalence
 
 from steer_envs.core.env import (
     CONSTRAINT_VIOLATION,
@@ -176,31 +178,35 @@ class _Checker:
             raise self.fail("flags", f"{where}: info['perturbed'] = {info[PERTURBED]!r} outside perturb")
 
     # ------------------------------------------------------------- determinism
-    def rollout(self, seed: int) -> tuple[list[np.ndarray], list[tuple[float, bool, bool, int]]]:
+    def rollout(self, seed: int) -> tuple[list[Any], list[tuple[float, bool, bool, int]]]:
         env = self.env
         obs, info = env.reset(seed=seed)
         self.info(info, "reset")
         env.action_space.seed(seed)
-        observations, outcomes = [np.array(obs, copy=True)], []
+        observations, outcomes = [copy.deepcopy(obs)], []  # arrays or dicts of them (goal-conditioned envs)
         for t in range(self.steps):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             self.info(info, f"step {t}")
-            observations.append(np.array(obs, copy=True))
+            observations.append(copy.deepcopy(obs))
             outcomes.append((float(reward), bool(terminated), bool(truncated), info[MODE]))
             if terminated or truncated:
                 obs, info = env.reset()
                 self.info(info, f"reset after step {t}")
-                observations.append(np.array(obs, copy=True))
+                observations.append(copy.deepcopy(obs))
         return observations, outcomes
 
     def determinism(self) -> None:
         obs_a, out_a = self.rollout(self.seed)
         obs_b, out_b = self.rollout(self.seed)
-        same = len(obs_a) == len(obs_b) and all(np.array_equal(a, b) for a, b in zip(obs_a, obs_b, strict=True))
+        same = len(obs_a) == len(obs_b) and all(
+            data_equivalence(a, b, exact=True) for a, b in zip(obs_a, obs_b, strict=True)
+        )
         if not same or out_a != out_b:
             raise self.fail("determinism", f"two rollouts from seed {self.seed} differ")
         obs_c, _ = self.rollout(self.seed + 1)
-        if len(obs_a) == len(obs_c) and all(np.array_equal(a, c) for a, c in zip(obs_a, obs_c, strict=True)):
+        if len(obs_a) == len(obs_c) and all(
+            data_equivalence(a, c, exact=True) for a, c in zip(obs_a, obs_c, strict=True)
+        ):
             raise self.fail("determinism", f"rollouts from seeds {self.seed} and {self.seed + 1} are identical")
 
     # ------------------------------------------------------------------ perturb

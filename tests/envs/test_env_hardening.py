@@ -360,6 +360,7 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "InspectionLineEnv",  # a kinematic domain: its constructor is the shared one tested here
         "PolygonNavEnv",
         "Maze2DEnv",
+        "Maze2DGoalEnv",  # Maze2DEnv(goal_conditioned=True): tests/envs/test_rl_variants.py
         "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py
         "BlockStackEnv",  # its constructor arguments: tests/envs/test_blockstack.py
     }

@@ -1,0 +1,245 @@
+"""RL-facing options of the 2D envs: dense rewards, observable sensors, normalised actions, goal-conditioned Maze2D."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import steer_envs
+from steer_envs.data.experts import make_expert
+from steer_envs.envs.kinematic import DENSE_REWARD_SCALE
+from steer_envs.envs.maze2d import Maze2DEnv, Maze2DGoalEnv
+from steer_envs.envs.registry import BASE_ENTRIES, VARIANT_ENTRIES, entry
+
+KINEMATIC_BASE = steer_envs.env_ids(kinematic_only=True)
+MAZES = ("Umaze", "Medium", "Large")
+
+
+def test_variant_ids_are_registered_beside_the_base_ids() -> None:
+    ids = set(steer_envs.env_ids(variants=True))
+    assert set(steer_envs.env_ids()) == {e.id for e in BASE_ENTRIES}  # the default list is unchanged
+    for base in KINEMATIC_BASE:
+        stem, version = base.rsplit("-", 1)
+        assert f"{stem}Dense-{version}" in ids
+        assert entry(f"{stem}Dense-{version}").kwargs["reward_type"] == "dense"
+    for maze in MAZES:
+        for suffix in ("Dense", "Goal", "GoalDense"):
+            assert f"steer_envs/Maze2D-{maze}{suffix}-v0" in ids
+    assert all(e.variant_of is not None and e.id in gym.registry for e in VARIANT_ENTRIES)
+    with pytest.raises(TypeError, match="variants"):
+        steer_envs.env_ids(variants="yes")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("env_id", [*KINEMATIC_BASE, "steer_envs/Maze2D-Umaze-v0"])
+def test_bad_options_name_the_argument(env_id: str) -> None:
+    with pytest.raises(ValueError, match=r"reward_type.*'dense'.*'shaped'"):
+        gym.make(env_id, reward_type="shaped")
+    with pytest.raises(TypeError, match="reward_type"):
+        gym.make(env_id, reward_type=1)
+    for name in ("observe_sensors", "normalize_actions"):
+        with pytest.raises(TypeError, match=name):
+            gym.make(env_id, **{name: "yes"})
+
+
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_sparse_default_is_unchanged_and_dense_rewards_the_expert(env_id: str) -> None:
+    stem, version = env_id.rsplit("-", 1)
+    sparse, dense = gym.make(env_id), gym.make(f"{stem}Dense-{version}")
+    expert = make_expert(sparse)
+    obs, info = sparse.reset(seed=0)
+    dense.reset(seed=0)
+    expert.reset(obs, info)
+    sparse_rewards, dense_rewards = [], []
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action = expert.act(obs, info)
+        obs, r, terminated, truncated, info = sparse.step(action)
+        dobs, d, dterm, _, dinfo = dense.step(action)
+        np.testing.assert_array_equal(obs, dobs)
+        assert dterm == terminated and dinfo["mode"] == info["mode"]
+        sparse_rewards.append(r)
+        dense_rewards.append(d)
+    assert info["success"]
+    assert sparse_rewards == [0.0] * (len(sparse_rewards) - 1) + [1.0]  # +1 on success, else 0
+    num_stages = sparse.unwrapped.model.num_stages
+    # the shaping telescopes: every mode advanced earns DENSE_REWARD_SCALE, the distance term at most as much
+    total = sum(dense_rewards)
+    assert num_stages * DENSE_REWARD_SCALE <= total <= (num_stages + 1) * DENSE_REWARD_SCALE + 1.0
+    assert max(dense_rewards) >= DENSE_REWARD_SCALE * 0.9  # a mode advanced in one step
+
+
+def test_soup_scoop_dense_penalises_a_spill() -> None:
+    env = gym.make("steer_envs/SoupScoopDense-v0").unwrapped
+    env.reset(seed=0, options={"state": [-3.0, -6.0]})  # in the soup
+    _, reward, *_, info = env.step(np.array([10.0, 0.0], dtype=np.float32))  # not yet in pink
+    while info["mode_name"] != "c":
+        _, reward, *_, info = env.step(np.array([10.0, 0.0], dtype=np.float32))
+    # scooped: a mode advanced (+DENSE_REWARD_SCALE, less the jump to the next, farther sub-goal)
+    assert reward > 0.25 * DENSE_REWARD_SCALE
+    env.perturb(to=[2.05, 0.0])  # at pink's left edge, the soup still on
+    _, reward, _, _, info = env.step(np.array([-10.0, 0.0], dtype=np.float32))
+    assert info["constraint_violation"] and info["mode_name"] == "a"
+    assert reward < -2 * DENSE_REWARD_SCALE  # two modes lost and the violation
+
+
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_observed_sensors_are_the_info_sensors(env_id: str) -> None:
+    env = gym.make(env_id, observe_sensors=True)
+    task = env.unwrapped.task
+    assert env.observation_space.shape == (2 + len(task.sensors),)
+    obs, info = env.reset(seed=1)
+    for _ in range(30):
+        assert obs in env.observation_space
+        np.testing.assert_array_equal(obs[2:], [float(info["sensors"][ap]) for ap in task.sensors])
+        np.testing.assert_allclose(obs[:2], env.unwrapped.state, atol=1e-5)
+        obs, _, terminated, truncated, info = env.step(env.action_space.sample())
+        if terminated or truncated:
+            break
+
+
+def test_soup_on_the_spoon_is_observable() -> None:
+    env = gym.make("steer_envs/SoupScoop-v0", observe_sensors=True)
+    env.reset(seed=0, options={"state": [1.9, -6.0]})
+    obs, *_ = env.step(np.array([10.0, 0.0], dtype=np.float32))  # yellow -> pink: scooped
+    s = env.unwrapped.task.sensors.index("s")
+    assert obs[2 + s] == 1.0
+    plain = gym.make("steer_envs/SoupScoop-v0")
+    plain.reset(seed=0, options={"state": [1.9, -6.0]})
+    assert plain.step(np.array([10.0, 0.0], dtype=np.float32))[0].shape == (2,)
+
+
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_normalised_actions_scale_by_max_speed(env_id: str) -> None:
+    raw, norm = gym.make(env_id), gym.make(env_id, normalize_actions=True)
+    max_speed = raw.unwrapped.max_speed
+    assert norm.action_space.low.tolist() == [-1.0, -1.0] and norm.action_space.high.tolist() == [1.0, 1.0]
+    raw.reset(seed=2)
+    norm.reset(seed=2)
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        a = rng.uniform(-1, 1, size=2).astype(np.float32)
+        o1, r1, t1, _, _ = raw.step(a * np.float32(max_speed))
+        o2, r2, t2, _, _ = norm.step(a)
+        np.testing.assert_allclose(o1, o2, atol=1e-5)
+        assert (r1, t1) == (r2, t2)
+        if t1:
+            break
+
+
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_vector_env_matches_single_envs_with_every_option(env_id: str) -> None:
+    kwargs = {"reward_type": "dense", "observe_sensors": True, "normalize_actions": True}
+    num = 3
+    venv = gym.make_vec(env_id, num_envs=num, vectorization_mode="vector_entry_point", **kwargs)
+    vobs, _ = venv.reset(seed=4)
+    assert vobs.shape == (num, venv.single_observation_space.shape[0])
+    singles = [gym.make(env_id, **kwargs) for _ in range(num)]
+    for k, env in enumerate(singles):
+        sobs, _ = env.reset(options={"state": venv.unwrapped._pos[k]})
+        np.testing.assert_allclose(vobs[k], sobs, atol=1e-6)
+    rng = np.random.default_rng(1)
+    done = np.zeros(num, dtype=bool)
+    for _ in range(25):
+        actions = rng.uniform(-1, 1, size=(num, 2)).astype(np.float32)
+        vobs, vrew, vterm, _, _ = venv.step(actions)
+        for k, env in enumerate(singles):
+            if done[k]:
+                continue
+            sobs, srew, sterm, _, _ = env.step(actions[k])
+            np.testing.assert_allclose(vobs[k], sobs, atol=1e-5)
+            assert vrew[k] == pytest.approx(srew, abs=1e-6) and vterm[k] == sterm
+            done[k] = sterm
+    venv.close()
+
+
+# ------------------------------------------------------------------ Maze2D
+def test_maze2d_goal_is_in_info_either_way() -> None:
+    env = gym.make("steer_envs/Maze2D-Umaze-v0")
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (2,)
+    np.testing.assert_array_equal(info["goal"], env.unwrapped.goal_xy)
+    *_, info = env.step(env.action_space.sample())
+    np.testing.assert_array_equal(info["goal"], env.unwrapped.goal_xy)
+    free = gym.make("steer_envs/Maze2D-Umaze-v0", sample_goal=False)
+    assert free.reset(seed=0)[1]["goal"] is None
+
+
+def test_maze2d_goal_conditioned_observation_and_reward() -> None:
+    env = gym.make("steer_envs/Maze2D-UmazeGoal-v0")
+    base = env.unwrapped
+    assert isinstance(base, Maze2DGoalEnv)
+    assert set(env.observation_space.spaces) == {"observation", "achieved_goal", "desired_goal"}
+    obs, info = env.reset(seed=3)
+    np.testing.assert_allclose(obs["desired_goal"], info["goal"])
+    np.testing.assert_allclose(obs["achieved_goal"], base.state, atol=1e-6)
+    for _ in range(20):
+        obs, reward, terminated, _, info = env.step(env.action_space.sample())
+        assert reward == base.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+        if terminated:
+            break
+    # vectorised over any leading axes
+    achieved = np.array([[[1.0, 1.0], [3.0, 3.0]]], dtype=np.float32)
+    desired = np.array([[[1.3, 0.8], [1.0, 1.0]]], dtype=np.float32)
+    np.testing.assert_array_equal(base.compute_reward(achieved, desired, None), [[1.0, 0.0]])
+    with pytest.raises(ValueError, match="same shape"):
+        base.compute_reward(achieved[0], desired[0, :1], None)
+    # the option makes the same class; a goal is compulsory
+    assert isinstance(Maze2DEnv("umaze", goal_conditioned=True), Maze2DGoalEnv)
+    assert not isinstance(Maze2DEnv("umaze"), Maze2DGoalEnv)
+    assert not hasattr(Maze2DEnv("umaze"), "compute_reward")  # stable-baselines3 takes it for a goal env
+    with pytest.raises(ValueError, match="sample_goal"):
+        Maze2DEnv("umaze", goal_conditioned=True, sample_goal=False)
+    with pytest.raises(ValueError, match="goal_cell"):
+        env.reset(options={"goal_cell": None})
+
+
+def test_maze2d_dense_reward_is_minus_the_path_distance() -> None:
+    env = gym.make("steer_envs/Maze2D-UmazeGoalDense-v0").unwrapped
+    grid = env.grid
+    # U maze: (1, 1) to (3, 1) goes around the wall row through (1, 3) and (3, 3): 6 cell steps, not 2
+    d = grid.path_distance(np.array([[1.0, 1.0], [3.0, 1.0], [1.0, 1.2]]), np.array([[3.0, 1.0]] * 3))
+    assert d[0] == pytest.approx(6.0) and d[1] == 0.0 and d[2] < d[0]
+    r = env.compute_reward(np.array([[1.0, 1.0], [3.0, 1.0]]), np.array([[3.0, 1.0], [3.0, 1.0]]), None)
+    np.testing.assert_allclose(r, [-6.0 / env.extent, 0.0])
+    plain = gym.make("steer_envs/Maze2D-UmazeDense-v0")
+    plain.reset(seed=0, options={"state": [1.0, 1.0], "goal_cell": (3, 1)})
+    _, reward, *_ = plain.step(np.array([1.0, 2.0], dtype=np.float32))
+    assert -6.0 / env.extent <= reward < 0.0
+
+
+def test_maze2d_normalised_actions_map_onto_the_grid() -> None:
+    env = gym.make("steer_envs/Maze2D-Umaze-v0", normalize_actions=True, observe_sensors=True)
+    assert env.action_space.low.tolist() == [-1.0, -1.0]
+    assert env.observation_space.shape == (4,)
+    ref = gym.make("steer_envs/Maze2D-Umaze-v0")
+    obs, _ = env.reset(seed=0, options={"state": [1.0, 1.0], "goal_cell": (3, 1)})
+    ref.reset(seed=0, options={"state": [1.0, 1.0], "goal_cell": (3, 1)})
+    high = ref.unwrapped.grid.high
+    for target in ([1.0, 3.0], [1.0, 1.0]):
+        a = (2.0 * np.array(target) / high - 1.0).astype(np.float32)
+        obs, *_ = env.step(a)
+        ref_obs, *_ = ref.step(np.array(target, dtype=np.float32))
+        np.testing.assert_allclose(obs[:2], ref_obs, atol=1e-5)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_sb3_her_sac_learns_a_few_hundred_steps_on_goal_conditioned_maze() -> None:
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    env = gym.make("steer_envs/Maze2D-UmazeGoal-v0", normalize_actions=True)
+    model = SAC(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+        learning_starts=100,
+        batch_size=32,
+        policy_kwargs={"net_arch": [32, 32]},
+        seed=0,
+        device="cpu",
+    )
+    model.learn(total_timesteps=300)
+    obs, _ = env.reset(seed=0)
+    action, _ = model.predict(obs, deterministic=True)
+    assert action in env.action_space
