@@ -10,8 +10,8 @@ rrt`` for the thesis's RRT). Printed: classifier training time, overlap and
 per-mode IoU of the learned modes with the ground truth, and the planner's
 success rate without and with the evaluation teleports (thesis Table 4.1).
 The PNG shows the true polygons, the learned modes and a few rollouts (blue:
-success, red: failure). The classifier is cached under ``--out`` (a second run
-with the same settings skips training).
+success, red: failure; no mode is drawn red), with a legend. The classifier is
+cached under ``--out`` (a second run with the same settings skips training).
 """
 
 from __future__ import annotations
@@ -29,7 +29,15 @@ import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.baselines.glide import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
 from steer_envs.baselines.glide.classifier import mode_iou, mode_overlap, workspace_grid
 from steer_envs.bench.suites.glide.plots import ModeMapRow, plot_mode_maps
-from steer_envs.bench.suites.glide.protocol import GlideSetup, evaluate_policy, learn_grounding, make_policy
+from steer_envs.bench.suites.glide.protocol import (
+    GlideSetup,
+    counterfactual_data,
+    demonstrations,
+    evaluate_policy,
+    learn_grounding,
+    make_policy,
+)
+from steer_envs.utils.threads import add_threads_argument, limit_threads
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -46,6 +54,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument("--show", type=int, default=12, help="rollouts drawn in the PNG (default 12)")
     parser.add_argument("--out", type=Path, default=Path("runs/glide"), help="output directory (default runs/glide)")
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show (or hide) the training progress bar (default: shown only when stderr is a terminal)",
+    )
+    add_threads_argument(parser)
     args = parser.parse_args(argv)
     for name in ("layout", "seed"):
         if getattr(args, name) < 0:
@@ -54,6 +69,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1")
     return args
+
+
+def say(line: str) -> None:
+    """Print ``line`` now (flushed: a log shows each phase as it starts, not at the end)."""
+    print(line, flush=True)
 
 
 def record_rollouts(
@@ -84,26 +104,40 @@ def record_rollouts(
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    with limit_threads(blas_threads=args.threads, torch_threads=args.threads):
+        return run(args)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The example, printing each phase as it starts (a log gets no progress bar, but these lines)."""
     env_id = f"steer_envs/PolygonNav-{args.modes}Mode-v0"
     base = GlideSetup()
     setup = replace(
         base,
         n_success=args.replays,
         n_failure=args.replays,
-        train=replace(base.train, epochs=args.epochs),
+        train=replace(base.train, epochs=args.epochs, num_threads=args.threads, progress=args.progress),
         planner=PlannerConfig(free_space_planner=args.planner),
     )
     cache = args.out / "cache"
-    print(f"{env_id} layout {args.layout}: {setup.n_demos} demos, {args.replays} + {args.replays} replays ...")
+    say(f"{env_id} layout {args.layout}: {setup.n_demos} demos, {args.replays} + {args.replays} replays ...")
+    tic = time.perf_counter()
+    demos = demonstrations(env_id, args.layout, setup.n_demos, args.seed, goal_steps=setup.demo_goal_steps)
+    data = counterfactual_data(env_id, args.layout, args.seed, setup, demos, cache)  # cached for learn_grounding
+    say(
+        f"replays: {len(data.success)} labelled trajectories ({time.perf_counter() - tic:.1f} s); training the mode "
+        f"classifier ({args.epochs} epochs, about a minute on one core; a cached one is reused) ..."
+    )
     tic = time.perf_counter()
     grounding = learn_grounding(env_id, args.layout, "full", args.seed, setup=setup, cache_dir=cache)
-    print(
+    say(
         f"classifier: trained in {grounding.info['train_seconds']:.1f} s "
-        f"({'cached' if grounding.info.get('cached') else f'{time.perf_counter() - tic:.0f} s with the replays'})"
+        f"({'cached' if grounding.info.get('cached') else f'{time.perf_counter() - tic:.0f} s in all'})"
     )
 
     env = gym.make(env_id, layout_seed=args.layout)
     model = env.unwrapped.model  # type: ignore[attr-defined]
+    mode_names = list(env.unwrapped.task.modes)  # type: ignore[attr-defined]
     env.close()
     grid = workspace_grid(model.low, model.high, 200)
     truth, learned = model.mode_of(grid), np.asarray(grounding.predictor.predict(grid))
@@ -113,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     policy, _ = make_policy("glide_planning", env_id, args.layout, args.seed, setup=setup, cache_dir=cache)
     assert isinstance(policy, GlidePlanningPolicy)
     for perturbed in (False, True):
+        say(f"evaluating GLiDE+Planning on {args.rollouts} episodes {'with' if perturbed else 'without'} teleports ...")
         res = evaluate_policy(
             policy,
             env_id,
@@ -123,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             max_steps=args.max_steps,
         )
         label = "with teleports   " if perturbed else "without teleports"
-        print(
+        say(
             f"GLiDE+Planning ({args.planner}) {label}: success {res['success_rate']:.3f}, "
             f"invalid transitions {res['violation_rate']:.3f}, out of steps {res['timeout_rate']:.3f} "
             f"({args.rollouts} episodes of <= {args.max_steps} steps)"
@@ -133,8 +168,10 @@ def main(argv: list[str] | None = None) -> int:
     png = plot_mode_maps(
         [ModeMapRow(model, {"learned modes": learned}, f"{args.modes} modes, layout {args.layout}", paths, success)],
         args.out / f"glide_{args.modes}modes_layout{args.layout}.png",
+        title=f"GLiDE on PolygonNav-{args.modes}Mode (layout {args.layout}): true vs learned modes, rollouts",
         panel_size=4.0,
         trajectories_on_every_panel=True,
+        mode_names=mode_names,
     )
     print(f"wrote {png}")
     return 0

@@ -26,6 +26,7 @@ from steer_envs.bench.suites.glide_robosuite.data import split, task_dataset
 from steer_envs.bench.suites.glide_robosuite.plots import save_mode_strips
 from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup, grounding
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS
+from steer_envs.utils.threads import add_threads_argument, set_process_threads
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -37,6 +38,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0, help="classifier seed (default 0)")
     parser.add_argument("--show", type=int, default=3, help="demos drawn in the PNG (default 3)")
     parser.add_argument("--out", type=Path, default=Path("runs/glide_robosuite"), help="output directory")
+    add_threads_argument(parser)
     args = parser.parse_args(argv)
     for name, low in (("demos", 1), ("replays", 1), ("epochs", 1), ("seed", 0), ("show", 1)):
         if getattr(args, name) < low:
@@ -46,6 +48,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    set_process_threads(args.threads)
     start = time.perf_counter()
     trajs = task_dataset(args.out / "cache", args.task, args.demos, args.demos, args.replays)
     demos, replays = split(trajs)

@@ -23,6 +23,7 @@ import numpy as np
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.bench.suites.itps.protocol import load_policy
 from steer_envs.io import atomic_open
+from steer_envs.utils.threads import add_threads_argument, set_process_threads
 from steer_envs.wrappers import SteeringWrapper, make_sampler
 
 #: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
@@ -45,6 +46,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--steps", type=int, default=16, help="PPO training steps (default: 16)")
     parser.add_argument("--seed", type=int, default=0, help="seed of env, agent and sampling (default: 0)")
     parser.add_argument("--out", type=Path, default=Path("runs/sb3_steering"), help="output directory")
+    add_threads_argument(parser)
     return parser.parse_args(argv)
 
 
@@ -53,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     from stable_baselines3.common.logger import configure
 
     args = parse_args(argv)
+    set_process_threads(args.threads)
     if args.steps < 1 or args.batch < 1:
         print("--steps and --batch must be >= 1", file=sys.stderr)
         return 2

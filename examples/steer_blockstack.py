@@ -32,6 +32,7 @@ from steer_envs.bench.suites.itps_blockstack.suite import BLOCKSTACK_LOADER
 from steer_envs.envs.robosuite.blockstack import BlockStackEnv
 from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, yaw_of
 from steer_envs.users.block_sketcher import TowerSketchUser
+from steer_envs.utils.threads import add_threads_argument, set_process_threads
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -45,6 +46,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--max-skills", type=int, default=8, help="most skills to try (default 8; a tower takes 6)")
     parser.add_argument("--checkpoint", default="", help="a BlockStack DP checkpoint (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=Path("runs/steer_blockstack"), help="output directory")
+    add_threads_argument(parser)
     args = parser.parse_args(argv)
     try:
         order = tuple(int(c) for c in args.order.split(","))
@@ -66,6 +68,7 @@ def _overlay(ax: object, env: BlockStackEnv, points: np.ndarray, **style: object
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    set_process_threads(args.threads)
     try:
         policy = load_skill_policy(BLOCKSTACK_LOADER, args.checkpoint)
     except (ValueError, ImportError, AttributeError, FileNotFoundError) as exc:  # POLICY_UNAVAILABLE + bad files
