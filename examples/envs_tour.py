@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,7 +44,15 @@ def run_episode(env_id: str, seed: int, push_at: int = 30) -> Episode:
     expert = make_expert(env)
     obs, info = env.reset(seed=seed)
     expert.reset(obs, info)
-    modes = [info["mode_name"]]
+    task = env.unwrapped.task  # type: ignore[attr-defined]
+    labels = dict(zip(task.modes, getattr(task, "labels", ()) or task.modes, strict=True))
+
+    def named(mode: str) -> str:
+        """The mode's descriptive label, with the thesis's name when it differs: ``scoop (b)``."""
+        label = labels.get(mode, mode)
+        return mode if label == mode else f"{label} ({mode})"
+
+    modes = [named(info["mode_name"])]
     rng = np.random.default_rng(seed)
     model = env.unwrapped.model  # type: ignore[attr-defined]
     push = None
@@ -55,8 +64,8 @@ def run_episode(env_id: str, seed: int, push_at: int = 30) -> Episode:
             obs = env.unwrapped.state.astype(np.float32)  # type: ignore[attr-defined]
             push = (np.asarray(before[:2], dtype=np.float64), np.asarray(obs[:2], dtype=np.float64))
         obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
-        if info["mode_name"] != modes[-1]:
-            modes.append(info["mode_name"])
+        if named(info["mode_name"]) != modes[-1]:
+            modes.append(named(info["mode_name"]))
         if terminated or truncated:
             break
     frame = env.render()
@@ -68,7 +77,7 @@ def run_episode(env_id: str, seed: int, push_at: int = 30) -> Episode:
 
 def tour_figure(env_id: str, episode: Episode) -> Any:
     """The episode's last frame in world coordinates, with a title (env, outcome, modes), the push and a legend."""
-    fig = new_figure(5.2, 6.0)
+    fig = new_figure(5.4, 6.6)
     ax = fig.add_subplot()
     extent = (episode.low[0], episode.high[0], episode.low[1], episode.high[1])
     ax.imshow(episode.frame, extent=extent)  # the renderer draws y up, row 0 at the top: world coordinates
@@ -91,7 +100,9 @@ def tour_figure(env_id: str, episode: Episode) -> Any:
     ax.set_ylabel("y")
     modes = " -> ".join(episode.modes)
     name = env_id.split("/")[-1]
-    ax.set_title(f"{name}: {'success' if episode.success else 'no success'}\nmodes: {modes}", fontsize=9, wrap=True)
+    modes = "\n".join(textwrap.wrap(f"modes: {modes}", 70))
+    fig.suptitle(f"{name}: {'success' if episode.success else 'no success'}", fontsize=10)
+    ax.set_title(modes, fontsize=8)
     figure_legend(fig, handles, ncol=2, fontsize=8)
     return fig
 

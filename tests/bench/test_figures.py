@@ -275,7 +275,7 @@ def test_envs_tour_frame_has_a_title_mode_names_and_the_push(saved: list[Any], t
     fig = tour.tour_figure("steer_envs/PolygonNav-3Mode-v0", episode)
     assert figure_problems(fig) == []
     (ax,) = fig.axes
-    assert " -> ".join(episode.modes) in ax.get_title() and "PolygonNav-3Mode-v0" in ax.get_title()
+    assert " -> ".join(episode.modes) in ax.get_title() and "PolygonNav-3Mode-v0" in fig._suptitle.get_text()
     assert any("push" in t.get_text() for t in fig.legends[0].get_texts())
 
 
