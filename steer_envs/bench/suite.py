@@ -47,6 +47,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites.itps_blockstack.suite",
     "steer_envs.bench.suites.tli_cooking.suite",
     "steer_envs.bench.suites.tli_inspection.suite",
+    "steer_envs.bench.suites.ui.suite",
 )
 #: environment variable with extra comma-separated suite modules to import
 PLUGINS_ENV_VAR = "STEER_BENCH_PLUGINS"

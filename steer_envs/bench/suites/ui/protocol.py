@@ -1,0 +1,248 @@
+"""The two steer-ui trials: a round trip's latency split, and a bounded load test.
+
+``roundtrip``: serve steer-ui in-process, draw one sketch and re-steer it
+``roundtrips`` times, timing sketch sent -> plans drawn. In a headless chromium
+when one is installed (``browser="auto"``), the page's own clock gives the
+drawing time; otherwise a WebSocket client stands in for the page (drawing 0).
+The server reports the policy network's time and the sampler's own.
+
+``load``: ``connections`` clients steer as fast as the server answers for
+``duration_s`` seconds while one more sends ``malformed`` bad messages; a
+connection that closes or a reply that is an error where plans were due counts
+as dropped / an error; the process's resident memory is sampled after a
+warm-up and at the end (the server runs in this process).
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.suite import Trial
+
+#: bad messages the malformed-message client cycles through
+MALFORMED: tuple[str, ...] = (
+    "{bad json",
+    '{"type": "launch"}',
+    '{"type": "steer", "kind": "sketch", "points": [[NaN, 1], [2, 2]]}',
+    '{"type": "steer", "kind": "sketch", "points": [[1e9, 1], [2, 2]]}',
+    '{"type": "steer", "kind": "blob"}',
+    '{"type": "configure", "batch": 100000000}',
+    '{"type": "nudge", "to": [1]}',
+    "[" * 5000,
+    '{"type": "steer", "kind": "sketch", "points": "' + "x" * 300_000 + '"}',
+    '{"type": "reset", "seed": -1}',
+)
+REPLY_TIMEOUT_S = 300.0
+
+
+def _rss_mb() -> float:
+    """Resident memory of this process in MiB (Linux ``/proc``; NaN elsewhere)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+    import os
+
+    return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _sketch(agent: np.ndarray, rng: np.random.Generator | None = None) -> list[list[float]]:
+    """A sketch from the agent: up two cells, then sideways (pixels, 32 a cell), jittered with ``rng``."""
+    path = agent + np.array([[0.0, 0.0], [0.0, -32.0], [0.0, -64.0], [32.0, -64.0]])
+    if rng is not None:
+        path = path + rng.normal(0.0, 4.0, path.shape)
+    return np.clip(path, 1.0, [383.0, 287.0]).tolist()  # type: ignore[no-any-return]
+
+
+class _Client:
+    """A WebSocket client speaking the page's protocol."""
+
+    def __init__(self, url: str) -> None:
+        from websockets.sync.client import connect
+
+        self._connection = connect(url, max_size=2**24, open_timeout=60)
+        self.ws = self._connection.__enter__()
+
+    def ask(self, message: Any, until: tuple[str, ...] = ()) -> dict[str, Any]:
+        self.ws.send(message if isinstance(message, str) else json.dumps(message))
+        while True:
+            reply: dict[str, Any] = json.loads(self.ws.recv(timeout=REPLY_TIMEOUT_S))
+            if not until or reply["type"] in (*until, "error"):
+                return reply
+
+    def close(self) -> None:
+        self._connection.__exit__(None, None, None)
+
+
+def _settings(params: Any) -> dict[str, Any]:
+    return {"type": "configure", "sampler": params.sampler, "batch": params.batch, "mcmc_steps": params.mcmc_steps}
+
+
+def _roundtrip_browser(server: Any, params: Any, out: Path | None) -> list[dict[str, float]]:
+    from steer_envs.ui.browser import open_page
+
+    page = open_page(server.url)
+    try:
+        page.wait_ready(120)
+        page.choose("sampler", params.sampler)
+        page.wait(f"window.steerUI.settings.sampler === {params.sampler!r}", 60, "sampler chosen")
+        for key in ("batch", "mcmc_steps"):
+            value = getattr(params, key)
+            page.driver.execute_script(
+                "const el = document.getElementById(arguments[0]); el.value = arguments[1];"
+                "el.dispatchEvent(new Event('change'));",
+                key,
+                "" if value is None else str(value),
+            )
+        page.wait(f"window.steerUI.settings.batch === {params.batch}", 60, "batch set")
+        page.drag(_sketch(np.asarray(page.state("agent"))))
+        page.wait("window.steerUI.plansReceived >= 1", REPLY_TIMEOUT_S, "first plans")
+        received = int(page.state("plansReceived"))
+        for _ in range(params.roundtrips):
+            page.click_button("resteer")
+            received += 1
+            page.wait(f"window.steerUI.plansReceived >= {received}", REPLY_TIMEOUT_S, "plans")
+        if out is not None:
+            page.screenshot(out / "steer-ui.png")
+        history = page.state("history")
+        return [h for h in history[-params.roundtrips :]]
+    finally:
+        page.close()
+
+
+def _roundtrip_socket(server: Any, params: Any) -> list[dict[str, float]]:
+    client = _Client(server.ws_url)
+    try:
+        ready = client.ask({"type": "hello"}, ("ready",))
+        client.ask(_settings(params), ("settings",))
+        message = {"type": "steer", "kind": "sketch", "points": _sketch(np.asarray(ready["agent"]))}
+        client.ask(message, ("plans",))  # warm-up (traces the network for this batch size)
+        rows = []
+        for _ in range(params.roundtrips):
+            t0 = time.perf_counter()
+            reply = client.ask(message, ("plans",))
+            if reply["type"] == "error":
+                raise RuntimeError(f"steer-ui answered a steer with an error: {reply['message']}")
+            rows.append({**reply["timings"], "roundtrip_ms": (time.perf_counter() - t0) * 1e3, "draw_ms": 0.0})
+        return rows
+    finally:
+        client.close()
+
+
+def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float]:
+    """Median latency split of ``params.roundtrips`` steering round trips."""
+    from steer_envs.ui.browser import BrowserUnavailable, RunningServer, chromium_paths
+    from steer_envs.ui.server import UIConfig
+
+    use_browser = params.browser == "yes"
+    if params.browser == "auto":
+        try:
+            chromium_paths()
+            use_browser = True
+        except BrowserUnavailable:
+            use_browser = False
+    with RunningServer(UIConfig(seed=seed, workers=1, accelerate=params.accelerate)) as server:
+        rows = _roundtrip_browser(server, params, out) if use_browser else _roundtrip_socket(server, params)
+    med = {k: float(np.median([r[k] for r in rows])) for k in ("network_ms", "sampler_ms", "server_ms", "draw_ms")}
+    roundtrip = float(np.median([r["roundtrip_ms"] for r in rows]))
+    return {
+        **med,
+        "roundtrip_ms": roundtrip,
+        "transfer_ms": max(0.0, roundtrip - med["server_ms"] - med["draw_ms"]),
+        "under_target": 100.0 * float(roundtrip < params.target_ms),
+        "browser": 1.0 if use_browser else 0.0,
+    }
+
+
+def run_load(params: Any, seed: int) -> dict[str, float]:
+    """``connections`` steering clients for ``duration_s`` s plus ``malformed`` bad messages on one more."""
+    from steer_envs.ui.browser import RunningServer
+    from steer_envs.ui.server import UIConfig
+
+    counts = {"calls": 0, "dropped": 0, "errors": 0, "malformed_answered": 0}
+    latencies: list[float] = []
+    lock = threading.Lock()
+    stop_at = [0.0]
+
+    def steer_loop(index: int, url: str) -> None:
+        rng = np.random.default_rng([seed, index])
+        try:
+            client = _Client(url)
+            ready = client.ask({"type": "hello"}, ("ready",))
+            client.ask(_settings(params), ("settings",))
+            while time.monotonic() < stop_at[0]:
+                message = {"type": "steer", "kind": "sketch", "points": _sketch(np.asarray(ready["agent"]), rng)}
+                t0 = time.perf_counter()
+                reply = client.ask(message, ("plans",))
+                with lock:
+                    if reply["type"] == "error":
+                        counts["errors"] += 1
+                    else:
+                        counts["calls"] += 1
+                        latencies.append((time.perf_counter() - t0) * 1e3)
+            client.close()
+        except Exception:  # a closed connection or a timeout: the client was dropped
+            with lock:
+                counts["dropped"] += 1
+
+    def malformed_loop(url: str) -> None:
+        try:
+            client = _Client(url)
+            client.ask({"type": "hello"}, ("ready",))
+            for i in range(params.malformed):
+                reply = client.ask(MALFORMED[i % len(MALFORMED)])
+                if reply["type"] == "error":
+                    with lock:
+                        counts["malformed_answered"] += 1
+            client.close()
+        except Exception:
+            with lock:
+                counts["dropped"] += 1
+
+    with RunningServer(UIConfig(seed=seed, workers=2, accelerate=params.accelerate)) as server:
+        stop_at[0] = time.monotonic() + params.duration_s
+        threads = [threading.Thread(target=steer_loop, args=(i, server.ws_url)) for i in range(params.connections)]
+        threads.append(threading.Thread(target=malformed_loop, args=(server.ws_url,)))
+        for thread in threads:
+            thread.start()
+        time.sleep(min(params.duration_s / 3.0, 20.0))
+        rss_warm = _rss_mb()
+        for thread in threads:
+            thread.join(params.duration_s + 2 * REPLY_TIMEOUT_S)
+        rss_end = _rss_mb()
+        alive = server.thread.is_alive()
+        # the server still answers a fresh connection after all that
+        probe = _Client(server.ws_url)
+        answered = probe.ask({"type": "hello"}, ("ready",))["type"] == "ready"
+        probe.close()
+    return {
+        "steer_calls": float(counts["calls"]),
+        "calls_per_s": counts["calls"] / params.duration_s,
+        "p95_latency_ms": float(np.percentile(latencies, 95)) if latencies else float("nan"),
+        "dropped": float(counts["dropped"]),
+        "errors": float(counts["errors"]),
+        "malformed_unanswered": float(params.malformed - counts["malformed_answered"]),
+        "server_crashes": 0.0 if alive and answered else 1.0,
+        "rss_growth_mb": rss_end - rss_warm,
+    }
+
+
+def run_ui_trial(trial: Trial, params_type: type[SuiteParams]) -> dict[str, float]:
+    """One ``roundtrip`` or ``load`` trial (metrics of the other method are absent)."""
+    import torch
+
+    params: Any = params_type.from_json(trial.params)
+    torch.set_num_threads(1)
+    if trial.method == "roundtrip":
+        out = Path(params.screenshot_dir) if params.screenshot_dir else None
+        return run_roundtrip(params, trial.seed, out)
+    if trial.method == "load":
+        return run_load(params, trial.seed)
+    raise ValueError(f"steer-ui trials are 'roundtrip' or 'load', got {trial.method!r}")

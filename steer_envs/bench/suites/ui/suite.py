@@ -1,0 +1,140 @@
+"""``steer-ui``: the browser UI's steering round trip (network / sampler / drawing) and a bounded load test.
+
+Method ``roundtrip``: sketch sent -> plans drawn, SS at batch 32 by default,
+in a headless chromium when one is installed. Method ``load``: 8 connections
+steering for 60 s beside 1,000 malformed messages, on 127.0.0.1 only
+(see :mod:`steer_envs.bench.suites.ui.protocol`).
+
+>>> UIParams(duration_s=5.0).to_json()["duration_s"]
+5.0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.suite import Finding, Metric, Suite, Trial, register_suite
+
+METHODS: tuple[str, ...] = ("roundtrip", "load")
+#: the issue's budgets: a round trip under 0.5 s, memory "flat" = this much growth at most
+TARGET_MS = 500.0
+FLAT_MB = 64.0
+
+
+@dataclass(frozen=True)
+class UIParams(SuiteParams):
+    """Parameters of ``steer-ui``: the steering settings, round trips, and the load test's size."""
+
+    suite_name: ClassVar[str] = "steer-ui"
+    sampler: str = "SS"
+    batch: int = 32
+    mcmc_steps: int | None = None
+    accelerate: str = "trace"
+    roundtrips: int = 10
+    target_ms: float = TARGET_MS
+    browser: str = "auto"
+    screenshot_dir: str = ""
+    connections: int = 8
+    duration_s: float = 60.0
+    malformed: int = 1000
+
+    def __post_init__(self) -> None:
+        self.require_in("sampler", ("RS", "PR", "OP", "BI", "GD", "SS"))
+        self.require_in("browser", ("auto", "yes", "no"))
+        self.require_in("accelerate", ("none", "trace", "compile"))
+        self.require_at_least(1, "batch", "roundtrips", "connections")
+        self.require_at_most(256, "batch")
+        self.require_at_most(64, "connections")
+        self.require_at_least(0, "malformed")
+        self.require_at_most(100_000, "malformed")
+        self.require("duration_s", 1.0 <= self.duration_s <= 3600.0, "in [1, 3600] seconds")
+        self.require("target_ms", self.target_ms > 0, "> 0")
+        self.require("mcmc_steps", self.mcmc_steps is None or 1 <= self.mcmc_steps <= 1000, "None or in [1, 1000]")
+
+
+ROUNDTRIP_METRICS = ("roundtrip_ms", "network_ms", "sampler_ms", "server_ms", "transfer_ms", "draw_ms", "under_target")
+LOAD_METRICS = (
+    "steer_calls",
+    "calls_per_s",
+    "p95_latency_ms",
+    "dropped",
+    "errors",
+    "malformed_unanswered",
+    "server_crashes",
+    "rss_growth_mb",
+)
+
+
+def run_steer_ui_trial(trial: Trial) -> dict[str, float | None]:
+    """One trial; the other method's metrics are ``None``."""
+    from steer_envs.bench.suites.ui.protocol import run_ui_trial
+
+    values = run_ui_trial(trial, UIParams)
+    return {name: values.get(name) for name in (*ROUNDTRIP_METRICS, *LOAD_METRICS, "browser")}
+
+
+def ui_findings(table: Any) -> list[Finding]:
+    """The issue's checks: round trip under 0.5 s; load without drops, errors, crashes or memory growth."""
+    out = []
+    rtt = {k: table.mean(k, "roundtrip") for k in ("roundtrip_ms", "network_ms", "sampler_ms", "draw_ms")}
+    claim = f"a steering round trip (sketch sent -> plans drawn) takes under {TARGET_MS:.0f} ms"
+    if rtt["roundtrip_ms"] is None:
+        out.append(Finding(claim, None))
+    else:
+        detail = (
+            f"round trip {rtt['roundtrip_ms']:.0f} ms = network {rtt['network_ms']:.0f} + sampler "
+            f"{rtt['sampler_ms']:.0f} + drawing {rtt['draw_ms']:.1f} + transfer/encoding"
+        )
+        out.append(Finding(claim, rtt["roundtrip_ms"] < TARGET_MS, detail))
+    load = {k: table.mean(k, "load") for k in LOAD_METRICS}
+    claim = "concurrent connections steer without a drop, an error or a crash; every malformed message is answered"
+    if load["dropped"] is None:
+        out.append(Finding(claim, None))
+    else:
+        bad = load["dropped"] + load["errors"] + load["server_crashes"] + load["malformed_unanswered"]
+        detail = (
+            f"{load['steer_calls']:.0f} steering calls ({load['calls_per_s']:.2f}/s, "
+            f"p95 {load['p95_latency_ms']:.0f} ms), "
+            f"dropped {load['dropped']:.0f}, errors {load['errors']:.0f}, crashes {load['server_crashes']:.0f}, "
+            f"unanswered malformed {load['malformed_unanswered']:.0f}"
+        )
+        out.append(Finding(claim, bad == 0, detail))
+        claim = f"memory stays flat under load (growth under {FLAT_MB:.0f} MiB after warm-up)"
+        out.append(Finding(claim, load["rss_growth_mb"] < FLAT_MB, f"{load['rss_growth_mb']:+.1f} MiB"))
+    return out
+
+
+STEER_UI = register_suite(
+    Suite(
+        name="steer-ui",
+        description="steer-ui: steering round trip split (network / sampler / drawing) and a bounded load test.",
+        metrics=(
+            Metric("roundtrip_ms", "sketch sent -> plans drawn (median, ms)", "timing", False, ".0f", TARGET_MS),
+            Metric("network_ms", "policy network time per call (median, ms)", "timing", False, ".0f"),
+            Metric("sampler_ms", "sampler time outside the network (median, ms)", "timing", False, ".0f"),
+            Metric("server_ms", "server time per call incl. encoding (median, ms)", "timing", False, ".0f"),
+            Metric("transfer_ms", "round trip minus server and drawing (ms)", "timing", False, ".1f"),
+            Metric("draw_ms", "drawing the plans on the page (median, ms)", "timing", False, ".1f"),
+            Metric("under_target", "round trip under the target (%)", "timing", True, ".0f"),
+            Metric("steer_calls", "steering calls answered under load", "timing", True, ".0f"),
+            Metric("calls_per_s", "steering calls per second under load", "timing", True, ".2f"),
+            Metric("p95_latency_ms", "95th percentile latency under load (ms)", "timing", False, ".0f"),
+            Metric("dropped", "connections dropped", "value", False, ".0f", 0.0),
+            Metric("errors", "error replies to valid steering requests", "value", False, ".0f", 0.0),
+            Metric("malformed_unanswered", "malformed messages without an error reply", "value", False, ".0f", 0.0),
+            Metric("server_crashes", "server crashes", "value", False, ".0f", 0.0),
+            Metric("rss_growth_mb", "resident memory growth after warm-up (MiB)", "timing", False, ".1f", FLAT_MB),
+            Metric("browser", "measured in a headless chromium (1) or a socket client (0)", "value", True, ".0f"),
+        ),
+        run_trial=run_steer_ui_trial,
+        methods=METHODS,
+        params=UIParams(),
+        trials_param="roundtrips",
+        default_seeds=1,
+        quick={"roundtrips": 3, "connections": 2, "duration_s": 5.0, "malformed": 100},
+        quick_seeds=1,
+        findings=ui_findings,
+    )
+)
