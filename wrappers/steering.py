@@ -44,6 +44,7 @@ from steer_envs.core.env import HasInteractionKinds, perturbable_env
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
 from steer_envs.core.policy import TrajectoryPolicy
 from steer_envs.core.validation import describe, integer, real_array
+from steer_envs.utils.threads import limit_threads
 
 from .samplers import MAX_BATCH, OutputPerturbation, RandomSampling, Sampler, place_observation
 
@@ -154,6 +155,8 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         execute: waypoints of the chosen plan executed per step (default: all).
         sketch_points: use a ``Box`` action of ``sketch_points * d`` numbers (a flattened sketch).
         unsteered: sampler for ``None`` actions (default :class:`RandomSampling`).
+        threads: torch threads for the steering call (default 1: on a shared machine more
+            threads are often far slower; ``None`` leaves torch's setting alone).
 
     Arguments that can never work are refused here: a diffusion sampler (BI/GD/SS)
     with a policy that is not ``DiffusionPolicyLike``, ``batch`` outside
@@ -195,6 +198,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         execute: int | None = None,
         sketch_points: int | None = None,
         unsteered: Sampler | None = None,
+        threads: int | None = 1,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
             self,
@@ -204,6 +208,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
             execute=execute,
             sketch_points=sketch_points,
             unsteered=unsteered,
+            threads=threads,
             _disable_deepcopy=True,
         )
         gym.Wrapper.__init__(self, env)
@@ -267,6 +272,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < int(policy.horizon):
             raise ValueError(f"policy.exec_start must be an int in [0, horizon), got {start!r}")
         self._exec_start = int(start)
+        self.threads = None if threads is None else integer(threads, "`threads`", low=1, owner="SteeringWrapper")
         self._inner_box: spaces.Box = inner
         self._history: list[Any] = []
         self._rng = np.random.default_rng()
@@ -320,7 +326,8 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         interaction = self.interaction(action)
         sampler = self.sampler if interaction is not None else self.unsteered
         obs_in = policy_observation(self.policy, self._history)
-        result = sampler(self.policy, obs_in, interaction, self.batch, generator=self._rng)
+        with limit_threads(blas_threads=None, torch_threads=self.threads):
+            result = sampler(self.policy, obs_in, interaction, self.batch, generator=self._rng)
         base = self.env.unwrapped
         if result.perturbed_state is not None:
             pushable = perturbable_env(self.env, who=f"SteeringWrapper ({result.sampler} moves the agent)")

@@ -111,6 +111,7 @@ class _Connection:
                 checkpoint=config.checkpoint,
                 accelerate=config.accelerate,
                 seed=config.seed,
+                threads=None,  # set once per process (steer-ui --threads); not per call from many threads
             )
             worker = asyncio.create_task(self.work())
             await self.read()

@@ -31,6 +31,7 @@ from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
 from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
+from steer_envs.utils.threads import limit_threads
 from steer_envs.wrappers.samplers import (
     MAX_MCMC_STEPS,
     SAMPLERS,
@@ -319,6 +320,8 @@ class Session:
         seed: the first reset's seed (start state and sampling noise).
         env_kwargs: passed to ``gymnasium.make`` with an id (default for Maze2D: no goal).
         accelerate: the network's inference mode for a named policy (``"trace"`` by default).
+        threads: torch threads for a steering call (default 1; ``None``: leave torch's setting,
+            as the server does after setting it once per process).
     """
 
     def __init__(
@@ -331,7 +334,9 @@ class Session:
         seed: int = 0,
         env_kwargs: Mapping[str, Any] | None = None,
         accelerate: str = "trace",
+        threads: int | None = 1,
     ) -> None:
+        self.threads = None if threads is None else integer(threads, "`threads`", low=1)
         if isinstance(policy, str):
             shared = shared_policy(policy, checkpoint, accelerate)
         elif isinstance(policy, TrajectoryPolicy):
@@ -435,7 +440,8 @@ class Session:
         obs = policy_observation(self.policy, self._history)
         self._clock.seconds = 0.0
         try:
-            result = sampler(self.policy, obs, interaction, self.settings.batch, generator=self._rng)
+            with limit_threads(blas_threads=None, torch_threads=self.threads):
+                result = sampler(self.policy, obs, interaction, self.settings.batch, generator=self._rng)
         except TypeError as exc:  # e.g. BI/GD/SS with a policy that has no denoiser
             raise SessionError(str(exc)) from exc
         start = int(getattr(self.policy, "exec_start", 0))
