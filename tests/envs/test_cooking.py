@@ -14,6 +14,7 @@ import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
 from steer_envs.data.experts.cooking import CookingExpert
 from steer_envs.envs.cooking import COOKING_TASK, MODE_AP_FORMULAS, CookingEnv
+from steer_envs.envs.kinematic import sensor_columns
 
 ENV_ID = "steer_envs/Cooking-v0"
 TASK = COOKING_TASK
@@ -58,6 +59,11 @@ def _holds(formula: str, sensors: dict[str, bool]) -> bool:
     return bool(eval(expr, {"s": sensors}))  # formulas are module constants
 
 
+def _rows(infos: dict) -> dict:
+    """A vector env's infos with ``sensors`` as the ``(N, k)`` array the expert's batch path reads."""
+    return {**infos, "sensors": sensor_columns(infos["sensors"], TASK.sensors)}
+
+
 def _run_expert_batch(
     starts: np.ndarray, *, steps: int = 2000, noise: float = 0.0, seed: int = 0, **expert_kwargs: str
 ) -> dict:
@@ -72,7 +78,7 @@ def _run_expert_batch(
     readings: set[tuple[tuple[bool, ...], int]] = set()
     mode = info["mode"].copy()
     for k in range(steps):
-        action = expert.act(obs, info) + rng.normal(0.0, noise, size=(n, 2)).astype(np.float32)
+        action = expert.act(obs, _rows(info)) + rng.normal(0.0, noise, size=(n, 2)).astype(np.float32)
         obs, _, term, trunc, info = venv.step(action)
         live = ~done
         out["violations"] += int((info["constraint_violation"] & live).sum())
@@ -81,7 +87,10 @@ def _run_expert_batch(
             (TASK.modes[a], TASK.modes[b]) for a, b in zip(mode[changed], info["mode"][changed], strict=True)
         }
         readings |= {
-            (tuple(row), int(m)) for row, m in zip(info["sensors"][live].tolist(), info["mode"][live], strict=True)
+            (tuple(row), int(m))
+            for row, m in zip(
+                sensor_columns(info["sensors"], TASK.sensors)[live].tolist(), info["mode"][live], strict=True
+            )
         }
         mode = info["mode"].copy()
         newly = (term | trunc) & live
@@ -226,7 +235,7 @@ def test_vector_env_agrees_step_for_step_with_single_envs() -> None:
     finished = np.zeros(n, dtype=bool)
     seen_violation = False
     for _ in range(400):
-        actions = expert.act(vobs, vinfo) + (sigma * rng.normal(size=(n, 2))).astype(np.float32)
+        actions = expert.act(vobs, _rows(vinfo)) + (sigma * rng.normal(size=(n, 2))).astype(np.float32)
         vobs, vrew, vterm, _, vinfo = venv.step(actions)
         for k, env in enumerate(singles):
             if finished[k]:
@@ -234,7 +243,8 @@ def test_vector_env_agrees_step_for_step_with_single_envs() -> None:
             sobs, srew, sterm, _, sinfo = env.step(actions[k])
             np.testing.assert_allclose(vobs[k], sobs, atol=1e-6)
             assert (vinfo["mode"][k], vrew[k], vterm[k]) == (sinfo["mode"], srew, sterm)
-            assert vinfo["sensors"][k].tolist() == [sinfo["sensors"][ap] for ap in TASK.sensors]
+            row = sensor_columns(vinfo["sensors"], TASK.sensors)[k].tolist()
+            assert row == [sinfo["sensors"][ap] for ap in TASK.sensors]
             assert vinfo["constraint_violation"][k] == sinfo["constraint_violation"]
             seen_violation |= sinfo["constraint_violation"]
             finished[k] = sterm

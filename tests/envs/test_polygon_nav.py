@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import ScriptedExpert, make_expert
+from steer_envs.envs.kinematic import sensor_columns
 from steer_envs.envs.polygon_nav import PolygonNavEnv, PolygonNavModel
 
 IDS = [f"steer_envs/PolygonNav-{k}Mode-v0" for k in (3, 4, 5)]
@@ -261,7 +262,7 @@ def test_vector_env_agrees_with_single_envs(env_id: str) -> None:
             assert (r, te, tr) == (rewards[i], terminated[i], truncated[i])
             assert info["mode"] == infos["mode"][i] and info["success"] == infos["success"][i]
             assert info["constraint_violation"] == infos["constraint_violation"][i]
-            assert list(info["sensors"].values()) == infos["sensors"][i].tolist()
+            assert list(info["sensors"].values()) == sensor_columns(infos["sensors"], list(info["sensors"]))[i].tolist()
             violations += info["constraint_violation"]
             done[i] = te or tr
     assert violations >= 1 and done.any()

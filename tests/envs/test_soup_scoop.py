@@ -11,6 +11,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
 from steer_envs.data.experts.soup_scoop import SoupScoopExpert
+from steer_envs.envs.kinematic import sensor_columns
 from steer_envs.envs.soup_scoop import SOUP_TASK, SoupScoopEnv
 
 ENV_ID = "steer_envs/SoupScoop-v0"
@@ -63,7 +64,10 @@ def _run_expert_batch(starts: np.ndarray, steps: int = 1000, noise: float = 0.0,
             (SOUP_TASK.modes[a], SOUP_TASK.modes[b]) for a, b in zip(mode[changed], info["mode"][changed], strict=True)
         }
         readings |= {
-            (tuple(row), int(m)) for row, m in zip(info["sensors"][live].tolist(), info["mode"][live], strict=True)
+            (tuple(row), int(m))
+            for row, m in zip(
+                sensor_columns(info["sensors"], SOUP_TASK.sensors)[live].tolist(), info["mode"][live], strict=True
+            )
         }
         mode = info["mode"].copy()
         newly = (term | trunc) & live
@@ -244,7 +248,8 @@ def test_vector_env_agrees_step_for_step_with_single_envs() -> None:
             sobs, srew, sterm, _, sinfo = env.step(actions[k])
             np.testing.assert_allclose(vobs[k], sobs, atol=1e-6)
             assert (vinfo["mode"][k], vrew[k], vterm[k]) == (sinfo["mode"], srew, sterm)
-            assert vinfo["sensors"][k].tolist() == [sinfo["sensors"][ap] for ap in SOUP_TASK.sensors]
+            row = sensor_columns(vinfo["sensors"], SOUP_TASK.sensors)[k].tolist()
+            assert row == [sinfo["sensors"][ap] for ap in SOUP_TASK.sensors]
             assert vinfo["constraint_violation"][k] == sinfo["constraint_violation"]
             seen_violation |= sinfo["constraint_violation"]
             finished[k] = sterm
