@@ -48,6 +48,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites.tli_cooking.suite",
     "steer_envs.bench.suites.tli_inspection.suite",
     "steer_envs.bench.suites.ui.suite",
+    "steer_envs.bench.suites.sb3.suite",
 )
 #: environment variable with extra comma-separated suite modules to import
 PLUGINS_ENV_VAR = "STEER_BENCH_PLUGINS"
