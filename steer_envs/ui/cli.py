@@ -2,6 +2,7 @@
 
     steer-ui                    # http://127.0.0.1:8765, Maze2D-Large, the shipped DP
     steer-ui --policy act --port 9000 --open
+    steer-ui --domain blockstack  # the robot arm: click a cube in the camera image
 
 Binds to 127.0.0.1 unless ``--host`` says otherwise (then it warns: anyone who
 can reach the port can drive the server's CPU).
@@ -14,7 +15,7 @@ import sys
 import webbrowser
 from collections.abc import Sequence
 
-from steer_envs.ui.session import DEFAULT_ENV
+from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -26,8 +27,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default: 127.0.0.1, this machine only)")
     parser.add_argument("--port", type=int, default=8765, help="TCP port (default: 8765; 0 picks a free one)")
-    parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id with a 2D view (default: {DEFAULT_ENV})")
-    parser.add_argument("--policy", choices=("dp", "act"), default="dp", help="shipped policy kind (default: dp)")
+    parser.add_argument("--domain", choices=sorted(DOMAINS), default="maze2d", help="what to steer (default: maze2d)")
+    parser.add_argument("--env", default=None, help=f"another env id of the domain (maze2d default: {DEFAULT_ENV})")
+    parser.add_argument(
+        "--policy",
+        choices=("dp", "act", "blockstack"),
+        default=None,
+        help="shipped policy kind (default: the domain's: dp for maze2d, blockstack for blockstack)",
+    )
     parser.add_argument("--checkpoint", default=None, help="a checkpoint of --policy (default: the shipped one)")
     parser.add_argument(
         "--accelerate",
@@ -66,6 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
     config = UIConfig(
+        domain=args.domain,
         env=args.env,
         policy=args.policy,
         checkpoint=args.checkpoint,

@@ -29,9 +29,9 @@ from fastapi import FastAPI, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
-from steer_envs.core.validation import integer
+from steer_envs.core.validation import integer, one_of
 from steer_envs.ui.messages import Message, MessageError, parse_message
-from steer_envs.ui.session import DEFAULT_ENV, MAX_BATCH, Session, SessionError, SteerOutcome, shared_policy
+from steer_envs.ui.session import DOMAINS, MAX_BATCH, Session, SessionError, SteerOutcome, shared_policy
 from steer_envs.wrappers.samplers import SAMPLERS
 
 __all__ = ["MAX_PENDING", "UIConfig", "create_app"]
@@ -47,10 +47,11 @@ PLAY_PAUSE_S = 0.02
 
 @dataclass(frozen=True)
 class UIConfig:
-    """What the server serves: env id, policy name or checkpoint, and its limits."""
+    """What the server serves: a domain (its env and policy unless overridden), and its limits."""
 
-    env: str = DEFAULT_ENV
-    policy: str = "dp"
+    domain: str = "maze2d"
+    env: str | None = None
+    policy: str | None = None
     checkpoint: str | None = None
     accelerate: str = "trace"
     seed: int = 0
@@ -106,8 +107,9 @@ class _Connection:
             config = self.app.config
             self.session = await self.call(
                 Session,
-                config.env,
-                config.policy,
+                config.domain,
+                env=config.env,
+                policy=config.policy,
                 checkpoint=config.checkpoint,
                 accelerate=config.accelerate,
                 seed=config.seed,
@@ -229,8 +231,10 @@ class _Connection:
         return {
             **self.frame_payload(None, "ready"),
             "type": "ready",
-            "env": self.app.config.env,
-            "policy": self.app.config.policy,
+            "domain": self.app.config.domain,
+            "env": str(getattr(session.env.spec, "id", "")),
+            "policy": self.app.config.policy or session.domain.policies[0],
+            "kinds": list(session.kinds),
             "samplers": list(SAMPLERS),
             "diffusion": bool(hasattr(policy, "predict_noise")),
             "max_batch": MAX_BATCH,
@@ -264,7 +268,7 @@ class _Connection:
         session = self.session
         assert session is not None
         step = session.execute()
-        payload = self.frame_payload(step.info, "step", step.executed[:, :2] if len(step.executed) else None)
+        payload = self.frame_payload(step.info, "step", step.executed if len(step.executed) else None)
         payload["reward"] = step.reward
         return payload
 
@@ -305,6 +309,7 @@ class _AppState:
 def create_app(config: UIConfig | None = None) -> FastAPI:
     """The steer-ui FastAPI app (serve it with uvicorn); loads the policy once, before the first connection."""
     config = config or UIConfig()
+    one_of(config.domain, "domain", tuple(DOMAINS), owner="steer-ui")
     integer(config.workers, "`workers`", low=1, high=64)
     integer(config.max_sessions, "`max_sessions`", low=1, high=1024)
     state = _AppState(config, ThreadPoolExecutor(config.workers, thread_name_prefix="steer-ui"), set())
@@ -312,7 +317,8 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
     @contextlib.asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         loop = asyncio.get_running_loop()
-        await loop.run_in_executor(state.pool, shared_policy, config.policy, config.checkpoint, config.accelerate)
+        policy = config.policy or DOMAINS[config.domain].policies[0]
+        await loop.run_in_executor(state.pool, shared_policy, policy, config.checkpoint, config.accelerate)
         try:
             yield
         finally:
@@ -329,7 +335,7 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
 
     @app.get("/api/health")
     async def health() -> JSONResponse:
-        return JSONResponse({"status": "ok", "sessions": len(state.active), "env": config.env})
+        return JSONResponse({"status": "ok", "sessions": len(state.active), "domain": config.domain})
 
     @app.websocket("/ws")
     async def steer_socket(websocket: WebSocket) -> None:

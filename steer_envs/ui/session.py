@@ -9,9 +9,12 @@ notebook or a test drives directly:
 >>> session.execute()                                          # run the chosen plan in the env
 
 Interactions come in world coordinates (:meth:`Session.steer`) or as pixels of
-the rendered view (:meth:`Session.steer_pixels`, :meth:`Session.nudge_pixel`);
-:class:`PixelMap` converts between the two for any env with an affine
-``pixel_to_xy`` (the 2D views). A session is not thread-safe: one call at a time.
+the rendered view (:meth:`Session.steer_pixels`, :meth:`Session.nudge_pixel`).
+A view converts between the two: :class:`PixelMap` for an env with an affine
+``pixel_to_xy`` (Maze2D's top-down image), :class:`CameraView` for a camera
+with depth (BlockStack: a click lands on the first surface the pixel sees).
+:data:`DOMAINS` names what steer-ui can open. A session is not thread-safe: one
+call at a time.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from steer_envs.wrappers.samplers import (
     SAMPLERS,
     OutputPerturbation,
     Sampler,
+    interaction_dims,
     make_sampler,
     place_observation,
 )
@@ -44,8 +48,11 @@ from steer_envs.wrappers.steering import policy_observation
 
 __all__ = [
     "DEFAULT_ENV",
+    "DOMAINS",
     "MAX_BATCH",
     "MAX_INPUT_POINTS",
+    "CameraView",
+    "Domain",
     "PixelMap",
     "Session",
     "SessionError",
@@ -168,19 +175,98 @@ class PixelMap:
 
     def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
         """``pixels`` as a finite ``(N, 2)`` array inside the image; ``ValueError`` naming ``name`` otherwise."""
-        arr = real_array(pixels, name, owner="steer-ui")
-        if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
-            raise SessionError(f"`{name}` must be a list of [u, v] pixel pairs, got shape {arr.shape}")
-        if len(arr) > MAX_INPUT_POINTS:
-            raise SessionError(f"`{name}` may hold at most {MAX_INPUT_POINTS} points, got {len(arr)}")
-        inside = (arr[:, 0] >= 0) & (arr[:, 0] <= self.width) & (arr[:, 1] >= 0) & (arr[:, 1] <= self.height)
-        if not inside.all():
-            bad = arr[~inside][0]
-            raise SessionError(
-                f"`{name}` must lie inside the {self.width}x{self.height} image, "
-                f"got a point at ({bad[0]:g}, {bad[1]:g})"
-            )
-        return arr
+        return _check_pixels(pixels, name, self.width, self.height)
+
+
+class CameraView:
+    """Pixels of a camera frame <-> world points through the depth buffer (a robosuite env's camera).
+
+    :meth:`to_world` lifts pixels onto the first surface they see (one depth
+    render per call); :meth:`to_pixels` projects world points (plans, sketches).
+    """
+
+    def __init__(self, base: Any) -> None:
+        for name in ("render_rgbd", "camera_matrix", "render_size"):
+            if not hasattr(base, name):
+                raise SessionError(f"{type(base).__name__} has no {name}: CameraView needs a robosuite camera env")
+        self.base = base
+        self.width = self.height = int(base.render_size)
+
+    def to_world(self, pixels: Any) -> np.ndarray:
+        """``(N, 2)`` pixels -> ``(N, 3)`` world points on the surfaces they see."""
+        from steer_envs.envs.robosuite import camera as cam
+
+        arr = np.atleast_2d(np.asarray(pixels, dtype=np.float64))
+        depth = self.base.render_rgbd()[1]
+        matrix = self.base.camera_matrix()
+        out = []
+        for u, v in arr:
+            row, col = cam.nearest_pixel(min(u, self.width - 1e-6), min(v, self.height - 1e-6), self.width)
+            out.append(cam.pixel_to_world(u, v, float(depth[row, col]), matrix))
+        return np.asarray(out)
+
+    def to_pixels(self, points: Any) -> np.ndarray:
+        """``(..., 3)`` world points -> ``(..., 2)`` pixels (not clipped to the frame)."""
+        from steer_envs.envs.robosuite import camera as cam
+
+        arr = np.asarray(points, dtype=np.float64)
+        flat = cam.world_to_pixel(arr.reshape(-1, 3), self.base.camera_matrix())
+        return np.asarray(flat, dtype=np.float64).reshape(-1, 3)[:, :2].reshape(*arr.shape[:-1], 2)
+
+    def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
+        """As :meth:`PixelMap.check_pixels`."""
+        return _check_pixels(pixels, name, self.width, self.height)
+
+
+def _check_pixels(pixels: Any, name: str, width: int, height: int) -> np.ndarray:
+    arr = real_array(pixels, name, owner="steer-ui")
+    if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
+        raise SessionError(f"`{name}` must be a list of [u, v] pixel pairs, got shape {arr.shape}")
+    if len(arr) > MAX_INPUT_POINTS:
+        raise SessionError(f"`{name}` may hold at most {MAX_INPUT_POINTS} points, got {len(arr)}")
+    inside = (arr[:, 0] >= 0) & (arr[:, 0] <= width) & (arr[:, 1] >= 0) & (arr[:, 1] <= height)
+    if not inside.all():
+        bad = arr[~inside][0]
+        raise SessionError(
+            f"`{name}` must lie inside the {width}x{height} image, got a point at ({bad[0]:g}, {bad[1]:g})"
+        )
+    return arr
+
+
+@dataclass(frozen=True)
+class Domain:
+    """What steer-ui opens: an env, the policies that plan in it, default settings, its view and executor.
+
+    Attributes:
+        env_id / env_kwargs: the env (made with ``render_mode="rgb_array"``).
+        policies: the policy kinds :func:`shared_policy` loads for it (the first is the default).
+        settings: the default sampler and knobs.
+        view: ``"pixels"`` (an affine 2D view) or ``"camera"`` (depth camera).
+        execute: ``"waypoints"`` (each plan waypoint is an env action) or ``"skill"``
+            (a whole pick / place skill run by ``plan_execution.execute_plan``).
+    """
+
+    env_id: str
+    env_kwargs: Mapping[str, Any]
+    policies: tuple[str, ...]
+    settings: SteerSettings
+    view: str = "pixels"
+    execute: str = "waypoints"
+
+
+#: the domains steer-ui can open (``--domain``)
+DOMAINS: dict[str, Domain] = {
+    "maze2d": Domain(DEFAULT_ENV, {"sample_goal": False}, ("dp", "act"), SteerSettings()),
+    # GD's beta is tuned for 10 DDIM steps; this DP runs 100, so a tenth of it (docs/results.md, itps-blockstack)
+    "blockstack": Domain(
+        "steer_envs/BlockStack-v0",
+        {"fast_render": True, "render_size": 256},
+        ("blockstack",),
+        SteerSettings(sampler="GD", batch=16, guide_ratio=10.0),
+        view="camera",
+        execute="skill",
+    ),
+}
 
 
 def resample_by_arclength(points: Any, n: int) -> np.ndarray:
@@ -213,20 +299,24 @@ _POLICIES_LOCK = threading.Lock()
 
 
 def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "trace") -> TrajectoryPolicy:
-    """The shipped Maze2D-Large ``kind`` policy (or ``checkpoint``), loaded once per process and shared.
+    """A shipped policy (or ``checkpoint``), loaded once per process and shared.
 
+    ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large) or ``"blockstack"`` (the BlockStack skill DP).
     ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"trace"``: the same
     plans as eager, ~1.25x faster on a CPU); ACT ignores it.
     """
-    from steer_envs.baselines.pretrained import load_checkpoint, load_pretrained
+    from steer_envs.baselines.pretrained import load_blockstack, load_checkpoint, load_pretrained
 
-    kind = one_of(kind, "policy", ("dp", "act"), owner="steer-ui")
+    kind = one_of(kind, "policy", ("dp", "act", "blockstack"), owner="steer-ui")
     accelerate = one_of(accelerate, "accelerate", ("none", "trace", "compile"), owner="steer-ui")
     key = (kind, str(checkpoint or ""), accelerate)
     with _POLICIES_LOCK:
         policy = _POLICIES.get(key)
         if policy is None:
-            policy = load_checkpoint(kind, checkpoint) if checkpoint else load_pretrained(kind)
+            if kind == "blockstack":
+                policy = load_blockstack(checkpoint=checkpoint)
+            else:
+                policy = load_checkpoint(kind, checkpoint) if checkpoint else load_pretrained(kind)
             speed_up = getattr(policy, "accelerate", None)
             if callable(speed_up):
                 speed_up(accelerate)
@@ -311,14 +401,15 @@ class Session:
     """An env, a frozen policy and steering settings: steer, look at the plans, execute, nudge.
 
     Args:
-        env: a registered env id (default Maze2D-Large) or an env made with
-            ``render_mode="rgb_array"`` whose action is the next waypoint.
-        policy: ``"dp"`` / ``"act"`` (the shipped checkpoints, shared by all sessions of
-            the process) or any :class:`~steer_envs.core.policy.TrajectoryPolicy`.
-        checkpoint: a checkpoint file of ``policy`` (with a name only).
-        settings: the sampler and knobs (default SS, batch 32).
+        domain: a name of :data:`DOMAINS` (``"maze2d"``, ``"blockstack"``): the env,
+            policy, default settings, view and executor below default to its.
+        env: an env id, or an env made with ``render_mode="rgb_array"``.
+        policy: a policy kind of :func:`shared_policy` (shared by all sessions of the
+            process) or any :class:`~steer_envs.core.policy.TrajectoryPolicy`.
+        checkpoint: a checkpoint file of ``policy`` (with a kind only).
+        settings: the sampler and knobs (default: the domain's).
         seed: the first reset's seed (start state and sampling noise).
-        env_kwargs: passed to ``gymnasium.make`` with an id (default for Maze2D: no goal).
+        env_kwargs: passed to ``gymnasium.make`` with an id (default: the domain's).
         accelerate: the network's inference mode for a named policy (``"trace"`` by default).
         threads: torch threads for a steering call (default 1; ``None``: leave torch's setting,
             as the server does after setting it once per process).
@@ -326,9 +417,10 @@ class Session:
 
     def __init__(
         self,
-        env: str | gym.Env[Any, Any] = DEFAULT_ENV,
-        policy: str | TrajectoryPolicy = "dp",
+        domain: str = "maze2d",
         *,
+        env: str | gym.Env[Any, Any] | None = None,
+        policy: str | TrajectoryPolicy | None = None,
         checkpoint: str | None = None,
         settings: SteerSettings | None = None,
         seed: int = 0,
@@ -336,22 +428,27 @@ class Session:
         accelerate: str = "trace",
         threads: int | None = 1,
     ) -> None:
+        self.domain = DOMAINS[one_of(domain, "domain", tuple(DOMAINS), owner="Session")]
         self.threads = None if threads is None else integer(threads, "`threads`", low=1)
+        policy = self.domain.policies[0] if policy is None else policy
         if isinstance(policy, str):
             shared = shared_policy(policy, checkpoint, accelerate)
         elif isinstance(policy, TrajectoryPolicy):
             if checkpoint is not None:
-                raise TypeError("Session: `checkpoint` goes with a policy name ('dp' or 'act'), not a policy object")
+                raise TypeError("Session: `checkpoint` goes with a policy kind, not a policy object")
             shared = policy
         else:
-            raise TypeError(f"Session: `policy` must be 'dp', 'act' or a TrajectoryPolicy, got {describe(policy)}")
-        self.settings = (settings or SteerSettings()).checked()
+            raise TypeError(f"Session: `policy` must be a policy kind or a TrajectoryPolicy, got {describe(policy)}")
+        if settings is not None and not isinstance(settings, SteerSettings):
+            raise TypeError(f"Session: `settings` must be SteerSettings or None, got {describe(settings)}")
+        self.settings = (settings or self.domain.settings).checked()
         self._clock = _NetworkClock()
         self.policy = _session_view(shared, self._clock)
+        self.dims = interaction_dims(self.policy)
+        env = self.domain.env_id if env is None else env
         if isinstance(env, str):
-            kwargs = dict(env_kwargs or {})
-            if env.startswith("steer_envs/Maze2D"):
-                kwargs.setdefault("sample_goal", False)
+            kwargs = dict(self.domain.env_kwargs if env_kwargs is None and env == self.domain.env_id else {})
+            kwargs.update(env_kwargs or {})
             self.env: gym.Env[Any, Any] = gym.make(env, render_mode="rgb_array", **kwargs)
         elif isinstance(env, gym.Env):
             if env_kwargs:
@@ -360,21 +457,32 @@ class Session:
         else:
             raise TypeError(f"Session: `env` must be an env id or a gymnasium.Env, got {describe(env)}")
         box = self.env.action_space
-        if not isinstance(box, gym.spaces.Box) or box.shape != (int(self.policy.action_dim),):
+        if self.domain.execute == "waypoints" and (
+            not isinstance(box, gym.spaces.Box) or box.shape != (int(self.policy.action_dim),)
+        ):
             raise SessionError(
                 f"the env's action space must be a Box of shape ({self.policy.action_dim},) like the policy's plans, "
                 f"got {box}"
             )
-        self._box = box
+        self._box: Any = box
+        base = self.env.unwrapped
+        kinds = getattr(base, "interaction_kinds", ("point", "sketch", "nudge"))
+        self.kinds: tuple[str, ...] = tuple(k for k in kinds if k in ("point", "sketch", "nudge"))
         self._sampler = self.settings.make_sampler()
+        self._sampler._check_policy(self.policy)
         self._history: list[Any] = []
         self._rng = np.random.default_rng(0)
         self._last: SteerOutcome | None = None
         self._done = False
-        self._seed = integer(seed, "`seed`", low=0)
+        self._home_yaw = 0.0
+        self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
         self.reset(seed=self._seed)
         image = self.frame()
-        self.pixels = PixelMap.from_env(self.env.unwrapped, image.shape[1], image.shape[0])
+        self.pixels: PixelMap | CameraView = (
+            CameraView(base)
+            if self.domain.view == "camera"
+            else PixelMap.from_env(base, image.shape[1], image.shape[0])
+        )
 
     # -------------------------------------------------------------- state
     @property
@@ -384,8 +492,9 @@ class Session:
 
     @property
     def state(self) -> np.ndarray:
-        """The agent's world position."""
-        return np.asarray(getattr(self.env.unwrapped, "state", self._history[-1]), dtype=np.float64)[:2].copy()
+        """The agent's world position (the dimensions interactions live in)."""
+        raw = np.asarray(getattr(self.env.unwrapped, "state", self._history[-1]), dtype=np.float64)
+        return raw[list(self.dims)].copy()
 
     @property
     def last(self) -> SteerOutcome | None:
@@ -415,6 +524,11 @@ class Session:
         if seed is not None:
             self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
         obs, info = self.env.reset(seed=self._seed)
+        if self.domain.execute == "skill":
+            from steer_envs.envs.robosuite.plan_execution import yaw_of
+
+            base: Any = self.env.unwrapped
+            self._home_yaw = yaw_of(base.robosuite_obs["robot0_eef_quat"])
         self._rng = np.random.default_rng(np.random.SeedSequence([self._seed, 0x5E55]))
         self._history = [obs]
         self._last = None
@@ -445,7 +559,8 @@ class Session:
         except TypeError as exc:  # e.g. BI/GD/SS with a policy that has no denoiser
             raise SessionError(str(exc)) from exc
         start = int(getattr(self.policy, "exec_start", 0))
-        plans = np.asarray(result.plans, dtype=np.float64)[:, start:, :2]
+        plans = np.asarray(result.plans, dtype=np.float64)[:, start:]
+        plans = plans if self.domain.execute == "skill" else plans[..., list(self.dims)]
         collide = getattr(self.env.unwrapped, "plan_collides", None)
         total = float(result.timings.get("total_ms", float("nan")))
         network = self._clock.seconds * 1e3
@@ -459,7 +574,7 @@ class Session:
             plans=plans,
             chosen=int(result.chosen),
             costs=np.asarray(result.costs, dtype=np.float64),
-            collides=np.asarray(collide(plans), dtype=bool) if callable(collide) else None,
+            collides=np.asarray(collide(plans), dtype=bool) if callable(collide) and len(self.dims) == 2 else None,
             interaction=interaction,
             timings=timings,
             settings=self.settings,
@@ -491,6 +606,8 @@ class Session:
         if perturbed is not None:  # OP moved the agent onto the sketch before sampling
             self._perturbable().perturb(to=perturbed)
             self._history.append(place_observation(self._history[-1], self.state))
+        if self.domain.execute == "skill":
+            return self._execute_skill(outcome.plan)
         plan = outcome.plan
         if self.settings.execute is not None:
             plan = plan[: self.settings.execute]
@@ -511,13 +628,31 @@ class Session:
         self._done = bool(terminated or truncated)
         return StepOutcome(np.asarray(executed), reward, bool(terminated), bool(truncated), dict(info))
 
+    def _execute_skill(self, plan: np.ndarray) -> StepOutcome:
+        """A whole pick / place skill plan, run open-loop on the arm (BlockStack)."""
+        from steer_envs.envs.robosuite.plan_execution import execute_plan
+
+        base: Any = self.env.unwrapped
+        result = execute_plan(base, plan, home_yaw=self._home_yaw)
+        self._history.append(result.obs)
+        self._history = self._history[-max(2, int(getattr(self.policy, "n_obs_steps", 1))) :]
+        self._last = None
+        info = dict(base._info()) if callable(getattr(base, "_info", None)) else {}
+        info["skill"] = result.executed
+        info["constraint_violation"] = bool(result.violation or info.get("constraint_violation", False))
+        return StepOutcome(result.trail, 0.0, False, False, info)
+
     def nudge(self, to: Any) -> dict[str, Any]:
         """Move the agent to world point ``to`` (a physical correction through ``perturb``); plans expire."""
         target = real_array(to, "to", owner="Session.nudge")
-        if target.shape != (2,):
-            raise SessionError(f"`to` must be a world point [x, y], got shape {target.shape}")
+        if target.shape != (len(self.dims),):
+            raise SessionError(f"`to` must be a world point of {len(self.dims)} numbers, got shape {target.shape}")
         if self._done:
             raise SessionError("the episode has ended: reset to go on")
+        if "nudge" not in self.kinds:
+            raise SessionError(
+                f"{type(self.env.unwrapped).__name__} takes no nudges (its interaction kinds: {list(self.kinds)})"
+            )
         info = self._perturbable().perturb(to=target)
         self._history.append(place_observation(self._history[-1], self.state))
         self._last = None

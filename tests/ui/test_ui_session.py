@@ -150,3 +150,27 @@ def test_settings_are_checked() -> None:
     assert SteerSettings(sampler="GD", guide_ratio=30).checked().make_sampler().guide_ratio == 30.0
     with pytest.raises(ValueError, match="mcmc_steps"):
         SteerSettings(mcmc_steps=0).checked()
+
+
+def test_blockstack_clicks_land_on_surfaces_and_skills_run() -> None:
+    """The camera domain: a click on a cube is a 3D point on its top face; a plan runs as a whole skill."""
+    with limit_threads(1, 1):
+        arm = Session("blockstack", seed=100_000, settings=SteerSettings(sampler="GD", batch=2, guide_ratio=10.0))
+    try:
+        base = arm.env.unwrapped
+        cube = base.cube_pos[0]  # type: ignore[attr-defined]
+        pixel = arm.pixels.to_pixels(cube)
+        on_top = arm.pixels.to_world([pixel])[0]
+        assert np.linalg.norm(on_top[:2] - cube[:2]) < 0.03 and 0.0 < on_top[2] - cube[2] < 0.03
+        assert np.allclose(arm.pixels.to_pixels(on_top), pixel, atol=1.0)
+        assert arm.kinds == ("point", "sketch") and arm.dims == (0, 1, 2)
+        with pytest.raises(SessionError, match="no nudges"):
+            arm.nudge(on_top)
+        with limit_threads(1, 1):
+            outcome = arm.steer_pixels("point", [pixel])
+            assert outcome.plans.shape == (2, 32, 4) and outcome.collides is None
+            step = arm.execute()
+        assert step.executed.shape[1] == 3 and len(step.executed) > 10  # the end effector's trail
+        assert "skill" in step.info and arm.last is None
+    finally:
+        arm.close()

@@ -60,7 +60,11 @@ const HANDLERS = {
     ui.scale = Math.min(4, MAX_DISPLAY / Math.max(msg.width, msg.height));
     frame.width = Math.round(msg.width * ui.scale); frame.height = Math.round(msg.height * ui.scale);
     overlay.width = frame.width; overlay.height = frame.height;
-    $("env-name").textContent = `${msg.env} · policy ${msg.policy.toUpperCase()}`;
+    $("env-name").textContent = `${msg.env} · policy ${msg.policy}`;
+    for (const input of document.querySelectorAll("input[name=mode]")) {
+      input.disabled = !msg.kinds.includes(input.value);
+      input.parentElement.title = input.disabled ? "this env takes no such input" : "";
+    }
     const select = $("sampler");
     select.innerHTML = "";
     for (const name of msg.samplers) {
