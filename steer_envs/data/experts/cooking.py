@@ -21,12 +21,14 @@ vector env's ``infos``; build the expert on
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
 
 from steer_envs.data.experts.control import velocity_toward
 from steer_envs.envs.cooking import DARK, FOODS, SENSORS, WHITE, CookingEnv
+from steer_envs.envs.kinematic import sensor_columns
 
 #: how far inside a region a waypoint sits (so the transition happens before it is reached).
 MARGIN = 0.5
@@ -73,8 +75,8 @@ class CookingExpert:
         single = pos.ndim == 1
         pos = pos.reshape(-1, 2)
         sensors = info["sensors"]
-        if isinstance(sensors, dict):
-            sensors = np.array([[bool(sensors[ap]) for ap in SENSORS]])
+        if isinstance(sensors, Mapping):  # one env's reading or a vector env's dict of (N,) arrays
+            sensors = sensor_columns(sensors, SENSORS)
         sensors = np.asarray(sensors, dtype=bool).reshape(-1, len(SENSORS))
         if len(sensors) != len(pos):
             raise ValueError(f"info['sensors'] must have one row per observation ({len(pos)}), got {len(sensors)}")

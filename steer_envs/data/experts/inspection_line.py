@@ -9,12 +9,14 @@ vector env's ``infos``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from steer_envs.data.experts.control import velocity_toward
 from steer_envs.envs.inspection_line import SENSORS, InspectionLineEnv
+from steer_envs.envs.kinematic import sensor_columns
 
 
 class InspectionLineExpert:
@@ -38,8 +40,8 @@ class InspectionLineExpert:
         single = pos.ndim == 1
         pos = pos.reshape(-1, 2)
         sensors = info["sensors"]
-        if isinstance(sensors, dict):
-            sensors = np.array([[bool(sensors[ap]) for ap in SENSORS]])
+        if isinstance(sensors, Mapping):  # one env's reading or a vector env's dict of (N,) arrays
+            sensors = sensor_columns(sensors, SENSORS)
         on_line = np.asarray(sensors, dtype=bool).reshape(-1, len(SENSORS))[:, 0]
         target = np.where(on_line[:, None], self._release, self._entry)
         action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
