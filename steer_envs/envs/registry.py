@@ -88,6 +88,14 @@ BASE_ENTRIES: tuple[EnvEntry, ...] = (
         kinematic=True,
         expert="steer_envs.data.experts.inspection_line:InspectionLineExpert",
     ),
+    EnvEntry(
+        "ColorTracing-v0",
+        "steer_envs.envs.color_tracing:ColorTracingEnv",
+        max_episode_steps=1000,
+        vector_entry_point="steer_envs.envs.color_tracing:make_vector_env",
+        kinematic=True,
+        expert="steer_envs.data.experts.color_tracing:ColorTracingExpert",
+    ),
     *(
         EnvEntry(
             f"PolygonNav-{k}Mode-v0",

@@ -21,8 +21,10 @@
   re-enters at yellow; (b): exits after the blue tile re-enter at blue (an exit
   at yellow re-enters at yellow); (c): an exit at yellow continues at blue, an
   exit at blue continues at pink (the text), other exits re-enter the tile
-  they left (our completion). No color-tracing env exists;
-  :data:`COLOR_TRACING_TASK` is its task.
+  they left (our completion). ``steer_envs/ColorTracing-v0``
+  (:mod:`steer_envs.envs.color_tracing`) implements it; its task adds the
+  exits and re-entries and labels no sensor reading (the dark reading is
+  ambiguous), :data:`COLOR_TRACING_TASK` is the labelled chain.
 
 :func:`for_env` returns the spec attached to a registered env id, and
 :func:`benchmark_translation` times the translation of every spec.
@@ -189,7 +191,7 @@ def _color_task() -> TaskSpec:
     )
 
 
-#: the task of the color-tracing experiment (no env implements it yet)
+#: the labelled chain of the color-tracing experiment (the env's own task: ``steer_envs.envs.color_tracing``)
 COLOR_TRACING_TASK = _color_task()
 
 
@@ -224,7 +226,7 @@ def color_tracing(variant: str = "a") -> GR1Spec:
 _ENVS: dict[str, tuple[str, dict[str, Callable[[], GR1Spec]]]] = {
     "SoupScoop-v0": ("public", {c: partial(soup_scoop, c) for c in ("public", "thesis")}),
     "Cooking-v0": ("phi_cb", {v: partial(cooking, v) for v in _COOKING_SYS_SAFETY}),
-    "ColorTracing": ("a", {v: partial(color_tracing, v) for v in _REENTRY}),
+    "ColorTracing-v0": ("a", {v: partial(color_tracing, v) for v in _REENTRY}),
 }
 
 

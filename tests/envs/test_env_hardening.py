@@ -358,6 +358,7 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "ConvexModeEnv",
         "CookingEnv",
         "InspectionLineEnv",  # a kinematic domain: its constructor is the shared one tested here
+        "ColorTracingEnv",  # a kinematic domain (its `automaton`: tests/envs/test_color_tracing.py)
         "PolygonNavEnv",
         "Maze2DEnv",
         "Maze2DGoalEnv",  # Maze2DEnv(goal_conditioned=True): tests/envs/test_rl_variants.py

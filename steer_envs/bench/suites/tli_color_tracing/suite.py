@@ -1,0 +1,168 @@
+"""``tli-color-tracing``: LTL-DS from one demonstration under three replanning automata (thesis robot experiment 3).
+
+One trial = one experiment seed (the single demonstration and the tile DSs
+fitted on it: the same for every automaton) x one replanning automaton (the
+method: ``a``, ``b``, ``c`` of :func:`steer_envs.ltl.specs.color_tracing`), run
+for ``n_episodes`` without and ``n_episodes`` with random pushes into the dark
+region through
+:func:`~steer_envs.bench.suites.tli_color_tracing.protocol.color_trial`.
+
+>>> ColorTracingParams(n_episodes=3).to_json()["n_episodes"]
+3
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.utils.threads import single_threaded
+
+ENV_ID = "steer_envs/ColorTracing-v0"
+AUTOMATA: tuple[str, ...] = ("a", "b", "c")
+SOURCE = "thesis appendix 'Robot Experiment 3: Color Tracing' (videos; no numbers given)"
+#: each automaton's re-entry rule in words (the claim its finding checks)
+RULES = {
+    "a": "(a) a push into D from any tile re-enters at yellow",
+    "b": "(b) a push into D after yellow re-enters at blue (from yellow: at yellow)",
+    "c": "(c) a push into D from yellow re-enters at blue, from blue at pink (other tiles: the tile left)",
+}
+
+
+@dataclass(frozen=True)
+class ColorTracingParams(SuiteParams):
+    """Parameters of ``tli-color-tracing``.
+
+    ``n_episodes`` per condition (no pushes / pushes); ``n_pushes`` pushes into
+    D per episode, each from its own random tile after ``1..max_dwell`` steps
+    on it; ``max_steps`` per episode;
+    ``modulation`` learns cuts from invariance failures; the first
+    ``plot_seeds`` experiments keep episodes for the figure.
+    """
+
+    suite_name: ClassVar[str] = "tli-color-tracing"
+    n_episodes: int = 10
+    n_pushes: int = 3
+    max_dwell: int = 15
+    max_steps: int = 2500
+    modulation: bool = True
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_episodes", "max_dwell", "max_steps")
+        self.require_at_least(0, "n_pushes", "plot_seeds")
+
+
+def _percent(part: float, whole: float) -> float | None:
+    return None if whole <= 0 else 100.0 * part / whole
+
+
+def run_color_trial(trial: Trial) -> TrialResult:
+    """One experiment under one replanning automaton, without and with pushes."""
+    from steer_envs.bench.suites.tli_color_tracing.protocol import color_trial
+
+    if trial.method not in AUTOMATA:
+        raise ValueError(f"tli-color-tracing: unknown method {trial.method!r}; expected one of {AUTOMATA}")
+    p = ColorTracingParams.from_json(trial.params)
+    record = trial.seed < p.plot_seeds
+    with single_threaded():
+        res = color_trial(
+            trial.seed, str(trial.method), n_episodes=p.n_episodes, n_pushes=p.n_pushes, max_dwell=p.max_dwell,
+            max_steps=p.max_steps, modulation=p.modulation, record=record,
+        )  # fmt: skip
+    clean, push = res["clean"], res["push"]
+    metrics = {
+        "success_clean": 100.0 * clean["success"],
+        "success": 100.0 * push["success"],
+        "pushes": push["n_pushes"] / p.n_episodes,
+        "replans": push["replans"],
+        "reentry_ok": _percent(push["reentry_ok"], push["n_pushes"]),
+        "tracked_ok": _percent(push["tracked_ok"], push["n_pushes"]),
+        "failures": push["failures"],
+        "violations": push["violations"],
+        "num_cuts": float(res["num_cuts"]),
+        "steps": push["steps"],
+    }
+    extra: dict[str, Any] = {"pushes": push["push_log"]}
+    if record:
+        extra["figure"] = {"push": push["figure"]}
+    return TrialResult(metrics, extra)
+
+
+def color_findings(table: Any) -> list[Finding]:
+    """Per automaton: its re-entry rule held after every push; the automaton told D1..D4 apart; red reached."""
+    out = []
+    for a in AUTOMATA:
+        ok, pushes = table.mean("reentry_ok", a), table.mean("pushes", a)
+        claim = f"{RULES[a]}: the next mode entered after every push is the one the automaton prescribes"
+        if ok is None or pushes is None:
+            out.append(Finding(claim, None))
+            continue
+        detail = f"{a}: {ok:.0f} % of pushes re-entered as prescribed ({pushes:.1f} pushes per episode)"
+        out.append(Finding(claim, pushes > 0 and ok >= 100.0 - 1e-9, detail))
+    tracked = table.means("tracked_ok", AUTOMATA)
+    claim = "the automaton tells D1..D4 apart from the sensor history: its D mode equals the env's after every push"
+    if tracked is None:
+        out.append(Finding(claim, None))
+    else:
+        detail = ", ".join(f"{a} {tracked[a]:.0f} %" for a in AUTOMATA)
+        out.append(Finding(claim, all(tracked[a] >= 100.0 - 1e-9 for a in AUTOMATA), detail))
+    success = table.means("success", AUTOMATA)
+    claim = "LTL-DS from a single demonstration reaches red in every pushed episode under every automaton"
+    if success is None:
+        out.append(Finding(claim, None))
+    else:
+        detail = ", ".join(f"{a} {success[a]:.0f} %" for a in AUTOMATA)
+        out.append(Finding(claim, all(success[a] >= 100.0 - 1e-9 for a in AUTOMATA), detail))
+    return out
+
+
+def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
+    from steer_envs.bench.suites.tli_color_tracing.plots import plot_color_tracing
+
+    return plot_color_tracing(suite, records, out_dir)
+
+
+TLI_COLOR_TRACING = register_suite(
+    Suite(
+        name="tli-color-tracing",
+        description=(
+            "TLI color tracing on ColorTracing-v0: one LPV-DS per tile from a single demonstration, recombined by "
+            "the replanning automata (a), (b), (c) under random pushes into the dark region; seeds are experiments."
+        ),
+        metrics=(
+            Metric("success_clean", "success (%) without pushes (red reached)", fmt=".0f"),
+            Metric("success", "success (%) under random pushes into D", fmt=".0f"),
+            Metric("pushes", "pushes into D per episode", fmt=".1f"),
+            Metric(
+                "replans",
+                "replans per episode (mode changes off the plan: pushes, invariance failures)",
+                higher_is_better=False,
+                fmt=".1f",
+            ),
+            Metric("reentry_ok", "pushes whose next tile is the automaton's re-entry tile (%)", fmt=".0f"),
+            Metric("tracked_ok", "pushes whose D mode the automaton tracked as the env's (%)", fmt=".0f"),
+            Metric("failures", "invariance failures (own exits into D) per episode", higher_is_better=False),
+            Metric("violations", "env constraint violations per episode", higher_is_better=False),
+            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            Metric("steps", "steps per pushed episode", higher_is_better=False, fmt=".0f"),
+        ),
+        run_trial=run_color_trial,
+        envs=(ENV_ID,),
+        methods=AUTOMATA,
+        params=ColorTracingParams(),
+        trials_param="n_episodes",
+        default_seeds=3,
+        references=tuple(
+            Reference(metric, 100.0, env=ENV_ID, method=a, source=SOURCE)
+            for a in AUTOMATA
+            for metric in ("success", "reentry_ok")
+        ),
+        quick={"n_episodes": 2, "n_pushes": 2},
+        quick_seeds=1,
+        plot=_plot,
+        findings=color_findings,
+    )
+)
