@@ -9,7 +9,7 @@ import pkgutil
 import pytest
 
 #: modules whose import needs something optional (Ray) or that run a CLI on import
-_SKIP_PREFIXES = ("steer_envs.bench.__main__", "steer_envs.baselines.training.__main__")
+_SKIP_PREFIXES = ("steer_envs.bench.__main__", "steer_envs.baselines.training.__main__", "steer_envs.ui.__main__")
 
 
 def _library_modules() -> list[str]:

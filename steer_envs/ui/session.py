@@ -1,12 +1,11 @@
 """One person's steering loop, without a browser: an env, a frozen policy, a sampler and its knobs.
 
 A :class:`Session` is what ``steer-ui`` keeps per browser tab, and what a
-notebook or a test drives directly:
+notebook or a test drives directly::
 
->>> session = Session(policy=my_policy)                       # doctest: +SKIP
->>> session.reset(seed=3)                                      # doctest: +SKIP
->>> outcome = session.steer(Sketch([[2, 1], [2, 6], [5, 6]]))  # plans, costs, collisions, timings
->>> session.execute()                                          # run the chosen plan in the env
+    session = Session(seed=3)                        # Maze2D-Large + the shipped DP, SS at batch 32
+    outcome = session.steer(Sketch([[2, 1], [2, 6], [5, 6]]))  # plans, costs, collisions, timings
+    session.execute()                                # run the chosen plan in the env
 
 Interactions come in world coordinates (:meth:`Session.steer`) or as pixels of
 the rendered view (:meth:`Session.steer_pixels`, :meth:`Session.nudge_pixel`).
