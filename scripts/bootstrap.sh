@@ -9,7 +9,7 @@ PYTHON=${PYTHON:-python3.11}
 command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
 
 # Offscreen MuJoCo rendering on CPUs needs OSMesa; steer-ui's browser test drives Debian's chromium.
-APT_PACKAGES=(libosmesa6 chromium chromium-driver)
+APT_PACKAGES=(libosmesa6 chromium chromium-driver xvfb)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg"); done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -37,7 +37,7 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   log=.venv/bootstrap.log
   # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
   if ! { .venv/bin/python -m pip install -q --upgrade "pip>=24" \
-         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui]"; } >"$log" 2>&1; then
+         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui,human]"; } >"$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "[bootstrap] pip install failed; full log in $log" >&2
     exit 1

@@ -311,7 +311,7 @@ class ColorTracingEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
         reward_type, observe_sensors, normalize_actions: the RL options of every 2D env.
         automaton: the replanning automaton whose re-entries are valid (``"a"``, ``"b"``, ``"c"``;

@@ -282,7 +282,7 @@ class ConvexModeEnv(Kinematic2DEnv):
             real in ``[0, MAX_START_NOISE]``.
         terminate_on_violation: end the episode when the agent leaves the mode.
         dt, max_speed: integration step and speed limit (thesis: 0.01, 20).
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
     >>> import gymnasium as gym
     >>> import numpy as np

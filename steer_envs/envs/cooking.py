@@ -313,7 +313,7 @@ class CookingEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
 
     Spills are reported, never terminal (``terminate_on_violation=False``).

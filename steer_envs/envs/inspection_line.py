@@ -165,7 +165,7 @@ class InspectionLineEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
 
     >>> import gymnasium as gym

@@ -28,6 +28,7 @@ from gymnasium.vector.utils import batch_space
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import bool_array, boolean, describe, integer, one_of, real_array, real_scalar
+from steer_envs.envs.human_view import HumanView
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: accepted ``render_size`` (pixels per side): a region map above this size costs hundreds of MB to draw.
@@ -163,16 +164,17 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     ``ValueError`` for a wrong value, naming the argument): ``dt`` and
     ``max_speed`` positive finite reals (at most :data:`MAX_DT` / :data:`MAX_SPEED`); ``terminate_on_violation``,
     ``observe_sensors`` and ``normalize_actions`` bools; ``reward_type`` ``"sparse"`` or ``"dense"``;
-    ``render_mode`` ``None`` or ``"rgb_array"``; ``render_size`` an int in
-    :data:`RENDER_SIZE_RANGE`. Actions, ``perturb`` displacements/targets and
-    ``options["state"]`` are arrays of 2 finite real numbers (lists, numpy
-    arrays, torch tensors, read detached); strings (also ``"1"``), bools,
+    ``render_mode`` ``None``, ``"rgb_array"`` or ``"human"`` (the same frames in a
+    pygame window at ``metadata["render_fps"]``, shown by every ``reset`` and ``step``;
+    needs the ``human`` extra); ``render_size`` an int in :data:`RENDER_SIZE_RANGE`.
+    Actions, ``perturb`` displacements/targets and ``options["state"]`` are arrays of 2
+    finite real numbers (lists, numpy arrays, torch tensors, read detached); strings (also ``"1"``), bools,
     complex numbers and objects are refused, never converted. A finite
     action outside the action space is clipped to ``max_speed`` (its
     direction kept) and a state outside the workspace onto it.
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 30}  # noqa: RUF012 - Env's type
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 30}  # noqa: RUF012 - Env's type
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
 
     def __init__(
@@ -197,6 +199,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
         low, high = RENDER_SIZE_RANGE
         self.render_size = integer(render_size, "render_size", low=low, high=high, owner=owner)
+        self._view = HumanView(self.metadata["render_fps"], owner) if self.render_mode == "human" else None
         self.reward_type: RewardType = check_reward_type(reward_type, owner)
         self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
         self.normalize_actions = boolean(normalize_actions, "normalize_actions", owner=owner)
@@ -271,6 +274,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
             self._pos = self.model.sample_start(self.np_random, 1).astype(np.float64)
         self._memory = self.model.reset_memory(self._pos)
         self._trail = [self._pos[0].copy()]
+        if self.render_mode == "human":
+            self.render()
         return self._obs(), self._info(False)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -287,6 +292,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
             before = after = np.zeros(1)
         reward = float(self.rewards(np.array([info["success"]]), violation, before, after)[0])
         terminated = info["success"] or (self.terminate_on_violation and info["constraint_violation"])
+        if self.render_mode == "human":
+            self.render()
         return self._obs(), reward, bool(terminated), False, info
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
@@ -308,9 +315,20 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._info(False, perturbed=True)
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
+        """The ``rgb_array`` frame (see :meth:`draw_frame`); with ``"human"`` it is shown in the window (None)."""
+        if self.render_mode is None:
             return None
-        return self.draw_frame(self._pos[0], self._trail)
+        frame = self.draw_frame(self._pos[0], self._trail)
+        if self._view is not None:
+            self._view.show(frame)
+            return None
+        return frame
+
+    def close(self) -> None:
+        """Close the ``"human"`` window, if one is open."""
+        if self._view is not None:
+            self._view.close()
+        super().close()
 
     def draw_frame(self, pos: np.ndarray, trail: Sequence[np.ndarray]) -> np.ndarray:
         """One ``rgb_array`` frame: the region map, the path ``trail`` and the agent at ``pos`` (uint8 HxWx3).
@@ -344,7 +362,8 @@ class Kinematic2DVectorEnv(VectorEnv):
     of ``num_envs`` seeds), so agent ``i`` starts where a single env reset with
     ``seed=s + i`` starts and, given the same actions, follows the same path
     (autoresets included). ``render()`` returns a tuple of one frame per agent
-    (each what the single env would draw), as the sync vector env does.
+    (each what the single env would draw), as the sync vector env does;
+    ``render_mode="human"`` (one window) is single-env only and refused with a ``ValueError``.
 
     Unlike the sync vector env, ``reset(options={"state": xy})`` takes one start
     per agent, ``xy`` of shape ``(num_envs, 2)``; :meth:`perturb` pushes a subset.
@@ -379,6 +398,8 @@ class Kinematic2DVectorEnv(VectorEnv):
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
         self.action_space = batch_space(env.action_space, self.num_envs)
+        if env.render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"{owner}: render_mode={env.render_mode!r} is single-env only; use 'rgb_array' or None")
         self.render_mode = env.render_mode
         n = self.num_envs
         self._pos = np.zeros((n, 2))
@@ -639,6 +660,9 @@ def vector_factory(env_cls: type[Kinematic2DEnv]) -> Any:
     """A ``vector_entry_point`` for ``gymnasium.make_vec`` that batches ``env_cls``."""
 
     def make_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> Kinematic2DVectorEnv:
+        mode = kwargs.get("render_mode")
+        if isinstance(mode, str) and mode not in Kinematic2DVectorEnv.metadata["render_modes"]:  # before a window
+            raise ValueError(f"make_vector_env: render_mode={mode!r} is single-env only; use 'rgb_array' or None")
         return Kinematic2DVectorEnv(env_cls(**kwargs), num_envs, max_episode_steps)
 
     make_vector_env.__doc__ = f"Batched {env_cls.__name__}: ``num_envs`` agents stepped in one numpy call."

@@ -82,6 +82,7 @@ from gymnasium import spaces
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
+from steer_envs.envs.human_view import HumanView
 from steer_envs.envs.kinematic import (
     RewardType,
     _check_action,
@@ -413,7 +414,9 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             = agent in the goal cell, which ends the episode). With False,
             there is no goal unless ``reset(options={"goal_cell": ...})`` sets one
             (the ITPS setting: free navigation, never "successful"). A bool.
-        render_mode: ``"rgb_array"`` or None.
+        render_mode: ``"rgb_array"``, ``"human"`` (the same frames in a pygame window at
+            ``metadata["render_fps"]``, shown by every ``reset`` and ``step``; needs the
+            ``human`` extra) or None.
         cell_px: rendered pixels per cell, an int in :data:`CELL_PX_RANGE`.
         reward_type: ``"sparse"`` (default: 1 in the goal cell, else 0) or ``"dense"``
             (``-path_distance / extent``, see below).
@@ -460,7 +463,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
     True
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012 - Env's type
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 25}  # noqa: RUF012 - Env's type
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     _OPTION_KEYS = frozenset({"state", "goal_cell"})
 
@@ -499,6 +502,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         self.sample_goal = boolean(sample_goal, "sample_goal", owner=owner)
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
         self.cell_px = integer(cell_px, "cell_px", low=CELL_PX_RANGE[0], high=CELL_PX_RANGE[1], owner=owner)
+        self._view = HumanView(self.metadata["render_fps"], owner) if self.render_mode == "human" else None
         self.reward_type: RewardType = check_reward_type(reward_type, owner)
         self.goal_conditioned = boolean(goal_conditioned, "goal_conditioned", owner=owner)
         self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
@@ -690,6 +694,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         else:
             self.goal_cell = None
         self._trail = [self.state]
+        if self.render_mode == "human":
+            self.render()
         return self._obs(), self._info(False)
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -712,6 +718,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         else:
             # from the float32 goals the observation shows, so compute_reward(obs goals) is this reward exactly
             reward = float(self.goal_reward(self.state.astype(np.float32), goal.astype(np.float32), info))
+        if self.render_mode == "human":
+            self.render()
         return self._obs(), reward, bool(info["success"]), False, info
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
@@ -770,12 +778,24 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         canvas.disc(self._display(self.state)[0], radius, (220, 30, 30))
 
     def render(self) -> np.ndarray | None:
-        """Top-down RGB image: walls, goal cell (green), trail (blue), agent (red)."""
-        if self.render_mode != "rgb_array":
+        """Top-down RGB image: walls, goal cell (green), trail (blue), agent (red); shown in the window with "human".
+
+        Returns the image with ``render_mode="rgb_array"``, else None.
+        """
+        if self.render_mode is None:
             return None
         canvas = self._scene()
         self._draw_agent(canvas)
+        if self._view is not None:
+            self._view.show(canvas.image)
+            return None
         return canvas.image
+
+    def close(self) -> None:
+        """Close the ``"human"`` window, if one is open."""
+        if self._view is not None:
+            self._view.close()
+        super().close()
 
     def render_overlay(self, sketch: np.ndarray | None = None, plans: np.ndarray | None = None) -> np.ndarray:
         """The scene with sampled ``plans`` ``(B, H, 2)`` and a user ``sketch`` ``(G, 2)`` drawn on top.

@@ -330,7 +330,7 @@ class PolygonNavEnv(Kinematic2DEnv):
         terminate_on_violation: end the episode on an invalid transition (GLiDE: yes), a bool.
         workspace_margin, min_gap: layout validity margins (see the module docstring), reals in
             ``[0, 2)`` and ``(0, 4)``.
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
     >>> import gymnasium as gym
     >>> import steer_envs

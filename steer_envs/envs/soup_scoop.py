@@ -254,7 +254,7 @@ class SoupScoopEnv(Kinematic2DEnv):
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
         sensor_convention: ``"public"`` (d = s & t, default) or ``"thesis"`` (d = t).
-        render_mode: ``None`` or ``"rgb_array"``.
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
         render_size: side of the rendered square image in pixels.
 
     Spills are reported, never terminal (``terminate_on_violation=False``).

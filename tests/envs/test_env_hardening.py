@@ -53,7 +53,7 @@ KINEMATIC_BAD: list[tuple[type, dict[str, Any], type[Exception], str]] = [
     (SoupScoopEnv, {"max_speed": 1 + 2j}, TypeError, "max_speed"),
     (SoupScoopEnv, {"max_speed": -1.0}, ValueError, "max_speed"),
     (SoupScoopEnv, {"sensor_convention": ["public"]}, TypeError, "sensor_convention"),
-    (SoupScoopEnv, {"render_mode": "human"}, ValueError, "render_mode"),
+    (SoupScoopEnv, {"render_mode": "depth_array"}, ValueError, "render_mode"),
     (SoupScoopEnv, {"render_mode": 1}, TypeError, "render_mode"),
     (CookingEnv, {"dt": True}, TypeError, "dt"),
     (CookingEnv, {"render_size": 0}, ValueError, "render_size"),
@@ -102,7 +102,7 @@ MAZE_BAD: list[tuple[dict[str, Any], type[Exception], str]] = [
     ({"cell_px": -1}, ValueError, "cell_px"),
     ({"cell_px": 10**5}, ValueError, "cell_px"),
     ({"cell_px": True}, TypeError, "cell_px"),
-    ({"render_mode": "human"}, ValueError, "render_mode"),
+    ({"render_mode": "depth_array"}, ValueError, "render_mode"),
 ]
 
 

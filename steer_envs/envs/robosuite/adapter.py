@@ -74,6 +74,8 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     Args:
         task: the task name, one of :data:`steer_envs.envs.robosuite.tasks.TASK_NAMES`.
         render_mode: ``"rgb_array"`` (an offscreen renderer is built) or None (no renderer).
+            The arm envs are ``rgb_array``-only: ``"human"`` is refused here (a ``ValueError``);
+            ``gymnasium.make(..., render_mode="human")`` wraps them in Gymnasium's ``HumanRendering``.
         camera: robosuite camera rendered by ``render`` and the default camera of the RGB-D and
             pixel methods (e.g. ``"agentview"``, ``"frontview"``; :attr:`camera_names` lists the model's).
         render_size: rendered frames are ``render_size x render_size`` pixels, an int in [16, 2048]
