@@ -368,6 +368,7 @@ class SteerOutcome:
         timings: ``network_ms`` (the policy's network), ``sampler_ms`` (the rest of the call),
             ``total_ms``, ``network_evals``.
         settings: the settings of the call.
+        perturbed_state: where OP moves the agent before the plan runs (``None`` for the other samplers).
     """
 
     plans: np.ndarray
@@ -377,6 +378,7 @@ class SteerOutcome:
     interaction: Point | Sketch | None
     timings: dict[str, float]
     settings: SteerSettings
+    perturbed_state: np.ndarray | None = None
 
     @property
     def plan(self) -> np.ndarray:
@@ -577,8 +579,8 @@ class Session:
             interaction=interaction,
             timings=timings,
             settings=self.settings,
+            perturbed_state=result.perturbed_state,
         )
-        outcome._perturbed_state = result.perturbed_state  # type: ignore[attr-defined]
         self._last = outcome
         return outcome
 
@@ -601,7 +603,7 @@ class Session:
         if self._done:
             raise SessionError("the episode has ended: reset to go on")
         outcome = self._last if self._last is not None else self.steer(None)
-        perturbed = getattr(outcome, "_perturbed_state", None)
+        perturbed = outcome.perturbed_state
         if perturbed is not None:  # OP moved the agent onto the sketch before sampling
             self._perturbable().perturb(to=perturbed)
             self._history.append(place_observation(self._history[-1], self.state))
