@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -14,6 +15,7 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
     pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
 ]
+CHECKPOINT = Path(__file__).resolve().parents[2] / "baselines" / "checkpoints" / "blockstack" / "dp.safetensors"
 
 
 class PickCubeZero:
@@ -38,3 +40,23 @@ def test_probe_reads_picks_as_valid_and_a_plan_that_never_opens_as_no_place() ->
 def test_probe_refuses_bad_sizes(bad: dict[str, int]) -> None:
     with pytest.raises(ValueError, match=next(iter(bad))):
         probe_policy(PickCubeZero(), **bad)
+
+
+def test_guide_sweep_refuses_bad_ratios() -> None:
+    from steer_envs.bench.suites.itps_blockstack.probe import guide_sweep
+
+    with pytest.raises(TypeError, match="guide_ratios"):
+        guide_sweep(PickCubeZero(), [])
+    with pytest.raises(ValueError, match="guide_ratios"):
+        guide_sweep(PickCubeZero(), [-1.0])
+
+
+@pytest.mark.skipif(not CHECKPOINT.is_file(), reason="the BlockStack checkpoint is not built")
+def test_guide_sweep_scores_gd_batches_on_the_users_sketch() -> None:
+    from steer_envs.baselines.pretrained import load_blockstack
+    from steer_envs.bench.suites.itps_blockstack.probe import guide_sweep
+
+    rows = guide_sweep(load_blockstack(), [0.0, 5.0], scenes=1, states=1, samples=2)
+    assert [r.guide_ratio for r in rows] == [0.0, 5.0]
+    for row in rows:
+        assert 0.0 <= row.aligned <= row.valid <= 1.0 and np.isfinite(row.cost) and row.cost > 0
