@@ -138,6 +138,12 @@ BASE_ENTRIES: tuple[EnvEntry, ...] = (
         max_episode_steps=2000,
         expert="steer_envs.data.experts.blockstack:BlockStackExpert",
     ),
+    EnvEntry(
+        "ArmScoop-v0",
+        "steer_envs.envs.robosuite.arm_scoop:ArmScoopEnv",
+        max_episode_steps=600,
+        expert="steer_envs.data.experts.arm_scoop:ArmScoopExpert",
+    ),
 )
 
 
