@@ -116,6 +116,16 @@ def test_velocity_commands_move_the_spoon_and_hold_x(env: Any) -> None:
     assert abs(base.eef_pos[0] - BOWL_X) < 0.005
 
 
+def test_the_raw_sim_takes_the_velocity_as_a_delta_osc_command(env: Any) -> None:
+    """robosuite's own step accepts the env's 3-D action (the smoke suite times raw steps with it)."""
+    base = env.unwrapped
+    env.reset(seed=0)
+    y0 = base.state[0]
+    for _ in range(5):
+        base.rs_env.step(np.array([0.2, 0.0, 0.0]))
+    assert base.state[0] > y0 + 0.005
+
+
 def test_pushes_are_exact_and_clipped_to_the_workspace(env: Any) -> None:
     base = env.unwrapped
     env.reset(seed=1)

@@ -202,6 +202,18 @@ def _robosuite_class() -> type:
         def _reset_internal(self) -> None:
             super(Lift, self)._reset_internal()
 
+        def step(self, action: Any) -> Any:
+            """robosuite's step; a 3-vector is ArmScoop's velocity ``(y', z', pitch')`` as a plain delta OSC command.
+
+            So raw-sim timings on ArmScoop's actions (the smoke suite's) run
+            the same physics without the env's target-pose tracking.
+            """
+            act = np.asarray(action, dtype=np.float64).reshape(-1)
+            if act.size == 3:
+                dt = 1.0 / self.control_freq
+                act = np.array([0.0, act[0] * dt / _OSC_POS, act[1] * dt / _OSC_POS, act[2] * dt / _OSC_ROT, 0, 0, 1])
+            return super().step(np.clip(act, -1.0, 1.0))
+
         def reward(self, action: Any = None) -> float:
             return 0.0
 
