@@ -1,4 +1,4 @@
-"""robosuite tasks (Lift, Can, Square; BlockStack) as steer-envs envs: one adapter + the tasks' ground-truth modes.
+"""robosuite tasks (Lift, Can, Square; BlockStack; ArmScoop) as steer-envs envs: one adapter + ground-truth modes.
 
 Nothing here imports robosuite at import time: the adapter imports it when an
 env is made (``gymnasium.make("steer_envs/Lift-v0")``).
@@ -10,7 +10,7 @@ env is made (``gymnasium.make("steer_envs/Lift-v0")``).
 
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS, RobosuiteTask, task_spec
 
-__all__ = ["TASKS", "TASK_NAMES", "BlockStackEnv", "RobosuiteEnv", "RobosuiteTask", "task_spec"]
+__all__ = ["TASKS", "TASK_NAMES", "ArmScoopEnv", "BlockStackEnv", "RobosuiteEnv", "RobosuiteTask", "task_spec"]
 
 
 def __getattr__(name: str) -> object:
@@ -22,4 +22,8 @@ def __getattr__(name: str) -> object:
         from steer_envs.envs.robosuite.blockstack import BlockStackEnv
 
         return BlockStackEnv
+    if name == "ArmScoopEnv":
+        from steer_envs.envs.robosuite.arm_scoop import ArmScoopEnv
+
+        return ArmScoopEnv
     raise AttributeError(name)
