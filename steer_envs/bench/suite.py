@@ -48,6 +48,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites.tli_cooking.suite",
     "steer_envs.bench.suites.tli_inspection.suite",
     "steer_envs.bench.suites.tli_color_tracing.suite",
+    "steer_envs.bench.suites.tli_arm_scoop.suite",
     "steer_envs.bench.suites.ui.suite",
     "steer_envs.bench.suites.sb3.suite",
 )
