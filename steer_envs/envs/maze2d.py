@@ -30,7 +30,8 @@ Description
 
 Observation
     ``Box(float32)``: ``(x, y)`` (``observe_velocity=True``: ``(x, y, vx, vy)``; with
-    ``observe_sensors=True`` followed by ``at_goal``, ``in_wall_contact`` as 0/1).
+    ``observe_sensors=True`` followed by ``at_goal``, ``in_wall_contact`` as 0/1; with
+    ``observe_goal=True`` followed by the goal cell's centre xy).
     ``goal_conditioned=True`` (:class:`Maze2DGoalEnv`): a Dict of ``observation`` (that
     box), ``achieved_goal`` (the agent's xy) and ``desired_goal`` (the goal cell's
     centre). The goal is in ``info["goal"]`` either way.
@@ -52,7 +53,8 @@ Termination
 
 Registered ids
     ``steer_envs/Maze2D-{Umaze,Medium,Large}-v0`` and, for each maze, ``...Dense-v0``
-    (``reward_type="dense"``), ``...Goal-v0`` (goal-conditioned, sparse) and
+    (``reward_type="dense"``, ``observe_goal=True``: the goal the reward measures is in the
+    observation), ``...Goal-v0`` (goal-conditioned, sparse) and
     ``...GoalDense-v0``, e.g. ``steer_envs/Maze2D-UmazeGoalDense-v0``. Gymnasium-Robotics
     names its dense variant ``PointMaze_UMazeDense-v3`` and has no separate goal id (its
     mazes are always goal-conditioned); here the plain ids keep the ITPS Box observation.
@@ -428,6 +430,10 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             ``compute_reward`` for a goal env, so only that subclass has one).
         observe_sensors: append the sensor APs (``at_goal``, ``in_wall_contact``) as 0/1
             to the (inner) observation. A bool.
+        observe_goal: append the goal cell's centre xy to the flat observation (the
+            agent's own xy where there is no goal), so a flat-observation RL agent can
+            see the goal the reward measures; the ``...Dense-v0`` Maze2D ids set it.
+            Needs ``goal_conditioned=False`` (the Dict already has ``desired_goal``). A bool.
         normalize_actions: the action space is ``[-1, 1]^2``, mapped linearly onto the
             waypoint box ``[0, rows-1] x [0, cols-1]``. A bool.
 
@@ -437,8 +443,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
     tensors, read detached); strings, bools, complex numbers and objects
     raise ``TypeError``, NaN/inf and wrong shapes ``ValueError``.
 
-    Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity (+ sensors);
-    with ``goal_conditioned`` a Dict of it and the achieved / desired goal.
+    Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity (+ sensors)
+    (+ the goal's xy); with ``goal_conditioned`` a Dict of it and the achieved / desired goal.
     Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it).
     Reward: ``"sparse"``: 1 when the goal cell is reached, else 0 (D4RL sparse).
     ``"dense"``: ``-MazeGrid.path_distance(xy, goal) / extent`` (the distance along
@@ -485,6 +491,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         reward_type: RewardType = "sparse",
         goal_conditioned: bool = False,
         observe_sensors: bool = False,
+        observe_goal: bool = False,
         normalize_actions: bool = False,
     ) -> None:
         owner = type(self).__name__
@@ -506,9 +513,12 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         self.reward_type: RewardType = check_reward_type(reward_type, owner)
         self.goal_conditioned = boolean(goal_conditioned, "goal_conditioned", owner=owner)
         self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
+        self.observe_goal = boolean(observe_goal, "observe_goal", owner=owner)
         self.normalize_actions = boolean(normalize_actions, "normalize_actions", owner=owner)
         if self.goal_conditioned and not self.sample_goal:
             raise ValueError(f"{owner}: goal_conditioned=True needs sample_goal=True (a goal every episode)")
+        if self.goal_conditioned and self.observe_goal:
+            raise ValueError(f"{owner}: observe_goal=True needs goal_conditioned=False (its Dict has desired_goal)")
         self.grid = MazeGrid(layout)
         self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
         self.dt = TIMESTEP * self.frame_skip
@@ -534,6 +544,9 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         if self.observe_sensors:
             lo = np.concatenate([lo, np.zeros(2, dtype=np.float32)])
             hi = np.concatenate([hi, np.ones(2, dtype=np.float32)])
+        if self.observe_goal:
+            lo = np.concatenate([lo, pos_lo.astype(np.float32)])
+            hi = np.concatenate([hi, pos_hi.astype(np.float32)])
         inner = spaces.Box(lo, hi, dtype=np.float32)
         self.observation_space: spaces.Space[Any]
         if self.goal_conditioned:
@@ -597,9 +610,11 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         state = np.concatenate([d.qpos[:2], d.qvel[:2]]) if self.observe_velocity else d.qpos[:2]
         if self.observe_sensors:
             state = np.concatenate([state, [float(self._at_goal()), float(self.physics.in_contact())]])
+        goal = self.goal_xy
+        if self.observe_goal:
+            state = np.concatenate([state, d.qpos[:2] if goal is None else goal])
         if not self.goal_conditioned:
             return state.astype(np.float32)
-        goal = self.goal_xy
         return {
             "observation": state.astype(np.float32),
             "achieved_goal": d.qpos[:2].astype(np.float32),

@@ -208,6 +208,29 @@ def test_maze2d_dense_reward_is_minus_the_path_distance() -> None:
     assert -6.0 / env.extent <= reward < 0.0
 
 
+def test_maze2d_dense_ids_observe_the_goal_their_reward_measures() -> None:
+    env = gym.make("steer_envs/Maze2D-UmazeDense-v0")
+    assert env.observation_space.shape == (4,)
+    for seed in (0, 1, 2):
+        obs, info = env.reset(seed=seed)
+        np.testing.assert_allclose(obs[2:], info["goal"])
+        assert env.observation_space.contains(obs)
+    obs, *_, info = env.step(env.action_space.sample())
+    np.testing.assert_allclose(obs[2:], info["goal"])
+    assert gym.make("steer_envs/Maze2D-Umaze-v0").observation_space.shape == (2,)  # the ITPS id is unchanged
+    both = gym.make("steer_envs/Maze2D-Umaze-v0", observe_sensors=True, observe_goal=True, observe_velocity=True)
+    obs, info = both.reset(seed=0)
+    assert obs.shape == (8,) and both.observation_space.contains(obs)
+    np.testing.assert_allclose(obs[6:], info["goal"])
+    free = Maze2DEnv("umaze", sample_goal=False, observe_goal=True)
+    obs, _ = free.reset(seed=0)
+    np.testing.assert_allclose(obs[2:], obs[:2])  # no goal: the agent's own xy
+    with pytest.raises(ValueError, match="observe_goal"):
+        Maze2DEnv("umaze", goal_conditioned=True, observe_goal=True)
+    with pytest.raises(TypeError, match="observe_goal"):
+        Maze2DEnv("umaze", observe_goal="yes")
+
+
 def test_maze2d_normalised_actions_map_onto_the_grid() -> None:
     env = gym.make("steer_envs/Maze2D-Umaze-v0", normalize_actions=True, observe_sensors=True)
     assert env.action_space.low.tolist() == [-1.0, -1.0]

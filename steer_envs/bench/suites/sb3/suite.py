@@ -16,11 +16,11 @@ SAC's tanh policy assumes; default on); ``observe_sensors`` (the task's
 sensor bits in the observation, which makes task memory such as "soup on the
 spoon" observable; default on, ignored on Maze2D, whose sensors carry no
 memory and whose ``at_goal`` bit would contradict HER's relabelled goals);
-``maze_goal_obs``: Maze2D's plain ``...Dense-v0`` ids draw a new goal every
-reset but observe only the agent's xy, so no policy can know where to go;
-with ``maze_goal_obs`` (default) a ``sac`` trial on them trains and evaluates
-on the ``...GoalDense-v0`` sibling (same maze, dynamics and dense reward, the
-goal in the observation) flattened to a Box for ``MlpPolicy``.
+``maze_goal_obs``: with it (default) a ``sac`` trial on Maze2D's plain
+``...Dense-v0`` ids trains and evaluates on the ``...GoalDense-v0`` sibling
+(same maze, dynamics and dense reward) flattened to a Box for ``MlpPolicy``,
+as the recorded results did; without it, on the plain id, whose observation
+also carries the goal (``observe_goal``).
 
 Training is long on a CPU (tens of steps/s per thread), so a trial
 checkpoints (model, replay buffer, curve) at every evaluation under
