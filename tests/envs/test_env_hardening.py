@@ -364,4 +364,5 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "Maze2DGoalEnv",  # Maze2DEnv(goal_conditioned=True): tests/envs/test_rl_variants.py
         "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py
         "BlockStackEnv",  # its constructor arguments: tests/envs/test_blockstack.py
+        "ArmScoopEnv",  # its constructor arguments: tests/envs/test_arm_scoop.py
     }
