@@ -1,0 +1,656 @@
+"""``KitchenEnv``: a Panda, a microwave with a hinged door, a sink and a bowl (robosuite, delta OSC): ITPS §2.3.
+
+The thesis's real toy kitchen, simulated: the microwave is gymnasium-robotics'
+FrankaKitchen microwave converted for robosuite (:mod:`.kitchen_assets`,
+scale :data:`MICROWAVE_SCALE`, its opening facing the robot, the hinge on the
+robot's left), the sink a fixed robosuite ``Bin``, the bowl a small MJCF of our
+own (6 cm across: the open fingers close around it). robosuite is imported
+when an env is made, never by ``import steer_envs``.
+
+Observation (flat ``float32``, 17): ``robot0_eef_pos`` (3), ``robot0_eef_quat``
+(4, xyzw), ``robot0_gripper_qpos`` (2), ``bowl_pos`` (3), ``bowl_quat`` (4),
+``door_angle`` (1, rad, 0 shut, positive open). Action: the adapter's 7-D delta
+OSC action (+1 closes the gripper).
+
+Sensors (``info["sensors"]``):
+
+- ``door_open``: the door is open more than :data:`DOOR_OPEN_ANGLE`.
+- ``held``: latched like BlockStack's: set once both finger pads have touched
+  the bowl for two control steps; it stays set while the bowl is grasped or
+  not yet resting, for at most :data:`RELEASE_STEPS` steps after the grasp is lost.
+- ``in_sink`` / ``in_microwave`` / ``on_table``: where the (not held) bowl's
+  centre is: inside the sink's basin, inside the microwave's cavity, or low on
+  the table (within :data:`ON_TABLE_HEIGHT` of the table top) elsewhere.
+- ``washed``: latched: the bowl has rested in the sink this episode.
+
+Modes: ``{door}_{place}[_washed]`` with door ``closed`` / ``open`` and place
+``table``, ``sink``, ``microwave``, ``held`` (a bowl in the sink is washed),
+plus ``lost`` (the bowl rests nowhere it may: off the table, tipped onto a
+wall). The allowed mode changes are the skills' (:data:`SKILLS`,
+:func:`skill_target`): ``open_door`` / ``close_door`` with the hand free,
+``pick_bowl`` from the table, the sink or an open microwave, ``place_in_sink``,
+``place_in_microwave`` only with the door open. Their tree is the env's
+``TaskSpec`` (:func:`kitchen_task`).
+
+``info["constraint_violation"]``: a mode change the skills do not make (e.g. a
+bowl placed into the microwave while the door is closed, the door moved while
+holding the bowl, a bowl pushed off the table); a drop (the held latch clears
+and the bowl fell more than :data:`DROP_HEIGHT` since it was last grasped, or
+rests nowhere). ``perturb`` never reports one.
+
+Tasks (``task=``; ``info["success"]``, reward 1, terminates), hand free in each:
+
+- ``"clean"`` (default, thesis Fig. 2.8): the bowl washed (it rested in the
+  sink) and then in the microwave with the door shut. From the start (bowl on
+  the table, door shut) it takes at least six skills, in two orders:
+  open, pick, sink, pick, microwave, close or pick, sink, open, pick, microwave, close.
+- ``"microwave"``: the bowl in the microwave, the door shut (the thesis's task 1).
+- ``"sink"``: the bowl in the sink (the thesis's task 2).
+
+Success needs the door shut (below :data:`DOOR_SHUT_ANGLE`) where the task
+asks for a closed door; the ``door_open`` sensor only splits the modes.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from steer_envs.core.interaction import InteractionKind
+from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import one_of, real_array, real_scalar
+from steer_envs.envs.kinematic import check_options, check_seed
+from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
+from steer_envs.envs.robosuite.kitchen_assets import BOWL_FILE, BOWL_HEIGHT, MICROWAVE_FILE, asset_dir
+
+__all__ = [
+    "BOWL_PLACES",
+    "BOWL_START_BOX",
+    "CAVITY_FRONT_X",
+    "CAVITY_HIGH",
+    "CAVITY_LOW",
+    "DOOR_OPEN_ANGLE",
+    "DOOR_SHUT_ANGLE",
+    "DOOR_START_OPEN",
+    "DOOR_TOP_Z",
+    "DROP_HEIGHT",
+    "KITCHEN_TASKS",
+    "MICROWAVE_SCALE",
+    "ON_TABLE_HEIGHT",
+    "RELEASE_STEPS",
+    "R_DOWN",
+    "SCENE_CAMERA",
+    "SENSORS",
+    "SINK_SIZE",
+    "SINK_XY",
+    "SKILLS",
+    "TABLE_Z",
+    "KitchenEnv",
+    "kitchen_task",
+    "legal_skills",
+    "mode_name",
+    "pose_action",
+    "rotation",
+    "skill_target",
+]
+
+#: the microwave's scale (width, depth, height; source units are FrankaKitchen's): its cavity is 31 x 25 x 35 cm,
+#: tall enough for the hand and wrist above a bowl set in with the fingers pointing down.
+MICROWAVE_SCALE = (0.75, 0.75, 1.2)
+TABLE_SIZE = (0.8, 1.4, 0.05)
+TABLE_Z = 0.8
+#: x (m) of the microwave cavity's front plane (the door closes just in front of it).
+CAVITY_FRONT_X = -0.02
+_S, _SZ = MICROWAVE_SCALE[0], MICROWAVE_SCALE[2]
+#: the microwave body's origin (bottom centre of the source frame) and its yaw (its front faces -x).
+MICROWAVE_POS = (CAVITY_FRONT_X + 0.176 * _S, 0.02 + 0.345 * _S, TABLE_Z)
+#: the cavity (world, m): x from the front plane back, y across, z from the floor up.
+CAVITY_LOW = np.array([CAVITY_FRONT_X, MICROWAVE_POS[1] + 0.080 * _S - 0.207 * _S, TABLE_Z + 0.048 * _SZ])
+CAVITY_HIGH = np.array([CAVITY_FRONT_X + 0.337 * _S, MICROWAVE_POS[1] + 0.080 * _S + 0.207 * _S, TABLE_Z + 0.336 * _SZ])
+#: height (m) of the door's top edge (the door skills pass over it).
+DOOR_TOP_Z = TABLE_Z + (0.192 + 0.185) * _SZ
+#: the sink basin: centre (x, y) on the table, full size (x, y, z), wall thickness (m).
+SINK_XY = (-0.05, -0.38)
+SINK_SIZE = (0.2, 0.22, 0.07)
+SINK_WALL = 0.01
+#: the bowl's start on the table: x and y ranges (m) of its centre.
+BOWL_START_BOX = ((-0.2, -0.12), (-0.17, -0.07))
+#: the door counts as open beyond this angle (rad) ...
+DOOR_OPEN_ANGLE = 0.9
+#: a door that starts open (reset option ``door="open"``) starts at this angle (rad).
+DOOR_START_OPEN = 1.3
+#: ... and as shut (a task's closed door) below this one.
+DOOR_SHUT_ANGLE = 0.05
+#: a bowl not held whose centre is within this height (m) above its resting height on the table is on the table.
+ON_TABLE_HEIGHT = 0.03
+#: a released bowl that fell more than this (m) was dropped, not placed.
+DROP_HEIGHT = 0.05
+#: the held latch clears at the latest this many control steps after the grasp is lost.
+RELEASE_STEPS = 20
+_REST_SPEED = 0.02  # m/s: a bowl slower than this rests
+
+KITCHEN_TASKS = ("clean", "microwave", "sink")
+#: where the bowl may start (reset option ``bowl``).
+BOWL_PLACES = ("table", "sink", "microwave")
+_DOORS = ("closed", "open")
+SENSORS = ("door_open", "held", "on_table", "in_sink", "in_microwave", "washed")
+_PLACES = ("table", "sink", "microwave", "held")
+#: the skills; which one is legal depends on the mode (:func:`legal_skills`).
+SKILLS = ("open_door", "close_door", "pick_bowl", "place_in_sink", "place_in_microwave")
+
+#: the eef orientation with the fingers pointing straight down and opening along world y (yaw 0).
+R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+_GAIN = 10.0
+_ROT_GAIN = 2.0
+
+
+def mode_name(door_open: bool, place: str, washed: bool) -> str:
+    """The mode of a world: door, where the bowl is (``table``, ``sink``, ``microwave``, ``held``, ``lost``), washed.
+
+    >>> mode_name(True, "held", True), mode_name(False, "sink", True), mode_name(False, "lost", False)
+    ('open_held_washed', 'closed_sink', 'lost')
+    """
+    if place == "lost":
+        return "lost"
+    suffix = "_washed" if washed and place != "sink" else ""
+    return f"{_DOORS[int(door_open)]}_{place}{suffix}"
+
+
+def _worlds() -> list[tuple[bool, str, bool]]:
+    """Every (door_open, place, washed) a sensor reading can show (a bowl in the sink is washed)."""
+    out = []
+    for door, place, washed in itertools.product((False, True), _PLACES, (False, True)):
+        if place == "sink" and not washed:
+            continue
+        out.append((door, place, washed))
+    return out
+
+
+def skill_target(mode: str, skill: str) -> str | None:
+    """The mode ``skill`` leads to from ``mode``, or None where the skill is not legal there.
+
+    >>> skill_target("closed_held", "place_in_microwave") is None, skill_target("open_held", "place_in_microwave")
+    (True, 'open_microwave')
+    """
+    if not isinstance(skill, str) or skill not in SKILLS:
+        raise ValueError(f"skill_target: unknown `skill` {skill!r}; skills: {list(SKILLS)}")
+    world = _WORLD_OF.get(mode) if isinstance(mode, str) else None
+    if world is None:
+        raise ValueError(f"skill_target: unknown `mode` {mode!r}; modes: {list(kitchen_task().modes)}")
+    if mode == "lost":
+        return None
+    door, place, washed = world
+    free = place != "held"
+    if skill == "open_door":
+        return mode_name(True, place, washed) if free and not door else None
+    if skill == "close_door":
+        return mode_name(False, place, washed) if free and door else None
+    if skill == "pick_bowl":
+        if place in ("table", "sink") or (place == "microwave" and door):
+            return mode_name(door, "held", washed or place == "sink")
+        return None
+    if place != "held":
+        return None
+    if skill == "place_in_sink":
+        return mode_name(door, "sink", True)
+    return mode_name(door, "microwave", washed) if door else None
+
+
+def legal_skills(mode: str) -> tuple[str, ...]:
+    """The skills legal in ``mode`` (in :data:`SKILLS` order).
+
+    >>> legal_skills("closed_table")
+    ('open_door', 'pick_bowl')
+    """
+    return tuple(s for s in SKILLS if skill_target(mode, s) is not None)
+
+
+_WORLD_OF: dict[str, tuple[bool, str, bool]] = {mode_name(*w): w for w in _worlds()}
+_WORLD_OF["lost"] = (False, "lost", False)
+
+
+def _reading(door: bool, place: str, washed: bool) -> frozenset[str]:
+    true = {"door_open"} if door else set()
+    if place == "held":
+        true.add("held")
+    elif place != "lost":
+        true.add({"table": "on_table", "sink": "in_sink", "microwave": "in_microwave"}[place])
+    if washed:
+        true.add("washed")
+    return frozenset(true)
+
+
+@functools.cache
+def kitchen_task(task: str = "clean") -> TaskSpec:
+    """The :class:`TaskSpec`: the skills' mode tree, the goal of ``task`` (one of :data:`KITCHEN_TASKS`).
+
+    >>> spec = kitchen_task()
+    >>> spec.initial, spec.goal, len(spec.shortest_plan("closed_table")) - 1
+    ('closed_table', ('closed_microwave_washed',), 6)
+    """
+    one_of(task, "task", KITCHEN_TASKS, owner="kitchen_task")
+    sensor_modes: dict[frozenset[str], str] = {}
+    for door, place, washed in _worlds():
+        sensor_modes[_reading(door, place, washed)] = mode_name(door, place, washed)
+    for door, washed in itertools.product((False, True), (False, True)):
+        sensor_modes[_reading(door, "lost", washed)] = "lost"
+    modes = (*dict.fromkeys(mode_name(*w) for w in _worlds()), "lost")
+    transitions = {(m, t) for m in modes for s in SKILLS if (t := skill_target(m, s)) is not None}
+    goals = {
+        "clean": ("closed_microwave_washed",),
+        "microwave": ("closed_microwave", "closed_microwave_washed"),
+        "sink": ("closed_sink", "open_sink"),
+    }[task]
+    return TaskSpec(
+        name=f"kitchen-{task}",
+        modes=modes,
+        sensors=SENSORS,
+        sensor_modes=sensor_modes,
+        transitions=frozenset(transitions),
+        initial="closed_table",
+        goal=goals,
+    )
+
+
+# ------------------------------------------------------------------------------ control
+def rotation(yaw: float = 0.0, pitch: float = 0.0) -> np.ndarray:
+    """The eef orientation (3x3) ``R_DOWN`` pitched by ``pitch`` (rad, fingertips toward +x) then yawed by ``yaw``."""
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])  # about y by -pitch
+    return rz @ ry @ R_DOWN
+
+
+def _rotvec(rot: np.ndarray) -> np.ndarray:
+    """The axis-angle vector of a rotation matrix."""
+    angle = float(np.arccos(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)))
+    axis = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+    if angle < 1e-6:
+        return 0.5 * axis
+    if angle > np.pi - 1e-3:  # a half turn: the axis from the symmetric part
+        k = int(np.argmax(np.diag(rot)))
+        v = (rot[:, k] + np.eye(3)[k]) / np.sqrt(2.0 * (1.0 + rot[k, k]))
+        return v * angle
+    return axis * (angle / (2.0 * np.sin(angle)))
+
+
+def pose_action(
+    env: KitchenEnv, target: np.ndarray, rot: np.ndarray, gripper: float, *, speed: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The P-control delta-OSC action toward eef position ``target`` and orientation ``rot``; and the position error.
+
+    Gain 10 on position (clipped to ``+-speed``), 2 on orientation (axis-angle,
+    clipped to [-1, 1]); ``gripper`` is the command (-1 open, +1 closed).
+    """
+    speed = real_scalar(speed, "speed", low=0.0, low_inclusive=False, high=1.0, owner="pose_action")
+    d = np.asarray(target, dtype=np.float64) - env.state
+    action = np.zeros(7, dtype=np.float32)
+    action[:3] = np.clip(d * _GAIN, -speed, speed)
+    action[3:6] = np.clip(_rotvec(rot @ env.eef_rotation.T) * _ROT_GAIN, -1.0, 1.0)
+    action[6] = gripper
+    return action, d
+
+
+# ------------------------------------------------------------------------------ the sim
+def _look_at(pos: np.ndarray, target: np.ndarray) -> str:
+    """MJCF ``xyaxes`` of a camera at ``pos`` looking at ``target`` (image up toward world +z)."""
+    forward = (target - pos) / np.linalg.norm(target - pos)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return " ".join(f"{v:.5f}" for v in (*right, *up))
+
+
+#: the scene camera (RGB-D, the pixel methods' default): high on the robot's right, looking over the table.
+SCENE_CAMERA = "kitchen_view"
+_SCENE_CAMERA_POS = np.array([-0.6, -1.1, 1.8])
+_SCENE_CAMERA_TARGET = np.array([-0.05, 0.0, 0.85])
+
+
+@functools.cache
+def _robosuite_class() -> type:
+    """The robosuite env class (defined on first use: robosuite registers env classes by name)."""
+    import xml.etree.ElementTree as ET
+
+    from robosuite.environments.manipulation.lift import Lift
+    from robosuite.models.arenas import TableArena
+    from robosuite.models.objects import Bin, MujocoXMLObject
+    from robosuite.models.tasks import ManipulationTask
+    from robosuite.utils.mjcf_utils import array_to_string
+    from robosuite.utils.observables import Observable, sensor
+    from robosuite.utils.transform_utils import convert_quat
+
+    class Sink(Bin):  # type: ignore[misc]
+        """robosuite's Bin, fixed to the table (no free joint)."""
+
+        def _get_geom_attrs(self) -> dict[str, Any]:
+            attrs: dict[str, Any] = super()._get_geom_attrs()
+            attrs["joints"] = None
+            return attrs
+
+    class SteerKitchen(Lift):  # type: ignore[misc]
+        """A table with a microwave, a sink and a bowl; the bowl's start and the door's set by ``start``."""
+
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            self.start: dict[str, str] = {"bowl": "table", "door": "closed"}
+            super().__init__(*args, table_full_size=TABLE_SIZE, **kwargs)
+
+        def _load_model(self) -> None:
+            super(Lift, self)._load_model()
+            xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
+            self.robots[0].robot_model.set_base_xpos(xpos)
+            arena = TableArena(
+                table_full_size=self.table_full_size, table_friction=self.table_friction, table_offset=self.table_offset
+            )
+            arena.set_origin([0, 0, 0])
+            ET.SubElement(
+                arena.worldbody,
+                "camera",
+                name=SCENE_CAMERA,
+                mode="fixed",
+                fovy="55",
+                pos=" ".join(f"{v:.4f}" for v in _SCENE_CAMERA_POS),
+                xyaxes=_look_at(_SCENE_CAMERA_POS, _SCENE_CAMERA_TARGET),
+            )
+            folder = asset_dir()
+            self.microwave = MujocoXMLObject(
+                str(folder / MICROWAVE_FILE),
+                name="microwave",
+                joints=None,
+                duplicate_collision_geoms=False,
+                scale=list(MICROWAVE_SCALE),
+            )
+            self.microwave.get_obj().set("pos", array_to_string(MICROWAVE_POS))
+            self.microwave.get_obj().set("quat", "0.70710678 0 0 -0.70710678")  # front (-y) to -x
+            self.sink = Sink(
+                "sink",
+                bin_size=SINK_SIZE,
+                wall_thickness=SINK_WALL,
+                transparent_walls=False,
+                use_texture=False,
+                rgba=(0.55, 0.58, 0.62, 1.0),
+            )
+            self.sink.get_obj().set("pos", array_to_string([*SINK_XY, TABLE_Z + SINK_SIZE[2] / 2]))
+            self.bowl = MujocoXMLObject(str(folder / BOWL_FILE), name="bowl", duplicate_collision_geoms=True)
+            self.model = ManipulationTask(
+                mujoco_arena=arena,
+                mujoco_robots=[robot.robot_model for robot in self.robots],
+                mujoco_objects=[self.microwave, self.sink, self.bowl],
+            )
+
+        def _setup_references(self) -> None:
+            super(Lift, self)._setup_references()
+            model = self.sim.model
+            self.bowl_body_id = model.body_name2id(self.bowl.root_body)
+            self.door_qpos = int(model.get_joint_qpos_addr("microwave_microwave"))
+            self.door_qvel = int(model.get_joint_qvel_addr("microwave_microwave"))
+            self.door_body_id = model.body_name2id("microwave_microdoorroot")
+            self.handle_site_id = model.site_name2id("microwave_microhandle_site")
+
+        def _setup_observables(self) -> Any:
+            observables = super(Lift, self)._setup_observables()
+
+            def bowl_pos(obs_cache: Any) -> np.ndarray:
+                return np.array(self.sim.data.body_xpos[self.bowl_body_id])
+
+            def bowl_quat(obs_cache: Any) -> np.ndarray:
+                return convert_quat(np.array(self.sim.data.body_xquat[self.bowl_body_id]), to="xyzw")
+
+            def door_angle(obs_cache: Any) -> np.ndarray:
+                return np.array([-self.sim.data.qpos[self.door_qpos]])
+
+            for fn in (bowl_pos, bowl_quat, door_angle):
+                observables[fn.__name__] = Observable(
+                    name=fn.__name__, sensor=sensor(modality="object")(fn), sampling_rate=self.control_freq
+                )
+            return observables
+
+        def _reset_internal(self) -> None:
+            super(Lift, self)._reset_internal()
+            self.sim.data.qpos[self.door_qpos] = -DOOR_START_OPEN if self.start["door"] == "open" else 0.0
+            self.sim.data.qvel[self.door_qvel] = 0.0
+            place = self.start["bowl"]
+            if place == "table":
+                (x0, x1), (y0, y1) = BOWL_START_BOX
+                xy = np.array([self.rng.uniform(x0, x1), self.rng.uniform(y0, y1)])
+                z = TABLE_Z
+            elif place == "sink":
+                xy = np.asarray(SINK_XY) + self.rng.uniform(-0.02, 0.02, size=2)
+                z = TABLE_Z + SINK_WALL
+            else:
+                mid = (CAVITY_LOW + CAVITY_HIGH) / 2
+                xy = np.array([CAVITY_FRONT_X + 0.07, mid[1]]) + self.rng.uniform(-0.01, 0.01, size=2)
+                z = float(CAVITY_LOW[2])
+            yaw = self.rng.uniform(0.0, 2 * np.pi)
+            pose = np.array([xy[0], xy[1], z + BOWL_HEIGHT / 2 - 0.0005, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+            self.sim.data.set_joint_qpos(self.bowl.joints[0], pose)
+            self.sim.forward()
+
+        def reward(self, action: Any = None) -> float:
+            return 0.0
+
+        def _check_success(self) -> bool:
+            return False  # judged by KitchenEnv (it needs the latched sensors)
+
+        def visualize(self, vis_settings: Any) -> None:
+            super(Lift, self).visualize(vis_settings=vis_settings)
+
+    return SteerKitchen
+
+
+class KitchenEnv(RobosuiteEnv):
+    """Kitchen rearrangement with a Panda: a microwave with a door, a sink and a bowl (see the module docstring).
+
+    Args:
+        task: ``"clean"`` (default), ``"microwave"`` or ``"sink"``: what ``success`` asks (:data:`KITCHEN_TASKS`).
+        render_mode, render_size, perturb_exact, fast_render: as for
+            :class:`~steer_envs.envs.robosuite.adapter.RobosuiteEnv`.
+        camera: the camera ``render`` and the pixel methods use (default the scene camera
+            :data:`SCENE_CAMERA`, high on the robot's right).
+
+    Reset options: ``state`` (eef start, as the adapter's), ``bowl`` (where the bowl
+    starts: ``"table"`` (default, a seeded spot), ``"sink"``, ``"microwave"``),
+    ``door`` (``"closed"`` (default) or ``"open"``).
+    Interactions: ``point`` (a world point, e.g. from :meth:`pixel_to_world` on a click
+    in the scene camera), ``sketch`` (a 3D eef path, m) and ``nudge`` (``perturb``).
+
+    >>> KitchenEnv.interaction_kinds
+    ('point', 'sketch', 'nudge')
+    """
+
+    interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
+    _OPTION_KEYS = frozenset({"state", "bowl", "door"})
+
+    def __init__(
+        self,
+        task: str = "clean",
+        *,
+        render_mode: str | None = None,
+        camera: str = SCENE_CAMERA,
+        render_size: int = 256,
+        perturb_exact: bool = True,
+        fast_render: bool = False,
+    ) -> None:
+        owner = type(self).__name__
+        self.kitchen_task = one_of(task, "task", KITCHEN_TASKS, owner=owner)
+        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
+        self.task_name = "kitchen"
+        self.task = kitchen_task(self.kitchen_task)
+        self.obs_keys = (
+            "robot0_eef_pos",
+            "robot0_eef_quat",
+            "robot0_gripper_qpos",
+            "bowl_pos",
+            "bowl_quat",
+            "door_angle",
+        )
+        self._build_sim(lambda **kwargs: _robosuite_class()(**kwargs), owner)
+        rs = self.rs_env
+        self._object = rs.bowl
+        self._object_geoms, self._pad_geoms = self._grasp_masks()
+        self._robot_geoms = self._robot_mask()
+        self._object_qvel = int(rs.sim.model.get_joint_qvel_addr(rs.bowl.joints[0])[0])
+        self.table_z = TABLE_Z
+        self._base_body = int(rs.sim.model.body_name2id("robot0_base"))
+        self.robosuite_obs = rs.reset()
+        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
+        self.observation_space = spaces.Box(-10.0, 10.0, shape=(dim,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self._gripper = -1.0
+        self._begin()
+
+    # ----------------------------------------------------------------- state
+    @property
+    def object_pos(self) -> np.ndarray:
+        """The bowl's centre (m, a copy)."""
+        return np.array(self.rs_env.sim.data.body_xpos[self.rs_env.bowl_body_id], dtype=np.float64)
+
+    @property
+    def bowl_pos(self) -> np.ndarray:
+        """The bowl's centre (m, a copy)."""
+        return self.object_pos
+
+    @property
+    def door_angle(self) -> float:
+        """How far the microwave door is open (rad; 0 shut, up to ~2.09)."""
+        return float(-self.rs_env.sim.data.qpos[self.rs_env.door_qpos])
+
+    @property
+    def handle_pos(self) -> np.ndarray:
+        """The centre of the door handle's bar (m, a copy)."""
+        return np.array(self.rs_env.sim.data.site_xpos[self.rs_env.handle_site_id], dtype=np.float64)
+
+    @property
+    def hinge_pos(self) -> np.ndarray:
+        """A point on the door's hinge axis (vertical; the door body's origin, m, a copy)."""
+        return np.array(self.rs_env.sim.data.body_xpos[self.rs_env.door_body_id], dtype=np.float64)
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        """The robot base's position (m, a copy)."""
+        return np.array(self.rs_env.sim.data.body_xpos[self._base_body], dtype=np.float64)
+
+    @property
+    def eef_rotation(self) -> np.ndarray:
+        """The eef orientation (3x3 world rotation matrix, a copy)."""
+        return np.array(self.rs_env.sim.data.site_xmat[self._eef_site], dtype=np.float64).reshape(3, 3)
+
+    @property
+    def held(self) -> bool:
+        """The held latch (see the module docstring)."""
+        return self._held
+
+    @property
+    def place(self) -> str:
+        """Where the bowl is by the last sensor reading: ``held``, ``table``, ``sink``, ``microwave`` or ``lost``."""
+        return self._place
+
+    @property
+    def sink_floor_z(self) -> float:
+        """Height (m) of the sink basin's floor."""
+        return TABLE_Z + SINK_WALL
+
+    # --------------------------------------------------------------- sensors
+    def _location(self, pos: np.ndarray) -> str:
+        """Where a bowl centre at ``pos`` is, if not held: ``microwave``, ``sink``, ``table`` or ``lost``."""
+        if np.all(pos >= CAVITY_LOW) and np.all(pos <= CAVITY_HIGH):
+            return "microwave"
+        half = np.asarray(SINK_SIZE[:2]) / 2 - SINK_WALL
+        if np.all(np.abs(pos[:2] - np.asarray(SINK_XY)) <= half) and pos[2] < TABLE_Z + SINK_SIZE[2] + BOWL_HEIGHT:
+            return "sink"
+        on_top = np.all(np.abs(pos[:2]) <= np.asarray(TABLE_SIZE[:2]) / 2)
+        if on_top and TABLE_Z < pos[2] < TABLE_Z + BOWL_HEIGHT / 2 + ON_TABLE_HEIGHT:
+            return "table"
+        return "lost"
+
+    def _at_rest(self) -> bool:
+        speed = np.linalg.norm(self.rs_env.sim.data.qvel[self._object_qvel : self._object_qvel + 3])
+        return bool(speed < _REST_SPEED) and not self._robot_touches_object()
+
+    def _begin(self) -> None:
+        self._held = False
+        self._grasp_start: float | None = None
+        self._release_time: float | None = None
+        self._grasp_z = float(self.object_pos[2])
+        self._washed = False
+        self._dropped = False
+        self._place = self._location(self.object_pos)
+        self._gripper = -1.0
+        sensors = self._sensors()
+        self._dropped = False
+        self._mode = self.task.mode_index(self.task.mode_of(sensors))
+
+    def _sensors(self) -> dict[str, bool]:
+        """Update the latches from the sim; ``_dropped``: the latch cleared on a drop now."""
+        rs = self.rs_env
+        now = float(rs.sim.data.time)
+        pos = self.object_pos
+        grasped = self._grasped()
+        self._grasp_start = (now if self._grasp_start is None else self._grasp_start) if grasped else None
+        lasted = 0 if self._grasp_start is None else round((now - self._grasp_start) * self.control_freq) + 1
+        dropped = False
+        if lasted >= GRASP_HOLD_STEPS:
+            self._held = True
+        if self._held:
+            if grasped:
+                self._release_time = None
+                self._grasp_z = float(pos[2])
+            else:
+                if self._release_time is None:
+                    self._release_time = now
+                since = round((now - self._release_time) * self.control_freq)
+                where = self._location(pos)
+                if (where != "lost" and self._at_rest()) or since > RELEASE_STEPS:
+                    self._held = False
+                    self._release_time = None
+                    dropped = where == "lost" or self._grasp_z - float(pos[2]) > DROP_HEIGHT
+        self._dropped = dropped
+        self._place = "held" if self._held else self._location(pos)
+        if self._place == "sink" and self._at_rest():
+            self._washed = True
+        door_open = self.door_angle > DOOR_OPEN_ANGLE
+        mode = mode_name(door_open, self._place, self._washed or self._place == "sink")
+        shut = self.door_angle < DOOR_SHUT_ANGLE
+        needs_shut = self.kitchen_task != "sink"
+        self._success = mode in self.task.goal and (shut or not needs_shut)
+        return {
+            "door_open": bool(door_open),
+            "held": self._place == "held",
+            "on_table": self._place == "table",
+            "in_sink": self._place == "sink",
+            "in_microwave": self._place == "microwave",
+            "washed": bool(self._washed or self._place == "sink"),
+        }
+
+    def _event_violation(self) -> bool:
+        return self._dropped
+
+    # ------------------------------------------------------------------- API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: the bowl's spot and yaw (and the arm's init noise) drawn from ``seed``.
+
+        ``options``: None or a dict with ``state`` (an eef start position, 3 finite
+        reals), ``bowl`` (one of :data:`BOWL_PLACES`) and/or ``door`` (``"closed"`` / ``"open"``).
+        """
+        owner = f"{type(self).__name__}.reset"
+        check_seed(seed, owner)
+        opts = check_options(options, self._OPTION_KEYS, owner)
+        start = {
+            "bowl": one_of(opts.pop("bowl", "table"), "options['bowl']", BOWL_PLACES, owner=owner),
+            "door": one_of(opts.pop("door", "closed"), "options['door']", _DOORS, owner=owner),
+        }
+        if opts.get("state") is not None:
+            real_array(opts["state"], "options['state']", shape=(3,), owner=owner)
+        self.rs_env.start = start
+        return super().reset(seed=seed, options=opts)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One 20 Hz control step of the 7-D delta OSC action; reward 1 on success (which terminates)."""
+        obs, _, terminated, truncated, info = super().step(action)
+        return obs, float(info["success"]), terminated, truncated, info
