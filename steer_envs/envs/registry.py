@@ -144,6 +144,12 @@ BASE_ENTRIES: tuple[EnvEntry, ...] = (
         max_episode_steps=600,
         expert="steer_envs.data.experts.arm_scoop:ArmScoopExpert",
     ),
+    EnvEntry(
+        "Kitchen-v0",
+        "steer_envs.envs.robosuite.kitchen:KitchenEnv",
+        max_episode_steps=1500,
+        expert="steer_envs.data.experts.kitchen:KitchenExpert",
+    ),
 )
 
 

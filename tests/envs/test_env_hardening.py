@@ -365,4 +365,5 @@ def test_registry_covers_every_constructor_tested_here() -> None:
         "RobosuiteEnv",  # its constructor arguments: tests/envs/test_robosuite.py
         "BlockStackEnv",  # its constructor arguments: tests/envs/test_blockstack.py
         "ArmScoopEnv",  # its constructor arguments: tests/envs/test_arm_scoop.py
+        "KitchenEnv",  # its constructor arguments: tests/envs/test_kitchen.py
     }

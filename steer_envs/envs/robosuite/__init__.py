@@ -1,4 +1,4 @@
-"""robosuite tasks (Lift, Can, Square; BlockStack; ArmScoop) as steer-envs envs: one adapter + ground-truth modes.
+"""robosuite tasks (Lift, Can, Square; BlockStack; ArmScoop; Kitchen) as steer-envs envs: an adapter + true modes.
 
 Nothing here imports robosuite at import time: the adapter imports it when an
 env is made (``gymnasium.make("steer_envs/Lift-v0")``).
@@ -10,7 +10,16 @@ env is made (``gymnasium.make("steer_envs/Lift-v0")``).
 
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS, RobosuiteTask, task_spec
 
-__all__ = ["TASKS", "TASK_NAMES", "ArmScoopEnv", "BlockStackEnv", "RobosuiteEnv", "RobosuiteTask", "task_spec"]
+__all__ = [
+    "TASKS",
+    "TASK_NAMES",
+    "ArmScoopEnv",
+    "BlockStackEnv",
+    "KitchenEnv",
+    "RobosuiteEnv",
+    "RobosuiteTask",
+    "task_spec",
+]
 
 
 def __getattr__(name: str) -> object:
@@ -26,4 +35,8 @@ def __getattr__(name: str) -> object:
         from steer_envs.envs.robosuite.arm_scoop import ArmScoopEnv
 
         return ArmScoopEnv
+    if name == "KitchenEnv":
+        from steer_envs.envs.robosuite.kitchen import KitchenEnv
+
+        return KitchenEnv
     raise AttributeError(name)
