@@ -252,6 +252,18 @@ def test_rgb_array_render() -> None:
     assert frame.shape == again.shape == (64, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
 
 
+def test_renders_survive_another_env_with_a_renderer_being_made_and_closed(rgbd_env: RobosuiteEnv) -> None:
+    """Each env binds its own GL context before rendering (gymnasium's check_env makes and closes a copy)."""
+    rgb, depth = rgbd_env.render_rgbd()
+    other = RobosuiteEnv("lift", render_mode="rgb_array", render_size=64, fast_render=True)
+    other.reset(seed=1)
+    other.render()
+    other.close()
+    rgb_after, depth_after = rgbd_env.render_rgbd()
+    np.testing.assert_array_equal(rgb_after, rgb)
+    np.testing.assert_allclose(depth_after, depth, atol=1e-5)
+
+
 def _surface_points(env: RobosuiteEnv) -> dict[str, np.ndarray]:
     """World points on visible surfaces: the centre of the cube's top face and a spot of the table top."""
     rs = env.rs_env

@@ -432,10 +432,17 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         ctx.scn.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
         ctx.scn.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
 
+    def _make_context_current(self) -> None:
+        """Bind this env's own offscreen GL context (another env's renderer, made or closed since, may hold it)."""
+        ctx = getattr(self.rs_env.sim, "_render_context_offscreen", None)
+        if ctx is not None:
+            ctx.gl_ctx.make_current()
+
     def render(self) -> np.ndarray | None:
         """An RGB frame (``render_size x render_size x 3``, uint8) from ``camera`` with ``render_mode="rgb_array"``."""
         if self.render_mode is None:
             return None
+        self._make_context_current()
         frame = self.rs_env.sim.render(camera_name=self.camera, width=self.render_size, height=self.render_size)
         return np.ascontiguousarray(frame[::-1])
 
@@ -464,6 +471,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         from robosuite.utils.camera_utils import get_real_depth_map
 
         sim = self.rs_env.sim
+        self._make_context_current()
         rgb, depth = sim.render(camera_name=name, width=self.render_size, height=self.render_size, depth=True)
         metres = get_real_depth_map(sim, depth[::-1])
         return np.ascontiguousarray(rgb[::-1]), np.ascontiguousarray(metres, dtype=np.float32)
