@@ -1,0 +1,378 @@
+"""Kitchen skill data: the scripted expert's skills recorded one record per skill (ITPS §2.3).
+
+An episode (:func:`record_episode`) resets
+:class:`~steer_envs.envs.robosuite.kitchen.KitchenEnv` with the episode seed
+and runs the skills of :class:`~steer_envs.data.experts.kitchen.KitchenPlanner`
+(seeded with the same seed) on
+:class:`~steer_envs.data.experts.kitchen.KitchenSkills`, i.e. exactly what
+``KitchenExpert(env, seed=seed)`` does, until the env's task (``"microwave"``:
+open the door, pick the bowl, place it in the microwave, close the door;
+``"sink"``: pick, place in the sink) reaches its goal or ``max_skills`` skills
+ran. The same seed records the same skills. Each skill becomes a
+:class:`SkillRecord`: its name in :data:`~steer_envs.envs.robosuite.kitchen.SKILLS`,
+the task, the outcome, and per-step arrays (states include the skill's first one):
+observations, actions, eef position, wrist yaw
+(:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.eef_yaw`, the
+expert's), gripper command and mode.
+
+The episode steps the *unwrapped* env, so success termination (the last
+skill's end) and the TimeLimit never cut a skill short. Skill ``k``'s start is
+reached again by resetting with the seed and replaying the recorded actions
+of the skills before it (:func:`replay_to_start`; MuJoCo is deterministic).
+
+Files (:func:`save_skills` / :func:`load_skills`) are ragged ``.npz`` archives
+written atomically (:func:`steer_envs.io.atomic_write_npz`); loading checks
+every array and raises :class:`~steer_envs.io.DatasetError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from steer_envs.core.validation import integer
+from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
+from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, SKILLS, KitchenEnv, kitchen_task
+from steer_envs.envs.robosuite.kitchen_plan_execution import KitchenScene, eef_yaw
+from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
+
+__all__ = [
+    "DATA_TASKS",
+    "FORMAT_VERSION",
+    "MODES",
+    "OBS_DIM",
+    "SkillRecord",
+    "load_skills",
+    "make_env",
+    "record_episode",
+    "replay_to_start",
+    "save_skills",
+]
+
+#: the env's observation size (eef 3, eef quat 4, fingers 2, bowl pos 3, bowl quat 4, door angle 1).
+OBS_DIM = 17
+#: the observation columns of the bowl's centre and of the door angle.
+BOWL_COLUMNS = slice(9, 12)
+DOOR_COLUMN = 16
+#: the tasks the ITPS kitchen data is recorded on (thesis §2.3: task 1 and task 2).
+DATA_TASKS = ("microwave", "sink")
+#: the mode names :attr:`SkillRecord.modes` indexes (the same for every task).
+MODES: tuple[str, ...] = tuple(kitchen_task().modes)
+#: format version of :func:`save_skills` files.
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SkillRecord:
+    """One recorded skill.
+
+    Attributes:
+        name: the skill's name in :data:`~steer_envs.envs.robosuite.kitchen.SKILLS`.
+        task: the episode's task (one of :data:`~steer_envs.envs.robosuite.kitchen.KITCHEN_TASKS`).
+        success: the world shows the skill's outcome at its end (``KitchenSkills.succeeded``).
+        violation: some step of the skill reported ``constraint_violation``.
+        seed: the episode seed.
+        index: the skill's position in its episode (0 first).
+        obs: ``(T + 1, 17)`` float32 observations (the first state included).
+        actions: ``(T, 7)`` float32 delta-OSC actions.
+        eef: ``(T + 1, 3)`` float64 end-effector positions.
+        yaw: ``(T + 1,)`` float64 wrist yaw (rad, in (-pi, pi], as the expert measures it).
+        gripper: ``(T + 1,)`` float32 gripper command in force at each state (-1 open, +1 closed).
+        modes: ``(T + 1,)`` int16 mode indices into :data:`MODES`.
+        handle: ``(3,)`` the door handle bar's centre at the skill's start.
+        hinge: ``(3,)`` a point on the door's hinge axis.
+    """
+
+    name: str
+    task: str
+    success: bool
+    violation: bool
+    seed: int
+    index: int
+    obs: np.ndarray
+    actions: np.ndarray
+    eef: np.ndarray
+    yaw: np.ndarray
+    gripper: np.ndarray
+    modes: np.ndarray
+    handle: np.ndarray
+    hinge: np.ndarray
+
+    @property
+    def mode_before(self) -> str:
+        """The mode at the skill's start."""
+        return MODES[int(self.modes[0])]
+
+    @property
+    def mode_after(self) -> str:
+        """The mode at the skill's end."""
+        return MODES[int(self.modes[-1])]
+
+    @property
+    def scene(self) -> KitchenScene:
+        """The state at the skill's start, as ``classify_kitchen_plan`` reads it (offline, without an env)."""
+        first = self.obs[0].astype(np.float64)
+        return KitchenScene(
+            eef=np.array(self.eef[0], dtype=np.float64),
+            bowl=first[BOWL_COLUMNS].copy(),
+            held="held" in self.mode_before,
+            door_angle=float(first[DOOR_COLUMN]),
+            handle=np.array(self.handle, dtype=np.float64),
+            hinge=np.array(self.hinge, dtype=np.float64),
+        )
+
+    def __len__(self) -> int:
+        """Control steps of the skill."""
+        return len(self.actions)
+
+
+def make_env(task: str) -> KitchenEnv:
+    """The unwrapped env the records of ``task`` come from (no renderer, no TimeLimit, no termination)."""
+    return KitchenEnv(task=task)
+
+
+def _unwrapped(env: Any, owner: str) -> KitchenEnv:
+    base = getattr(env, "unwrapped", env)
+    if not isinstance(base, KitchenEnv):
+        raise TypeError(f"{owner}: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
+    return base
+
+
+def record_episode(env: Any, seed: int, *, max_skills: int = 8) -> list[SkillRecord]:
+    """The expert's skills from reset seed ``seed`` on ``env``'s task until its goal (deterministic in ``seed``).
+
+    ``env``: a :class:`KitchenEnv` or a wrapper of one; the unwrapped env is
+    stepped (see the module docstring). At most ``max_skills`` skills: a skill
+    that fails is recorded with ``success=False`` and the planner goes on from
+    the world as it is (it tries again, or stops where no legal sequence leads to the goal).
+    """
+    owner = "record_episode"
+    base = _unwrapped(env, owner)
+    seed = integer(seed, "seed", low=0, owner=owner)
+    max_skills = integer(max_skills, "max_skills", low=1, high=1000, owner=owner)
+    obs, info = base.reset(seed=seed)
+    planner = KitchenPlanner(seed)
+    skills = KitchenSkills(base)
+    out: list[SkillRecord] = []
+    for index in range(max_skills):
+        skill = planner.next_skill(base)
+        if skill is None:
+            break
+        record, obs, info = _run_skill(base, skills, skill, obs, info, seed, index)
+        out.append(record)
+    return out
+
+
+def _run_skill(
+    base: KitchenEnv, skills: KitchenSkills, skill: str, obs: Any, info: dict[str, Any], seed: int, index: int
+) -> tuple[SkillRecord, Any, dict[str, Any]]:
+    """Run ``skill`` to its end from the current state; the record and the last observation and info."""
+    skills.start(skill)
+    handle = base.handle_pos
+    states = [np.asarray(obs, dtype=np.float32)]
+    eef, yaw, grip, modes = [base.state], [eef_yaw(base)], [base._gripper], [int(info["mode"])]
+    actions: list[np.ndarray] = []
+    violation = False
+    while not skills.done:
+        action = skills.act()  # stepped also when it ends the skill (as KitchenExpert does)
+        obs, _, _, _, info = base.step(action)
+        actions.append(np.asarray(action, dtype=np.float32))
+        states.append(np.asarray(obs, dtype=np.float32))
+        eef.append(base.state)
+        yaw.append(eef_yaw(base))
+        grip.append(base._gripper)
+        modes.append(int(info["mode"]))
+        violation |= bool(info["constraint_violation"])
+    record = SkillRecord(
+        name=skill,
+        task=base.kitchen_task,
+        success=skills.succeeded(),
+        violation=violation,
+        seed=seed,
+        index=index,
+        obs=np.stack(states),
+        actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
+        eef=np.stack(eef).astype(np.float64),
+        yaw=np.asarray(yaw, dtype=np.float64),
+        gripper=np.asarray(grip, dtype=np.float32),
+        modes=np.asarray(modes, dtype=np.int16),
+        handle=np.asarray(handle, dtype=np.float64),
+        hinge=base.hinge_pos,
+    )
+    return record, obs, info
+
+
+def replay_to_start(env: Any, records: Sequence[SkillRecord], index: int) -> tuple[np.ndarray, dict[str, Any]]:
+    """Reset ``env`` with the episode's seed and step the recorded actions of the skills before ``index``.
+
+    ``records``: one episode's records in order (:func:`record_episode`), ``env``
+    of the same task. Returns the observation and info at skill ``index``'s start;
+    ``RuntimeError`` if the state reached is not the recorded one (checked on the observation).
+    """
+    owner = "replay_to_start"
+    base = _unwrapped(env, owner)
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    index = integer(index, "index", low=0, high=len(records) - 1, owner=owner)
+    for i, r in enumerate(records[: index + 1]):
+        if not isinstance(r, SkillRecord):
+            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+        if r.index != i or r.seed != records[0].seed or r.task != records[0].task:
+            raise ValueError(f"{owner}: `records` must be one episode's skills in order; records[{i}] is not")
+    if base.kitchen_task != records[0].task:
+        raise ValueError(f"{owner}: `env` has task {base.kitchen_task!r}, the records {records[0].task!r}")
+    obs, info = base.reset(seed=records[0].seed)
+    for rec in records[:index]:
+        for action in rec.actions:
+            obs, _, _, _, info = base.step(action)
+    if not np.array_equal(np.asarray(obs, dtype=np.float32), records[index].obs[0]):
+        raise RuntimeError(f"{owner}: replaying seed {records[0].seed} did not reach skill {index}'s start state")
+    return obs, info
+
+
+# ------------------------------------------------------------------------------ files
+_SPECS: dict[str, tuple[str, int]] = {
+    "obs": ("f", 2),
+    "eef": ("f", 2),
+    "yaw": ("f", 1),
+    "gripper": ("f", 1),
+    "actions": ("f", 2),
+    "handle": ("f", 2),
+    "hinge": ("f", 2),
+    "modes": ("iu", 1),
+    "offsets": ("iu", 1),
+    "skill": ("iu", 1),
+    "task": ("iu", 1),
+    "success": ("b", 1),
+    "violation": ("b", 1),
+    "seed": ("iu", 1),
+    "index": ("iu", 1),
+}
+
+
+def save_skills(
+    path: str | os.PathLike[str], records: Sequence[SkillRecord], meta: Mapping[str, Any] | None = None
+) -> Path:
+    """Write ``records`` to ``path`` (``.npz``) atomically (temp file, fsync, rename); returns the path.
+
+    Ragged layout: states (obs, eef, yaw, gripper, modes) of skill ``i`` are rows
+    ``offsets[i]:offsets[i+1]``, its actions rows ``offsets[i] - i : offsets[i+1] - i - 1``.
+    ``meta`` (JSON-serializable) is stored beside the format version.
+    """
+    owner = "save_skills"
+    out = Path(path)
+    if out.suffix != ".npz":
+        raise ValueError(f"{owner}: `path` must end in .npz, got {str(out)!r}")
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    recs = list(records)
+    if not recs:
+        raise ValueError(f"{owner}: `records` must not be empty")
+    for i, r in enumerate(recs):
+        if not isinstance(r, SkillRecord):
+            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+        if r.name not in SKILLS or r.task not in KITCHEN_TASKS:
+            raise ValueError(f"{owner}: `records[{i}]` has skill {r.name!r} and task {r.task!r}")
+        if len(r.obs) != len(r.actions) + 1:
+            raise ValueError(f"{owner}: `records[{i}]` has {len(r.obs)} states for {len(r.actions)} actions")
+    info = {
+        **dict(meta or {}),
+        "format_version": FORMAT_VERSION,
+        "skills": list(SKILLS),
+        "tasks": list(KITCHEN_TASKS),
+        "modes": list(MODES),
+    }
+    try:
+        text = json.dumps(info, sort_keys=True)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{owner}: `meta` must be JSON-serializable ({err})") from None
+    lengths = np.array([len(r.obs) for r in recs])
+    arrays = {
+        "obs": np.concatenate([r.obs for r in recs]).astype(np.float32),
+        "eef": np.concatenate([r.eef for r in recs]).astype(np.float64),
+        "yaw": np.concatenate([r.yaw for r in recs]).astype(np.float64),
+        "gripper": np.concatenate([r.gripper for r in recs]).astype(np.float32),
+        "modes": np.concatenate([r.modes for r in recs]).astype(np.int16),
+        "actions": np.concatenate([r.actions for r in recs]).astype(np.float32).reshape(-1, 7),
+        "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+        "handle": np.array([r.handle for r in recs], dtype=np.float64).reshape(-1, 3),
+        "hinge": np.array([r.hinge for r in recs], dtype=np.float64).reshape(-1, 3),
+        "skill": np.array([SKILLS.index(r.name) for r in recs], dtype=np.int16),
+        "task": np.array([KITCHEN_TASKS.index(r.task) for r in recs], dtype=np.int16),
+        "success": np.array([r.success for r in recs], dtype=bool),
+        "violation": np.array([r.violation for r in recs], dtype=bool),
+        "seed": np.array([r.seed for r in recs], dtype=np.int64),
+        "index": np.array([r.index for r in recs], dtype=np.int32),
+    }
+    return atomic_write_npz(out, {**arrays, "meta": np.array(text)})
+
+
+def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[str, Any]]:
+    """Read a :func:`save_skills` file: the records and the meta dict.
+
+    :class:`~steer_envs.io.DatasetError` naming the file and the field for a
+    missing or unreadable file, another format version or vocabulary, an array
+    of the wrong dtype, axes or width, NaN/inf, or inconsistent offsets, skill, task or mode ids.
+    """
+    src = Path(path)
+    arrays = read_npz(src)
+    meta = npz_json(src, arrays, "meta")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise DatasetError(
+            f"{src}: field 'format_version' is {meta.get('format_version')!r}, expected {FORMAT_VERSION}"
+        )
+    for key, values in (("skills", SKILLS), ("tasks", KITCHEN_TASKS), ("modes", MODES)):
+        if meta.get(key) != list(values):
+            raise DatasetError(f"{src}: field {key!r} does not list this version's Kitchen {key}")
+    require_arrays(src, arrays, _SPECS, finite=True)
+    a = arrays
+    n = len(a["skill"])
+    off = a["offsets"].astype(np.int64)
+    rows = len(a["obs"])
+    widths = {"obs": OBS_DIM, "eef": 3, "actions": 7, "handle": 3, "hinge": 3}
+    for name, width in widths.items():
+        if a[name].shape[1] != width:
+            raise DatasetError(f"{src}: array {name!r} has width {a[name].shape[1]}, expected {width}")
+    if n == 0:
+        raise DatasetError(f"{src}: array 'skill' is empty")
+    if off.shape != (n + 1,) or off[0] != 0 or off[-1] != rows or np.any(np.diff(off) < 1):
+        raise DatasetError(f"{src}: array 'offsets' does not split the {rows} states into {n} skills")
+    for name in ("eef", "yaw", "gripper", "modes"):
+        if len(a[name]) != rows:
+            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} rows, expected {rows} (one per state)")
+    if len(a["actions"]) != rows - n:
+        raise DatasetError(f"{src}: array 'actions' has {len(a['actions'])} rows, expected {rows - n}")
+    for name in ("handle", "hinge", "task", "success", "violation", "seed", "index"):
+        if len(a[name]) != n:
+            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} entries, expected {n} (one per skill)")
+    for name, vocab in (("skill", SKILLS), ("task", KITCHEN_TASKS), ("modes", MODES)):
+        if np.any((a[name] < 0) | (a[name] >= len(vocab))):
+            raise DatasetError(f"{src}: array {name!r} holds ids outside 0..{len(vocab) - 1}")
+    out = []
+    for i in range(n):
+        s, e = int(off[i]), int(off[i + 1])
+        out.append(
+            SkillRecord(
+                name=SKILLS[int(a["skill"][i])],
+                task=KITCHEN_TASKS[int(a["task"][i])],
+                success=bool(a["success"][i]),
+                violation=bool(a["violation"][i]),
+                seed=int(a["seed"][i]),
+                index=int(a["index"][i]),
+                obs=a["obs"][s:e].astype(np.float32),
+                actions=a["actions"][s - i : e - i - 1].astype(np.float32),
+                eef=a["eef"][s:e].astype(np.float64),
+                yaw=a["yaw"][s:e].astype(np.float64),
+                gripper=a["gripper"][s:e].astype(np.float32),
+                modes=a["modes"][s:e].astype(np.int16),
+                handle=np.array(a["handle"][i], dtype=np.float64),
+                hinge=np.array(a["hinge"][i], dtype=np.float64),
+            )
+        )
+    return out, meta
