@@ -1,0 +1,198 @@
+"""Kitchen skill data through the bench: one shard per episode seed, then one merged data set.
+
+A shard is the unit of work of the ``itps-kitchen-data`` suite (one trial =
+one episode seed and its task): :func:`~steer_envs.data.kitchen_skills.record_episode`,
+written atomically as one :func:`~steer_envs.data.kitchen_skills.save_skills`
+file under ``cache_dir/shards``. Generation therefore runs through the bench
+executors (``--workers``, Ray), resumes where it stopped (a readable shard on
+disk is never rebuilt) and shows the runner's progress bar. A process keeps
+one env per task for the shards it builds (:func:`env_for`; building a Kitchen
+env takes seconds). :func:`skills_dataset` reads the shards of seeds
+``0..n_episodes-1`` (building any missing one here) and writes the merged file
+atomically beside them. Run as a module, it writes the skill-plan training set
+of the Kitchen Diffusion Policy (:func:`~steer_envs.data.kitchen_plans.to_plan_dataset`)::
+
+    python -m steer_envs.bench.suites.itps_kitchen.data --cache-dir DIR --episodes 120 --out plans.npz
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from steer_envs.core.validation import integer, one_of
+from steer_envs.data import kitchen_plans as plans
+from steer_envs.data import kitchen_skills as ks
+from steer_envs.data.trajectories import save_trajectories
+from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, KitchenEnv
+from steer_envs.io import DatasetError
+
+__all__ = [
+    "SHARD_VERSION",
+    "ShardSettings",
+    "close_envs",
+    "ensure_shard",
+    "env_for",
+    "main",
+    "shard_path",
+    "skills_dataset",
+]
+
+#: bump when shard contents change for the same settings (old shards are then not reused).
+SHARD_VERSION = 1
+
+_ENVS: dict[str, KitchenEnv] = {}
+
+
+@dataclass(frozen=True)
+class ShardSettings:
+    """What one shard is built from (its file name hashes these)."""
+
+    seed: int
+    task: str
+    max_skills: int = 8
+
+    def __post_init__(self) -> None:
+        integer(self.seed, "seed", low=0, owner="ShardSettings")
+        one_of(self.task, "task", KITCHEN_TASKS, owner="ShardSettings")
+        integer(self.max_skills, "max_skills", low=1, high=1000, owner="ShardSettings")
+
+    @property
+    def digest(self) -> str:
+        """A hash of what the contents depend on besides the seed and task (versions, most skills)."""
+        key = {"v": SHARD_VERSION, "format": ks.FORMAT_VERSION, "max_skills": self.max_skills}
+        return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
+
+    def file_name(self) -> str:
+        return f"kitchen-{self.task}-ep{self.seed:05d}-{self.digest}.npz"
+
+
+def shard_path(cache_dir: str | Path, settings: ShardSettings) -> Path:
+    """Where the shard of ``settings`` lives."""
+    return Path(cache_dir) / "shards" / settings.file_name()
+
+
+def env_for(task: str) -> KitchenEnv:
+    """This process's env of ``task`` for building shards (made on first use, kept until :func:`close_envs`)."""
+    one_of(task, "task", KITCHEN_TASKS, owner="env_for")
+    if task not in _ENVS:
+        _ENVS[task] = ks.make_env(task)
+    return _ENVS[task]
+
+
+def close_envs() -> None:
+    """Close and forget the envs :func:`env_for` made."""
+    while _ENVS:
+        _ENVS.popitem()[1].close()
+
+
+def _read(path: Path) -> list[ks.SkillRecord] | None:
+    """The file's records, or None when there is no readable file (missing, torn by hand, an older format)."""
+    if not path.exists():
+        return None
+    try:
+        return ks.load_skills(path)[0]
+    except DatasetError:
+        return None
+
+
+def _write_shard(path: Path, settings: ShardSettings) -> list[ks.SkillRecord]:
+    records = ks.record_episode(env_for(settings.task), settings.seed, max_skills=settings.max_skills)
+    if not records:  # pragma: no cover - every task needs a skill from the reset state
+        raise RuntimeError(f"seed {settings.seed}: the {settings.task!r} episode recorded no skill")
+    ks.save_skills(path, records, meta={"shard": asdict(settings), "shard_version": SHARD_VERSION})
+    return records
+
+
+def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[ks.SkillRecord], Path, bool]:
+    """The shard (records, file, built now), built and written atomically unless a readable file exists."""
+    if not isinstance(settings, ShardSettings):
+        raise TypeError(f"ensure_shard: `settings` must be a ShardSettings, got {type(settings).__name__}")
+    path = shard_path(cache_dir, settings)
+    records = _read(path)
+    if records is not None:
+        return records, path, False
+    return _write_shard(path, settings), path, True
+
+
+def skills_dataset(
+    cache_dir: str | Path, n_episodes: int, tasks: Sequence[str] = ks.DATA_TASKS, max_skills: int = 8
+) -> tuple[list[ks.SkillRecord], Path]:
+    """Every skill of the shards of seeds ``0..n_episodes-1`` (missing shards built here) and the merged file.
+
+    Seed ``s`` is an episode of ``tasks[s % len(tasks)]`` (the suite's rule).
+    The merged file (``cache_dir/kitchen-skills-...npz``, written atomically) is
+    reused when it exists and reads back.
+    """
+    owner = "skills_dataset"
+    n_episodes = integer(n_episodes, "n_episodes", low=1, high=100_000, owner=owner)
+    max_skills = integer(max_skills, "max_skills", low=1, high=1000, owner=owner)
+    if isinstance(tasks, str) or not isinstance(tasks, Sequence) or not tasks:
+        raise TypeError(f"{owner}: `tasks` must be a non-empty sequence of task names, got {tasks!r}")
+    tasks = tuple(one_of(t, "tasks", KITCHEN_TASKS, owner=owner) for t in tasks)
+    digest = ShardSettings(0, tasks[0], max_skills).digest
+    merged = Path(cache_dir) / f"kitchen-skills-{n_episodes}x{'-'.join(tasks)}-{digest}.npz"
+    found = _read(merged)
+    if found is not None:
+        return found, merged
+    out: list[ks.SkillRecord] = []
+    for seed in range(n_episodes):
+        out += ensure_shard(cache_dir, ShardSettings(seed, tasks[seed % len(tasks)], max_skills))[0]
+    meta = {"n_episodes": n_episodes, "tasks": list(tasks), "max_skills": max_skills, "shard_version": SHARD_VERSION}
+    ks.save_skills(merged, out, meta=meta)
+    return out, merged
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI: the skill-plan data set of the shards (missing shards are built here); exit 2 on a usage error."""
+    from steer_envs.bench.suites.itps_kitchen.suite import DataParams
+
+    parser = argparse.ArgumentParser(
+        prog="python -m steer_envs.bench.suites.itps_kitchen.data",
+        description="Write the Kitchen skill-plan data set (one plan per successful skill) from the "
+        "itps-kitchen-data shards; build the shards first in parallel with "
+        "`steer-bench run itps-kitchen-data --seeds N --workers 2 --param cache_dir=DIR`.",
+    )
+    parser.add_argument("--cache-dir", required=True, help="the shards' cache folder (the suite's cache_dir)")
+    parser.add_argument("--episodes", type=int, default=120, help="episode seeds 0..N-1 (default 120)")
+    parser.add_argument(
+        "--tasks",
+        default=",".join(DataParams.tasks),
+        help=f"comma-separated tasks the seeds cycle through (default {','.join(DataParams.tasks)}, the suite's)",
+    )
+    parser.add_argument(
+        "--max-skills",
+        type=int,
+        default=DataParams.max_skills,
+        help=f"most skills an episode (default {DataParams.max_skills}, the suite's)",
+    )
+    parser.add_argument("--out", required=True, help="output .npz (a steer_envs.data.trajectories file)")
+    args = parser.parse_args(argv)
+    if not str(args.out).endswith(".npz"):
+        parser.error(f"--out must end with .npz, got {args.out!r}")
+    tasks = [t.strip() for t in str(args.tasks).split(",") if t.strip()]
+    try:
+        records, merged = skills_dataset(args.cache_dir, args.episodes, tasks, args.max_skills)
+        meta = {"episodes": args.episodes, "tasks": tasks, "max_skills": args.max_skills}
+        dataset = plans.to_plan_dataset(records, meta=meta)
+    except (TypeError, ValueError) as err:
+        parser.error(str(err))
+    finally:
+        close_envs()
+    path = save_trajectories(dataset, Path(args.out))
+    kept = Counter(dataset.meta["skills"])
+    print(
+        f"wrote {path}: {sum(kept.values())} plans of {len(records)} skills "
+        f"({dataset.meta['dropped_too_long']} too long) from {merged.name}: "
+        + ", ".join(f"{name} {kept[name]}" for name in sorted(kept))
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,129 @@
+"""``itps-kitchen-data``: a trial builds one shard into a tmp cache, a second finds it; merging; the CLI; parameters.
+
+One sink episode (seed 1: the default tasks alternate microwave / sink) is
+recorded for the module; the process's shard env is closed at the end.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from steer_envs.bench.suites.itps_kitchen.suite import DATA_SUITE, ENV_ID, TASKS, DataParams
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
+needs_robosuite = pytest.mark.skipif(
+    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
+)
+
+
+def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(ValueError, match="max_skills"):
+        DataParams(max_skills=0)
+    with pytest.raises(ValueError, match="max_skills"):
+        DataParams.from_json({"max_skills": "many"})
+    with pytest.raises(ValueError, match="tasks"):
+        DataParams(tasks=("oven",))
+    with pytest.raises(ValueError, match="tasks"):
+        DataParams(tasks=())
+    with pytest.raises(ValueError, match="tasks"):
+        DataParams.from_json({"tasks": 3})
+    with pytest.raises(ValueError, match="cache_dir"):
+        DataParams.from_json({"cache_dir": 3})
+    monkeypatch.setenv("XDG_CACHE_HOME", "/tmp/xdg")
+    assert DataParams().cache == "/tmp/xdg/steer-envs/itps-kitchen"
+    assert DataParams(cache_dir="/x").cache == "/x"
+
+
+def test_suite_is_registered_and_seeds_alternate_tasks() -> None:
+    from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
+    from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS
+
+    assert "steer_envs.bench.suites.itps_kitchen.suite" in BUILTIN_SUITE_MODULES
+    suite = get_suite(DATA_SUITE)
+    assert suite.envs == (ENV_ID,) and suite.default_seeds == 120 and suite.quick_seeds == 1
+    params = suite.defaults
+    assert isinstance(params, DataParams) and params.tasks == ("microwave", "sink") and TASKS == KITCHEN_TASKS
+    assert [params.task_of(s) for s in range(4)] == ["microwave", "sink", "microwave", "sink"]
+    assert DataParams.from_json({"tasks": ["sink"]}).task_of(7) == "sink"
+    assert suite.resolve_params({}, base=suite.quick).tasks == ("sink",)
+
+
+def test_shard_settings_name_and_check_their_fields() -> None:
+    from steer_envs.bench.suites.itps_kitchen.data import ShardSettings, ensure_shard
+
+    a, b = ShardSettings(3, "sink"), ShardSettings(3, "microwave")
+    assert a.file_name().startswith("kitchen-sink-ep00003-") and a.digest == b.digest
+    assert ShardSettings(3, "sink", 4).digest != a.digest
+    with pytest.raises(ValueError, match="task"):
+        ShardSettings(0, "oven")
+    with pytest.raises(ValueError, match="seed"):
+        ShardSettings(-1, "sink")
+    with pytest.raises(TypeError, match="max_skills"):
+        ShardSettings(0, "sink", 2.0)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="settings"):
+        ensure_shard("/tmp", (0, "sink"))  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def envs() -> Iterator[None]:
+    from steer_envs.bench.suites.itps_kitchen.data import close_envs
+
+    yield
+    close_envs()
+
+
+@needs_robosuite
+def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path, envs: Any) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+    from steer_envs.bench.suites.itps_kitchen.data import env_for, main, skills_dataset
+    from steer_envs.data.kitchen_skills import load_skills, record_episode
+    from steer_envs.data.trajectories import load_trajectories
+
+    suite = get_suite(DATA_SUITE)
+    trial = suite.trial(ENV_ID, None, 1, DataParams(cache_dir=str(tmp_path)))
+    first = execute_trial(trial)
+    assert first.ok, first.error
+    m = first.record["metrics"]
+    assert m == {"skills": 2.0, "skill_success": 1.0, "violations": 0.0, "goal": 1.0, "steps": m["steps"], "built": 1.0}
+    assert first.record["extra"]["task"] == "sink" and first.record["extra"]["skills"] == ["pick_bowl", "place_in_sink"]
+    shard = Path(first.record["extra"]["shard"])
+    assert shard.parent == tmp_path / "shards" and shard.name.startswith("kitchen-sink-ep00001-")
+    stamp = shard.stat().st_mtime_ns
+    again = execute_trial(trial)  # resumes: the shard is found, not rebuilt
+    assert again.record["metrics"]["built"] == 0.0 and shard.stat().st_mtime_ns == stamp
+    # the same seed records the same skills (on the env that already ran them)
+    stored = load_skills(shard)[0]
+    fresh = record_episode(env_for("sink"), 1)
+    for a, b in zip(stored, fresh, strict=True):
+        assert a.name == b.name and np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
+        assert np.array_equal(a.yaw, b.yaw) and a.seed == b.seed == 1 and a.task == b.task == "sink"
+    # merging the one shard of the sink-only cycle, then the plans CLI on it
+    records, merged = skills_dataset(tmp_path, 2, ("sink",))  # seed 0 (sink here) is built, seed 1 found
+    assert shard.stat().st_mtime_ns == stamp and len(records) == 4 and merged.parent == tmp_path
+    assert [r.name for r in load_skills(merged)[0]] == [r.name for r in records]
+    out = tmp_path / "plans.npz"
+    assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--tasks", "sink", "--out", str(out)]) == 0
+    data = load_trajectories(out)
+    assert data.meta["skills"] == ["pick_bowl", "place_in_sink"] * 2 and data.meta["episode_seeds"] == [0, 0, 1, 1]
+
+
+def test_skills_dataset_refuses_bad_input(tmp_path: Path) -> None:
+    from steer_envs.bench.suites.itps_kitchen.data import env_for, skills_dataset
+
+    with pytest.raises(ValueError, match="n_episodes"):
+        skills_dataset(tmp_path, 0)
+    with pytest.raises(TypeError, match="tasks"):
+        skills_dataset(tmp_path, 1, "sink")
+    with pytest.raises(ValueError, match="tasks"):
+        skills_dataset(tmp_path, 1, ["oven"])
+    with pytest.raises(TypeError, match="max_skills"):
+        skills_dataset(tmp_path, 1, max_skills=None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="task"):
+        env_for("oven")
