@@ -230,6 +230,11 @@ def test_classify_reads_where_the_gripper_closes_and_opens(env: Any) -> None:
     assert classify_kitchen_plan(scene, grasp(scene.handle + on_bar, swing_open)) == "open_door"
     assert classify_kitchen_plan(scene, grasp(scene.handle + on_bar, swing_open[:3])) is None  # not open enough
     assert classify_kitchen_plan(scene, grasp(scene.handle + on_bar)) is None  # no swing
+    nudged = handle_at(scene, 0.1) + on_bar  # the door gave a little as the hand came down: still the handle
+    assert classify_kitchen_plan(scene, grasp(nudged, swing_open)) == "open_door"
+    assert classify_kitchen_plan(scene, grasp(handle_at(scene, -0.3) + on_bar, swing_open)) is None  # past the bar
+    outward = np.r_[(scene.handle - scene.hinge)[:2], 0.0] / np.linalg.norm((scene.handle - scene.hinge)[:2])
+    assert classify_kitchen_plan(scene, grasp(scene.handle + on_bar + 0.04 * outward, swing_open)) is None
     high = scene.handle + (HANDLE_Z_RANGE[1] + 0.02) * up
     assert classify_kitchen_plan(scene, grasp(high, [p + 0.04 * up for p in swing_open])) is None
     opened = dataclasses.replace(scene, door_angle=1.3, handle=handle_at(scene, 1.3))

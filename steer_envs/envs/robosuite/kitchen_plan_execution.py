@@ -57,7 +57,8 @@ from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
 __all__ = [
     "BOWL_XY_TOL",
     "BOWL_Z_RANGE",
-    "HANDLE_XY_TOL",
+    "HANDLE_ANGLE_TOL",
+    "HANDLE_RADIUS_TOL",
     "HANDLE_Z_RANGE",
     "MAX_WAYPOINTS",
     "PLACE_Z_RANGE",
@@ -93,8 +94,10 @@ SWITCH_TOL = 0.005
 SWITCH_YAW_TOL = 0.05
 #: the tracker's yaw target leads the wrist by at most this much (rad), so a turn goes the plan's way.
 YAW_LEAD = 0.5
-#: a plan closes on the handle within this xy distance (m) of the handle bar's axis ...
-HANDLE_XY_TOL = 0.04
+#: a plan closes on the handle within this distance (m) of the circle the bar's axis moves on about the hinge, ...
+HANDLE_RADIUS_TOL = 0.03
+#: ... within this angle (rad) about the hinge of the bar (the door gives a little when the hand comes down) ...
+HANDLE_ANGLE_TOL = 0.15
 #: ... and within this height range (m) relative to the bar's centre (the bar is vertical).
 HANDLE_Z_RANGE = (-0.15, 0.18)
 #: a plan closes on the bowl within this xy distance (m) of its centre ...
@@ -177,25 +180,33 @@ def _heading(v: np.ndarray) -> float:
 
 
 # ------------------------------------------------------------------------ classification
+def _door_angle_at(scene: KitchenScene, point: np.ndarray) -> float:
+    """The door angle that turns the handle's bar about the hinge toward ``point`` (seen from above)."""
+    turn = _heading(point - scene.hinge) - _heading(scene.handle - scene.hinge)
+    # the door angle grows as the handle turns clockwise about the hinge
+    return scene.door_angle - float((turn + np.pi) % (2 * np.pi) - np.pi)
+
+
+def _on_handle(scene: KitchenScene, point: np.ndarray) -> bool:
+    radial = np.linalg.norm((point - scene.hinge)[:2]) - np.linalg.norm((scene.handle - scene.hinge)[:2])
+    height = point[2] - scene.handle[2]
+    return bool(
+        abs(radial) < HANDLE_RADIUS_TOL
+        and abs(_door_angle_at(scene, point) - scene.door_angle) < HANDLE_ANGLE_TOL
+        and HANDLE_Z_RANGE[0] <= height <= HANDLE_Z_RANGE[1]
+    )
+
+
 def _door_skill(scene: KitchenScene, arr: np.ndarray, k: int) -> str | None:
-    """The door skill of a plan that closes at waypoint ``k`` on the handle: its swing's direction and extent."""
+    """The door skill of a plan closing on the handle at waypoint ``k``: where its closed stretch leaves the door."""
     reopen = _first(arr[k:, 4] <= 0)
     last = len(arr) - 1 if reopen is None else k + reopen - 1
-    start = arr[k, :3] - scene.hinge
-    end = arr[last, :3] - scene.hinge
-    # the door angle grows as the handle turns clockwise (seen from above) about the hinge
-    swing = -float((_heading(end) - _heading(start) + np.pi) % (2 * np.pi) - np.pi)
-    after = scene.door_angle + swing
+    after = _door_angle_at(scene, arr[last, :3])
     if scene.door_angle <= DOOR_OPEN_ANGLE < after - SWING_MARGIN:
         return "open_door"
     if scene.door_angle > DOOR_OPEN_ANGLE > after + SWING_MARGIN:
         return "close_door"
     return None
-
-
-def _on_handle(scene: KitchenScene, point: np.ndarray) -> bool:
-    rel = point - scene.handle
-    return bool(np.linalg.norm(rel[:2]) < HANDLE_XY_TOL and HANDLE_Z_RANGE[0] <= rel[2] <= HANDLE_Z_RANGE[1])
 
 
 def _on_bowl(scene: KitchenScene, point: np.ndarray) -> bool:
@@ -222,16 +233,17 @@ def classify_kitchen_plan(env_or_state: Any, plan: Any) -> str | None:
 
     ``env_or_state``: a KitchenEnv (or a wrapper of one) or a :class:`KitchenScene`.
     Hand free: at the first closing waypoint (gripper > 0), on the door
-    handle's bar (:data:`HANDLE_XY_TOL`, :data:`HANDLE_Z_RANGE`) it is a door
-    skill: ``open_door`` when the closed stretch of the plan swings the handle
-    about the hinge so the door ends open by more than :data:`SWING_MARGIN`
-    beyond ``DOOR_OPEN_ANGLE`` (from a door not open), ``close_door`` for the
-    mirror case; on the bowl (:data:`BOWL_XY_TOL`, :data:`BOWL_Z_RANGE`) it is
-    ``pick_bowl``. Holding the bowl: at the first opening waypoint, the held
-    bowl's centre (the waypoint plus the held offset now) low in the sink's
-    basin is ``place_in_sink``, low in the microwave's cavity
-    ``place_in_microwave`` (heights: :data:`PLACE_Z_RANGE`). Legality in the
-    mode is not judged (a plan placing into a shut microwave still reads as that place).
+    handle's bar (:data:`HANDLE_RADIUS_TOL`, :data:`HANDLE_ANGLE_TOL`,
+    :data:`HANDLE_Z_RANGE`) it is a door skill: ``open_door`` when the last
+    waypoint of the closed stretch has swung the handle about the hinge so the
+    door ends open by more than :data:`SWING_MARGIN` beyond ``DOOR_OPEN_ANGLE``
+    (from a door not open), ``close_door`` for the mirror case; on the bowl
+    (:data:`BOWL_XY_TOL`, :data:`BOWL_Z_RANGE`) it is ``pick_bowl``. Holding
+    the bowl: at the first opening waypoint, the held bowl's centre (the
+    waypoint plus the held offset now) low in the sink's basin is
+    ``place_in_sink``, low in the microwave's cavity ``place_in_microwave``
+    (heights: :data:`PLACE_Z_RANGE`). Legality in the mode is not judged (a
+    plan placing into a shut microwave still reads as that place).
     """
     owner = "classify_kitchen_plan"
     scene = env_or_state if isinstance(env_or_state, KitchenScene) else None
