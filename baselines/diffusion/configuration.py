@@ -11,6 +11,8 @@ layout, the U-Net and the DDIM settings. :data:`PRESETS` are named
 * ``blockstack``: the shipped BlockStack skill policy: one whole pick-or-place
   skill per plan (32 waypoints of ``[x, y, z, gripper]``, one observation of
   the scene), absolute plans, DDIM with 100 steps as in the thesis.
+* ``kitchen``: the Kitchen skill policy: the ``blockstack`` network and sampler
+  on one door or bowl skill per plan (32 waypoints of ``[x, y, z, yaw, gripper]``).
 * ``itps``: the public ITPS Maze2D config (Chi et al.'s U-Net at full width,
   epsilon prediction, absolute plans), a GPU job.
 
@@ -18,7 +20,7 @@ layout, the U-Net and the DDIM settings. :data:`PRESETS` are named
 >>> cfg.exec_start, cfg.window_layout
 (1, {'n_obs': 2, 'horizon': 16, 'action_start': -1})
 >>> sorted(PRESETS)
-['blockstack', 'cpu', 'itps']
+['blockstack', 'cpu', 'itps', 'kitchen']
 """
 
 from __future__ import annotations
@@ -185,6 +187,18 @@ PRESETS: dict[str, Preset[DiffusionConfig]] = {
         _DP_TRAIN.replace(steps=30_000, lr=1e-3),
         "the shipped BlockStack checkpoint: one pick-or-place skill per plan (32 waypoints x [x, y, z, "
         "gripper], steer_envs.data.blockstack_plans), DDIM with 100 steps as in the thesis",
+    ),
+    "kitchen": Preset(
+        DiffusionConfig(
+            horizon=32,
+            n_obs_steps=1,
+            down_dims=(32, 64, 128),
+            num_inference_steps=100,
+            relative=False,
+        ),
+        _DP_TRAIN.replace(steps=30_000, lr=1e-3),
+        "the shipped Kitchen skill policy: one door or bowl skill per plan (32 waypoints x [x, y, z, yaw, "
+        "gripper], steer_envs.data.kitchen_plans) from the microwave and sink demos merged, DDIM with 100 steps",
     ),
     "itps": Preset(
         DiffusionConfig(

@@ -120,7 +120,7 @@ def test_usage_errors_exit_2(tmp_path: Path, walk_file: Path, capsys: pytest.Cap
         ([*base, "--out", out], "--policy is required"),
         (
             ["--policy", "dp", *base, "--out", out, "--preset", "gpu"],
-            "preset must be one of ['blockstack', 'cpu', 'itps']",
+            "preset must be one of ['blockstack', 'cpu', 'itps', 'kitchen']",
         ),
         (["--policy", "dp", *base, "--out", out, "--model", "nope=1"], "--model nope: not a field"),
         (["--policy", "dp", *base, "--out", out, "--model", "down_dims=[7]"], "down_dims"),
