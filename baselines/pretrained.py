@@ -28,11 +28,13 @@ from steer_envs.io import CheckpointError
 __all__ = [
     "BLOCKSTACK_CHECKPOINT",
     "CHECKPOINTS",
+    "KITCHEN_CHECKPOINT",
     "CheckpointError",
     "checkpoint_path",
     "checkpoint_record",
     "load_blockstack",
     "load_checkpoint",
+    "load_kitchen",
     "load_pretrained",
 ]
 
@@ -45,6 +47,8 @@ CHECKPOINTS: dict[str, str] = {
 
 #: the BlockStack pick-or-place Diffusion Policy (ITPS §2.3; ``scripts/train_blockstack_checkpoint.sh``).
 BLOCKSTACK_CHECKPOINT = "blockstack/dp.safetensors"
+#: the Kitchen door-or-bowl skill Diffusion Policy (ITPS §2.3; ``scripts/train_kitchen_checkpoint.sh``).
+KITCHEN_CHECKPOINT = "kitchen/dp.safetensors"
 
 
 def _shipped(relative: str, script: str) -> Path:
@@ -107,6 +111,19 @@ def load_blockstack(
     waypoints' positions (:mod:`steer_envs.data.blockstack_plans`).
     """
     path = checkpoint or _shipped(BLOCKSTACK_CHECKPOINT, "scripts/train_blockstack_checkpoint.sh")
+    policy = load_policy(path, name="dp", device=device)
+    policy.interaction_dims = (0, 1, 2)
+    return policy
+
+
+def load_kitchen(device: str | torch.device = "cpu", checkpoint: str | os.PathLike[str] | None = None) -> TorchPolicy:
+    """The shipped Kitchen Diffusion Policy (or a ``checkpoint`` file of the same layout).
+
+    One door or bowl skill per plan, ``(32, 5)`` waypoints ``[x, y, z, yaw,
+    gripper]``; its ``interaction_dims`` are ``(0, 1, 2)``: a clicked point
+    steers the waypoints' positions (:mod:`steer_envs.data.kitchen_plans`).
+    """
+    path = checkpoint or _shipped(KITCHEN_CHECKPOINT, "scripts/train_kitchen_checkpoint.sh")
     policy = load_policy(path, name="dp", device=device)
     policy.interaction_dims = (0, 1, 2)
     return policy
