@@ -31,8 +31,9 @@ the rollout goes on unsteered (RS plans).
 Scoring, per interaction:
 
 * *aligned* (TA): the run plan performs the intended skill, read off the plan
-  (:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.classify_kitchen_plan`)
-  or shown by the world's mode change;
+  (:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.classify_kitchen_plan`);
+  where the plan reads as no skill, the world's mode change decides (a plan
+  heading for another skill that knocks the door open is not aligned);
 * *success* (CS): the executed skill happened (a mode change some skill makes),
   no constraint was violated, and the change is a transition of the task's tree
   (a placement into a shut microwave, a moved door while holding the bowl, a
@@ -68,6 +69,9 @@ __all__ = [
     "POLICY_UNAVAILABLE",
     "SCENE_SEED_OFFSET",
     "SWEEP_STARTS",
+    "close_envs",
+    "decode_frame",
+    "env_for",
     "guide_ratio_sweep",
     "kitchen_trial",
     "load_kitchen_policy",
@@ -127,6 +131,22 @@ def make_env(task: str) -> Any:
     from steer_envs.envs.robosuite.kitchen import KitchenEnv
 
     return KitchenEnv(task=task, render_mode="rgb_array", fast_render=True)
+
+
+_ENVS: dict[str, Any] = {}
+
+
+def env_for(task: str) -> Any:
+    """This process's env of ``task`` for trials (made on first use, kept until :func:`close_envs`)."""
+    if task not in _ENVS:
+        _ENVS[task] = make_env(task)
+    return _ENVS[task]
+
+
+def close_envs() -> None:
+    """Close and forget the envs :func:`env_for` made."""
+    while _ENVS:
+        _ENVS.popitem()[1].close()
 
 
 def _mode(env: Any) -> str:
@@ -228,7 +248,7 @@ def kitchen_trial(
             success = bool(outcome.success and legal)
             skills.append(outcome.executed)
             if click is not None:
-                aligned = click.skill in (planned, outcome.executed)
+                aligned = (planned if planned is not None else outcome.executed) == click.skill
                 rows.append(
                     {
                         "mode": outcome.mode_before,
@@ -253,6 +273,7 @@ def kitchen_trial(
                             **_encode_frame(image, frame_step),
                             "pixel": [c / frame_step for c in click.pixel],
                             "plan_uv": np.round(np.asarray(uv), 2).tolist(),
+                            "grip": np.round(plan[:, 4], 2).tolist(),
                             "watched": watched,
                             "intended": click.skill,
                             "planned": planned,
