@@ -77,6 +77,7 @@ __all__ = [
     "load_kitchen_policy",
     "make_env",
     "make_method_sampler",
+    "steered_plan",
 ]
 
 #: exceptions that mean "the policy is not available (yet)": module, function or checkpoint missing
@@ -164,6 +165,44 @@ def decode_frame(frame: dict[str, Any]) -> np.ndarray:
     return np.frombuffer(raw, dtype=np.uint8).reshape(tuple(frame["shape"]))
 
 
+def steered_plan(
+    env: Any,
+    policy: Any,
+    obs: Any,
+    method: str,
+    point: Any,
+    sampler: Any,
+    batch: int,
+    generator: np.random.Generator,
+    *,
+    op_distance: float = 0.15,
+) -> tuple[np.ndarray, Any, float]:
+    """``method``'s plan for a click at world ``point``: ``(plan, observation it starts from, latency ms)``.
+
+    ``sampler``: :func:`make_method_sampler` of ``method``. RS ignores the
+    point; GD and SS are steered by ``Point(point)`` on the xyz dims; OP
+    pushes the end effector (``env.unwrapped.perturb``) toward the point by
+    ``op_distance`` m (less when nearer) and samples unsteered from there.
+    """
+    from steer_envs.core.interaction import Point
+
+    base = env.unwrapped
+    target = np.asarray(point, dtype=np.float64).reshape(3)
+    t0 = time.perf_counter()
+    if method == "DP-OP":
+        delta = target - base.state
+        dist = float(np.linalg.norm(delta))
+        if dist > 0:
+            base.perturb(delta * min(1.0, op_distance / dist))
+        obs = base._obs()
+        result = sampler(policy, obs, None, batch, generator=generator)
+    elif method == "DP-RS":
+        result = sampler(policy, obs, None, batch, generator=generator)
+    else:
+        result = sampler(policy, obs, Point(target, dim=3), batch, generator=generator)
+    return np.asarray(result.plan), obs, (time.perf_counter() - t0) * 1e3
+
+
 def kitchen_trial(
     seed: int,
     policy: Any,
@@ -227,20 +266,9 @@ def kitchen_trial(
             if click is None:
                 plan = watched_plan
             else:
-                t0 = time.perf_counter()
-                if method == "DP-OP":
-                    delta = click.point - base.state
-                    dist = float(np.linalg.norm(delta))
-                    if dist > 0:
-                        base.perturb(delta * min(1.0, op_distance / dist))
-                    obs = base._obs()
-                    result = sampler(policy, obs, None, batch, generator=rng_method)
-                elif method == "DP-RS":
-                    result = sampler(policy, obs, None, batch, generator=rng_method)
-                else:
-                    result = sampler(policy, obs, click.interaction, batch, generator=rng_method)
-                latency = (time.perf_counter() - t0) * 1e3
-                plan = result.plan
+                plan, obs, latency = steered_plan(
+                    base, policy, obs, method, click.point, sampler, batch, rng_method, op_distance=op_distance
+                )
             planned = classify_kitchen_plan(base, plan)
             outcome = execute_kitchen_plan(base, plan)
             obs = outcome.obs
