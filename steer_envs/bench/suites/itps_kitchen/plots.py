@@ -152,8 +152,8 @@ def plot_sweep(sweep: Mapping[str, Any], path: str | os.PathLike[str]) -> Path:
     for method, shares in sweep["share"].items():
         color, marker = _SWEEP_STYLE.get(method, ("tab:gray", "^"))
         ax.plot(ratios, shares, color=color, marker=marker, label=method)
-    if np.all(ratios > 0) and len(ratios) > 1:
-        ax.set_xscale("log")
+    if len(ratios) > 1 and ratios.max() > 10 * max(float(ratios[ratios > 0].min(initial=1.0)), 1e-9):
+        ax.set_xscale("symlog", linthresh=1.0)  # ratios span decades; 0 (unguided) stays on the axis
     ax.set_xlabel("guide ratio beta (every DDIM step)")
     ax.set_ylabel("share of batch doing the intended skill")
     ax.set_ylim(-0.02, 1.02)
