@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # Reproduce the shipped BlockStack skill policy (baselines/checkpoints/blockstack/dp.*).
 #
-# 1. the random planner's skill data: 200 episode seeds x 12 skills (steer-bench suite
-#    itps-blockstack-data, one shard per seed, resumable; ~25 min on one core, ~13 on two);
-# 2. the plan data set: one (32 x [x, y, z, gripper]) plan per successful skill
+# 1. the random planner's skill data, branched: 100 episode seeds x 4 skills, and from each skill's
+#    start state 3 alternative skills the planner could have chosen there (steer-bench suite
+#    itps-blockstack-data, one shard per seed, resumable; ~12 min on two workers);
+# 2. the plan data set: one (32 x [x, y, z, gripper]) plan per successful skill, each also with the
+#    cubes listed in 15 other orders and the scene shifted (<= 5 cm) and turned (<= 0.5 rad)
 #    (python -m steer_envs.bench.suites.itps_blockstack.data);
-# 3. the Diffusion Policy, preset `blockstack` (baselines/diffusion/configuration.py), seed 0,
-#    ONE torch thread (bit-identical for the same thread count, torch version and CPU kind).
+# 3. the Diffusion Policy, preset `blockstack` with 2 Fourier octaves of the observation
+#    (--model obs_octaves=2: less room to memorise scenes), fused AdamW, seed 0, ONE torch thread
+#    (bit-identical for the same thread count, torch version and CPU kind).
 #
 # Usage: scripts/train_blockstack_checkpoint.sh [--check] [DATA_DIR]   (default: runs/blockstack-data)
 #   --check  build (or reuse) the data, then re-run only the first 200 training steps and compare
@@ -18,17 +21,21 @@ CHECK=0
 if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/blockstack-data}
-EPISODES=200
-DATA="$DATA_DIR/blockstack-plans-${EPISODES}.npz"
+EPISODES=100
+SKILLS=4
+BRANCHES=3
+DATA="$DATA_DIR/blockstack-plans-${EPISODES}x${SKILLS}b${BRANCHES}.npz"
 OUT=baselines/checkpoints/blockstack
 
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-blockstack-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
-    --param "cache_dir=$DATA_DIR" --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --out "$DATA"
+    --param "cache_dir=$DATA_DIR" --param "skills_per_episode=$SKILLS" --param "branches=$BRANCHES" \
+    --out "$DATA_DIR/run"
+"$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
+    --skills-per-episode "$SKILLS" --branches "$BRANCHES" --permutations 15 --shift 0.05 --yaw 0.5 --out "$DATA"
 if [ "$CHECK" = 1 ]; then
   exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
 fi
 mkdir -p "$OUT"
 "$PY" -m steer_envs.baselines.training --policy dp --preset blockstack --dataset "$DATA" \
-    --out "$OUT/dp.safetensors" --seed 0 --threads 1
+    --model obs_octaves=2 --fused-optimizer --out "$OUT/dp.safetensors" --seed 0 --threads 1
