@@ -111,3 +111,25 @@ def test_bad_trial_arguments_are_refused(env: Any) -> None:
         kitchen_trial(1, policy, "DP-RS", env=env)  # seed 1 is a sink rollout; the env is the microwave one
     with pytest.raises(ValueError, match="tasks"):
         kitchen_trial(0, policy, "DP-RS", tasks="sink", env=env)
+
+
+def test_the_probe_counts_valid_and_distinct_plans_per_scene(env: Any) -> None:
+    from steer_envs.bench.suites.itps_kitchen.probe import probe_policy
+
+    res = probe_policy(tiny_policy(), scenes=2, samples=3, env=env)
+    assert (res.scenes, res.samples) == (2, 3)
+    assert 0.0 <= res.valid <= 1.0 and 0.0 <= res.distinct <= 2.0 and res.legal == 2.0
+    assert set(res.skills_by_mode) == {"closed_table", "open_table"}
+    assert sum(sum(c.values()) for c in res.skills_by_mode.values()) == 6
+    assert "2 scenes x 3 plans" in res.summary()
+    with pytest.raises(ValueError, match="scenes"):
+        probe_policy(tiny_policy(), scenes=0, env=env)
+
+
+def test_the_probe_command_refuses_bad_usage(tmp_path: Any) -> None:
+    from steer_envs.bench.suites.itps_kitchen.probe import main
+
+    for argv in (["--scenes", "0"], ["--checkpoint", str(tmp_path / "missing.safetensors")]):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
