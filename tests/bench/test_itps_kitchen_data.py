@@ -127,3 +127,53 @@ def test_skills_dataset_refuses_bad_input(tmp_path: Path) -> None:
         skills_dataset(tmp_path, 1, max_skills=None)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="task"):
         env_for("oven")
+
+
+def test_every_task_records_each_task_from_the_same_scene(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from types import SimpleNamespace
+
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+    from steer_envs.bench.suites.itps_kitchen import data
+
+    params = DataParams(every_task=True)
+    assert params.tasks_of(3) == ("microwave", "sink") and params.task_of(3) == "microwave"
+    assert DataParams().tasks_of(3) == ("sink",)
+    with pytest.raises(ValueError, match="every_task"):
+        DataParams.from_json({"every_task": "yes"})
+    calls: list[tuple[int, str]] = []
+    last = {"microwave": "closed_microwave", "sink": "closed_sink"}
+
+    def fake_shard(cache_dir: Any, settings: Any) -> tuple[list[Any], Path, bool]:
+        calls.append((settings.seed, settings.task))
+        record = SimpleNamespace(name="pick_bowl", success=True, violation=False, mode_after=last[settings.task])
+        return [_Sized(record, 10)], tmp_path / f"{settings.task}-{settings.seed}.npz", True
+
+    monkeypatch.setattr(data, "ensure_shard", fake_shard)
+    trial = get_suite(DATA_SUITE).trial(ENV_ID, None, 3, DataParams(cache_dir=str(tmp_path), every_task=True))
+    result = execute_trial(trial)
+    assert result.ok, result.error
+    assert calls == [(3, "microwave"), (3, "sink")]
+    assert result.record["metrics"]["skills"] == 2.0 and result.record["metrics"]["goal"] == 1.0
+    assert result.record["extra"]["tasks"] == ["microwave", "sink"] and len(result.record["extra"]["shards"]) == 2
+    calls.clear()
+    monkeypatch.setattr(data, "_read", lambda path: None)
+    monkeypatch.setattr(data.ks, "save_skills", lambda path, records, meta: None)
+    records, merged = data.skills_dataset(tmp_path, 2, every_task=True)
+    assert calls == [(0, "microwave"), (0, "sink"), (1, "microwave"), (1, "sink")] and len(records) == 4
+    assert merged.name.startswith("kitchen-skills-2allmicrowave-sink-")
+    with pytest.raises(TypeError, match="every_task"):
+        data.skills_dataset(tmp_path, 2, every_task="yes")  # type: ignore[arg-type]
+
+
+class _Sized:
+    """A skill record stand-in with a length (control steps)."""
+
+    def __init__(self, record: Any, steps: int) -> None:
+        self._record, self._steps = record, steps
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._record, name)
+
+    def __len__(self) -> int:
+        return self._steps

@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from steer_envs.core.validation import integer, one_of
+from steer_envs.core.validation import boolean, integer, one_of
 from steer_envs.data import kitchen_plans as plans
 from steer_envs.data import kitchen_skills as ks
 from steer_envs.data.trajectories import save_trajectories
@@ -121,13 +121,18 @@ def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[k
 
 
 def skills_dataset(
-    cache_dir: str | Path, n_episodes: int, tasks: Sequence[str] = ks.DATA_TASKS, max_skills: int = 8
+    cache_dir: str | Path,
+    n_episodes: int,
+    tasks: Sequence[str] = ks.DATA_TASKS,
+    max_skills: int = 8,
+    every_task: bool = False,
 ) -> tuple[list[ks.SkillRecord], Path]:
     """Every skill of the shards of seeds ``0..n_episodes-1`` (missing shards built here) and the merged file.
 
-    Seed ``s`` is an episode of ``tasks[s % len(tasks)]`` (the suite's rule).
-    The merged file (``cache_dir/kitchen-skills-...npz``, written atomically) is
-    reused when it exists and reads back.
+    Seed ``s`` is an episode of ``tasks[s % len(tasks)]``, or with
+    ``every_task`` one episode of each task from the same scene (the suite's
+    rules). The merged file (``cache_dir/kitchen-skills-...npz``, written
+    atomically) is reused when it exists and reads back.
     """
     owner = "skills_dataset"
     n_episodes = integer(n_episodes, "n_episodes", low=1, high=100_000, owner=owner)
@@ -135,15 +140,24 @@ def skills_dataset(
     if isinstance(tasks, str) or not isinstance(tasks, Sequence) or not tasks:
         raise TypeError(f"{owner}: `tasks` must be a non-empty sequence of task names, got {tasks!r}")
     tasks = tuple(one_of(t, "tasks", KITCHEN_TASKS, owner=owner) for t in tasks)
+    every_task = boolean(every_task, "every_task", owner=owner)
     digest = ShardSettings(0, tasks[0], max_skills).digest
-    merged = Path(cache_dir) / f"kitchen-skills-{n_episodes}x{'-'.join(tasks)}-{digest}.npz"
+    rule = "all" if every_task else "x"
+    merged = Path(cache_dir) / f"kitchen-skills-{n_episodes}{rule}{'-'.join(tasks)}-{digest}.npz"
     found = _read(merged)
     if found is not None:
         return found, merged
     out: list[ks.SkillRecord] = []
     for seed in range(n_episodes):
-        out += ensure_shard(cache_dir, ShardSettings(seed, tasks[seed % len(tasks)], max_skills))[0]
-    meta = {"n_episodes": n_episodes, "tasks": list(tasks), "max_skills": max_skills, "shard_version": SHARD_VERSION}
+        for task in tasks if every_task else (tasks[seed % len(tasks)],):
+            out += ensure_shard(cache_dir, ShardSettings(seed, task, max_skills))[0]
+    meta = {
+        "n_episodes": n_episodes,
+        "tasks": list(tasks),
+        "every_task": every_task,
+        "max_skills": max_skills,
+        "shard_version": SHARD_VERSION,
+    }
     ks.save_skills(merged, out, meta=meta)
     return out, merged
 
@@ -171,14 +185,19 @@ def main(argv: list[str] | None = None) -> int:
         default=DataParams.max_skills,
         help=f"most skills an episode (default {DataParams.max_skills}, the suite's)",
     )
+    parser.add_argument(
+        "--every-task",
+        action="store_true",
+        help="each seed is one episode of every task from the same scene (the suite's every_task)",
+    )
     parser.add_argument("--out", required=True, help="output .npz (a steer_envs.data.trajectories file)")
     args = parser.parse_args(argv)
     if not str(args.out).endswith(".npz"):
         parser.error(f"--out must end with .npz, got {args.out!r}")
     tasks = [t.strip() for t in str(args.tasks).split(",") if t.strip()]
     try:
-        records, merged = skills_dataset(args.cache_dir, args.episodes, tasks, args.max_skills)
-        meta = {"episodes": args.episodes, "tasks": tasks, "max_skills": args.max_skills}
+        records, merged = skills_dataset(args.cache_dir, args.episodes, tasks, args.max_skills, args.every_task)
+        meta = {"episodes": args.episodes, "tasks": tasks, "max_skills": args.max_skills, "every_task": args.every_task}
         dataset = plans.to_plan_dataset(records, meta=meta)
     except (TypeError, ValueError) as err:
         parser.error(str(err))

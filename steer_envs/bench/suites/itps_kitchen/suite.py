@@ -94,12 +94,17 @@ class DataParams(SuiteParams):
     """What a shard is built from: the tasks the seeds cycle through, the most skills an episode, the cache folder.
 
     Seed ``s`` records an episode of ``tasks[s % len(tasks)]`` (one of
-    :data:`~steer_envs.envs.robosuite.kitchen.KITCHEN_TASKS`); ``cache_dir`` "" is the default folder.
+    :data:`~steer_envs.envs.robosuite.kitchen.KITCHEN_TASKS`), or with
+    ``every_task`` one episode of every task from the same scene (reset seed
+    ``s``): then the scene alone cannot tell the policy which task's first
+    skill to sample, and the merged data is multimodal at the shared start
+    state, as the thesis's real kitchen was. ``cache_dir`` "" is the default folder.
     """
 
     suite_name: ClassVar[str] = DATA_SUITE
     tasks: tuple[str, ...] = ("microwave", "sink")
     max_skills: int = 8
+    every_task: bool = False
     cache_dir: str = ""
 
     def __post_init__(self) -> None:
@@ -114,8 +119,12 @@ class DataParams(SuiteParams):
         return self.cache_dir or default_cache_dir()
 
     def task_of(self, seed: int) -> str:
-        """The task of episode seed ``seed``."""
-        return self.tasks[seed % len(self.tasks)]
+        """The task of episode seed ``seed`` (the first of :meth:`tasks_of`)."""
+        return self.tasks_of(seed)[0]
+
+    def tasks_of(self, seed: int) -> tuple[str, ...]:
+        """The tasks episode seed ``seed`` records: every task with ``every_task``, else ``tasks[seed % len]``."""
+        return self.tasks if self.every_task else (self.tasks[seed % len(self.tasks)],)
 
 
 def run_data_trial(trial: Trial) -> TrialResult:
@@ -126,19 +135,32 @@ def run_data_trial(trial: Trial) -> TrialResult:
     if trial.env != ENV_ID:
         raise ValueError(f"{DATA_SUITE}: unknown env {trial.env!r}; expected {ENV_ID!r}")
     params = DataParams.from_json(trial.params)
-    task = params.task_of(trial.seed)
+    tasks = params.tasks_of(trial.seed)
+    records, paths, goals, built = [], [], [], False
     with single_threaded():
-        records, path, built = ensure_shard(params.cache, ShardSettings(trial.seed, task, params.max_skills))
+        for task in tasks:
+            shard, path, made = ensure_shard(params.cache, ShardSettings(trial.seed, task, params.max_skills))
+            records += shard
+            paths.append(str(path))
+            goals.append(bool(shard) and shard[-1].mode_after in kitchen_task(task).goal)
+            built = built or made
     n = max(len(records), 1)
     metrics = {
         "skills": len(records),
         "skill_success": sum(r.success for r in records) / n,
         "violations": sum(r.violation for r in records) / n,
-        "goal": bool(records) and records[-1].mode_after in kitchen_task(task).goal,
+        "goal": sum(goals) / len(goals),
         "steps": sum(len(r) for r in records) / n,
         "built": built,
     }
-    extra = {"shard": str(path), "task": task, "skills": [r.name for r in records], "steps": [len(r) for r in records]}
+    extra: dict[str, Any] = {
+        "shard": paths[0],
+        "task": tasks[0],
+        "skills": [r.name for r in records],
+        "steps": [len(r) for r in records],
+    }
+    if params.every_task:
+        extra.update(shards=paths, tasks=list(tasks))
     return TrialResult(metrics, extra)
 
 
