@@ -176,16 +176,18 @@ def test_cli_writes_a_trajectory_file_from_the_shards(tmp_path: Path, monkeypatc
     merged = tmp_path / "merged.npz"
     seen: list[Any] = []
 
-    def fake(cache: Any, n: int, tasks: Any, max_skills: int) -> tuple[list[SkillRecord], Path]:
-        seen.append((n, list(tasks), max_skills))
+    def fake(cache: Any, n: int, tasks: Any, max_skills: int, every_task: bool) -> tuple[list[SkillRecord], Path]:
+        seen.append((n, list(tasks), max_skills, every_task))
         return [record(40), record(50, name="place_in_sink")], merged
 
     monkeypatch.setattr(shards, "skills_dataset", fake)
     out = tmp_path / "plans.npz"
     assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--tasks", "sink", "--out", str(out)]) == 0
-    assert seen == [(2, ["sink"], 8)]
+    assert seen == [(2, ["sink"], 8, False)]
     data = load_trajectories(out)
     assert len(data) == 2 * PLAN_HORIZON and data.meta["episodes"] == 2 and data.meta["tasks"] == ["sink"]
+    assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--every-task", "--out", str(out)]) == 0
+    assert seen[-1] == (2, ["microwave", "sink"], 8, True) and load_trajectories(out).meta["every_task"] is True
     with pytest.raises(SystemExit) as exc:
         main(["--cache-dir", str(tmp_path), "--out", str(tmp_path / "plans.txt")])
     assert exc.value.code == 2
