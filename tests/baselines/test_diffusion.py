@@ -384,7 +384,7 @@ def test_accelerate_checks_its_mode() -> None:
     policy = _tiny()
     assert policy.acceleration == "none"
     for bad in ("jit", "", None, 1):
-        with pytest.raises(ValueError, match=r"accelerate: mode must be one of \['compile', 'none', 'trace'\]"):
+        with pytest.raises(ValueError, match=r"accelerate: mode must be one of \['compile', 'none', 'onnx', 'trace'\]"):
             policy.accelerate(bad)  # type: ignore[arg-type]
     assert policy.accelerate("trace") is policy and policy.acceleration == "trace"
     assert policy.accelerate("none").acceleration == "none"
@@ -411,6 +411,50 @@ def test_trace_gives_the_eager_plans_of_the_shipped_checkpoint() -> None:
     eager, fast = load_pretrained("dp"), load_pretrained("dp")
     assert isinstance(eager, DiffusionPolicy) and isinstance(fast, DiffusionPolicy)
     _assert_same_plans(fast.accelerate("trace"), eager, 8, (3.0, 4.0))
+
+
+def test_onnx_gives_the_eager_plans_follows_the_weights_and_leaves_gradients_alone() -> None:
+    """ONNX Runtime: float32 rounding apart, eager's noise estimates and plans, for any batch size."""
+    pytest.importorskip("onnxruntime")
+    eager, fast = _tiny(), _tiny().accelerate("onnx")
+    assert fast.acceleration == "onnx"
+    x, cond = torch.randn(5, 16, 2), eager.encode_obs([2.0, 3.0])
+    with torch.no_grad():
+        for t, c in ((90, cond), (40, cond.expand(5, -1)), (0, cond)):  # shared and per-plan conditions
+            torch.testing.assert_close(fast.predict_noise(x, t, c), eager.predict_noise(x, t, c), rtol=0, atol=1e-5)
+    for n in (4, 7):  # one export serves every batch size
+        expected = _steered_plans(eager, n, (2.0, 3.0))
+        for name, plans in _steered_plans(fast, n, (2.0, 3.0)).items():
+            if name != "SS":  # SS's re-noising amplifies rounding on an untrained net (see the compile test)
+                np.testing.assert_allclose(plans, expected[name], rtol=0, atol=1e-4, err_msg=name)
+    with torch.no_grad():  # weights changed in place after the export: it is redone
+        for policy in (eager, fast):
+            for w in policy.model.parameters():
+                w.mul_(1.01)
+        torch.testing.assert_close(fast.predict_noise(x, 40, cond), eager.predict_noise(x, 40, cond), rtol=0, atol=1e-5)
+    x.requires_grad_(True)  # gradient calls run eagerly
+    fast.predict_noise(x, 50, cond).square().sum().backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0
+
+
+def test_onnx_gives_the_eager_plans_of_the_shipped_checkpoint() -> None:
+    pytest.importorskip("onnxruntime")
+    eager, fast = load_pretrained("dp"), load_pretrained("dp")
+    assert isinstance(eager, DiffusionPolicy) and isinstance(fast, DiffusionPolicy)
+    expected = _steered_plans(eager, 8, (3.0, 4.0))
+    for name, plans in _steered_plans(fast.accelerate("onnx"), 8, (3.0, 4.0)).items():
+        np.testing.assert_allclose(plans, expected[name], rtol=0, atol=1e-4, err_msg=name)
+
+
+def test_onnx_without_onnxruntime_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "onnxruntime" else real(name, *a))
+    policy = _tiny()
+    with pytest.raises(ImportError, match=r"mode 'onnx' needs onnxruntime.*steer-envs\[onnx\]"):
+        policy.accelerate("onnx")
+    assert policy.acceleration == "none"
 
 
 @pytest.mark.slow

@@ -31,7 +31,7 @@ class UIParams(SuiteParams):
     sampler: str = "SS"
     batch: int = 32
     mcmc_steps: int | None = None
-    accelerate: str = "trace"
+    accelerate: str = "auto"
     roundtrips: int = 10
     target_ms: float = TARGET_MS
     browser: str = "auto"
@@ -43,7 +43,9 @@ class UIParams(SuiteParams):
     def __post_init__(self) -> None:
         self.require_in("sampler", ("RS", "PR", "OP", "BI", "GD", "SS"))
         self.require_in("browser", ("auto", "yes", "no"))
-        self.require_in("accelerate", ("none", "trace", "compile"))
+        from steer_envs.ui.acceleration import UI_ACCELERATIONS  # here: importing steer_envs.ui loads the samplers
+
+        self.require_in("accelerate", UI_ACCELERATIONS)
         self.require_at_least(1, "batch", "roundtrips", "connections")
         self.require_at_most(256, "batch")
         self.require_at_most(64, "connections")
