@@ -28,6 +28,7 @@ from steer_envs.baselines.common.checkpoint import check_state, read_safetensors
 from steer_envs.baselines.common.configuration import TrainSettings
 from steer_envs.core.validation import integer
 from steer_envs.io import CheckpointError
+from steer_envs.utils.threads import MAX_THREADS
 
 __all__ = [
     "RUN_FILE",
@@ -57,7 +58,9 @@ class RunProgress:
 
     ``running`` is the loss sum since the last logged step; ``wall_s`` the
     training time of earlier segments; ``resumed_at`` the steps at which
-    earlier segments stopped.
+    earlier segments stopped; ``threads`` the torch threads of the first
+    segment (what a check of the run replays; 0 in states saved before it was
+    kept).
     """
 
     step: int = 0
@@ -65,6 +68,7 @@ class RunProgress:
     running: float = 0.0
     wall_s: float = 0.0
     resumed_at: list[int] = field(default_factory=list)
+    threads: int = 0
 
 
 def check_losses(value: Any) -> list[list[float]]:
@@ -131,6 +135,7 @@ def save_state(
         "running": progress.running,
         "wall_s": progress.wall_s,
         "resumed_at": progress.resumed_at,
+        "threads": progress.threads,
         "param_groups": opt_state["param_groups"],
         "scheduler": scheduler.state_dict(),
         "ema": ema_meta,
@@ -176,6 +181,7 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
             running=_finite(meta["running"], "running"),
             wall_s=_finite(meta["wall_s"], "wall_s"),
             resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
+            threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
         )
         if progress.losses and progress.losses[-1][0] > progress.step:
             raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")

@@ -80,6 +80,7 @@ from steer_envs.core.validation import integer, real_scalar
 from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
 from steer_envs.io import CheckpointError, atomic_write_text
 from steer_envs.utils.cli import parse_key_value
+from steer_envs.utils.threads import MAX_THREADS
 
 __all__ = [
     "TrainingInterrupted",
@@ -94,8 +95,6 @@ __all__ = [
 ]
 
 PROG = "python -m steer_envs.baselines.training"
-#: the most torch threads a run (or a recorded run) may ask for
-MAX_THREADS = 1024
 
 
 def train_policy(
@@ -171,7 +170,7 @@ def train_policy(
 
             ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
         parts = TrainingParts(model, opt, sched, ema, rng, gen)
-        done = RunProgress()
+        done = RunProgress(threads=torch.get_num_threads())
         if state_file is not None and state_file.exists():
             done = load_state(state_file, settings=settings, parts=parts)
             if done.step > last:
@@ -239,7 +238,7 @@ def train_policy(
         "losses": losses,
         "final_loss": losses[-1][1] if losses else None,
         "wall_s": round(done.wall_s, 1),
-        "threads": torch.get_num_threads(),
+        "threads": done.threads or torch.get_num_threads(),  # the first segment's: what a check replays
         "device": str(policy.device),
         "torch": torch.__version__,
         "windows": len(windows),

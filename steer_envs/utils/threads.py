@@ -48,6 +48,11 @@ def limit_threads(blas_threads: int | None = 1, torch_threads: int | None = 1) -
     _check("blas_threads", blas_threads)
     _check("torch_threads", torch_threads)
     with contextlib.ExitStack() as stack:
+        # BLAS first: threadpoolctl's OpenMP limit also sets torch's intra-op threads (torch runs on OpenMP)
+        if blas_threads is not None:
+            from threadpoolctl import threadpool_limits
+
+            stack.enter_context(threadpool_limits(limits=blas_threads))
         if torch_threads is not None:
             try:
                 import torch
@@ -57,10 +62,6 @@ def limit_threads(blas_threads: int | None = 1, torch_threads: int | None = 1) -
                 previous = torch.get_num_threads()
                 torch.set_num_threads(torch_threads)
                 stack.callback(torch.set_num_threads, previous)
-        if blas_threads is not None:
-            from threadpoolctl import threadpool_limits
-
-            stack.enter_context(threadpool_limits(limits=blas_threads))
         yield
 
 

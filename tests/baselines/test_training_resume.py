@@ -77,6 +77,19 @@ def test_a_stopped_and_resumed_run_ends_with_the_uninterrupted_weights(
     assert "resumed_at" not in record
 
 
+def test_a_resumed_run_records_its_first_segments_threads(data: TrajectoryDataset, tmp_path: Path) -> None:
+    """A check replays a run's first steps, so the record keeps the thread count they ran on."""
+    from steer_envs.utils.threads import limit_threads
+
+    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    settings = TrainSettings(steps=12, batch_size=8, log_every=4, warmup_steps=2)
+    with limit_threads(torch_threads=2):
+        train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path, stop_after=6)
+    with limit_threads(torch_threads=1):
+        record = train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path)
+    assert record["resumed_at"] == [6] and record["threads"] == 2
+
+
 def test_the_state_file_is_checked_before_it_is_loaded(data: TrajectoryDataset, tmp_path: Path) -> None:
     config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
     settings = TrainSettings(steps=10, batch_size=4, log_every=5)

@@ -46,3 +46,17 @@ def test_threads_argument_defaults_to_one_and_refuses_bad_values(capsys: pytest.
         assert "--threads" in capsys.readouterr().err
     with pytest.raises(ValueError, match="default"):
         add_threads_argument(argparse.ArgumentParser(), default=0)
+
+
+def test_the_blas_limit_does_not_override_torchs_threads() -> None:
+    """threadpoolctl's OpenMP limit also sets torch's threads: the torch setting must win either way."""
+    import torch
+
+    from steer_envs.utils.threads import limit_threads
+
+    before = torch.get_num_threads()
+    with limit_threads(blas_threads=2, torch_threads=1):
+        assert torch.get_num_threads() == 1
+    with limit_threads(blas_threads=1, torch_threads=2):
+        assert torch.get_num_threads() == 2
+    assert torch.get_num_threads() == before
