@@ -239,7 +239,7 @@ def run_ui_trial(trial: Trial, params_type: type[SuiteParams]) -> dict[str, floa
     import torch
 
     params: Any = params_type.from_json(trial.params)
-    torch.set_num_threads(1)
+    torch.set_num_threads(params.threads)  # the process's, as steer-ui --threads sets it
     if trial.method == "roundtrip":
         out = Path(params.screenshot_dir) if params.screenshot_dir else None
         return run_roundtrip(params, trial.seed, out)

@@ -32,6 +32,7 @@ class UIParams(SuiteParams):
     batch: int = 32
     mcmc_steps: int | None = None
     accelerate: str = "auto"
+    threads: int = 1
     roundtrips: int = 10
     target_ms: float = TARGET_MS
     browser: str = "auto"
@@ -46,7 +47,8 @@ class UIParams(SuiteParams):
         from steer_envs.ui.acceleration import UI_ACCELERATIONS  # here: importing steer_envs.ui loads the samplers
 
         self.require_in("accelerate", UI_ACCELERATIONS)
-        self.require_at_least(1, "batch", "roundtrips", "connections")
+        self.require_at_least(1, "batch", "roundtrips", "connections", "threads")
+        self.require_at_most(64, "threads")
         self.require_at_most(256, "batch")
         self.require_at_most(64, "connections")
         self.require_at_least(0, "malformed")
