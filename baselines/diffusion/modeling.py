@@ -27,11 +27,9 @@ the training data.
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import math
-import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, Protocol, Self, cast
 
 import numpy as np
@@ -41,17 +39,14 @@ from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
+from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS, FastNetwork, onnx_missing, resolve_acceleration
 from steer_envs.baselines.diffusion.configuration import DiffusionConfig
-from steer_envs.core.validation import describe, one_of, real_array
+from steer_envs.core.validation import describe, real_array
 
 __all__ = ["ACCELERATIONS", "ConditionalUnet1D", "DiffusionNet", "DiffusionPolicy", "ObsEncoder"]
 
 #: the checkpoint format written before the policy factory (still readable).
 LEGACY_FORMAT = "steer_envs.baselines.diffusion/1"
-#: the modes of :meth:`DiffusionPolicy.accelerate`.
-ACCELERATIONS: tuple[str, ...] = ("none", "compile", "onnx", "trace")
-#: the most input shapes whose traces :meth:`DiffusionPolicy.accelerate` (``"trace"``) keeps.
-MAX_TRACES = 16
 
 
 class _Scheduler(Protocol):
@@ -220,136 +215,6 @@ class DiffusionNet(nn.Module):
         return self.unet(x, timestep, self.obs_encoder(cond))
 
 
-# ------------------------------------------------------------ acceleration
-class _FastNetwork:
-    """A faster ``model(x, t, cond)`` for no-grad eval calls: ``torch.compile``, TorchScript or ONNX Runtime.
-
-    ``"compile"`` compiles ``model`` once (static shapes: each new input shape
-    compiles again, up to dynamo's recompile limit); ``"trace"`` traces it per
-    input shape; ``"onnx"`` exports it to ONNX (any batch size) and runs it in an
-    ONNX Runtime session on as many threads as torch uses. Compile and trace read
-    the model's parameters live; the ONNX export holds a copy, re-exported when a
-    parameter or buffer changes in place (a training step, ``load_state_dict``).
-    Another model object starts afresh.
-    """
-
-    def __init__(self, mode: str) -> None:
-        self.mode = mode
-        self._model: nn.Module | None = None
-        self._compiled: Callable[..., torch.Tensor] | None = None
-        self._traces: dict[tuple[Any, ...], Callable[..., torch.Tensor]] = {}
-        self._sessions: dict[tuple[Any, ...], tuple[tuple[int, ...], Any]] = {}
-        self._tensors: list[torch.Tensor] = []  # the model's parameters and buffers, whose versions the export tracks
-
-    def __call__(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
-        if self._model is not model:
-            self._model, self._compiled = model, None
-            self._traces.clear()
-            self._sessions.clear()
-            self._tensors = [*model.parameters(), *model.buffers()]
-        if self.mode == "compile":
-            if self._compiled is None:
-                self._compiled = cast(Callable[..., torch.Tensor], torch.compile(model, dynamic=False))
-            return self._compiled(x, t, cond)
-        if self.mode == "onnx":
-            return self._run_onnx(model, x, t, cond)
-        key = tuple((a.shape, a.dtype, a.device) for a in (x, t, cond))
-        traced = self._traces.get(key)
-        if traced is None:
-            if len(self._traces) >= MAX_TRACES:
-                del self._traces[next(iter(self._traces))]
-            with warnings.catch_warnings():  # torch.jit is deprecated upstream; each trace is for one input shape
-                warnings.simplefilter("ignore", DeprecationWarning)
-                warnings.simplefilter("ignore", torch.jit.TracerWarning)
-                traced = torch.jit.trace(model, (x, t, cond), check_trace=False)
-            self._traces[key] = traced
-        return traced(x, t, cond)
-
-    def _run_onnx(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
-        if x.device.type != "cpu":  # ONNX Runtime's CPU provider only; elsewhere the network runs as is
-            return cast(torch.Tensor, model(x, t, cond))
-        key = (tuple(x.shape[1:]), tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype)  # any batch size
-        versions = tuple(tensor._version for tensor in self._tensors)
-        entry = self._sessions.get(key)
-        if entry is None or entry[0] != versions:
-            if entry is None and len(self._sessions) >= MAX_TRACES:
-                del self._sessions[next(iter(self._sessions))]
-            self._sessions[key] = entry = (versions, _onnx_session(model, x, t, cond))
-        feeds = {"x": x.detach().numpy(), "t": t.detach().numpy(), "cond": cond.detach().numpy()}
-        return torch.from_numpy(entry[1].run(None, feeds)[0])
-
-
-class _Conv1dAs2d(nn.Module):
-    """A ``Conv1d`` computed as a ``(1, k)`` 2-D convolution, for export only.
-
-    ONNX Runtime's CPU provider has blocked-layout (NCHWc) kernels for 2-D
-    convolutions only; on the denoiser's narrow channels they are ~1.2x faster
-    per network call than its 1-D path (same outputs, float32 rounding apart).
-    """
-
-    def __init__(self, conv: nn.Conv1d) -> None:
-        super().__init__()
-        self.conv = conv
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        c = self.conv
-        y = nn.functional.conv2d(
-            x.unsqueeze(2),
-            c.weight.unsqueeze(2),
-            c.bias,
-            stride=(1, c.stride[0]),
-            padding=(0, cast(tuple[int, ...], c.padding)[0]),
-            dilation=(1, c.dilation[0]),
-            groups=c.groups,
-        )
-        return y.squeeze(2)
-
-
-def _for_export(model: nn.Module) -> nn.Module:
-    """A copy of ``model`` whose zero-padded ``Conv1d`` layers run as 2-D convolutions (:class:`_Conv1dAs2d`)."""
-    import copy
-
-    model = copy.deepcopy(model)
-    for module in list(model.modules()):
-        for child_name, child in list(module.named_children()):
-            if isinstance(child, nn.Conv1d) and child.padding_mode == "zeros" and not isinstance(child.padding, str):
-                setattr(module, child_name, _Conv1dAs2d(child))
-    return model
-
-
-def _onnx_session(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> Any:
-    """An ONNX Runtime session of ``model`` exported at ``(x, t, cond)``'s shapes with a free batch size."""
-    import os
-    import tempfile
-
-    import onnxruntime as ort
-
-    # the TorchScript-based exporter (deprecated upstream, silenced here) needs no onnxscript
-    with tempfile.TemporaryDirectory(prefix="steer-envs-onnx-") as folder, warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        warnings.simplefilter("ignore", FutureWarning)
-        warnings.simplefilter("ignore", torch.jit.TracerWarning)
-        path = os.path.join(folder, "denoiser.onnx")
-        torch.onnx.export(
-            _for_export(model),
-            (x, t, cond),
-            path,
-            input_names=["x", "t", "cond"],
-            output_names=["out"],
-            dynamic_axes={name: {0: "n"} for name in ("x", "t", "cond", "out")},
-            opset_version=17,
-            dynamo=False,
-        )
-        with open(path, "rb") as file:
-            exported = file.read()
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = torch.get_num_threads()
-    options.inter_op_num_threads = 1
-    options.add_session_config_entry("session.intra_op.allow_spinning", "0")  # no spin-waits on a shared CPU
-    options.log_severity_level = 3
-    return ort.InferenceSession(exported, options, providers=["CPUExecutionProvider"])
-
-
 # ------------------------------------------------------------------ policy
 class DiffusionPolicy(TorchPolicy):
     """Observation history -> batch of plans by DDIM (a ``DiffusionPolicyLike``).
@@ -396,10 +261,10 @@ class DiffusionPolicy(TorchPolicy):
             ),
         )
         self.num_inference_steps = self.config.num_inference_steps
-        self._fast: _FastNetwork | None = None
+        self._fast: FastNetwork | None = None
 
     def accelerate(self, mode: str) -> Self:
-        """Run the network of inference calls ``"none"`` (eager, the default), ``"trace"``, ``"compile"`` or ``"onnx"``.
+        """Run the network of inference calls eagerly (``"none"``, the default) or faster (:data:`ACCELERATIONS`).
 
         ``"trace"``: a ``torch.jit.trace`` per input shape (~1 s each; the same
         plans as eager, bit for bit). ``"compile"``: ``torch.compile(model,
@@ -408,21 +273,22 @@ class DiffusionPolicy(TorchPolicy):
         SS's re-noising amplifies it). ``"onnx"``: an ONNX export run by ONNX
         Runtime on CPU (~1 s per plan shape, any batch size; the fastest of the
         three on CPU, float32 rounding apart the eager plans; needs the
-        ``onnx`` extra). Only no-grad calls in eval mode (``sample``, the ITPS
+        ``onnx`` extra). ``"auto"``: ``"onnx"`` where ONNX Runtime is installed,
+        else ``"trace"`` (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
         samplers' ``predict_noise``) are accelerated; gradient calls and
         training run eagerly. Weights are followed (after replacing parameter
         objects, call again). Returns self; ``ValueError`` for another ``mode``,
         ``ImportError`` naming the extra when ``"onnx"`` lacks ONNX Runtime.
         """
-        mode = one_of(mode, "mode", ACCELERATIONS, owner="DiffusionPolicy.accelerate")
+        mode = resolve_acceleration(mode, owner="DiffusionPolicy.accelerate")
         if mode == "onnx":
-            missing = [name for name in ("onnx", "onnxruntime") if importlib.util.find_spec(name) is None]
+            missing = onnx_missing()
             if missing:
                 raise ImportError(
                     f"DiffusionPolicy.accelerate: mode 'onnx' needs {' and '.join(missing)}; "
                     "install them with: pip install 'steer-envs[onnx]'"
                 )
-        self._fast = None if mode == "none" else _FastNetwork(mode)
+        self._fast = None if mode == "none" else FastNetwork(mode)
         return self
 
     @property

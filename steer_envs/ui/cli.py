@@ -15,7 +15,7 @@ import sys
 import webbrowser
 from collections.abc import Sequence
 
-from steer_envs.ui.acceleration import UI_ACCELERATIONS
+from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -39,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--checkpoint", default=None, help="a checkpoint of --policy (default: the shipped one)")
     parser.add_argument(
         "--accelerate",
-        choices=UI_ACCELERATIONS,
+        choices=ACCELERATIONS,
         default="auto",
         help="the DP network's inference mode (default: auto, ONNX Runtime where installed, else trace)",
     )

@@ -33,7 +33,6 @@ from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
 from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
-from steer_envs.ui.acceleration import resolve_acceleration
 from steer_envs.utils.threads import limit_threads
 from steer_envs.wrappers.samplers import (
     MAX_MCMC_STEPS,
@@ -302,14 +301,14 @@ def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: s
     """A shipped policy (or ``checkpoint``), loaded once per process and shared.
 
     ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large) or ``"blockstack"`` (the BlockStack skill DP).
-    ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode or ``"auto"``
-    (:func:`resolve_acceleration`: ONNX Runtime where installed, else a trace with
-    the same plans as eager); ACT ignores it.
+    ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"auto"``: ONNX
+    Runtime where installed, else a trace with the same plans as eager); ACT ignores it.
     """
+    from steer_envs.baselines.diffusion.acceleration import resolve_acceleration
     from steer_envs.baselines.pretrained import load_blockstack, load_checkpoint, load_pretrained
 
     kind = one_of(kind, "policy", ("dp", "act", "blockstack"), owner="steer-ui")
-    accelerate = resolve_acceleration(accelerate)
+    accelerate = resolve_acceleration(accelerate, owner="steer-ui")
     key = (kind, str(checkpoint or ""), accelerate)
     with _POLICIES_LOCK:
         policy = _POLICIES.get(key)
@@ -414,7 +413,7 @@ class Session:
         seed: the first reset's seed (start state and sampling noise).
         env_kwargs: passed to ``gymnasium.make`` with an id (default: the domain's).
         accelerate: the network's inference mode for a named policy (``"auto"`` by default:
-            :func:`resolve_acceleration`).
+            ONNX Runtime where installed, else a trace).
         threads: torch threads for a steering call (default 1; ``None``: leave torch's setting,
             as the server does after setting it once per process).
     """

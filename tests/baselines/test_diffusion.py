@@ -384,7 +384,9 @@ def test_accelerate_checks_its_mode() -> None:
     policy = _tiny()
     assert policy.acceleration == "none"
     for bad in ("jit", "", None, 1):
-        with pytest.raises(ValueError, match=r"accelerate: mode must be one of \['compile', 'none', 'onnx', 'trace'\]"):
+        with pytest.raises(
+            ValueError, match=r"accelerate: mode must be one of \['auto', 'compile', 'none', 'onnx', 'trace'\]"
+        ):
             policy.accelerate(bad)  # type: ignore[arg-type]
     assert policy.accelerate("trace") is policy and policy.acceleration == "trace"
     assert policy.accelerate("none").acceleration == "none"
@@ -455,6 +457,12 @@ def test_onnx_without_onnxruntime_names_the_extra(monkeypatch: pytest.MonkeyPatc
     with pytest.raises(ImportError, match=r"mode 'onnx' needs onnxruntime.*steer-envs\[onnx\]"):
         policy.accelerate("onnx")
     assert policy.acceleration == "none"
+    assert policy.accelerate("auto").acceleration == "trace"  # auto falls back to the trace
+
+
+def test_auto_acceleration_is_onnx_where_onnx_runtime_is_installed() -> None:
+    pytest.importorskip("onnxruntime")
+    assert _tiny().accelerate("auto").acceleration == "onnx"
 
 
 @pytest.mark.slow
@@ -478,3 +486,19 @@ def test_compile_gives_the_eager_noise_estimates() -> None:
     x.requires_grad_(True)  # gradient calls run eagerly
     fast.predict_noise(x, 50, cond).square().sum().backward()
     assert x.grad is not None and x.grad.abs().sum() > 0
+
+
+def test_accelerated_sets_a_mode_once_and_leaves_other_policies_alone() -> None:
+    from steer_envs.baselines.diffusion.acceleration import accelerated
+
+    policy = _tiny()
+    assert accelerated(policy, "trace") is policy and policy.acceleration == "trace"
+    fast = policy._fast
+    accelerated(policy, "trace")  # already in that mode: its traces are kept
+    assert policy._fast is fast
+    other = object()
+    assert accelerated(other, "auto") is other and accelerated(other, "none") is other
+    with pytest.raises(TypeError, match=r"suite: mode 'onnx' needs a policy with an accelerate method, got object"):
+        accelerated(other, "onnx", owner="suite")
+    with pytest.raises(ValueError, match="suite: mode must be one of"):
+        accelerated(policy, "fast", owner="suite")

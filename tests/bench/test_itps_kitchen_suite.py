@@ -62,6 +62,7 @@ def test_findings_check_table_2_3() -> None:
         {"op_distance": 2.0},
         {"tasks": ["bake"]},
         {"torch_threads": -1},
+        {"accelerate": "jit"},
     ],
 )
 def test_params_refuse_bad_values(bad: dict[str, Any]) -> None:

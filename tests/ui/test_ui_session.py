@@ -174,19 +174,3 @@ def test_blockstack_clicks_land_on_surfaces_and_skills_run() -> None:
         assert "skill" in step.info and arm.last is None
     finally:
         arm.close()
-
-
-def test_auto_acceleration_is_onnx_where_onnx_runtime_is_installed(monkeypatch: pytest.MonkeyPatch) -> None:
-    import importlib.util
-
-    from steer_envs.ui.acceleration import resolve_acceleration
-
-    for mode in ("none", "trace", "compile", "onnx"):
-        assert resolve_acceleration(mode) == mode
-    with pytest.raises(ValueError, match="accelerate"):
-        resolve_acceleration("jit")
-    real = importlib.util.find_spec
-    installed = real("onnxruntime") is not None and real("onnx") is not None
-    assert resolve_acceleration("auto") == ("onnx" if installed else "trace")
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "onnxruntime" else real(name, *a))
-    assert resolve_acceleration("auto") == "trace"

@@ -127,7 +127,7 @@ class ItpsParams(SuiteParams):
         self.require_at_least(1, "latency_repeats")
         self.require_at_least(0, "plot_seeds")
         if self.dp_accelerate != "none":  # the import pulls in torch: only for a non-default value
-            from steer_envs.baselines.diffusion.modeling import ACCELERATIONS
+            from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 
             self.require_in("dp_accelerate", ACCELERATIONS)
 

@@ -159,6 +159,8 @@ class SteerParams(SuiteParams):
     guide_ratio: float = 100.0
     plot_seeds: int = 2
     torch_threads: int = 1
+    #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
+    accelerate: str = "auto"
     loader: str = BLOCKSTACK_LOADER
     checkpoint: str = ""
 
@@ -170,12 +172,16 @@ class SteerParams(SuiteParams):
         self.require("guide_ratio", self.guide_ratio >= 0, ">= 0")
         self.require_at_least(0, "plot_seeds")
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
+        from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS  # here: it imports torch
+
+        self.require_in("accelerate", ACCELERATIONS)
 
     def policy(self) -> Any:
         """The frozen skill policy (cached per process)."""
+        from steer_envs.baselines.diffusion.acceleration import accelerated
         from steer_envs.bench.suites.itps_blockstack.protocol import load_skill_policy
 
-        return load_skill_policy(self.loader, self.checkpoint)
+        return accelerated(load_skill_policy(self.loader, self.checkpoint), self.accelerate, owner="accelerate")
 
 
 def _plan_steer(suite: Suite, request: TrialRequest) -> TrialPlan:

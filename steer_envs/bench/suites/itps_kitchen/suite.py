@@ -228,6 +228,8 @@ class SteerParams(SuiteParams):
     op_distance: float = 0.15
     plot_seeds: int = 1
     torch_threads: int = 1
+    #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
+    accelerate: str = "auto"
     loader: str = KITCHEN_LOADER
     checkpoint: str = ""
 
@@ -245,12 +247,16 @@ class SteerParams(SuiteParams):
         self.require("op_distance", 0 <= self.op_distance <= 1, "in [0, 1] (m)")
         self.require_at_least(0, "plot_seeds")
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
+        from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS  # here: it imports torch
+
+        self.require_in("accelerate", ACCELERATIONS)
 
     def policy(self) -> Any:
         """The frozen skill policy (cached per process)."""
+        from steer_envs.baselines.diffusion.acceleration import accelerated
         from steer_envs.bench.suites.itps_kitchen.protocol import load_kitchen_policy
 
-        return load_kitchen_policy(self.loader, self.checkpoint)
+        return accelerated(load_kitchen_policy(self.loader, self.checkpoint), self.accelerate, owner="accelerate")
 
 
 def _plan_steer(suite: Suite, request: TrialRequest) -> TrialPlan:

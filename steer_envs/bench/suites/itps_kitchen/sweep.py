@@ -16,6 +16,8 @@ import json
 import sys
 from pathlib import Path
 
+from steer_envs.io import atomic_write_text
+
 __all__ = ["main", "parse_args"]
 
 
@@ -26,12 +28,21 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seeds", type=int, default=3, help="scenes (default 3)")
     parser.add_argument("--batch", type=int, default=16, help="plans per sampling call (default 16)")
     parser.add_argument("--checkpoint", default="", help="a Kitchen DP checkpoint (default: the shipped one)")
+    parser.add_argument(
+        "--accelerate",
+        default="auto",
+        help="the denoiser's inference mode (default auto: ONNX Runtime where installed, else trace)",
+    )
     parser.add_argument("--out", type=Path, default=Path("runs/kitchen-sweep"), help="output directory")
     args = parser.parse_args(argv)
     try:
         args.ratios = [float(r) for r in args.ratios.split(",")]
     except ValueError:
         parser.error(f"--ratios must be comma-separated numbers, got {args.ratios!r}")
+    from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
+
+    if args.accelerate not in ACCELERATIONS:
+        parser.error(f"--accelerate must be one of {list(ACCELERATIONS)}, got {args.accelerate!r}")
     if any(not r >= 0 for r in args.ratios):
         parser.error(f"--ratios must be >= 0, got {args.ratios}")
     for name in ("seeds", "batch"):
@@ -43,6 +54,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     """Run the sweep and write its JSON and figure; 0 on success, 2 without a policy."""
     args = parse_args(argv)
+    from steer_envs.baselines.diffusion.acceleration import accelerated
     from steer_envs.bench.suites.itps_kitchen.plots import plot_sweep
     from steer_envs.bench.suites.itps_kitchen.protocol import guide_ratio_sweep, load_kitchen_policy
     from steer_envs.bench.suites.itps_kitchen.suite import KITCHEN_LOADER
@@ -52,9 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, ImportError, AttributeError, FileNotFoundError) as exc:  # POLICY_UNAVAILABLE + bad files
         print(f"the Kitchen policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
+    policy = accelerated(policy, args.accelerate, owner="--accelerate")
     result = guide_ratio_sweep(policy, args.ratios, seeds=args.seeds, batch=args.batch)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "sweep.json").write_text(json.dumps(result, indent=1))
+    atomic_write_text(args.out / "sweep.json", json.dumps(result, indent=1))
     path = plot_sweep(result, args.out / "sweep.png")
     for method, shares in result["share"].items():
         print(method, " ".join(f"beta {r:g}: {s:.2f}" for r, s in zip(result["ratios"], shares, strict=True)))

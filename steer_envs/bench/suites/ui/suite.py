@@ -44,9 +44,9 @@ class UIParams(SuiteParams):
     def __post_init__(self) -> None:
         self.require_in("sampler", ("RS", "PR", "OP", "BI", "GD", "SS"))
         self.require_in("browser", ("auto", "yes", "no"))
-        from steer_envs.ui.acceleration import UI_ACCELERATIONS  # here: importing steer_envs.ui loads the samplers
+        from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS  # here: it imports torch
 
-        self.require_in("accelerate", UI_ACCELERATIONS)
+        self.require_in("accelerate", ACCELERATIONS)
         self.require_at_least(1, "batch", "roundtrips", "connections", "threads")
         self.require_at_most(64, "threads")
         self.require_at_most(256, "batch")
