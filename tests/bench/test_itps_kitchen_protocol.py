@@ -121,7 +121,9 @@ def test_the_probe_counts_valid_and_distinct_plans_per_scene(env: Any) -> None:
     assert 0.0 <= res.valid <= 1.0 and 0.0 <= res.distinct <= 2.0 and res.legal == 2.0
     assert set(res.skills_by_mode) == {"closed_table", "open_table"}
     assert sum(sum(c.values()) for c in res.skills_by_mode.values()) == 6
-    assert "2 scenes x 3 plans" in res.summary()
+    assert set(res.distinct_by_mode) == {"closed_table", "open_table"}
+    assert sum(res.distinct_by_mode.values()) == pytest.approx(2 * res.distinct)  # one scene per mode
+    assert "2 scenes x 3 plans" in res.summary() and "distinct a scene)" in res.summary()
     with pytest.raises(ValueError, match="scenes"):
         probe_policy(tiny_policy(), scenes=0, env=env)
 

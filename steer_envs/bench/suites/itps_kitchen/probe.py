@@ -34,7 +34,8 @@ __all__ = ["ProbeResult", "main", "probe_policy"]
 
 @dataclass(frozen=True)
 class ProbeResult:
-    """Shares over every probed scene, and per mode the sampled skills' counts (``None``: no skill)."""
+    """Shares over every probed scene; per start mode the sampled skills' counts (``None``: no skill) and
+    the mean distinct valid skills a scene."""
 
     scenes: int
     samples: int
@@ -42,6 +43,7 @@ class ProbeResult:
     distinct: float
     legal: float
     skills_by_mode: dict[str, dict[str, int]] = field(default_factory=dict)
+    distinct_by_mode: dict[str, float] = field(default_factory=dict)
 
     def summary(self) -> str:
         lines = [
@@ -49,7 +51,10 @@ class ProbeResult:
             f"{self.distinct:.2f} distinct valid skills a scene of {self.legal:.2f} allowed"
         ]
         for mode, counts in self.skills_by_mode.items():
-            lines.append(f"  {mode}: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+            per_scene = ""
+            if mode in self.distinct_by_mode:
+                per_scene = f" ({self.distinct_by_mode[mode]:.2f} distinct a scene)"
+            lines.append(f"  {mode}: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())) + per_scene)
         return "\n".join(lines)
 
 
@@ -74,6 +79,7 @@ def probe_policy(policy: Any, *, scenes: int = 12, samples: int = 16, seed: int 
     distinct: list[float] = []
     legal: list[float] = []
     by_mode: dict[str, Counter[str]] = {}
+    distinct_in: dict[str, list[int]] = {}
     try:
         for s in range(scenes):
             obs, _ = base.reset(seed=SCENE_SEED_OFFSET + s, options=dict(SWEEP_STARTS[s % len(SWEEP_STARTS)]))
@@ -83,14 +89,16 @@ def probe_policy(policy: Any, *, scenes: int = 12, samples: int = 16, seed: int 
             ok = [kind for kind in kinds if kind is not None]
             valid.append(len(ok) / samples)
             distinct.append(len(set(ok)))
+            distinct_in.setdefault(mode, []).append(len(set(ok)))
             legal.append(len(legal_skills(mode)))
             by_mode.setdefault(mode, Counter()).update(str(kind) for kind in kinds)
     finally:
         if own_env:
             env.close()
     counts = {mode: dict(c) for mode, c in by_mode.items()}
+    per_mode = {mode: float(np.mean(n)) for mode, n in distinct_in.items()}
     return ProbeResult(
-        len(valid), samples, float(np.mean(valid)), float(np.mean(distinct)), float(np.mean(legal)), counts
+        len(valid), samples, float(np.mean(valid)), float(np.mean(distinct)), float(np.mean(legal)), counts, per_mode
     )
 
 
