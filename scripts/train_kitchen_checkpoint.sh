@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # Reproduce the shipped Kitchen skill policy (baselines/checkpoints/kitchen/dp.*).
 #
-# 1. the expert's skill data: 120 episode seeds alternating the thesis's two tasks, microwave
+# 1. the expert's skill data: 60 scenes, each recorded in both of the thesis's tasks, microwave
 #    (open the door, pick the bowl, place it in the microwave, close the door) and sink (pick,
-#    place in the sink): steer-bench suite itps-kitchen-data, one shard per seed, resumable;
+#    place in the sink), so that the scene cannot tell which task's first skill comes next:
+#    steer-bench suite itps-kitchen-data with every_task, one trial per scene, resumable;
 # 2. the plan data set: one (32 x [x, y, z, yaw, gripper]) plan per successful skill, the two
-#    tasks merged (python -m steer_envs.bench.suites.itps_kitchen.data);
-# 3. the Diffusion Policy, preset `kitchen` (baselines/diffusion/configuration.py), seed 0,
-#    ONE torch thread (bit-identical for the same thread count, torch version and CPU kind).
+#    tasks merged (python -m steer_envs.bench.suites.itps_kitchen.data --every-task);
+# 3. the Diffusion Policy, preset `kitchen` (baselines/diffusion/configuration.py), 20k steps,
+#    seed 0, one torch thread (bit-identical for the same thread count, torch version and CPU kind;
+#    --check replays the first steps on the thread count the record names).
 #
 # Usage: scripts/train_kitchen_checkpoint.sh [--check] [DATA_DIR]   (default: runs/kitchen-data)
 #   --check  build (or reuse) the data, then re-run only the first 200 training steps and compare
@@ -19,17 +21,17 @@ CHECK=0
 if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/kitchen-data}
-EPISODES=120
-DATA="$DATA_DIR/kitchen-plans-${EPISODES}.npz"
+EPISODES=60
+DATA="$DATA_DIR/kitchen-plans-${EPISODES}all.npz"
 OUT=baselines/checkpoints/kitchen
 
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-kitchen-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
-    --param "cache_dir=$DATA_DIR" --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_kitchen.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --out "$DATA"
+    --param "cache_dir=$DATA_DIR" --param every_task=true --out "$DATA_DIR/run"
+"$PY" -m steer_envs.bench.suites.itps_kitchen.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --every-task --out "$DATA"
 if [ "$CHECK" = 1 ]; then
   exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
 fi
 mkdir -p "$OUT"
 "$PY" -m steer_envs.baselines.training --policy dp --preset kitchen --dataset "$DATA" \
-    --out "$OUT/dp.safetensors" --seed 0 --threads 1
+    --steps 20000 --out "$OUT/dp.safetensors" --seed 0 --threads 1
