@@ -241,6 +241,7 @@ class _ObjectiveInNormalizedSpace:
         normalized = normalized[..., list(self.dims)]
         self.is_point = isinstance(interaction, Point)
         self.target = torch.as_tensor(normalized, dtype=dtype, device=policy.device)
+        self._goals: dict[int, torch.Tensor] = {}
 
     def _view(self, x: torch.Tensor) -> torch.Tensor:
         return x if len(self.dims) == self.action_dim else x[..., list(self.dims)]
@@ -250,11 +251,26 @@ class _ObjectiveInNormalizedSpace:
         return point_cost(view, self.target) if self.is_point else sketch_cost(view, self.target)
 
     def grad(self, x: torch.Tensor) -> torch.Tensor:
-        """``grad_x sum_b xi(x_b)``: each plan's own gradient (plans do not interact)."""
-        with torch.enable_grad():
-            xg = x.detach().requires_grad_(True)
-            (g,) = torch.autograd.grad(self.cost(xg).sum(), xg)
-        return g
+        """``grad_x sum_b xi(x_b)``: each plan's own gradient (plans do not interact).
+
+        In closed form (what autograd gives for the mean of per-step L2
+        distances, ~6x cheaper on CPU): ``(x_h - g_h) / (H ||x_h - g_h||)`` per
+        step, 0 where a step sits on its goal.
+        """
+        view = self._view(x.detach())
+        horizon = view.shape[1]
+        goal = self._goals.get(horizon)
+        if goal is None:
+            goal = self.target.expand(horizon, -1) if self.is_point else resample_path_torch(self.target, horizon)
+            goal = self._goals[horizon] = goal.to(view.dtype)
+        diff = view - goal
+        dist = torch.linalg.vector_norm(diff, dim=-1, keepdim=True)
+        g = torch.where(dist > 0, diff / dist.clamp_min(torch.finfo(diff.dtype).tiny), 0.0) / horizon
+        if len(self.dims) == self.action_dim:
+            return g
+        full = torch.zeros_like(x)
+        full[..., list(self.dims)] = g
+        return full
 
     def as_trajectory(self, horizon: int) -> torch.Tensor:
         """The interaction as a ``(H, d)`` trajectory (a point repeated, a sketch resampled in index)."""

@@ -413,3 +413,26 @@ def test_a_sketch_of_the_wrong_size_for_the_interaction_dims_is_refused(policy: 
     policy.interaction_dims = (0,)
     with pytest.raises(ValueError, match="dimension"):
         run("GD", policy, sketch_at(0.0))
+
+
+@pytest.mark.parametrize("interaction", [Point([1.0, -2.0]), Sketch(np.linspace((0.0, 0.0), (3.0, 4.0), 7))])
+def test_the_guidance_gradient_is_autograds(interaction: Any) -> None:
+    """The closed-form grad of xi (mean per-step L2) equals autograd's, for a policy's full and partial dims."""
+    from steer_envs.wrappers.samplers import _ObjectiveInNormalizedSpace
+
+    policy = MixturePolicy()
+    objective = _ObjectiveInNormalizedSpace(policy, interaction, torch.float64)
+    x = torch.randn(5, policy.horizon, 2, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    x[0, 3] = objective.as_trajectory(policy.horizon)[3]  # a step on its goal: gradient 0, not NaN
+    xg = x.clone().requires_grad_(True)
+    (expected,) = torch.autograd.grad(objective.cost(xg).sum(), xg)
+    got = objective.grad(x)
+    torch.testing.assert_close(got, expected, rtol=1e-12, atol=1e-12)
+    assert torch.all(got[0, 3] == 0)
+    objective.dims = (1,)  # an interaction on some of the action's dimensions: the others get no gradient
+    objective.target = objective.target[..., 1:]
+    objective._goals.clear()
+    xg = x.clone().requires_grad_(True)
+    (expected,) = torch.autograd.grad(objective.cost(xg).sum(), xg)
+    torch.testing.assert_close(objective.grad(x), expected, rtol=1e-12, atol=1e-12)
+    assert torch.all(objective.grad(x)[..., 0] == 0)
