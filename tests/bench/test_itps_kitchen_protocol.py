@@ -85,6 +85,11 @@ def test_the_sweep_reports_a_share_per_ratio(env: Any) -> None:
         guide_ratio_sweep(tiny_policy(), [], env=env)
     with pytest.raises(ValueError, match="ratios"):
         guide_ratio_sweep(tiny_policy(), [-1.0], env=env)
+    for bad in ([], [3], "0"):
+        with pytest.raises(ValueError, match="starts"):
+            guide_ratio_sweep(tiny_policy(), [1.0], starts=bad, env=env)  # type: ignore[arg-type]
+    out = guide_ratio_sweep(tiny_policy(), [1.0], seeds=2, batch=2, starts=[0], env=env)
+    assert {scene["mode"] for scene in out["scenes"]} <= {"closed_table"}  # the task's start state only
 
 
 def test_methods_map_to_the_thesis_samplers() -> None:

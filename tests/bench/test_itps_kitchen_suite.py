@@ -120,7 +120,7 @@ def test_figures_are_written_and_readable(tmp_path: Path, monkeypatch: pytest.Mo
 def test_the_sweep_command_refuses_bad_usage(tmp_path: Path) -> None:
     from steer_envs.bench.suites.itps_kitchen.sweep import main
 
-    for argv in (["--ratios", "1,x"], ["--ratios", "-1"], ["--seeds", "0"]):
+    for argv in (["--ratios", "1,x"], ["--ratios", "-1"], ["--seeds", "0"], ["--starts", "3"], ["--starts", "a"]):
         with pytest.raises(SystemExit) as exc:
             main([*argv, "--out", str(tmp_path)])
         assert exc.value.code == 2

@@ -352,11 +352,13 @@ def guide_ratio_sweep(
     batch: int = 16,
     methods: Sequence[str] = ("DP-GD", "DP-SS"),
     env: Any = None,
+    starts: Sequence[int] = (0, 1, 2),
 ) -> dict[str, Any]:
     """Thesis Fig. 2.10: per method and guide ratio, the share of the batch doing the user's intended skill.
 
     Scene ``s`` (of ``seeds``) is evaluation scene ``s`` reset with
-    :data:`SWEEP_STARTS` ``[s % 3]``; the user watches an RS sample and clicks
+    :data:`SWEEP_STARTS` ``[starts[s % len(starts)]]`` (``starts=(0,)``: the
+    task's start state only, the one state every training plan set shares); the user watches an RS sample and clicks
     another legal skill, as in :func:`kitchen_trial`, then every ratio of every
     method samples a batch (the same noise across ratios). Returns
     ``{"ratios": [...], "share": {method: [mean share per ratio]}, "scenes": [...]}``.
@@ -373,6 +375,9 @@ def guide_ratio_sweep(
     batch = integer(batch, "batch", low=1, high=4096, owner=owner)
     for m in methods:
         one_of(m, "methods", ("DP-GD", "DP-SS"), owner=owner)
+    if isinstance(starts, str) or not isinstance(starts, Sequence) or not starts:
+        raise ValueError(f"{owner}: `starts` must be a non-empty sequence of indices into SWEEP_STARTS, got {starts!r}")
+    start_list = [integer(i, "starts", low=0, high=len(SWEEP_STARTS) - 1, owner=owner) for i in starts]
     own_env = env is None
     env = make_env("microwave") if own_env else env
     base = env.unwrapped
@@ -380,7 +385,8 @@ def guide_ratio_sweep(
     scenes: list[dict[str, Any]] = []
     try:
         for s in range(seeds):
-            obs, _ = base.reset(seed=SCENE_SEED_OFFSET + s, options=dict(SWEEP_STARTS[s % len(SWEEP_STARTS)]))
+            start = SWEEP_STARTS[start_list[s % len(start_list)]]
+            obs, _ = base.reset(seed=SCENE_SEED_OFFSET + s, options=dict(start))
             watched = classify_kitchen_plan(
                 base, RandomSampling()(policy, obs, None, batch, generator=np.random.default_rng([s, 0])).plan
             )

@@ -26,6 +26,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ratios", default="1,5,20,100,300", help="comma-separated guide ratios >= 0")
     parser.add_argument("--seeds", type=int, default=3, help="scenes (default 3)")
+    parser.add_argument(
+        "--starts",
+        default="0,1,2",
+        help="start states to cycle, indices into SWEEP_STARTS (0: the task's start; 1, 2: reset into an open door)",
+    )
     parser.add_argument("--batch", type=int, default=16, help="plans per sampling call (default 16)")
     parser.add_argument("--checkpoint", default="", help="a Kitchen DP checkpoint (default: the shipped one)")
     parser.add_argument(
@@ -41,6 +46,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error(f"--ratios must be comma-separated numbers, got {args.ratios!r}")
     from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 
+    try:
+        args.starts = [int(i) for i in args.starts.split(",")]
+    except ValueError:
+        parser.error(f"--starts must be comma-separated integers, got {args.starts!r}")
+    if any(not 0 <= i <= 2 for i in args.starts):
+        parser.error(f"--starts must be indices in [0, 2], got {args.starts}")
     if args.accelerate not in ACCELERATIONS:
         parser.error(f"--accelerate must be one of {list(ACCELERATIONS)}, got {args.accelerate!r}")
     if any(not r >= 0 for r in args.ratios):
@@ -65,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"the Kitchen policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
     policy = accelerated(policy, args.accelerate, owner="--accelerate")
-    result = guide_ratio_sweep(policy, args.ratios, seeds=args.seeds, batch=args.batch)
+    result = guide_ratio_sweep(policy, args.ratios, seeds=args.seeds, batch=args.batch, starts=args.starts)
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(args.out / "sweep.json", json.dumps(result, indent=1))
     path = plot_sweep(result, args.out / "sweep.png")
