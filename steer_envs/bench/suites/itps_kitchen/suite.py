@@ -209,7 +209,11 @@ TABLE_2_3: dict[str, dict[str, float]] = {
 class SteerParams(SuiteParams):
     """Parameters of ``itps-kitchen``.
 
-    ``tasks`` the seeds cycle through; ``batch`` plans per sampling call;
+    ``tasks`` the seeds cycle through; ``batch`` plans per sampling call (1,
+    the default: the robot runs the one steered sample, as in the thesis's
+    real-time rollouts, where GD at beta 5 aligns no better than RS; with a
+    larger batch GD and SS run their best-aligned plan, which adds PR-style
+    ranking);
     ``max_interactions`` steered skill boundaries per rollout and ``max_skills``
     skills at most; ``gd_ratio`` / ``ss_ratio`` GD's and SS's beta (thesis: 5 and
     100); ``op_distance`` OP's push (m); ``plot_seeds`` seeds that keep camera
@@ -220,7 +224,7 @@ class SteerParams(SuiteParams):
 
     suite_name: ClassVar[str] = SUITE_NAME
     tasks: tuple[str, ...] = ("microwave", "sink")
-    batch: int = 32
+    batch: int = 1
     max_interactions: int = 4
     max_skills: int = 6
     gd_ratio: float = 5.0
