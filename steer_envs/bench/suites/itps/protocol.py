@@ -63,11 +63,9 @@ def load_policy(loader: str, kind: str, checkpoint: str = "", accelerate: str = 
         if not isinstance(policy, TrajectoryPolicy):
             raise TypeError(f"{loader}({kind!r}) must return a TrajectoryPolicy, got {type(policy).__name__}")
     if accelerate != "none":
-        if not callable(getattr(policy, "accelerate", None)):
-            raise TypeError(
-                f"accelerate={accelerate!r} needs a policy with an accelerate method, got {type(policy).__name__}"
-            )
-        policy.accelerate(accelerate)
+        from steer_envs.baselines.diffusion.acceleration import accelerated
+
+        policy = accelerated(policy, accelerate, owner="dp_accelerate")
     return policy
 
 

@@ -23,6 +23,9 @@ __all__ = ["main", "parse_args"]
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line (argparse exits 2 on a usage error)."""
+    from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
+    from steer_envs.bench.suites.itps_kitchen.protocol import SWEEP_STARTS
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ratios", default="1,5,20,100,300", help="comma-separated guide ratios >= 0")
     parser.add_argument("--seeds", type=int, default=3, help="scenes (default 3)")
@@ -35,6 +38,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--checkpoint", default="", help="a Kitchen DP checkpoint (default: the shipped one)")
     parser.add_argument(
         "--accelerate",
+        choices=ACCELERATIONS,
         default="auto",
         help="the denoiser's inference mode (default auto: ONNX Runtime where installed, else trace)",
     )
@@ -44,16 +48,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.ratios = [float(r) for r in args.ratios.split(",")]
     except ValueError:
         parser.error(f"--ratios must be comma-separated numbers, got {args.ratios!r}")
-    from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
-
     try:
         args.starts = [int(i) for i in args.starts.split(",")]
     except ValueError:
         parser.error(f"--starts must be comma-separated integers, got {args.starts!r}")
-    if any(not 0 <= i <= 2 for i in args.starts):
-        parser.error(f"--starts must be indices in [0, 2], got {args.starts}")
-    if args.accelerate not in ACCELERATIONS:
-        parser.error(f"--accelerate must be one of {list(ACCELERATIONS)}, got {args.accelerate!r}")
+    last = len(SWEEP_STARTS) - 1
+    if any(not 0 <= i <= last for i in args.starts):
+        parser.error(f"--starts must be indices in [0, {last}], got {args.starts}")
     if any(not r >= 0 for r in args.ratios):
         parser.error(f"--ratios must be >= 0, got {args.ratios}")
     for name in ("seeds", "batch"):
