@@ -20,6 +20,15 @@ skill's end) and the TimeLimit never cut a skill short. Skill ``k``'s start is
 reached again by resetting with the seed and replaying the recorded actions
 of the skills before it (:func:`replay_to_start`; MuJoCo is deterministic).
 
+*Perturbed starts* (``record_episode(..., perturbed_starts=True)``, issue #18):
+before each skill the end effector is pushed (``env.perturb``, as the
+itps-kitchen suite's OP correction pushes it) partway toward that skill's
+target (:func:`push_toward_skill`), and the expert runs the skill from the
+pushed pose; the record starts there. These are the states an OP push leaves
+the arm in, which the plain data (every skill starts at rest at a skill
+boundary) never shows. Such an episode is not replayable from its actions
+(the push is not an action).
+
 Files (:func:`save_skills` / :func:`load_skills`) are ragged ``.npz`` archives
 written atomically (:func:`steer_envs.io.atomic_write_npz`); loading checks
 every array and raises :class:`~steer_envs.io.DatasetError` naming the file and the field.
@@ -36,20 +45,24 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import integer
+from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
 from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, SKILLS, KitchenEnv, kitchen_task
 from steer_envs.envs.robosuite.kitchen_plan_execution import KitchenScene, eef_yaw
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
+from steer_envs.users.kitchen_clicker import skill_centre
 
 __all__ = [
     "DATA_TASKS",
     "FORMAT_VERSION",
     "MODES",
     "OBS_DIM",
+    "PUSH_DISTANCE",
+    "PUSH_JITTER",
     "SkillRecord",
     "load_skills",
     "make_env",
+    "push_toward_skill",
     "record_episode",
     "replay_to_start",
     "save_skills",
@@ -66,6 +79,11 @@ DATA_TASKS = ("microwave", "sink")
 MODES: tuple[str, ...] = tuple(kitchen_task().modes)
 #: format version of :func:`save_skills` files.
 FORMAT_VERSION = 1
+#: the longest push (m) of a perturbed start: the itps-kitchen suite's OP push (``op_distance``).
+PUSH_DISTANCE = 0.15
+#: a perturbed start aims at the skill's target centre moved by up to this much (m) along each axis (uniform).
+PUSH_JITTER = 0.03
+_PUSH_STREAM = 18  # the push's random stream: default_rng([seed, skill index, _PUSH_STREAM])
 
 
 @dataclass(frozen=True)
@@ -144,18 +162,47 @@ def _unwrapped(env: Any, owner: str) -> KitchenEnv:
     return base
 
 
-def record_episode(env: Any, seed: int, *, max_skills: int = 8) -> list[SkillRecord]:
+def push_toward_skill(
+    env: Any, skill: str, rng: np.random.Generator, *, distance: float = PUSH_DISTANCE
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Push the end effector partway toward ``skill``'s target: the observation and info after the push.
+
+    The aim is the target's centre as the clicking user means it
+    (:func:`~steer_envs.users.kitchen_clicker.skill_centre`) moved by a uniform
+    draw of up to :data:`PUSH_JITTER` per axis; the push is ``distance`` times a
+    uniform draw in [0.5, 1] m long (less when the aim is nearer), made with
+    ``env.perturb`` as the itps-kitchen suite's OP correction makes it.
+    """
+    owner = "push_toward_skill"
+    base = _unwrapped(env, owner)
+    aim = skill_centre(base, skill)  # checks `skill`
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"{owner}: `rng` must be a numpy Generator, got {type(rng).__name__}")
+    distance = real_scalar(distance, "distance", low=0.0, high=1.0, owner=owner)
+    aim = aim + rng.uniform(-PUSH_JITTER, PUSH_JITTER, size=3)
+    length = distance * float(rng.uniform(0.5, 1.0))
+    delta = aim - base.state
+    dist = float(np.linalg.norm(delta))
+    info = base.perturb(delta * min(1.0, length / dist)) if dist > 0 else base.perturb(np.zeros(3))
+    return base._obs(), info
+
+
+def record_episode(env: Any, seed: int, *, max_skills: int = 8, perturbed_starts: bool = False) -> list[SkillRecord]:
     """The expert's skills from reset seed ``seed`` on ``env``'s task until its goal (deterministic in ``seed``).
 
     ``env``: a :class:`KitchenEnv` or a wrapper of one; the unwrapped env is
     stepped (see the module docstring). At most ``max_skills`` skills: a skill
     that fails is recorded with ``success=False`` and the planner goes on from
     the world as it is (it tries again, or stops where no legal sequence leads to the goal).
+    ``perturbed_starts``: push the end effector toward each skill's target
+    before the skill (:func:`push_toward_skill`, seeded by ``seed`` and the
+    skill's index); each record then starts at the pushed pose.
     """
     owner = "record_episode"
     base = _unwrapped(env, owner)
     seed = integer(seed, "seed", low=0, owner=owner)
     max_skills = integer(max_skills, "max_skills", low=1, high=1000, owner=owner)
+    perturbed_starts = boolean(perturbed_starts, "perturbed_starts", owner=owner)
     obs, info = base.reset(seed=seed)
     planner = KitchenPlanner(seed)
     skills = KitchenSkills(base)
@@ -164,6 +211,8 @@ def record_episode(env: Any, seed: int, *, max_skills: int = 8) -> list[SkillRec
         skill = planner.next_skill(base)
         if skill is None:
             break
+        if perturbed_starts:
+            obs, info = push_toward_skill(base, skill, np.random.default_rng([seed, index, _PUSH_STREAM]))
         record, obs, info = _run_skill(base, skills, skill, obs, info, seed, index)
         out.append(record)
     return out

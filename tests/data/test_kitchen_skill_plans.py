@@ -176,18 +176,24 @@ def test_cli_writes_a_trajectory_file_from_the_shards(tmp_path: Path, monkeypatc
     merged = tmp_path / "merged.npz"
     seen: list[Any] = []
 
-    def fake(cache: Any, n: int, tasks: Any, max_skills: int, every_task: bool) -> tuple[list[SkillRecord], Path]:
-        seen.append((n, list(tasks), max_skills, every_task))
+    def fake(
+        cache: Any, n: int, tasks: Any, max_skills: int, every_task: bool, perturbed_starts: bool
+    ) -> tuple[list[SkillRecord], Path]:
+        seen.append((n, list(tasks), max_skills, every_task, perturbed_starts))
         return [record(40), record(50, name="place_in_sink")], merged
 
     monkeypatch.setattr(shards, "skills_dataset", fake)
     out = tmp_path / "plans.npz"
     assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--tasks", "sink", "--out", str(out)]) == 0
-    assert seen == [(2, ["sink"], 8, False)]
+    assert seen == [(2, ["sink"], 8, False, False)]
     data = load_trajectories(out)
     assert len(data) == 2 * PLAN_HORIZON and data.meta["episodes"] == 2 and data.meta["tasks"] == ["sink"]
+    assert "perturbed_starts" not in data.meta
     assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--every-task", "--out", str(out)]) == 0
-    assert seen[-1] == (2, ["microwave", "sink"], 8, True) and load_trajectories(out).meta["every_task"] is True
+    assert seen[-1] == (2, ["microwave", "sink"], 8, True, False) and load_trajectories(out).meta["every_task"] is True
+    assert main(["--cache-dir", str(tmp_path), "--episodes", "2", "--perturbed-starts", "--out", str(out)]) == 0
+    assert seen[-1] == (2, ["microwave", "sink"], 8, False, True)
+    assert load_trajectories(out).meta["perturbed_starts"] is True
     with pytest.raises(SystemExit) as exc:
         main(["--cache-dir", str(tmp_path), "--out", str(tmp_path / "plans.txt")])
     assert exc.value.code == 2

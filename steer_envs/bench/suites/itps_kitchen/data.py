@@ -13,6 +13,14 @@ atomically beside them. Run as a module, it writes the skill-plan training set
 of the Kitchen Diffusion Policy (:func:`~steer_envs.data.kitchen_plans.to_plan_dataset`)::
 
     python -m steer_envs.bench.suites.itps_kitchen.data --cache-dir DIR --episodes 120 --out plans.npz
+
+With ``perturbed_starts`` (``--perturbed-starts``; off by default) every
+episode seed and task has a second shard beside the plain one, recorded with
+``record_episode(..., perturbed_starts=True)``: each skill starts after the end
+effector was pushed partway toward its target (the states the suite's OP push
+makes), and the merged data holds both. The option is part of the shard's and
+the merged file's name, so plain and pushed data are never mixed up; plain
+shards keep the names they had before the option existed.
 """
 
 from __future__ import annotations
@@ -40,6 +48,7 @@ __all__ = [
     "env_for",
     "main",
     "shard_path",
+    "shard_settings",
     "skills_dataset",
 ]
 
@@ -56,20 +65,34 @@ class ShardSettings:
     seed: int
     task: str
     max_skills: int = 8
+    #: each skill starts after a push toward its target (``record_episode(..., perturbed_starts=True)``)
+    perturbed_starts: bool = False
 
     def __post_init__(self) -> None:
         integer(self.seed, "seed", low=0, owner="ShardSettings")
         one_of(self.task, "task", KITCHEN_TASKS, owner="ShardSettings")
         integer(self.max_skills, "max_skills", low=1, high=1000, owner="ShardSettings")
+        boolean(self.perturbed_starts, "perturbed_starts", owner="ShardSettings")
 
     @property
     def digest(self) -> str:
-        """A hash of what the contents depend on besides the seed and task (versions, most skills)."""
-        key = {"v": SHARD_VERSION, "format": ks.FORMAT_VERSION, "max_skills": self.max_skills}
+        """A hash of what the contents depend on besides the seed and task (versions, most skills, pushes)."""
+        key: dict[str, object] = {"v": SHARD_VERSION, "format": ks.FORMAT_VERSION, "max_skills": self.max_skills}
+        if self.perturbed_starts:  # only when set: plain shards keep their digest
+            key.update(perturbed_starts=True, push=[ks.PUSH_DISTANCE, ks.PUSH_JITTER])
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
 
     def file_name(self) -> str:
-        return f"kitchen-{self.task}-ep{self.seed:05d}-{self.digest}.npz"
+        push = "-push" if self.perturbed_starts else ""
+        return f"kitchen-{self.task}-ep{self.seed:05d}{push}-{self.digest}.npz"
+
+
+def shard_settings(seed: int, task: str, max_skills: int = 8, perturbed_starts: bool = False) -> list[ShardSettings]:
+    """The shards of one episode seed and task: the plain one, then with ``perturbed_starts`` the pushed one."""
+    plain = ShardSettings(seed, task, max_skills)
+    if not boolean(perturbed_starts, "perturbed_starts", owner="shard_settings"):
+        return [plain]
+    return [plain, ShardSettings(seed, task, max_skills, True)]
 
 
 def shard_path(cache_dir: str | Path, settings: ShardSettings) -> Path:
@@ -102,7 +125,12 @@ def _read(path: Path) -> list[ks.SkillRecord] | None:
 
 
 def _write_shard(path: Path, settings: ShardSettings) -> list[ks.SkillRecord]:
-    records = ks.record_episode(env_for(settings.task), settings.seed, max_skills=settings.max_skills)
+    records = ks.record_episode(
+        env_for(settings.task),
+        settings.seed,
+        max_skills=settings.max_skills,
+        perturbed_starts=settings.perturbed_starts,
+    )
     if not records:  # pragma: no cover - every task needs a skill from the reset state
         raise RuntimeError(f"seed {settings.seed}: the {settings.task!r} episode recorded no skill")
     ks.save_skills(path, records, meta={"shard": asdict(settings), "shard_version": SHARD_VERSION})
@@ -126,12 +154,14 @@ def skills_dataset(
     tasks: Sequence[str] = ks.DATA_TASKS,
     max_skills: int = 8,
     every_task: bool = False,
+    perturbed_starts: bool = False,
 ) -> tuple[list[ks.SkillRecord], Path]:
     """Every skill of the shards of seeds ``0..n_episodes-1`` (missing shards built here) and the merged file.
 
     Seed ``s`` is an episode of ``tasks[s % len(tasks)]``, or with
     ``every_task`` one episode of each task from the same scene (the suite's
-    rules). The merged file (``cache_dir/kitchen-skills-...npz``, written
+    rules); with ``perturbed_starts`` each episode's plain shard is followed by
+    its pushed one. The merged file (``cache_dir/kitchen-skills-...npz``, written
     atomically) is reused when it exists and reads back.
     """
     owner = "skills_dataset"
@@ -141,16 +171,19 @@ def skills_dataset(
         raise TypeError(f"{owner}: `tasks` must be a non-empty sequence of task names, got {tasks!r}")
     tasks = tuple(one_of(t, "tasks", KITCHEN_TASKS, owner=owner) for t in tasks)
     every_task = boolean(every_task, "every_task", owner=owner)
-    digest = ShardSettings(0, tasks[0], max_skills).digest
+    perturbed_starts = boolean(perturbed_starts, "perturbed_starts", owner=owner)
+    digest = ShardSettings(0, tasks[0], max_skills, perturbed_starts).digest
     rule = "all" if every_task else "x"
-    merged = Path(cache_dir) / f"kitchen-skills-{n_episodes}{rule}{'-'.join(tasks)}-{digest}.npz"
+    push = "-push" if perturbed_starts else ""
+    merged = Path(cache_dir) / f"kitchen-skills-{n_episodes}{rule}{'-'.join(tasks)}{push}-{digest}.npz"
     found = _read(merged)
     if found is not None:
         return found, merged
     out: list[ks.SkillRecord] = []
     for seed in range(n_episodes):
         for task in tasks if every_task else (tasks[seed % len(tasks)],):
-            out += ensure_shard(cache_dir, ShardSettings(seed, task, max_skills))[0]
+            for settings in shard_settings(seed, task, max_skills, perturbed_starts):
+                out += ensure_shard(cache_dir, settings)[0]
     meta = {
         "n_episodes": n_episodes,
         "tasks": list(tasks),
@@ -158,6 +191,8 @@ def skills_dataset(
         "max_skills": max_skills,
         "shard_version": SHARD_VERSION,
     }
+    if perturbed_starts:
+        meta.update(perturbed_starts=True, push_distance=ks.PUSH_DISTANCE, push_jitter=ks.PUSH_JITTER)
     ks.save_skills(merged, out, meta=meta)
     return out, merged
 
@@ -190,14 +225,24 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="each seed is one episode of every task from the same scene (the suite's every_task)",
     )
+    parser.add_argument(
+        "--perturbed-starts",
+        action="store_true",
+        help="also each episode's pushed copy: every skill starts after the end effector was pushed partway "
+        "toward its target (the suite's perturbed_starts)",
+    )
     parser.add_argument("--out", required=True, help="output .npz (a steer_envs.data.trajectories file)")
     args = parser.parse_args(argv)
     if not str(args.out).endswith(".npz"):
         parser.error(f"--out must end with .npz, got {args.out!r}")
     tasks = [t.strip() for t in str(args.tasks).split(",") if t.strip()]
     try:
-        records, merged = skills_dataset(args.cache_dir, args.episodes, tasks, args.max_skills, args.every_task)
+        records, merged = skills_dataset(
+            args.cache_dir, args.episodes, tasks, args.max_skills, args.every_task, args.perturbed_starts
+        )
         meta = {"episodes": args.episodes, "tasks": tasks, "max_skills": args.max_skills, "every_task": args.every_task}
+        if args.perturbed_starts:
+            meta["perturbed_starts"] = True
         dataset = plans.to_plan_dataset(records, meta=meta)
     except (TypeError, ValueError) as err:
         parser.error(str(err))

@@ -98,13 +98,17 @@ class DataParams(SuiteParams):
     ``every_task`` one episode of every task from the same scene (reset seed
     ``s``): then the scene alone cannot tell the policy which task's first
     skill to sample, and the merged data is multimodal at the shared start
-    state, as the thesis's real kitchen was. ``cache_dir`` "" is the default folder.
+    state, as the thesis's real kitchen was. ``perturbed_starts`` also records
+    each episode's pushed copy (a second shard: every skill starts after the
+    end effector was pushed partway toward its target, the states OP's push
+    makes; off by default). ``cache_dir`` "" is the default folder.
     """
 
     suite_name: ClassVar[str] = DATA_SUITE
     tasks: tuple[str, ...] = ("microwave", "sink")
     max_skills: int = 8
     every_task: bool = False
+    perturbed_starts: bool = False
     cache_dir: str = ""
 
     def __post_init__(self) -> None:
@@ -129,7 +133,7 @@ class DataParams(SuiteParams):
 
 def run_data_trial(trial: Trial) -> TrialResult:
     """One episode seed: build (or find) its shard."""
-    from steer_envs.bench.suites.itps_kitchen.data import ShardSettings, ensure_shard
+    from steer_envs.bench.suites.itps_kitchen.data import ensure_shard, shard_settings
     from steer_envs.envs.robosuite.kitchen import kitchen_task
 
     if trial.env != ENV_ID:
@@ -139,11 +143,12 @@ def run_data_trial(trial: Trial) -> TrialResult:
     records, paths, goals, built = [], [], [], False
     with single_threaded():
         for task in tasks:
-            shard, path, made = ensure_shard(params.cache, ShardSettings(trial.seed, task, params.max_skills))
-            records += shard
-            paths.append(str(path))
-            goals.append(bool(shard) and shard[-1].mode_after in kitchen_task(task).goal)
-            built = built or made
+            for settings in shard_settings(trial.seed, task, params.max_skills, params.perturbed_starts):
+                shard, path, made = ensure_shard(params.cache, settings)
+                records += shard
+                paths.append(str(path))
+                goals.append(bool(shard) and shard[-1].mode_after in kitchen_task(task).goal)
+                built = built or made
     n = max(len(records), 1)
     metrics = {
         "skills": len(records),
@@ -159,7 +164,7 @@ def run_data_trial(trial: Trial) -> TrialResult:
         "skills": [r.name for r in records],
         "steps": [len(r) for r in records],
     }
-    if params.every_task:
+    if params.every_task or params.perturbed_starts:
         extra.update(shards=paths, tasks=list(tasks))
     return TrialResult(metrics, extra)
 
