@@ -80,17 +80,20 @@ class FastNetwork:
         self._tensors: list[torch.Tensor] = []  # the model's parameters and buffers, whose versions the export tracks
 
     def __call__(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """``model(x, t, cond)``; ``t (1 or n,)`` and ``cond (1 or n, c)`` (one row: shared by the batch)."""
         if self._model is not model:
             self._model, self._compiled = model, None
             self._traces.clear()
             self._sessions.clear()
             self._tensors = [*model.parameters(), *model.buffers()]
-        if self.mode == "compile":
-            if self._compiled is None:
-                self._compiled = cast(Callable[..., torch.Tensor], torch.compile(model, dynamic=False))
-            return self._compiled(x, t, cond)
+        if self.mode == "compile" and self._compiled is None:
+            self._compiled = cast(Callable[..., torch.Tensor], torch.compile(model, dynamic=False))
         if self.mode == "onnx":
             return self._run_onnx(model, x, t, cond)
+        n = x.shape[0]
+        t, cond = t.expand(n), cond.expand(n, -1)
+        if self._compiled is not None:
+            return self._compiled(x, t, cond)
         key = tuple((a.shape, a.dtype, a.device) for a in (x, t, cond))
         traced = self._traces.get(key)
         if traced is None:
@@ -104,16 +107,20 @@ class FastNetwork:
         return traced(x, t, cond)
 
     def _run_onnx(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        n = x.shape[0]
+        shared = t.numel() == 1 and cond.shape[0] == 1 and x.device.type == "cpu" and _is_diffusion_net(model)
+        if not shared:
+            t, cond = t.expand(n), cond.expand(n, -1)
         if x.device.type != "cpu":  # ONNX Runtime's CPU provider only; elsewhere the network runs as is
             return cast(torch.Tensor, model(x, t, cond))
-        key = (tuple(x.shape[1:]), tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype)  # any batch size
+        key = (tuple(x.shape[1:]), tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype, shared)  # any batch size
         versions = tuple(tensor._version for tensor in self._tensors)
         entry = self._sessions.get(key)
         if entry is None or entry[0] != versions:
             if entry is None and len(self._sessions) >= MAX_TRACES:
                 del self._sessions[next(iter(self._sessions))]
-            self._sessions[key] = entry = (versions, _onnx_session(model, x, t, cond))
-        feeds = {"x": x.detach().numpy(), "t": t.detach().numpy(), "cond": cond.detach().numpy()}
+            self._sessions[key] = entry = (versions, _onnx_session(model, x, t.reshape(-1), cond, shared=shared))
+        feeds = {"x": x.detach().numpy(), "t": t.detach().reshape(-1).numpy(), "cond": cond.detach().numpy()}
         return torch.from_numpy(entry[1].run(None, feeds)[0])
 
 
@@ -155,34 +162,54 @@ def _for_export(model: nn.Module) -> nn.Module:
     return model
 
 
-def _onnx_session(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> Any:
-    """An ONNX Runtime session of ``model`` exported at ``(x, t, cond)``'s shapes with a free batch size."""
+def _is_diffusion_net(model: nn.Module) -> bool:
+    from steer_envs.baselines.diffusion.modeling import DiffusionNet
+
+    return isinstance(model, DiffusionNet)
+
+
+def _onnx_session(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor, *, shared: bool) -> Any:
+    """An ONNX Runtime session of ``model`` exported at ``(x, t, cond)``'s shapes with a free batch size.
+
+    A :class:`~steer_envs.baselines.diffusion.modeling.DiffusionNet` is exported
+    through :class:`~steer_envs.baselines.diffusion.export.ExportDenoiser` (with
+    ``shared``: one ``t`` and ``cond`` row for the batch); another model as is,
+    its ``Conv1d`` layers as 2-D convolutions (``shared`` must then be false).
+    """
     import os
     import tempfile
 
     import onnxruntime as ort
+
+    from steer_envs.baselines.diffusion.export import ExportDenoiser
+    from steer_envs.baselines.diffusion.modeling import DiffusionNet
+
+    exported = ExportDenoiser(model, shared_condition=shared) if isinstance(model, DiffusionNet) else _for_export(model)
+    axes = {"x": {0: "n"}, "out": {0: "n"}} | ({} if shared else {"t": {0: "n"}, "cond": {0: "n"}})
 
     # the TorchScript-based exporter (deprecated upstream, silenced here) needs no onnxscript
     with tempfile.TemporaryDirectory(prefix="steer-envs-onnx-") as folder, warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         warnings.simplefilter("ignore", FutureWarning)
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        # InstanceNormalization computes its own statistics in ONNX, which is GroupNorm's eval behaviour
+        warnings.filterwarnings("ignore", message=r".*'instance_norm' is set to train=True", category=UserWarning)
         path = os.path.join(folder, "denoiser.onnx")
         torch.onnx.export(
-            _for_export(model),
+            exported,
             (x, t, cond),
             path,
             input_names=["x", "t", "cond"],
             output_names=["out"],
-            dynamic_axes={name: {0: "n"} for name in ("x", "t", "cond", "out")},
+            dynamic_axes=axes,
             opset_version=17,
             dynamo=False,
         )
         with open(path, "rb") as file:
-            exported = file.read()
+            graph = file.read()
     options = ort.SessionOptions()
     options.intra_op_num_threads = torch.get_num_threads()
     options.inter_op_num_threads = 1
     options.add_session_config_entry("session.intra_op.allow_spinning", "0")  # no spin-waits on a shared CPU
     options.log_severity_level = 3
-    return ort.InferenceSession(exported, options, providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])

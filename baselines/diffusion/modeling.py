@@ -348,18 +348,21 @@ class DiffusionPolicy(TorchPolicy):
         if cond.ndim != 2 or cond.shape[0] not in (1, n) or cond.shape[1] != width:
             raise ValueError(f"{owner}: cond must have shape (1 or {n}, {width}), got {tuple(cond.shape)}")
         check_tensor(cond, "cond", (None, width), owner=owner)
-        cond = cond.to(device=x_t.device, dtype=x_t.dtype).expand(n, -1)
+        rows = cond.to(device=x_t.device, dtype=x_t.dtype)
+        cond = rows.expand(n, -1)
         abar = self.scheduler.alphas_cumprod.to(x_t.device)[t.long()].to(x_t.dtype).reshape(-1, 1, 1)
         x_rel = self._centered(x_t, abar, cond)
-        out = self._network(x_rel, t.expand(n), cond)
+        out = self._network(x_rel, t, rows)
         if self.config.prediction == "epsilon":
             return out
         return (1 - abar).sqrt() * x_rel + abar.sqrt() * out  # epsilon implied by v (exact, no division)
 
     def _network(self, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
-        """``model(x, t, cond)``, accelerated (:meth:`accelerate`) when gradients are off and the model is in eval."""
+        """``model(x, t, cond)`` for ``t`` and ``cond`` of 1 or ``n`` rows, accelerated (:meth:`accelerate`) when
+        gradients are off and the model is in eval (one shared row then runs the condition path once)."""
         if self._fast is None or torch.is_grad_enabled() or self.model.training:
-            return self.model(x, t, cond)
+            n = x.shape[0]
+            return self.model(x, t.expand(n), cond.expand(n, -1))
         return self._fast(self.model, x, t, cond)
 
     def _timesteps(self, t: Any, n: int, device: torch.device) -> torch.Tensor:
