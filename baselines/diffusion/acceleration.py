@@ -9,6 +9,7 @@ bit) elsewhere (:func:`resolve_acceleration`).
 from __future__ import annotations
 
 import importlib.util
+import operator
 import warnings
 from collections.abc import Callable
 from typing import Any, cast
@@ -24,6 +25,7 @@ __all__ = ["ACCELERATIONS", "FastNetwork", "accelerated", "onnx_missing", "resol
 ACCELERATIONS: tuple[str, ...] = ("auto", "none", "compile", "onnx", "trace")
 #: the most input shapes whose traces (or ONNX exports) one policy keeps.
 MAX_TRACES = 16
+_version = operator.attrgetter("_version")
 
 
 def onnx_missing() -> list[str]:
@@ -76,7 +78,7 @@ class FastNetwork:
         self._model: nn.Module | None = None
         self._compiled: Callable[..., torch.Tensor] | None = None
         self._traces: dict[tuple[Any, ...], Callable[..., torch.Tensor]] = {}
-        self._sessions: dict[tuple[Any, ...], tuple[tuple[int, ...], Any]] = {}
+        self._sessions: dict[tuple[Any, ...], tuple[int, Any]] = {}
         self._tensors: list[torch.Tensor] = []  # the model's parameters and buffers, whose versions the export tracks
 
     def __call__(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
@@ -114,7 +116,7 @@ class FastNetwork:
         if x.device.type != "cpu":  # ONNX Runtime's CPU provider only; elsewhere the network runs as is
             return cast(torch.Tensor, model(x, t, cond))
         key = (tuple(x.shape[1:]), tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype, shared)  # any batch size
-        versions = tuple(tensor._version for tensor in self._tensors)
+        versions = sum(map(_version, self._tensors))  # version counters only grow: any change raises the sum
         entry = self._sessions.get(key)
         if entry is None or entry[0] != versions:
             if entry is None and len(self._sessions) >= MAX_TRACES:

@@ -262,6 +262,7 @@ class DiffusionPolicy(TorchPolicy):
         )
         self.num_inference_steps = self.config.num_inference_steps
         self._fast: FastNetwork | None = None
+        self._action_obs_columns: torch.Tensor | None = None  # action_obs_indices as a tensor (for _centered)
 
     def accelerate(self, mode: str) -> Self:
         """Run the network of inference calls eagerly (``"none"``, the default) or faster (:data:`ACCELERATIONS`).
@@ -348,10 +349,9 @@ class DiffusionPolicy(TorchPolicy):
         if cond.ndim != 2 or cond.shape[0] not in (1, n) or cond.shape[1] != width:
             raise ValueError(f"{owner}: cond must have shape (1 or {n}, {width}), got {tuple(cond.shape)}")
         check_tensor(cond, "cond", (None, width), owner=owner)
-        rows = cond.to(device=x_t.device, dtype=x_t.dtype)
-        cond = rows.expand(n, -1)
+        rows = cond.to(device=x_t.device, dtype=x_t.dtype)  # 1 or n rows; broadcast below
         abar = self.scheduler.alphas_cumprod.to(x_t.device)[t.long()].to(x_t.dtype).reshape(-1, 1, 1)
-        x_rel = self._centered(x_t, abar, cond)
+        x_rel = self._centered(x_t, abar, rows)
         out = self._network(x_rel, t, rows)
         if self.config.prediction == "epsilon":
             return out
@@ -393,8 +393,11 @@ class DiffusionPolicy(TorchPolicy):
         """
         if not self.config.relative or self.config.action_obs_indices is None:
             return x
+        indices = self._action_obs_columns
+        if indices is None or indices.device != cond.device:
+            indices = self._action_obs_columns = torch.tensor(self.config.action_obs_indices, device=cond.device)
         current = cond.reshape(cond.shape[0], self.n_obs_steps, self.obs_dim)[:, -1]
-        return x - abar.sqrt() * current[:, None, list(self.config.action_obs_indices)]
+        return x - abar.sqrt() * current.index_select(1, indices)[:, None]
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         """``n`` plans ``(n, horizon, action_dim)`` in data units by DDIM, the initial noise from ``generator``.
