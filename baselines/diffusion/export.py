@@ -124,8 +124,9 @@ class ExportDenoiser(nn.Module):
             h = torch.cat([h, skips.pop()], dim=1)
             h = res(res2, res(res1, h, length), length)
             up = cast(nn.ConvTranspose1d, upsample)
-            h = F.conv_transpose2d(h, up.weight.unsqueeze(2), up.bias, stride=(1, 2), padding=(0, _padding(up)))
-            length = (length - 1) * 2 - 2 * _padding(up) + up.kernel_size[0]
+            stride = up.stride[0]
+            h = F.conv_transpose2d(h, up.weight.unsqueeze(2), up.bias, stride=(1, stride), padding=(0, _padding(up)))
+            length = (length - 1) * stride - 2 * _padding(up) + up.kernel_size[0]
         final = cast(nn.Sequential, unet.final)
         h = _conv(cast(nn.Conv1d, final[1]), self._conv_block(final[0], h, length))
         return h.squeeze(2).transpose(1, 2)
