@@ -43,8 +43,9 @@ MAX_SPEED = 1e6
 REWARD_TYPES: tuple[str, ...] = ("sparse", "dense")
 RewardType = Literal["sparse", "dense"]
 #: dense reward: the reward of one mode advanced (the potential's unit, see :meth:`KinematicTaskModel.potential`);
-#: a constraint violation costs the same.
-DENSE_REWARD_SCALE = 10.0
+#: a constraint violation costs the same. Large enough that moving toward a sub-goal earns a per-step reward
+#: SAC's default entropy bonus does not drown (PolygonNav: ~0.4 a step at full speed).
+DENSE_REWARD_SCALE = 100.0
 
 
 @dataclass
