@@ -3,10 +3,14 @@
 #
 # 1. the expert's skill data: 60 scenes, each recorded in both of the thesis's tasks, microwave
 #    (open the door, pick the bowl, place it in the microwave, close the door) and sink (pick,
-#    place in the sink), so that the scene cannot tell which task's first skill comes next:
-#    steer-bench suite itps-kitchen-data with every_task, one trial per scene, resumable;
+#    place in the sink), so that the scene cannot tell which task's first skill comes next, and
+#    each episode once more with every skill starting after a push of the end effector toward
+#    the skill's target (perturbed_starts: the states OP's correction leaves the arm in):
+#    steer-bench suite itps-kitchen-data with every_task and perturbed_starts, one trial per
+#    scene, resumable;
 # 2. the plan data set: one (32 x [x, y, z, yaw, gripper]) plan per successful skill, the two
-#    tasks merged (python -m steer_envs.bench.suites.itps_kitchen.data --every-task);
+#    tasks and both kinds of start merged (python -m steer_envs.bench.suites.itps_kitchen.data
+#    --every-task --perturbed-starts);
 # 3. the Diffusion Policy, preset `kitchen` (baselines/diffusion/configuration.py), 20k steps,
 #    seed 0, one torch thread (bit-identical for the same thread count, torch version and CPU kind;
 #    --check replays the first steps on the thread count the record names).
@@ -22,13 +26,14 @@ if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
 PY=${PYTHON:-.venv/bin/python}
 DATA_DIR=${1:-runs/kitchen-data}
 EPISODES=60
-DATA="$DATA_DIR/kitchen-plans-${EPISODES}all.npz"
+DATA="$DATA_DIR/kitchen-plans-${EPISODES}all-push.npz"
 OUT=baselines/checkpoints/kitchen
 
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-kitchen-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
-    --param "cache_dir=$DATA_DIR" --param every_task=true --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_kitchen.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --every-task --out "$DATA"
+    --param "cache_dir=$DATA_DIR" --param every_task=true --param perturbed_starts=true --out "$DATA_DIR/run"
+"$PY" -m steer_envs.bench.suites.itps_kitchen.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --every-task \
+    --perturbed-starts --out "$DATA"
 if [ "$CHECK" = 1 ]; then
   exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
 fi
