@@ -47,10 +47,9 @@ import numpy as np
 
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
-from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, SKILLS, KitchenEnv, kitchen_task
+from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, SKILLS, KitchenEnv, kitchen_task, skill_centre
 from steer_envs.envs.robosuite.kitchen_plan_execution import KitchenScene, eef_yaw
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
-from steer_envs.users.kitchen_clicker import skill_centre
 
 __all__ = [
     "DATA_TASKS",
@@ -168,7 +167,7 @@ def push_toward_skill(
     """Push the end effector partway toward ``skill``'s target: the observation and info after the push.
 
     The aim is the target's centre as the clicking user means it
-    (:func:`~steer_envs.users.kitchen_clicker.skill_centre`) moved by a uniform
+    (:func:`~steer_envs.envs.robosuite.kitchen.skill_centre`) moved by a uniform
     draw of up to :data:`PUSH_JITTER` per axis; the push is ``distance`` times a
     uniform draw in [0.5, 1] m long (less when the aim is nearer), made with
     ``env.perturb`` as the itps-kitchen suite's OP correction makes it.

@@ -39,12 +39,12 @@ from steer_envs.core.validation import integer
 from steer_envs.envs.robosuite.kitchen import (
     CAVITY_HIGH,
     CAVITY_LOW,
+    SINK_FLOOR_Z,
     SINK_SIZE,
-    SINK_XY,
     SKILLS,
-    TABLE_Z,
     KitchenEnv,
     legal_skills,
+    skill_centre,
 )
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT, BOWL_RADIUS
 
@@ -52,8 +52,6 @@ __all__ = ["SINK_FLOOR_Z", "VISIBLE_TOL", "KitchenClick", "KitchenClickUser", "s
 
 #: a candidate aim point counts as visible when its pixel's depth-buffer point is within this distance (m).
 VISIBLE_TOL = 0.01
-#: height (m) of the sink basin's floor (the env's ``sink_floor_z``).
-SINK_FLOOR_Z = TABLE_Z + 0.01
 _BAR_SPAN = 0.1  # m: aim points up and down the handle bar from its centre
 _HANDLE_RADIUS = 0.015  # m: the handle bar's capsule radius (FrankaKitchen's microwave at this scale)
 
@@ -103,21 +101,6 @@ def _check_skill(skill: Any, owner: str) -> str:
     if not isinstance(skill, str) or skill not in SKILLS:
         raise ValueError(f"{owner}: `skill` must be one of {list(SKILLS)}, got {skill!r}")
     return skill
-
-
-def skill_centre(env: Any, skill: str) -> np.ndarray:
-    """The centre of ``skill``'s target in ``env``'s current state (world, m): what the user means to click."""
-    owner = "skill_centre"
-    base = _unwrapped(env, owner)
-    skill = _check_skill(skill, owner)
-    if skill in ("open_door", "close_door"):
-        return base.handle_pos
-    if skill == "pick_bowl":
-        return base.bowl_pos
-    if skill == "place_in_sink":
-        return np.array([SINK_XY[0], SINK_XY[1], SINK_FLOOR_Z])
-    mid = (CAVITY_LOW + CAVITY_HIGH) / 2
-    return np.array([mid[0], mid[1], CAVITY_LOW[2]])
 
 
 class KitchenClickUser:

@@ -85,6 +85,7 @@ __all__ = [
     "R_DOWN",
     "SCENE_CAMERA",
     "SENSORS",
+    "SINK_FLOOR_Z",
     "SINK_SIZE",
     "SINK_XY",
     "SKILLS",
@@ -95,6 +96,7 @@ __all__ = [
     "mode_name",
     "pose_action",
     "rotation",
+    "skill_centre",
     "skill_target",
 ]
 
@@ -117,6 +119,8 @@ DOOR_TOP_Z = TABLE_Z + (0.192 + 0.185) * _SZ
 SINK_XY = (-0.05, -0.38)
 SINK_SIZE = (0.2, 0.22, 0.07)
 SINK_WALL = 0.01
+#: height (m) of the sink basin's floor (the env's ``sink_floor_z``).
+SINK_FLOOR_Z = TABLE_Z + 0.01
 #: the bowl's start on the table: x and y ranges (m) of its centre.
 BOWL_START_BOX = ((-0.2, -0.12), (-0.17, -0.07))
 #: the door counts as open beyond this angle (rad) ...
@@ -168,6 +172,26 @@ def _worlds() -> list[tuple[bool, str, bool]]:
             continue
         out.append((door, place, washed))
     return out
+
+
+def skill_centre(env: Any, skill: str) -> np.ndarray:
+    """The centre of ``skill``'s target in ``env``'s current state (world, m): where a user clicks or pushes.
+
+    ``env`` is a :class:`KitchenEnv` or wraps one; ``skill`` one of :data:`SKILLS`.
+    """
+    base = getattr(env, "unwrapped", env)
+    if not isinstance(base, KitchenEnv):
+        raise TypeError(f"skill_centre: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
+    if not isinstance(skill, str) or skill not in SKILLS:
+        raise ValueError(f"skill_centre: `skill` must be one of {list(SKILLS)}, got {skill!r}")
+    if skill in ("open_door", "close_door"):
+        return base.handle_pos
+    if skill == "pick_bowl":
+        return base.bowl_pos
+    if skill == "place_in_sink":
+        return np.array([SINK_XY[0], SINK_XY[1], SINK_FLOOR_Z])
+    mid = (CAVITY_LOW + CAVITY_HIGH) / 2
+    return np.array([mid[0], mid[1], CAVITY_LOW[2]])
 
 
 def skill_target(mode: str, skill: str) -> str | None:
