@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import operator
+import threading
 import warnings
 from collections.abc import Callable
 from typing import Any, cast
@@ -26,6 +27,8 @@ ACCELERATIONS: tuple[str, ...] = ("auto", "none", "compile", "onnx", "trace")
 #: the most input shapes whose traces (or ONNX exports) one policy keeps.
 MAX_TRACES = 16
 _version = operator.attrgetter("_version")
+#: torch.onnx.export and torch.jit.trace keep global state: one export or trace at a time in a process
+_BUILD_LOCK = threading.Lock()
 
 
 def onnx_missing() -> list[str]:
@@ -99,13 +102,16 @@ class FastNetwork:
         key = tuple((a.shape, a.dtype, a.device) for a in (x, t, cond))
         traced = self._traces.get(key)
         if traced is None:
-            if len(self._traces) >= MAX_TRACES:
-                del self._traces[next(iter(self._traces))]
-            with warnings.catch_warnings():  # torch.jit is deprecated upstream; each trace is for one input shape
-                warnings.simplefilter("ignore", DeprecationWarning)
-                warnings.simplefilter("ignore", torch.jit.TracerWarning)
-                traced = torch.jit.trace(model, (x, t, cond), check_trace=False)
-            self._traces[key] = traced
+            with _BUILD_LOCK:  # threads sharing this policy (steer-ui sessions) may ask for the same shape at once
+                traced = self._traces.get(key)
+                if traced is None:
+                    if len(self._traces) >= MAX_TRACES:
+                        del self._traces[next(iter(self._traces))]
+                    with warnings.catch_warnings():  # torch.jit is deprecated upstream; a trace per input shape
+                        warnings.simplefilter("ignore", DeprecationWarning)
+                        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+                        traced = torch.jit.trace(model, (x, t, cond), check_trace=False)
+                    self._traces[key] = traced
         return traced(x, t, cond)
 
     def _run_onnx(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
@@ -119,9 +125,13 @@ class FastNetwork:
         versions = sum(map(_version, self._tensors))  # version counters only grow: any change raises the sum
         entry = self._sessions.get(key)
         if entry is None or entry[0] != versions:
-            if entry is None and len(self._sessions) >= MAX_TRACES:
-                del self._sessions[next(iter(self._sessions))]
-            self._sessions[key] = entry = (versions, _onnx_session(model, x, t.reshape(-1), cond, shared=shared))
+            with _BUILD_LOCK:  # threads sharing this policy (steer-ui sessions) may ask for the same export at once
+                entry = self._sessions.get(key)
+                if entry is None or entry[0] != versions:
+                    if entry is None and len(self._sessions) >= MAX_TRACES:
+                        del self._sessions[next(iter(self._sessions))]
+                    session = _onnx_session(model, x, t.reshape(-1), cond, shared=shared)
+                    self._sessions[key] = entry = (versions, session)
         feeds = {"x": x.detach().numpy(), "t": t.detach().reshape(-1).numpy(), "cond": cond.detach().numpy()}
         return torch.from_numpy(entry[1].run(None, feeds)[0])
 

@@ -107,3 +107,25 @@ def test_onnx_runs_another_model_with_a_shared_condition_expanded() -> None:
     with torch.no_grad():
         expected = model(x, t.expand(4), cond.expand(4, -1))
         np.testing.assert_allclose(fast(model, x, t, cond).numpy(), expected.numpy(), rtol=0, atol=1e-5)
+
+
+@pytest.mark.parametrize("mode", ["onnx", "trace"])
+def test_threads_sharing_a_policy_build_its_export_once_at_a_time(mode: str) -> None:
+    """steer-ui's sessions share one policy: first calls from several threads at once must not clash."""
+    if mode == "onnx":
+        pytest.importorskip("onnxruntime")
+    from concurrent.futures import ThreadPoolExecutor
+
+    net, fast = _net(CONFIGS[0]), FastNetwork(mode)
+    x, t, cond = _inputs(net, 4, CONFIGS[0])
+    with torch.no_grad():
+        expected = net(x, t[:1].expand(4), cond[:1].expand(4, -1))
+
+        def call(_: int) -> torch.Tensor:
+            with torch.no_grad():
+                return fast(net, x, t[:1], cond[:1])
+
+        with ThreadPoolExecutor(max_workers=6) as pool:
+            outputs = list(pool.map(call, range(12)))
+    for out in outputs:
+        torch.testing.assert_close(out, expected, rtol=0, atol=1e-5)
