@@ -194,9 +194,8 @@ def _onnx_session(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torc
     import onnxruntime as ort
 
     from steer_envs.baselines.diffusion.export import ExportDenoiser
-    from steer_envs.baselines.diffusion.modeling import DiffusionNet
 
-    exported = ExportDenoiser(model, shared_condition=shared) if isinstance(model, DiffusionNet) else _for_export(model)
+    exported = ExportDenoiser(model, shared_condition=shared) if _is_diffusion_net(model) else _for_export(model)
     axes = {"x": {0: "n"}, "out": {0: "n"}} | ({} if shared else {"t": {0: "n"}, "cond": {0: "n"}})
 
     # the TorchScript-based exporter (deprecated upstream, silenced here) needs no onnxscript

@@ -23,6 +23,7 @@ the condition path runs once instead of per plan.
 
 from __future__ import annotations
 
+import copy
 from typing import cast
 
 import torch
@@ -63,8 +64,6 @@ class ExportDenoiser(nn.Module):
         super().__init__()
         if not isinstance(net, DiffusionNet):
             raise TypeError(f"ExportDenoiser: `net` must be a DiffusionNet, got {type(net).__name__}")
-        import copy
-
         net = copy.deepcopy(net).eval()
         for module in net.modules():
             if isinstance(module, nn.Conv1d):

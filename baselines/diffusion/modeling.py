@@ -262,7 +262,6 @@ class DiffusionPolicy(TorchPolicy):
         )
         self.num_inference_steps = self.config.num_inference_steps
         self._fast: FastNetwork | None = None
-        self._action_obs_columns: torch.Tensor | None = None  # action_obs_indices as a tensor (for _centered)
 
     def accelerate(self, mode: str) -> Self:
         """Run the network of inference calls eagerly (``"none"``, the default) or faster (:data:`ACCELERATIONS`).
@@ -393,11 +392,8 @@ class DiffusionPolicy(TorchPolicy):
         """
         if not self.config.relative or self.config.action_obs_indices is None:
             return x
-        indices = self._action_obs_columns
-        if indices is None or indices.device != cond.device:
-            indices = self._action_obs_columns = torch.tensor(self.config.action_obs_indices, device=cond.device)
         current = cond.reshape(cond.shape[0], self.n_obs_steps, self.obs_dim)[:, -1]
-        return x - abar.sqrt() * current.index_select(1, indices)[:, None]
+        return x - abar.sqrt() * current[:, None, list(self.config.action_obs_indices)]
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         """``n`` plans ``(n, horizon, action_dim)`` in data units by DDIM, the initial noise from ``generator``.

@@ -47,7 +47,15 @@ import numpy as np
 
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
-from steer_envs.envs.robosuite.kitchen import KITCHEN_TASKS, SKILLS, KitchenEnv, kitchen_task, skill_centre
+from steer_envs.envs.robosuite.kitchen import (
+    KITCHEN_TASKS,
+    SKILLS,
+    KitchenEnv,
+    kitchen_task,
+    push_toward,
+    skill_centre,
+    unwrap_kitchen,
+)
 from steer_envs.envs.robosuite.kitchen_plan_execution import KitchenScene, eef_yaw
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
@@ -154,13 +162,6 @@ def make_env(task: str) -> KitchenEnv:
     return KitchenEnv(task=task)
 
 
-def _unwrapped(env: Any, owner: str) -> KitchenEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, KitchenEnv):
-        raise TypeError(f"{owner}: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
-    return base
-
-
 def push_toward_skill(
     env: Any, skill: str, rng: np.random.Generator, *, distance: float = PUSH_DISTANCE
 ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -173,16 +174,16 @@ def push_toward_skill(
     ``env.perturb`` as the itps-kitchen suite's OP correction makes it.
     """
     owner = "push_toward_skill"
-    base = _unwrapped(env, owner)
+    base = unwrap_kitchen(env, owner)
     aim = skill_centre(base, skill)  # checks `skill`
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"{owner}: `rng` must be a numpy Generator, got {type(rng).__name__}")
     distance = real_scalar(distance, "distance", low=0.0, high=1.0, owner=owner)
     aim = aim + rng.uniform(-PUSH_JITTER, PUSH_JITTER, size=3)
     length = distance * float(rng.uniform(0.5, 1.0))
-    delta = aim - base.state
-    dist = float(np.linalg.norm(delta))
-    info = base.perturb(delta * min(1.0, length / dist)) if dist > 0 else base.perturb(np.zeros(3))
+    info = push_toward(base, aim, length)
+    if info is None:  # already at the aim: a zero push still reports the info
+        info = base.perturb(np.zeros(3))
     return base._obs(), info
 
 
@@ -198,7 +199,7 @@ def record_episode(env: Any, seed: int, *, max_skills: int = 8, perturbed_starts
     skill's index); each record then starts at the pushed pose.
     """
     owner = "record_episode"
-    base = _unwrapped(env, owner)
+    base = unwrap_kitchen(env, owner)
     seed = integer(seed, "seed", low=0, owner=owner)
     max_skills = integer(max_skills, "max_skills", low=1, high=1000, owner=owner)
     perturbed_starts = boolean(perturbed_starts, "perturbed_starts", owner=owner)
@@ -264,7 +265,7 @@ def replay_to_start(env: Any, records: Sequence[SkillRecord], index: int) -> tup
     ``RuntimeError`` if the state reached is not the recorded one (checked on the observation).
     """
     owner = "replay_to_start"
-    base = _unwrapped(env, owner)
+    base = unwrap_kitchen(env, owner)
     if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
         raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
     index = integer(index, "index", low=0, high=len(records) - 1, owner=owner)

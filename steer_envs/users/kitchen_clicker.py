@@ -45,6 +45,7 @@ from steer_envs.envs.robosuite.kitchen import (
     KitchenEnv,
     legal_skills,
     skill_centre,
+    unwrap_kitchen,
 )
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT, BOWL_RADIUS
 
@@ -86,13 +87,6 @@ class KitchenClick:
         return float(np.linalg.norm(np.asarray(self.point) - np.asarray(self.target)))
 
 
-def _unwrapped(env: Any, owner: str) -> KitchenEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, KitchenEnv):
-        raise TypeError(f"{owner}: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
-    return base
-
-
 def _mode(env: KitchenEnv) -> str:
     return str(env.task.modes[env._mode])
 
@@ -121,7 +115,7 @@ class KitchenClickUser:
     def intended_skill(self, env: Any, watched: str | None) -> str | None:
         """A legal skill of ``env``'s mode other than ``watched`` (a seeded draw); None if there is none."""
         owner = "KitchenClickUser.intended_skill"
-        base = _unwrapped(env, owner)
+        base = unwrap_kitchen(env, owner)
         if watched is not None:
             _check_skill(watched, owner)
         options = [s for s in legal_skills(_mode(base)) if s != watched]
@@ -132,7 +126,7 @@ class KitchenClickUser:
     def aim_points(self, env: Any, skill: str) -> np.ndarray:
         """``(K, 3)`` points on ``skill``'s target the user may aim at, nearest the target's centre first."""
         owner = "KitchenClickUser.aim_points"
-        base = _unwrapped(env, owner)
+        base = unwrap_kitchen(env, owner)
         skill = _check_skill(skill, owner)
         centre = skill_centre(base, skill)
         eye = self._eye(base)
@@ -170,7 +164,7 @@ class KitchenClickUser:
     def click(self, env: Any, skill: str, watched: str | None = None) -> KitchenClick:
         """Click ``skill``'s target in the camera (see the module docstring); ``watched`` is recorded."""
         owner = "KitchenClickUser.click"
-        base = _unwrapped(env, owner)
+        base = unwrap_kitchen(env, owner)
         skill = _check_skill(skill, owner)
         if watched is not None:
             _check_skill(watched, owner)

@@ -95,9 +95,11 @@ __all__ = [
     "legal_skills",
     "mode_name",
     "pose_action",
+    "push_toward",
     "rotation",
     "skill_centre",
     "skill_target",
+    "unwrap_kitchen",
 ]
 
 #: the microwave's scale (width, depth, height; source units are FrankaKitchen's): its cavity is 31 x 25 x 35 cm,
@@ -120,7 +122,7 @@ SINK_XY = (-0.05, -0.38)
 SINK_SIZE = (0.2, 0.22, 0.07)
 SINK_WALL = 0.01
 #: height (m) of the sink basin's floor (the env's ``sink_floor_z``).
-SINK_FLOOR_Z = TABLE_Z + 0.01
+SINK_FLOOR_Z = TABLE_Z + SINK_WALL
 #: the bowl's start on the table: x and y ranges (m) of its centre.
 BOWL_START_BOX = ((-0.2, -0.12), (-0.17, -0.07))
 #: the door counts as open beyond this angle (rad) ...
@@ -174,14 +176,20 @@ def _worlds() -> list[tuple[bool, str, bool]]:
     return out
 
 
+def unwrap_kitchen(env: Any, owner: str) -> KitchenEnv:
+    """``env`` unwrapped: a :class:`KitchenEnv`, else a ``TypeError`` naming ``owner``."""
+    base = getattr(env, "unwrapped", env)
+    if not isinstance(base, KitchenEnv):
+        raise TypeError(f"{owner}: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
+    return base
+
+
 def skill_centre(env: Any, skill: str) -> np.ndarray:
     """The centre of ``skill``'s target in ``env``'s current state (world, m): where a user clicks or pushes.
 
     ``env`` is a :class:`KitchenEnv` or wraps one; ``skill`` one of :data:`SKILLS`.
     """
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, KitchenEnv):
-        raise TypeError(f"skill_centre: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
+    base = unwrap_kitchen(env, "skill_centre")
     if not isinstance(skill, str) or skill not in SKILLS:
         raise ValueError(f"skill_centre: `skill` must be one of {list(SKILLS)}, got {skill!r}")
     if skill in ("open_door", "close_door"):
@@ -192,6 +200,17 @@ def skill_centre(env: Any, skill: str) -> np.ndarray:
         return np.array([SINK_XY[0], SINK_XY[1], SINK_FLOOR_Z])
     mid = (CAVITY_LOW + CAVITY_HIGH) / 2
     return np.array([mid[0], mid[1], CAVITY_LOW[2]])
+
+
+def push_toward(env: KitchenEnv, point: np.ndarray, distance: float) -> dict[str, Any] | None:
+    """Push the end effector straight toward ``point`` by ``distance`` m, less when nearer (``env.perturb``).
+
+    OP's physical correction and the pushed starts of the Kitchen data share
+    it. Returns the push's ``info``, or ``None`` (no push) when the end effector is at ``point``.
+    """
+    delta = np.asarray(point, dtype=np.float64) - env.state
+    dist = float(np.linalg.norm(delta))
+    return env.perturb(delta * min(1.0, distance / dist)) if dist > 0 else None
 
 
 def skill_target(mode: str, skill: str) -> str | None:
@@ -575,8 +594,8 @@ class KitchenEnv(RobosuiteEnv):
 
     @property
     def sink_floor_z(self) -> float:
-        """Height (m) of the sink basin's floor."""
-        return TABLE_Z + SINK_WALL
+        """Height (m) of the sink basin's floor (:data:`SINK_FLOOR_Z`)."""
+        return SINK_FLOOR_Z
 
     # --------------------------------------------------------------- sensors
     def _location(self, pos: np.ndarray) -> str:

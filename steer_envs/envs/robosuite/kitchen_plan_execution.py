@@ -47,10 +47,10 @@ from steer_envs.envs.robosuite.kitchen import (
     SINK_XY,
     SKILLS,
     TABLE_Z,
-    KitchenEnv,
     pose_action,
     rotation,
     skill_target,
+    unwrap_kitchen,
 )
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
 
@@ -116,7 +116,7 @@ def eef_yaw(env: Any) -> float:
     The expert's convention: :func:`~steer_envs.envs.robosuite.kitchen.rotation` of
     yaw ``y`` has yaw ``y``; yaw 0 opens the fingers along world y.
     """
-    rot = _unwrapped(env, "eef_yaw").eef_rotation
+    rot = unwrap_kitchen(env, "eef_yaw").eef_rotation
     return float(np.arctan2(-rot[0, 0], rot[1, 0]))
 
 
@@ -144,7 +144,7 @@ class KitchenScene:
 
 def kitchen_scene(env: Any) -> KitchenScene:
     """The :class:`KitchenScene` of ``env``'s current state (a KitchenEnv or a wrapper of one)."""
-    base = _unwrapped(env, "kitchen_scene")
+    base = unwrap_kitchen(env, "kitchen_scene")
     return KitchenScene(
         eef=base.state,
         bowl=base.bowl_pos,
@@ -153,13 +153,6 @@ def kitchen_scene(env: Any) -> KitchenScene:
         handle=base.handle_pos,
         hinge=base.hinge_pos,
     )
-
-
-def _unwrapped(env: Any, owner: str) -> KitchenEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, KitchenEnv):
-        raise TypeError(f"{owner}: `env` must be a KitchenEnv (or wrap one), got {type(env).__name__}")
-    return base
 
 
 def _check_plan(plan: Any, owner: str) -> np.ndarray:
@@ -315,7 +308,7 @@ def execute_kitchen_plan(env: Any, plan: Any, *, stride: int = PLAN_STRIDE) -> K
     gripper, <= 0 opens it.
     """
     owner = "execute_kitchen_plan"
-    base = _unwrapped(env, owner)
+    base = unwrap_kitchen(env, owner)
     arr = _check_plan(plan, owner)
     stride = integer(stride, "stride", low=1, high=1000, owner=owner)
     grip = np.where(arr[:, 4] > 0, 1.0, -1.0)

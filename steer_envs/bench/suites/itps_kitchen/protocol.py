@@ -185,15 +185,13 @@ def steered_plan(
     ``op_distance`` m (less when nearer) and samples unsteered from there.
     """
     from steer_envs.core.interaction import Point
+    from steer_envs.envs.robosuite.kitchen import push_toward
 
     base = env.unwrapped
     target = np.asarray(point, dtype=np.float64).reshape(3)
     t0 = time.perf_counter()
     if method == "DP-OP":
-        delta = target - base.state
-        dist = float(np.linalg.norm(delta))
-        if dist > 0:
-            base.perturb(delta * min(1.0, op_distance / dist))
+        push_toward(base, target, op_distance)
         obs = base._obs()
         result = sampler(policy, obs, None, batch, generator=generator)
     elif method == "DP-RS":
