@@ -262,8 +262,8 @@ class BCPolicy:
         """Actions for states ``(N, d) -> (N, a)`` (a single ``(d,)`` state gives ``(a,)``), float64.
 
         ``states``: finite real numbers (a sequence, numpy array or torch tensor);
-        strings, complex numbers and bools are a ``TypeError``, NaN/inf and
-        other shapes a ``ValueError``.
+        strings, complex numbers and bools are a ``TypeError``, NaN/inf,
+        other shapes and states so large that the actions overflow a ``ValueError``.
         """
         arr = real_array(states, "states", owner="BCPolicy")
         single = arr.ndim == 1
@@ -276,6 +276,11 @@ class BCPolicy:
                 out = clip_speed(
                     self.net(x).numpy().astype(np.float64) * self.config.output_scale, self.config.output_scale
                 )
+        if not np.all(np.isfinite(out)):  # finite states so large that the network overflows (e.g. 3e38)
+            raise ValueError(
+                f"BCPolicy: states must be within the network's range, got values up to {np.max(np.abs(s)):.3g} "
+                "whose actions overflow to NaN/inf"
+            )
         return out[0] if single else out
 
     def act(self, states: ArrayLike) -> np.ndarray:

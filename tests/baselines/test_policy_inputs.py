@@ -209,3 +209,9 @@ def test_random_bc_states_give_actions_or_clean_errors(states: Any) -> None:
         assert "BCPolicy" in str(err)
     else:
         assert np.all(np.isfinite(out)) and out.shape[-1] == 2
+
+
+def test_bc_states_whose_actions_overflow_are_refused() -> None:
+    """Found by the property test above: a finite state near float32's limit overflowed the MLP to NaN actions."""
+    with pytest.raises(ValueError, match=r"BCPolicy: states must be within the network's range"):
+        BC([0.0, 3.4028235677973366e38, 0.0, 0.0])
