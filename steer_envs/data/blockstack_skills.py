@@ -35,7 +35,7 @@ import numpy as np
 from steer_envs.core.validation import boolean, integer
 from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner, Skill, free_table_spot
 from steer_envs.data.trajectories import TrajectoryDataset
-from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv
+from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv, unwrap_blockstack
 from steer_envs.envs.robosuite.plan_execution import towers
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
@@ -114,13 +114,6 @@ def make_env() -> BlockStackEnv:
     return BlockStackEnv()
 
 
-def _unwrapped(env: Any, owner: str) -> BlockStackEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, BlockStackEnv):
-        raise TypeError(f"{owner}: `env` must be a BlockStackEnv (or wrap one), got {type(env).__name__}")
-    return base
-
-
 def _target(env: BlockStackEnv, skill: Skill) -> np.ndarray:
     if skill.kind == "pick":
         return env.cube_pos[skill.cube]
@@ -140,7 +133,7 @@ def record_episode(env: Any, seed: int, n_skills: int) -> list[SkillRecord]:
     planner goes on from the world as it is.
     """
     owner = "record_episode"
-    base = _unwrapped(env, owner)
+    base = unwrap_blockstack(env, owner)
     seed = integer(seed, "seed", low=0, owner=owner)
     n_skills = integer(n_skills, "n_skills", low=1, high=10_000, owner=owner)
     obs, info = base.reset(seed=seed)
@@ -197,7 +190,7 @@ def alternative_skills(env: Any, skill: Skill, rng: np.random.Generator) -> list
     tower top (towers lower than 4 without the held cube) and, unless ``skill``
     is one, a place on the table at a free spot.
     """
-    base = _unwrapped(env, "alternative_skills")
+    base = unwrap_blockstack(env, "alternative_skills")
     stacks = towers(base)
     held = base.held_cube
     if held is None:
@@ -225,7 +218,7 @@ def record_branches(env: Any, seed: int, n_skills: int, branches: int) -> list[S
     and is recorded with ``index=k``. The main skills come first, then the branches.
     """
     owner = "record_branches"
-    base = _unwrapped(env, owner)
+    base = unwrap_blockstack(env, owner)
     seed = integer(seed, "seed", low=0, owner=owner)
     n_skills = integer(n_skills, "n_skills", low=1, high=10_000, owner=owner)
     branches = integer(branches, "branches", low=0, high=100, owner=owner)

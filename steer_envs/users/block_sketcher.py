@@ -32,7 +32,13 @@ import numpy as np
 
 from steer_envs.core.interaction import Sketch
 from steer_envs.core.validation import boolean, integer, one_of, real_array, real_scalar
-from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, BlockStackEnv, check_goal_order
+from steer_envs.envs.robosuite.blockstack import (
+    CUBE_HALF,
+    NUM_CUBES,
+    BlockStackEnv,
+    check_goal_order,
+    unwrap_blockstack,
+)
 from steer_envs.envs.robosuite.plan_execution import Skill, goal_tower_skill
 
 __all__ = ["CARRY_CLEARANCE", "MIN_CARRY_Z", "RETREAT", "BlockSketch", "TowerSketchUser"]
@@ -60,13 +66,6 @@ class BlockSketch:
     sketch: Sketch
     skill: Skill
     target: np.ndarray
-
-
-def _unwrapped(env: Any, owner: str) -> BlockStackEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, BlockStackEnv):
-        raise TypeError(f"{owner}: `env` must be a BlockStackEnv (or wrap one), got {type(env).__name__}")
-    return base
 
 
 class TowerSketchUser:
@@ -118,13 +117,13 @@ class TowerSketchUser:
     # ------------------------------------------------------------------ API
     def intended_skill(self, env: Any) -> Skill:
         """The next skill toward the goal tower from ``env``'s state (a table place draws a new free spot)."""
-        base = _unwrapped(env, "TowerSketchUser.intended_skill")
+        base = unwrap_blockstack(env, "TowerSketchUser.intended_skill")
         return goal_tower_skill(base, self.goal_order, self.spot_rng)
 
     def target(self, env: Any, skill: Skill) -> np.ndarray:
         """``(3,)``: where the eef should end (a pick's cube centre; a place's goal less the held offset)."""
         owner = "TowerSketchUser.target"
-        base = _unwrapped(env, owner)
+        base = unwrap_blockstack(env, owner)
         skill = _check_skill(skill, owner)
         pos = base.cube_pos
         held = base.held_cube
@@ -148,7 +147,7 @@ class TowerSketchUser:
     def draw(self, env: Any) -> BlockSketch:
         """The intended skill and its sketch."""
         owner = "TowerSketchUser.draw"
-        return self._draw(env, self.intended_skill(_unwrapped(env, owner)), owner)
+        return self._draw(env, self.intended_skill(unwrap_blockstack(env, owner)), owner)
 
     # ------------------------------------------------------------ internals
     def _carry_z(self, env: BlockStackEnv, moving: int) -> float:
@@ -157,7 +156,7 @@ class TowerSketchUser:
         return max(max(tops) + self.carry_clearance, env.table_z + self.min_carry_z)
 
     def _draw(self, env: Any, skill: Skill, owner: str) -> BlockSketch:
-        base = _unwrapped(env, owner)
+        base = unwrap_blockstack(env, owner)
         skill = _check_skill(skill, owner)
         goal = self.target(base, skill)
         eef = base.state

@@ -64,6 +64,7 @@ __all__ = [
     "BlockStackEnv",
     "blockstack_task",
     "skill_transition",
+    "unwrap_blockstack",
 ]
 
 NUM_CUBES = 4
@@ -537,3 +538,11 @@ class BlockStackEnv(RobosuiteEnv):
             real_array(opts["state"], "options['state']", shape=(3,), owner=owner)
         self.rs_env.goal_order = goal
         return super().reset(seed=seed, options=opts)
+
+
+def unwrap_blockstack(env: Any, owner: str) -> BlockStackEnv:
+    """``env`` unwrapped: a :class:`BlockStackEnv`, else a ``TypeError`` naming ``owner``."""
+    base = getattr(env, "unwrapped", env)
+    if not isinstance(base, BlockStackEnv):
+        raise TypeError(f"{owner}: `env` must be a BlockStackEnv (or wrap one), got {type(env).__name__}")
+    return base

@@ -35,7 +35,14 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.validation import integer, real_array, real_scalar
-from steer_envs.envs.robosuite.blockstack import CUBE_HALF, MIN_SEPARATION, NUM_CUBES, PLACE_RANGE, BlockStackEnv
+from steer_envs.envs.robosuite.blockstack import (
+    CUBE_HALF,
+    MIN_SEPARATION,
+    NUM_CUBES,
+    PLACE_RANGE,
+    BlockStackEnv,
+    unwrap_blockstack,
+)
 
 __all__ = [
     "CLASSIFY_XY_TOL",
@@ -245,13 +252,6 @@ class PlanOutcome:
         return self.executed is not None and not self.violation
 
 
-def _unwrapped(env: Any, owner: str) -> BlockStackEnv:
-    base = getattr(env, "unwrapped", env)
-    if not isinstance(base, BlockStackEnv):
-        raise TypeError(f"{owner}: `env` must be a BlockStackEnv (or wrap one), got {type(env).__name__}")
-    return base
-
-
 def _check_plan(plan: Any, owner: str) -> np.ndarray:
     """``plan`` as a float64 ``(H, 4)`` array, 1 <= H <= :data:`MAX_WAYPOINTS`, finite."""
     arr = real_array(plan, "plan", ndim=2, max_size=MAX_WAYPOINTS * PLAN_DIM, owner=owner)
@@ -299,7 +299,7 @@ def classify_plan(env: Any, plan: Any) -> str | None:
     when it is low near the table. ``env``: a BlockStackEnv or a wrapper of one.
     """
     owner = "classify_plan"
-    base = _unwrapped(env, owner)
+    base = unwrap_blockstack(env, owner)
     arr = _check_plan(plan, owner)
     held = base.held_cube
     if held is None:
@@ -342,7 +342,7 @@ def execute_plan(env: Any, plan: Any, *, stride: int = PLAN_STRIDE, home_yaw: fl
     closes the gripper, <= 0 opens it.
     """
     owner = "execute_plan"
-    base = _unwrapped(env, owner)
+    base = unwrap_blockstack(env, owner)
     arr = _check_plan(plan, owner)
     stride = integer(stride, "stride", low=1, high=1000, owner=owner)
     home_yaw = real_scalar(home_yaw, "home_yaw", owner=owner)
