@@ -480,15 +480,27 @@ class GuidedDiffusion(_DiffusionSampler):
         min_guided_t: guidance is applied where ``t > min_guided_t`` (ITPS: 0, i.e.
             every step but the last). Raising it switches guidance off for the late,
             low-noise steps (thesis block stacking: "GD (beta_{i<50} = 0)").
+        use_clipped_model_output: the DDIM step re-derives the noise from the
+            *clipped* clean-plan estimate (diffusers' ``use_clipped_model_output``)
+            instead of reusing ``eps_hat`` (ITPS's code: False, the default). With a
+            clipping scheduler and a guidance push that carries the estimate past the
+            clip range, reusing ``eps_hat`` moves ``x_t`` *along* the cost gradient,
+            away from the user's input; re-deriving it keeps the step consistent.
+            Needs a scheduler whose ``step`` takes that argument (DDIM does).
     """
 
     name = "GD"
     #: inner iterations per noise level (SS overrides)
     mcmc_steps: int = 1
 
-    def __init__(self, guide_ratio: float = 20.0, min_guided_t: int = 0) -> None:
+    def __init__(
+        self, guide_ratio: float = 20.0, min_guided_t: int = 0, use_clipped_model_output: bool = False
+    ) -> None:
         self.guide_ratio = _check_ratio(guide_ratio, "guide_ratio")
         self.min_guided_t = integer(min_guided_t, "`min_guided_t`")
+        if not isinstance(use_clipped_model_output, (bool, np.bool_)):
+            raise TypeError(f"`use_clipped_model_output` must be a bool, got {describe(use_clipped_model_output)}")
+        self.use_clipped_model_output = bool(use_clipped_model_output)
 
     def _guided_eps(self, policy: Any, objective: Any, x: torch.Tensor, t: Any, cond: Any) -> torch.Tensor:
         eps = self._eps(policy, x, t, cond)
@@ -500,6 +512,7 @@ class GuidedDiffusion(_DiffusionSampler):
         objective, cond, horizon, dtype = self._setup(policy, obs, interaction)
         scheduler = policy.scheduler
         shape = (n, horizon, int(policy.action_dim))
+        step_kwargs = self._step_kwargs(scheduler)
         x = self._noise(rng, shape, dtype, policy.device)
         evals = 0
         for t in scheduler.timesteps:
@@ -509,8 +522,22 @@ class GuidedDiffusion(_DiffusionSampler):
                 if j < self.mcmc_steps - 1:
                     x = self._renoise(scheduler, x, eps, t, self._noise(rng, shape, dtype, policy.device))
                 else:
-                    x = scheduler.step(eps, t, x).prev_sample
+                    x = scheduler.step(eps, t, x, **step_kwargs).prev_sample
         return self._finish(policy, x, n), _argmin, {"network_evals": float(evals)}, None
+
+    def _step_kwargs(self, scheduler: Any) -> dict[str, Any]:
+        if not self.use_clipped_model_output:
+            return {}
+        try:
+            accepted = "use_clipped_model_output" in inspect.signature(scheduler.step).parameters
+        except (TypeError, ValueError):
+            accepted = False
+        if not accepted:
+            raise ValueError(
+                f"{type(self).__name__}(use_clipped_model_output=True) needs a scheduler whose step() takes "
+                f"`use_clipped_model_output` (diffusers' DDIMScheduler), got {type(scheduler).__name__}"
+            )
+        return {"use_clipped_model_output": True}
 
     @staticmethod
     def _renoise(scheduler: Any, x: torch.Tensor, eps: torch.Tensor, t: Any, z: torch.Tensor) -> torch.Tensor:
@@ -538,13 +565,19 @@ class StochasticSampling(GuidedDiffusion):
     Args:
         guide_ratio: ``beta`` (ITPS maze: 60).
         mcmc_steps: ``M`` (ITPS: 4).
-        min_guided_t: as in :class:`GuidedDiffusion`.
+        min_guided_t, use_clipped_model_output: as in :class:`GuidedDiffusion`.
     """
 
     name = "SS"
 
-    def __init__(self, guide_ratio: float = 60.0, mcmc_steps: int = 4, min_guided_t: int = 0) -> None:
-        super().__init__(guide_ratio, min_guided_t)
+    def __init__(
+        self,
+        guide_ratio: float = 60.0,
+        mcmc_steps: int = 4,
+        min_guided_t: int = 0,
+        use_clipped_model_output: bool = False,
+    ) -> None:
+        super().__init__(guide_ratio, min_guided_t, use_clipped_model_output)
         self.mcmc_steps = integer(mcmc_steps, "`mcmc_steps`", low=1, high=MAX_MCMC_STEPS)
 
 
@@ -605,7 +638,7 @@ def make_sampler(name: str, **kwargs: Any) -> Sampler:
     >>> result.sampler, result.plans.shape, result.chosen == int(np.argmin(result.costs))
     ('PR', (4, 8, 2), True)
     >>> make_sampler("GD", guide_ratio=10.0)
-    GuidedDiffusion(guide_ratio=10.0, min_guided_t=0)
+    GuidedDiffusion(guide_ratio=10.0, min_guided_t=0, use_clipped_model_output=False)
     """
     if not isinstance(name, str):
         raise TypeError(f"make_sampler: `name` must be a str, one of {sorted(SAMPLERS)}, got {describe(name)}")

@@ -36,6 +36,9 @@ def test_findings_check_table_2_2s_trade_off() -> None:
     flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25} for key in ("DP-PR", "DP-GD", "DP-GD-I50", "DP-SS")}
     assert _verdicts(flat) == [False, False, True, False, False]
     assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 5
+    low_pr = {**thesis, "DP-PR": {"TA": 0.3, "CS": 0.24, "AS": 0.2}, "DP-GD": {"TA": 0.5, "CS": 0.12, "AS": 0.1}}
+    assert _verdicts(low_pr)[1] is True  # half of PR's CS is "far below" when PR's is low
+    assert _verdicts({**low_pr, "DP-GD": {"TA": 0.5, "CS": 0.13, "AS": 0.1}})[1] is False
 
 
 def test_params_refuse_bad_values() -> None:
@@ -51,6 +54,10 @@ def test_an_unknown_method_is_refused() -> None:
         make_method_sampler("DP-XX")
     assert make_method_sampler("DP-GD-I50").min_guided_t == 50
     assert make_method_sampler("DP-GD", guide_ratio=25.0).guide_ratio == 25.0
+    assert not make_method_sampler("DP-GD").use_clipped_model_output
+    assert make_method_sampler("DP-GD-I50", use_clipped_model_output=True).use_clipped_model_output
+    assert make_method_sampler("DP-SS", use_clipped_model_output=True).use_clipped_model_output
+    assert make_method_sampler("DP-PR", use_clipped_model_output=True).name == "PR"
 
 
 def test_a_missing_policy_skips_the_suite_with_a_note(tmp_path: Path) -> None:

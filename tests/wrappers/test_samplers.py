@@ -436,3 +436,31 @@ def test_the_guidance_gradient_is_autograds(interaction: Any) -> None:
     (expected,) = torch.autograd.grad(objective.cost(xg).sum(), xg)
     torch.testing.assert_close(objective.grad(x), expected, rtol=1e-12, atol=1e-12)
     assert torch.all(objective.grad(x)[..., 0] == 0)
+
+
+def test_clipped_model_output_keeps_strong_guidance_from_drifting_to_the_clip_bounds(policy: MixturePolicy) -> None:
+    """diffusers' DDIM reuses eps_hat after clipping x0: a strong push then moves x_t along the cost gradient."""
+    sketch = sketch_at(45.0)
+    rs = run("RS", policy, sketch, seed=3, n=16)
+    for beta in (20.0, 100.0):
+        default = run("GD", policy, sketch, seed=3, n=16, guide_ratio=beta)
+        clipped = run("GD", policy, sketch, seed=3, n=16, guide_ratio=beta, use_clipped_model_output=True)
+        assert clipped.costs.mean() < default.costs.mean() - 0.3
+        assert clipped.costs.mean() < rs.costs.mean()
+    default = run("GD", policy, sketch, seed=3, n=16, guide_ratio=400.0)
+    clipped = run("GD", policy, sketch, seed=3, n=16, guide_ratio=400.0, use_clipped_model_output=True)
+    assert np.abs(policy.normalize(default.plans)).max() > 0.99  # carried to the clip bounds
+    assert np.abs(policy.normalize(clipped.plans)).max() < 0.9
+    assert default.costs.mean() > 2 * rs.costs.mean()
+    ss = run("SS", policy, sketch, seed=3, n=16, use_clipped_model_output=True)
+    assert ss.costs.mean() < rs.costs.mean()
+
+
+def test_clipped_model_output_is_checked(policy: MixturePolicy) -> None:
+    with pytest.raises(TypeError, match="use_clipped_model_output"):
+        GuidedDiffusion(use_clipped_model_output="yes")  # type: ignore[arg-type]
+    assert "use_clipped_model_output=True" in repr(make_sampler("SS", use_clipped_model_output=True))
+    policy.scheduler = diffusers.DDPMScheduler(num_train_timesteps=100, clip_sample=True)
+    assert GuidedDiffusion()(policy, OBS, sketch_at(0.0), 2).plans.shape == (2, policy.horizon, 2)
+    with pytest.raises(ValueError, match="use_clipped_model_output"):
+        GuidedDiffusion(use_clipped_model_output=True)(policy, OBS, sketch_at(0.0), 2)

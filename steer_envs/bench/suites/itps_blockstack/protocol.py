@@ -81,8 +81,12 @@ def load_skill_policy(loader: str, checkpoint: str = "") -> Any:
     return policy
 
 
-def make_method_sampler(method: str, guide_ratio: float | None = None) -> Any:
-    """The sampler of ``method`` (``guide_ratio`` replaces GD's beta when given)."""
+def make_method_sampler(method: str, guide_ratio: float | None = None, use_clipped_model_output: bool = False) -> Any:
+    """The sampler of ``method`` (``guide_ratio`` replaces GD's beta when given).
+
+    ``use_clipped_model_output`` goes to GD and SS (see
+    :class:`~steer_envs.wrappers.samplers.GuidedDiffusion`).
+    """
     from steer_envs.wrappers.samplers import make_sampler
 
     if method not in METHOD_SAMPLERS:
@@ -90,6 +94,8 @@ def make_method_sampler(method: str, guide_ratio: float | None = None) -> Any:
     name, kwargs = METHOD_SAMPLERS[method]
     if guide_ratio is not None and name == "GD":
         kwargs = {**kwargs, "guide_ratio": float(guide_ratio)}
+    if use_clipped_model_output and name in ("GD", "SS"):
+        kwargs = {**kwargs, "use_clipped_model_output": True}
     return make_sampler(name, **kwargs)
 
 
@@ -114,13 +120,14 @@ def tower_trial(
     max_interactions: int = 8,
     guide_ratio: float | None = None,
     keep_plans: bool = False,
+    use_clipped_model_output: bool = False,
 ) -> TrialResult:
     """One tower-building trial of ``method`` from evaluation scene ``seed`` (see the module docstring)."""
     from steer_envs.data.blockstack_skills import make_env
     from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, yaw_of
     from steer_envs.users.block_sketcher import TowerSketchUser
 
-    sampler = make_method_sampler(method, guide_ratio)
+    sampler = make_method_sampler(method, guide_ratio, use_clipped_model_output)
     rng = np.random.default_rng([seed, 7])
     order = tuple(int(c) for c in rng.permutation(4))
     env = make_env()

@@ -17,7 +17,8 @@
   (:mod:`~steer_envs.bench.suites.itps_blockstack.protocol`). Methods: RS
   (unsteered), PR, GD with ``guide_ratio`` at every step (``DP-GD``), GD with
   guidance off for the last 50 of the 100 DDIM steps (``DP-GD-I50``, the
-  thesis's "beta_{i<50} = 0"), SS. The policy comes from ``loader`` (the
+  thesis's "beta_{i<50} = 0"), SS; GD's and SS's DDIM steps re-derive the noise
+  from the clipped plan estimate (``use_clipped_model_output``). The policy comes from ``loader`` (the
   committed checkpoint, :func:`steer_envs.baselines.pretrained.load_blockstack`)
   or a ``checkpoint`` file; while it is missing the suite runs nothing and says
   so. The ``plot`` hook draws steered plans like thesis Fig. 2.6
@@ -148,6 +149,11 @@ class SteerParams(SuiteParams):
 
     ``batch`` plans per steering call; ``max_interactions`` skills per trial
     (a tower needs 6); ``guide_ratio`` GD's beta (thesis table: 100);
+    ``use_clipped_model_output`` GD's and SS's DDIM step re-derives the noise
+    from the clipped clean plan (default on here: over 100 DDIM steps the
+    guidance push clips the clean-plan estimate from the first step on, and
+    ITPS's step then drives the plans away from the sketch; see
+    :class:`~steer_envs.wrappers.samplers.GuidedDiffusion`);
     ``plot_seeds`` seeds that keep their plans for the figure; ``torch_threads``
     per trial process (0: torch's default); ``loader`` a ``module:function``
     returning the policy, ``checkpoint`` a checkpoint file that replaces it.
@@ -157,6 +163,7 @@ class SteerParams(SuiteParams):
     batch: int = 32
     max_interactions: int = 8
     guide_ratio: float = 100.0
+    use_clipped_model_output: bool = True
     plot_seeds: int = 2
     torch_threads: int = 1
     #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
@@ -221,6 +228,7 @@ def run_steer_trial(trial: Trial) -> TrialResult:
             max_interactions=params.max_interactions,
             guide_ratio=params.guide_ratio,
             keep_plans=trial.seed < params.plot_seeds,
+            use_clipped_model_output=params.use_clipped_model_output,
         )
 
 
@@ -237,8 +245,9 @@ def steer_findings(table: Any) -> list[Finding]:
     claim = "guided sampling (GD, GD off after step 50) raises TA above PR"
     holds = None if ta is None else ta["DP-GD"] > ta["DP-PR"] and ta["DP-GD-I50"] > ta["DP-PR"]
     findings.append(Finding(claim, holds, fmt(ta, "DP-PR", "DP-GD", "DP-GD-I50")))
-    claim = "GD at full strength drops CS far below PR (by >= 0.25)"
-    holds = None if cs is None else cs["DP-GD"] <= cs["DP-PR"] - 0.25
+    # relative, not absolute: the thesis's GD keeps 0.15 of PR's 1.00; ours must show the drop from a lower PR
+    claim = "GD at full strength drops CS far below PR (to at most half of PR's)"
+    holds = None if cs is None else cs["DP-GD"] <= 0.5 * cs["DP-PR"]
     findings.append(Finding(claim, holds, fmt(cs, "DP-PR", "DP-GD")))
     claim = "GD with guidance off after step 50 keeps CS high (within 0.2 of PR's)"
     holds = None if cs is None else cs["DP-GD-I50"] >= cs["DP-PR"] - 0.2
