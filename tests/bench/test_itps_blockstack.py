@@ -54,9 +54,9 @@ def test_an_unknown_method_is_refused() -> None:
         make_method_sampler("DP-XX")
     assert make_method_sampler("DP-GD-I50").min_guided_t == 50
     assert make_method_sampler("DP-GD", guide_ratio=25.0).guide_ratio == 25.0
-    assert not make_method_sampler("DP-GD").use_clipped_model_output
-    assert make_method_sampler("DP-GD-I50", use_clipped_model_output=True).use_clipped_model_output
-    assert make_method_sampler("DP-SS", use_clipped_model_output=True).use_clipped_model_output
+    assert make_method_sampler("DP-GD").use_clipped_model_output  # the suite's default
+    assert not make_method_sampler("DP-GD-I50", use_clipped_model_output=False).use_clipped_model_output
+    assert make_method_sampler("DP-SS").use_clipped_model_output
     assert make_method_sampler("DP-PR", use_clipped_model_output=True).name == "PR"
 
 

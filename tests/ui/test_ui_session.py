@@ -10,6 +10,7 @@ import pytest
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.ui.session import (
+    DOMAINS,
     MAX_INPUT_POINTS,
     PixelMap,
     Session,
@@ -150,6 +151,11 @@ def test_settings_are_checked() -> None:
     assert SteerSettings(sampler="GD", guide_ratio=30).checked().make_sampler().guide_ratio == 30.0
     with pytest.raises(ValueError, match="mcmc_steps"):
         SteerSettings(mcmc_steps=0).checked()
+    with pytest.raises(TypeError, match="use_clipped_model_output"):
+        SteerSettings(use_clipped_model_output="yes").checked()  # type: ignore[arg-type]
+    blockstack = DOMAINS["blockstack"].settings.checked().make_sampler()
+    assert blockstack.name == "GD" and blockstack.use_clipped_model_output
+    assert not SteerSettings(sampler="GD").checked().make_sampler().use_clipped_model_output
 
 
 def test_blockstack_clicks_land_on_surfaces_and_skills_run() -> None:

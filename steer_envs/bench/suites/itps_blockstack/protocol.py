@@ -81,11 +81,13 @@ def load_skill_policy(loader: str, checkpoint: str = "") -> Any:
     return policy
 
 
-def make_method_sampler(method: str, guide_ratio: float | None = None, use_clipped_model_output: bool = False) -> Any:
+def make_method_sampler(method: str, guide_ratio: float | None = None, use_clipped_model_output: bool = True) -> Any:
     """The sampler of ``method`` (``guide_ratio`` replaces GD's beta when given).
 
     ``use_clipped_model_output`` goes to GD and SS (see
-    :class:`~steer_envs.wrappers.samplers.GuidedDiffusion`).
+    :class:`~steer_envs.wrappers.samplers.GuidedDiffusion`); on by default here:
+    over this policy's 100 DDIM steps ITPS's step carries guided plans away from
+    the sketch.
     """
     from steer_envs.wrappers.samplers import make_sampler
 
@@ -120,7 +122,7 @@ def tower_trial(
     max_interactions: int = 8,
     guide_ratio: float | None = None,
     keep_plans: bool = False,
-    use_clipped_model_output: bool = False,
+    use_clipped_model_output: bool = True,
 ) -> TrialResult:
     """One tower-building trial of ``method`` from evaluation scene ``seed`` (see the module docstring)."""
     from steer_envs.data.blockstack_skills import make_env
