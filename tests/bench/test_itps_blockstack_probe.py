@@ -49,6 +49,8 @@ def test_guide_sweep_refuses_bad_ratios() -> None:
         guide_sweep(PickCubeZero(), [])
     with pytest.raises(ValueError, match="guide_ratios"):
         guide_sweep(PickCubeZero(), [-1.0])
+    with pytest.raises(TypeError, match="use_clipped_model_output"):
+        guide_sweep(PickCubeZero(), [1.0], use_clipped_model_output=1)  # type: ignore[arg-type]
 
 
 @pytest.mark.skipif(not CHECKPOINT.is_file(), reason="the BlockStack checkpoint is not built")

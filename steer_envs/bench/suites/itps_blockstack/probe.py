@@ -18,7 +18,8 @@ do that skill, its share of valid plans and its mean sketch cost are
 reported (a ratio that raises the cost overshoots). Run as a module::
 
     python -m steer_envs.bench.suites.itps_blockstack.probe --checkpoint dp.safetensors --scenes 10
-    python -m steer_envs.bench.suites.itps_blockstack.probe --guide 0 2 5 10 25 100 --min-guided-t 50
+    python -m steer_envs.bench.suites.itps_blockstack.probe --guide 0 5 25 100 --min-guided-t 50
+    python -m steer_envs.bench.suites.itps_blockstack.probe --guide 0 5 25 100 --no-clipped-output  # ITPS's step
 """
 
 from __future__ import annotations
@@ -137,8 +138,13 @@ def guide_sweep(
     samples: int = 16,
     min_guided_t: int = 0,
     seed: int = 0,
+    use_clipped_model_output: bool = True,
 ) -> list[GuideRow]:
-    """GD at each of ``guide_ratios`` on the user's sketches at the probed states (see the module docstring)."""
+    """GD at each of ``guide_ratios`` on the user's sketches at the probed states (see the module docstring).
+
+    ``use_clipped_model_output``: GD's DDIM step re-derives the noise from the
+    clipped plan estimate (the suite's default; False: ITPS's step).
+    """
     from steer_envs.envs.robosuite.plan_execution import classify_plan
     from steer_envs.users.block_sketcher import TowerSketchUser
     from steer_envs.wrappers.samplers import make_sampler
@@ -152,7 +158,12 @@ def guide_sweep(
     if isinstance(guide_ratios, (str, bytes)) or not isinstance(guide_ratios, Sequence) or not guide_ratios:
         raise TypeError(f"{owner}: `guide_ratios` must be a non-empty sequence of numbers, got {guide_ratios!r}")
     betas = [real_scalar(b, "guide_ratios", low=0.0, owner=owner) for b in guide_ratios]
-    samplers = [make_sampler("GD", guide_ratio=b, min_guided_t=min_guided_t) for b in betas]
+    if not isinstance(use_clipped_model_output, bool):
+        raise TypeError(f"{owner}: `use_clipped_model_output` must be a bool, got {use_clipped_model_output!r}")
+    samplers = [
+        make_sampler("GD", guide_ratio=b, min_guided_t=min_guided_t, use_clipped_model_output=use_clipped_model_output)
+        for b in betas
+    ]
     aligned: list[list[float]] = [[] for _ in betas]
     valid: list[list[float]] = [[] for _ in betas]
     cost: list[list[float]] = [[] for _ in betas]
@@ -194,6 +205,12 @@ def main(argv: list[str] | None = None) -> int:
         help="instead: GD's sweep over these guide ratios on the user's sketches (see guide_sweep)",
     )
     parser.add_argument("--min-guided-t", type=int, default=0, help="GD's guidance stops at this step (default 0)")
+    parser.add_argument(
+        "--clipped-output",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="GD's DDIM step re-derives the noise from the clipped plan estimate (default on; off: ITPS's step)",
+    )
     add_threads_argument(parser)
     parser.add_argument("--json", default="", help="also write the result as JSON to this file")
     args = parser.parse_args(argv)
@@ -204,7 +221,13 @@ def main(argv: list[str] | None = None) -> int:
         policy = load_blockstack(checkpoint=args.checkpoint or None)
         sizes = {"scenes": args.scenes, "states": args.states, "samples": args.samples, "seed": args.seed}
         if args.guide:
-            rows = guide_sweep(policy, args.guide, min_guided_t=args.min_guided_t, **sizes)
+            rows = guide_sweep(
+                policy,
+                args.guide,
+                min_guided_t=args.min_guided_t,
+                use_clipped_model_output=args.clipped_output,
+                **sizes,
+            )
             out: Any = [asdict(r) for r in rows]
             print("\n".join(r.summary() for r in rows))
         else:
