@@ -114,7 +114,8 @@ def test_sampler_knobs_are_checked_at_construction() -> None:
         make_sampler(3)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="one of"):
         make_sampler("DDIM")
-    with pytest.raises(TypeError, match=r"GuidedDiffusion \(GD\) takes \['guide_ratio', 'min_guided_t'\]"):
+    gd_knobs = r"\['guide_ratio', 'min_guided_t', 'use_clipped_model_output'\]"
+    with pytest.raises(TypeError, match=r"GuidedDiffusion \(GD\) takes " + gd_knobs):
         make_sampler("GD", mcmc_steps=4)
     with pytest.raises(TypeError, match="n"):
         RandomSampling()(Line(), np.zeros(2), None, 2.0)  # type: ignore[arg-type]
