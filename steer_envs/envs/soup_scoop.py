@@ -72,7 +72,8 @@ Rewards
     ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = the mode (reach 0, scoop 1, transport 2, done 3),
-    sub-goal = the mode's segment attractor (yellow's, pink's, green's).
+    sub-goal = the mode's segment attractor (yellow's, green's), but the centre ``(4, -6)`` of the scoop zone
+    (pink over yellow) for scoop: pink's attractor lies at the zone's edge, where scoops spill on the way up.
 
 Termination
     On success (soup delivered to the target). Spills are reported, never terminal; truncation at 1000
@@ -113,6 +114,10 @@ REGION_ATTRACTORS: MappingProxyType[str, tuple[float, float]] = MappingProxyType
 )
 #: a point within this distance of a region's attractor counts as in the region.
 ATTRACTOR_RADIUS = 0.4
+#: dense-reward sub-goal of the scoop mode: the centre of the scoop zone (pink over yellow). Not pink's segment
+#: attractor, which lies 0.06 inside the zone's left edge: a scoop through its disc, left of the edge, spills on
+#: the way up, so shaping toward it rewards the spill-prone edge.
+SCOOP_SUBGOAL = (4.0, -6.0)
 #: attractor of the unsegmented task (public TLI code).
 TASK_ATTRACTOR = (4.75, 5.99)
 #: start box ``(low, high)`` corners.
@@ -150,6 +155,7 @@ class SoupScoopModel(KinematicTaskModel):
             (``a``: yellow's, ``b``: pink's, ``c`` and ``d``: green's; the done
             mode reuses the transport DS, as in the public code).
         task_attractor: ``(2,)`` attractor of the unsegmented task.
+        dense_subgoals: ``(4, 2)`` the dense reward's sub-goal of each mode (:meth:`progress`).
         start_low, start_high: corners of the uniform start box.
 
     Task memory (2 slots): ``[soup on the spoon, soup delivered]``.
@@ -178,6 +184,9 @@ class SoupScoopModel(KinematicTaskModel):
             "d": self.region_attractors["green"],
         }
         self.task_attractor = np.asarray(TASK_ATTRACTOR, dtype=np.float64)
+        # dense-reward sub-goals in mode order a..d (see `progress`)
+        scoop = np.asarray(SCOOP_SUBGOAL, dtype=np.float64)
+        self.dense_subgoals = np.stack([self.attractors["a"], scoop, self.attractors["c"], self.attractors["d"]])
         # stacked in label order (yellow, pink, green) for the one-pass labelling in `regions`
         self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])
         self._att_stack = np.stack([self.region_attractors[n] for n in REGION_NAMES[1:]])
@@ -233,9 +242,10 @@ class SoupScoopModel(KinematicTaskModel):
     num_stages = 3
 
     def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Stage = the mode (reach 0 ... done 3); sub-goal = the mode's attractor (:attr:`attractors`)."""
+        """Stage = the mode (reach 0 ... done 3); sub-goal = :attr:`dense_subgoals` (the mode's attractor, but
+        the centre of the scoop zone for scoop)."""
         mode = self.read(memory, pos).mode
-        goals = np.stack([self.attractors[m] for m in ("a", "b", "c", "d")])[mode]
+        goals = self.dense_subgoals[mode]
         distance = np.where(mode == MODE_D, 0.0, np.linalg.norm(np.asarray(pos, dtype=np.float64) - goals, axis=1))
         return mode, distance
 

@@ -83,6 +83,25 @@ def test_soup_scoop_dense_penalises_a_spill() -> None:
     assert reward < -2 * DENSE_REWARD_SCALE  # two modes lost and the violation
 
 
+def test_soup_scoop_dense_subgoals_lead_to_the_target_without_a_spill() -> None:
+    # heading straight for the current mode's sub-goal must deliver the soup and earn the full shaping; pink's
+    # segment attractor (at the scoop zone's edge) as the scoop sub-goal led such a controller into ~4 spills
+    env = gym.make("steer_envs/SoupScoopDense-v0", normalize_actions=True).unwrapped
+    for seed in range(3):
+        env.reset(seed=seed)
+        total, spills, info = 0.0, 0, {"success": False}
+        for _ in range(1000):
+            stage, _ = env.model.progress(env._memory, np.reshape(env.state, (1, 2)))
+            to_goal = env.model.dense_subgoals[int(stage[0])] - env.state
+            action = to_goal / max(float(np.linalg.norm(to_goal)), 0.1)
+            _, reward, terminated, _, info = env.step(action.astype(np.float32))
+            total, spills = total + reward, spills + int(info["constraint_violation"])
+            if terminated:
+                break
+        assert info["success"] and spills == 0
+        assert total > 3 * DENSE_REWARD_SCALE
+
+
 @pytest.mark.parametrize("env_id", KINEMATIC_BASE)
 def test_observed_sensors_are_the_info_sensors(env_id: str) -> None:
     env = gym.make(env_id, observe_sensors=True)
