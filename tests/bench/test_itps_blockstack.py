@@ -31,11 +31,14 @@ def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
 
 
 def test_findings_check_table_2_2s_trade_off() -> None:
-    thesis = {**TABLE_2_2, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
-    assert _verdicts(thesis) == [True, True, True, True, True]
-    flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25} for key in ("DP-PR", "DP-GD", "DP-GD-I50", "DP-SS")}
-    assert _verdicts(flat) == [False, False, True, False, False]
-    assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 5
+    thesis = {**TABLE_2_2, "DP-GD-B25": {"TA": 0.7, "CS": 0.4, "AS": 0.3}, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
+    assert _verdicts(thesis) == [True, True, True, True, True, True]
+    methods = ("DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS")
+    flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25} for key in methods}
+    assert _verdicts(flat) == [False, False, True, False, False, False]
+    assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 6
+    # the beta-25 finding is checked on its own: it needs only PR and DP-GD-B25
+    assert _verdicts({**TABLE_2_2, "DP-GD-B25": {"TA": 0.2, "CS": 0.9, "AS": 0.2}})[4] is False
     low_pr = {**thesis, "DP-PR": {"TA": 0.3, "CS": 0.24, "AS": 0.2}, "DP-GD": {"TA": 0.5, "CS": 0.12, "AS": 0.1}}
     assert _verdicts(low_pr)[1] is True  # half of PR's CS is "far below" when PR's is low
     assert _verdicts({**low_pr, "DP-GD": {"TA": 0.5, "CS": 0.13, "AS": 0.1}})[1] is False
@@ -54,6 +57,10 @@ def test_an_unknown_method_is_refused() -> None:
         make_method_sampler("DP-XX")
     assert make_method_sampler("DP-GD-I50").min_guided_t == 50
     assert make_method_sampler("DP-GD", guide_ratio=25.0).guide_ratio == 25.0
+    # the guide_ratio parameter replaces the table's beta 100, never the text's beta 25
+    assert make_method_sampler("DP-GD-B25").guide_ratio == 25.0
+    assert make_method_sampler("DP-GD-B25", guide_ratio=50.0).guide_ratio == 25.0
+    assert make_method_sampler("DP-GD-I50", guide_ratio=50.0).guide_ratio == 50.0
     assert make_method_sampler("DP-GD").use_clipped_model_output  # the suite's default
     assert not make_method_sampler("DP-GD-I50", use_clipped_model_output=False).use_clipped_model_output
     assert make_method_sampler("DP-SS").use_clipped_model_output

@@ -38,6 +38,7 @@ __all__ = [
     "METHOD_SAMPLERS",
     "POLICY_UNAVAILABLE",
     "SCENE_SEED_OFFSET",
+    "TABLE_BETA_METHODS",
     "load_skill_policy",
     "make_method_sampler",
     "tower_stands",
@@ -50,14 +51,18 @@ POLICY_UNAVAILABLE: tuple[type[Exception], ...] = (ImportError, AttributeError, 
 #: evaluation scenes are reset seeds SCENE_SEED_OFFSET + seed (the skill data uses seeds 0..N-1).
 SCENE_SEED_OFFSET = 100_000
 
-#: method -> (sampler name, keyword arguments): thesis Table 2.2's columns plus RS and SS.
+#: method -> (sampler name, keyword arguments): thesis Table 2.2's columns (its header's beta 100) plus RS, SS
+#: and GD at the beta 25 that the thesis's text names for the same table (``DP-GD-B25``).
 METHOD_SAMPLERS: dict[str, tuple[str, dict[str, Any]]] = {
     "DP-RS": ("RS", {}),
     "DP-PR": ("PR", {}),
     "DP-GD": ("GD", {"guide_ratio": 100.0}),
     "DP-GD-I50": ("GD", {"guide_ratio": 100.0, "min_guided_t": 50}),
+    "DP-GD-B25": ("GD", {"guide_ratio": 25.0}),
     "DP-SS": ("SS", {}),
 }
+#: the methods whose beta the suite's ``guide_ratio`` parameter replaces (the table header's beta 100)
+TABLE_BETA_METHODS: tuple[str, ...] = ("DP-GD", "DP-GD-I50")
 
 
 @functools.lru_cache(maxsize=2)
@@ -82,7 +87,7 @@ def load_skill_policy(loader: str, checkpoint: str = "") -> Any:
 
 
 def make_method_sampler(method: str, guide_ratio: float | None = None, use_clipped_model_output: bool = True) -> Any:
-    """The sampler of ``method`` (``guide_ratio`` replaces GD's beta when given).
+    """The sampler of ``method`` (``guide_ratio`` replaces the beta of :data:`TABLE_BETA_METHODS` when given).
 
     ``use_clipped_model_output`` goes to GD and SS (see
     :class:`~steer_envs.wrappers.samplers.GuidedDiffusion`); on by default here:
@@ -94,7 +99,7 @@ def make_method_sampler(method: str, guide_ratio: float | None = None, use_clipp
     if method not in METHOD_SAMPLERS:
         raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHOD_SAMPLERS)}")
     name, kwargs = METHOD_SAMPLERS[method]
-    if guide_ratio is not None and name == "GD":
+    if guide_ratio is not None and method in TABLE_BETA_METHODS:
         kwargs = {**kwargs, "guide_ratio": float(guide_ratio)}
     if use_clipped_model_output and name in ("GD", "SS"):
         kwargs = {**kwargs, "use_clipped_model_output": True}

@@ -17,7 +17,8 @@
   (:mod:`~steer_envs.bench.suites.itps_blockstack.protocol`). Methods: RS
   (unsteered), PR, GD with ``guide_ratio`` at every step (``DP-GD``), GD with
   guidance off for the last 50 of the 100 DDIM steps (``DP-GD-I50``, the
-  thesis's "beta_{i<50} = 0"), SS; GD's and SS's DDIM steps re-derive the noise
+  thesis's "beta_{i<50} = 0"), GD at beta 25 every step (``DP-GD-B25``: the
+  thesis's text gives beta 25 for Table 2.2, its header beta 100), SS; GD's and SS's DDIM steps re-derive the noise
   from the clipped plan estimate (``use_clipped_model_output``). The policy comes from ``loader`` (the
   committed checkpoint, :func:`steer_envs.baselines.pretrained.load_blockstack`)
   or a ``checkpoint`` file; while it is missing the suite runs nothing and says
@@ -259,6 +260,10 @@ def steer_findings(table: Any) -> list[Finding]:
         else aligned_success["DP-GD-I50"] > max(aligned_success["DP-PR"], aligned_success["DP-GD"])
     )
     findings.append(Finding(claim, holds, fmt(aligned_success, "DP-GD-I50", "DP-PR", "DP-GD")))
+    claim = "GD at the thesis text's beta 25 raises TA above PR"
+    b25 = table.means("TA", ["DP-PR", "DP-GD-B25"])
+    holds = None if b25 is None else b25["DP-GD-B25"] > b25["DP-PR"]
+    findings.append(Finding(claim, holds, fmt(b25, "DP-PR", "DP-GD-B25")))
     claim = "SS keeps CS high (within 0.2 of PR's) while raising TA above PR"
     if cs is None or ta is None or ss["CS"] is None or ss["TA"] is None:
         findings.append(Finding(claim, None))
@@ -306,7 +311,7 @@ register_suite(
         ),
         run_trial=run_steer_trial,
         envs=(ENV_ID,),
-        methods=("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-SS"),
+        methods=("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS"),
         params=SteerParams(),
         default_seeds=20,
         generate=_plan_steer,
