@@ -86,8 +86,8 @@ Rewards
     ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = 2 x foods in the pot + 1 while holding a food still to
-    deliver, sub-goal = the pot's entry from the held food's corridor, else the nearest loading point of
-    a food not yet in the pot.
+    deliver, sub-goal = the pot's entry from the held food's corridor while that food is not yet in the
+    pot, else the nearest loading point of a food not yet in the pot.
 
 Termination
     On success (both foods in the pot). Spills are reported, never terminal; truncation at 2000 steps
@@ -280,8 +280,10 @@ class CookingModel(KinematicTaskModel):
 
     def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Stage = 2 x foods in the pot + 1 while holding a food still to deliver; sub-goal = the pot's
-        entry from the held food's corridor (``"y->d"``, ``"g->d"``) or, with an empty spoon, the nearest
-        loading point (``"w->y"``, ``"d->y"``, ``"w->g"``, ``"d->g"``) of a food not yet in the pot."""
+        entry from the held food's corridor (``"y->d"``, ``"g->d"``) or, with an empty spoon or one holding
+        a food already in the pot, the nearest loading point (``"w->y"``, ``"d->y"``, ``"w->g"``,
+        ``"d->g"``) of a food not yet in the pot. (Aiming a reloaded, useless food at the pot made a
+        local optimum at the pot's edge: delivering it again moves the sub-goal farther away.)"""
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
         spoon, ch, br = memory[:, 0], memory[:, 1] == 1, memory[:, 2] == 1
         att = self.attractors
@@ -291,12 +293,13 @@ class CookingModel(KinematicTaskModel):
 
         load_chicken = np.where(ch, np.inf, np.minimum(dist("w->y"), dist("d->y")))
         load_broccoli = np.where(br, np.inf, np.minimum(dist("w->g"), dist("d->g")))
+        new_chicken, new_broccoli = (spoon == CHICKEN) & ~ch, (spoon == BROCCOLI) & ~br
         distance = np.where(
-            spoon == CHICKEN,
+            new_chicken,
             dist("y->d"),
-            np.where(spoon == BROCCOLI, dist("g->d"), np.minimum(load_chicken, load_broccoli)),
+            np.where(new_broccoli, dist("g->d"), np.minimum(load_chicken, load_broccoli)),
         )
-        holding_new = ((spoon == CHICKEN) & ~ch) | ((spoon == BROCCOLI) & ~br)
+        holding_new = new_chicken | new_broccoli
         stage = 2 * (ch.astype(np.int64) + br.astype(np.int64)) + holding_new.astype(np.int64)
         done = ch & br
         return np.where(done, self.num_stages, stage), np.where(done, 0.0, distance)
