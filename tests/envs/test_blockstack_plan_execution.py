@@ -190,12 +190,37 @@ def test_classify_reads_the_closing_and_opening_waypoints(env: Any, records: lis
     assert classify_plan(env, hold_plan(env, gripper=1.0)) is None  # never opens
 
 
+def test_plan_target_reads_where_a_plan_heads_grasp_or_not(env: Any, records: list[Any]) -> None:
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, plan_target
+
+    start_of(env, records, 0)
+    pos = env.cube_pos
+    for cube in range(4):
+        plan = np.array([[*env.state, -1.0], [*pos[cube], -1.0], [*pos[cube], 1.0]])
+        assert plan_target(env, plan) == classify_plan(env, plan) == f"pick_{cube}"
+        high = plan.copy()
+        high[1:, 2] += 0.06  # closes too high to grasp: no skill, but it heads for the cube
+        assert classify_plan(env, high) is None and plan_target(env, high) == f"pick_{cube}"
+        never_closes = plan[:2].copy()  # ends above the cube without closing: heads for it
+        never_closes[1, 2] += 0.05
+        assert plan_target(env, never_closes) == f"pick_{cube}"
+    start_of(env, records, 1)
+    held = env.held_cube
+    offset = env.cube_pos[held] - env.state
+    pos = env.cube_pos
+    for j in (c for c in range(4) if c != held):
+        centre = pos[j] + [0.0, 0.0, 2 * CUBE_HALF + 0.1]  # released far above cube j: no place, but toward j
+        plan = np.array([[*env.state, 1.0], [*(centre - offset), 1.0], [*(centre - offset), -1.0]])
+        assert classify_plan(env, plan) is None and plan_target(env, plan) == f"place_{held}_on_{j}"
+    assert plan_target(env, hold_plan(env, gripper=1.0)).startswith(f"place_{held}_on_")  # never opens: its end
+
+
 def test_bad_input_is_refused(env: Any, records: list[Any]) -> None:
-    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, plan_target
 
     env.reset(seed=SEED)
     good = hold_plan(env, 2)
-    for fn in (execute_plan, classify_plan):
+    for fn in (execute_plan, classify_plan, plan_target):
         with pytest.raises(TypeError, match="env"):
             fn(object(), good)
         with pytest.raises(ValueError, match="plan"):

@@ -62,6 +62,7 @@ __all__ = [
     "free_table_spot",
     "goal_tower_skill",
     "move_action",
+    "plan_target",
     "quarter_turn",
     "towers",
     "wrap_quarter",
@@ -318,6 +319,32 @@ def classify_plan(env: Any, plan: Any) -> str | None:
     rest = base.table_z + CUBE_HALF if onto is None else base.cube_pos[onto, 2] + 2 * CUBE_HALF
     if not -CUBE_HALF < centre[2] - rest < PLACE_Z_TOL:
         return None
+    return f"place_{held}_on_{'table' if onto is None else onto}"
+
+
+def plan_target(env: Any, plan: Any) -> str:
+    """The skill ``plan`` *heads for* from ``env``'s state, whether or not it could perform it.
+
+    The thesis's reading of alignment ("the sample corresponds to the intended
+    block"): :func:`classify_plan` without its height checks, and with the
+    plan's last waypoint standing in when the gripper never switches. Hand
+    empty: ``pick_i`` for the cube xy-nearest the first closing waypoint (else
+    the last). Holding cube i: the held cube's centre at the first opening
+    waypoint (else the last) over a tower top j gives ``place_i_on_j``,
+    anywhere else ``place_i_on_table``.
+    """
+    owner = "plan_target"
+    base = unwrap_blockstack(env, owner)
+    arr = _check_plan(plan, owner)
+    held = base.held_cube
+    if held is None:
+        k = _first(arr[:, 3] > 0)
+        point = arr[-1 if k is None else k, :3]
+        return f"pick_{int(np.argmin(np.linalg.norm(base.cube_pos[:, :2] - point[:2], axis=1)))}"
+    centre = _opening_centre(base, arr, held)
+    if centre is None:
+        centre = np.asarray(arr[-1, :3] + (base.cube_pos[held] - base.state))
+    onto = _over_tower(base, centre, held)
     return f"place_{held}_on_{'table' if onto is None else onto}"
 
 

@@ -14,6 +14,10 @@ scoring, per interaction:
   (:func:`~steer_envs.envs.robosuite.plan_execution.classify_plan`: the cube
   nearest to where it closes the gripper, the tower top or table where it
   opens);
+* *target-aligned* (``TA_target``, ``AS_target``): the thesis's own reading,
+  "the sample corresponds to the intended block": the picked plan *heads for*
+  the intended cube or tower, grasp or not
+  (:func:`~steer_envs.envs.robosuite.plan_execution.plan_target`);
 * *success*: the executed skill happened in the world (a cube picked, or
   placed and resting) without a drop or a falling tower.
 
@@ -131,7 +135,7 @@ def tower_trial(
 ) -> TrialResult:
     """One tower-building trial of ``method`` from evaluation scene ``seed`` (see the module docstring)."""
     from steer_envs.data.blockstack_skills import make_env
-    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, yaw_of
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, plan_target, yaw_of
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     sampler = make_method_sampler(method, guide_ratio, use_clipped_model_output)
@@ -153,14 +157,17 @@ def tower_trial(
             result = sampler(policy, obs, sketch, batch, generator=np.random.default_rng([seed, len(rows)]))
             kinds = [classify_plan(env, p) for p in result.plans]
             aligned = kinds[result.chosen] == skill.name
+            target = plan_target(env, result.plan)
             outcome = execute_plan(env, result.plan, home_yaw=home_yaw)
             obs = outcome.obs
             rows.append(
                 {
                     "intended": skill.name,
                     "planned": kinds[result.chosen],
+                    "target": target,
                     "executed": outcome.executed,
                     "aligned": aligned,
+                    "target_aligned": target == skill.name,
                     "success": outcome.success,
                     "batch_aligned": float(np.mean([k == skill.name for k in kinds])),
                     "latency_ms": float(result.timings["total_ms"]),
@@ -184,6 +191,7 @@ def tower_trial(
     n = len(rows)
     aligned = np.array([r["aligned"] for r in rows], dtype=bool)
     success = np.array([r["success"] for r in rows], dtype=bool)
+    heads = np.array([r["target_aligned"] for r in rows], dtype=bool)
 
     def share(mask: np.ndarray) -> float | None:
         return float(mask.mean()) if n else None
@@ -195,6 +203,8 @@ def tower_trial(
         "AF": share(aligned & ~success),
         "MS": share(~aligned & success),
         "MF": share(~aligned & ~success),
+        "TA_target": share(heads),
+        "AS_target": share(heads & success),
         "batch_aligned": float(np.mean([r["batch_aligned"] for r in rows])) if n else None,
         "tower_built": float(built),
         "interactions": float(n),
