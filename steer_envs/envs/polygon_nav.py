@@ -39,7 +39,8 @@ Rewards
     ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = the mode (free 0, polygon j = j), sub-goal = polygon 1's
-    centroid from free space, then a point 0.2 past the middle of the edge shared with the next polygon
+    centroid from free space (its distance measured along the shortest path around the later polygons,
+    :mod:`~steer_envs.envs.geodesic`), then a point 0.2 past the middle of the edge shared with the next polygon
     (``phi = -1`` after an invalid transition).
 
 Termination
@@ -53,6 +54,8 @@ Registered ids
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from shapely.geometry import MultiPoint, Polygon, box
 from shapely.geometry.polygon import orient
@@ -61,6 +64,7 @@ from shapely.ops import unary_union
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.convex_mode import check_layout_seed, convex_halfspaces, in_halfspaces
+from steer_envs.envs.geodesic import GeodesicDistance
 from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
 from steer_envs.envs.render import Canvas
 
@@ -207,6 +211,12 @@ class PolygonNavModel(KinematicTaskModel):
         #: dense-reward sub-goal of each mode but the last: polygon 1's centroid, then just past each shared edge
         self.subgoals = np.concatenate([centroids[:1], past_edges]).reshape(-1, 2)
 
+    @functools.cached_property
+    def free_distance(self) -> GeodesicDistance:
+        """Free space's way to polygon 1's centroid around the later polygons (entering them is a
+        violation); built on first use, by the dense reward."""
+        return GeodesicDistance(self.vertices[1:], self.subgoals[0])
+
     def _generate(self, rng: np.random.Generator) -> list[np.ndarray]:
         lim = WORKSPACE_HALF_WIDTH - self.workspace_margin
         for _ in range(MAX_LAYOUT_TRIES):
@@ -295,12 +305,17 @@ class PolygonNavModel(KinematicTaskModel):
         return TaskReading(mode=mode, sensors=sensors, success=(mode == self.num_modes - 1) & (memory[:, 0] == 0))
 
     def progress(self, memory: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Stage = the mode; sub-goal = polygon 1's centroid from free space, then a point 0.2 past the
-        middle of the edge shared with the next polygon (the diagonal after an invalid transition)."""
+        """Stage = the mode; sub-goal = polygon 1's centroid from free space (measured along the shortest
+        path around the later polygons, :attr:`free_distance`), then a point 0.2 past the middle of the
+        edge shared with the next polygon (the diagonal after an invalid transition)."""
         mode = self.mode_of(pos)
         failed = memory[:, 0] != 0
         goal = self.subgoals[np.minimum(mode, self.num_modes - 2)]
-        distance = np.linalg.norm(np.asarray(pos, dtype=np.float64).reshape(-1, 2) - goal, axis=1)
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
+        distance = np.linalg.norm(p - goal, axis=1)
+        free = mode == 0
+        if free.any():
+            distance[free] = self.free_distance(p[free])
         done = mode == self.num_modes - 1
         distance = np.where(failed, self.diagonal, np.where(done, 0.0, distance))
         return np.where(failed, 0, mode), distance
