@@ -33,7 +33,8 @@ def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
 def test_findings_check_table_2_2s_trade_off() -> None:
     # the thesis's TA is its own reading (the plan heads for the intended block): TA_target = TA there
     thesis_cells = {m: {**v, "TA_target": v["TA"]} for m, v in TABLE_2_2.items()}
-    thesis = {**thesis_cells, "DP-GD-B25": {"TA": 0.7, "CS": 0.4, "AS": 0.3}, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
+    extra = {"DP-GD-B25": {"TA": 0.7, "CS": 0.4, "AS": 0.3}, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
+    thesis = {**thesis_cells, **extra}
     assert _verdicts(thesis) == [True] * 7
     methods = ("DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS")
     flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25, "TA_target": 0.5} for key in methods}
