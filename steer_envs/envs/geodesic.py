@@ -53,8 +53,8 @@ class GeodesicDistance:
         union = unary_union([Polygon(v) for v in obstacles])
         if obstacles:
             grown = union.buffer(clearance, join_style="mitre").simplify(0)  # no collinear corners
-            rings = [g.exterior for g in getattr(grown, "geoms", [grown])]
-            rings += [hole for g in getattr(grown, "geoms", [grown]) for hole in g.interiors]
+            parts = getattr(grown, "geoms", [grown])  # a Polygon or a MultiPolygon
+            rings = [g.exterior for g in parts] + [hole for g in parts for hole in g.interiors]
             corners += [np.asarray(r.coords, dtype=np.float64)[:-1] for r in rings]
         #: graph nodes: the target first, then the corners of the grown obstacles
         self.nodes = np.concatenate(corners)

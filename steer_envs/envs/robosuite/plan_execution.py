@@ -284,10 +284,15 @@ def _over_tower(env: BlockStackEnv, centre: np.ndarray, held: int) -> int | None
     return min(over, key=lambda c: float(np.linalg.norm(pos[c, :2] - centre[:2]))) if over else None
 
 
+def _held_centre(env: BlockStackEnv, plan: np.ndarray, k: int, held: int) -> np.ndarray:
+    """The held cube's centre at waypoint ``k``: the waypoint plus the held cube's offset now."""
+    return np.asarray(plan[k, :3] + (env.cube_pos[held] - env.state))
+
+
 def _opening_centre(env: BlockStackEnv, plan: np.ndarray, held: int) -> np.ndarray | None:
-    """The held cube's centre at the first opening waypoint (the waypoint plus the held offset now), or None."""
+    """The held cube's centre at the first opening waypoint, or None."""
     k = _first(plan[:, 3] <= 0)
-    return None if k is None else np.asarray(plan[k, :3] + (env.cube_pos[held] - env.state))
+    return None if k is None else _held_centre(env, plan, k, held)
 
 
 def classify_plan(env: Any, plan: Any) -> str | None:
@@ -341,10 +346,8 @@ def plan_target(env: Any, plan: Any) -> str:
         k = _first(arr[:, 3] > 0)
         point = arr[-1 if k is None else k, :3]
         return f"pick_{int(np.argmin(np.linalg.norm(base.cube_pos[:, :2] - point[:2], axis=1)))}"
-    centre = _opening_centre(base, arr, held)
-    if centre is None:
-        centre = np.asarray(arr[-1, :3] + (base.cube_pos[held] - base.state))
-    onto = _over_tower(base, centre, held)
+    k = _first(arr[:, 3] <= 0)
+    onto = _over_tower(base, _held_centre(base, arr, -1 if k is None else k, held), held)
     return f"place_{held}_on_{'table' if onto is None else onto}"
 
 
