@@ -48,6 +48,8 @@ RUN_FORMAT = "steer_envs.training_run/1"
 #: the run folder's latest training state and its format tag (the safetensors metadata key)
 STATE_FILE = "state.safetensors"
 STATE_FORMAT = "steer_envs.training_state/1"
+#: the device kind of a torch generator by the size of its state (for states saved before it was kept)
+_GENERATOR_KIND_BY_SIZE = {5056: "cpu", 16: "cuda"}
 #: the most logged loss points a training record may hold
 MAX_LOSSES = 10**7
 
@@ -60,7 +62,10 @@ class RunProgress:
     training time of earlier segments; ``resumed_at`` the steps at which
     earlier segments stopped; ``threads`` the torch threads of the first
     segment (what a check of the run replays; 0 in states saved before it was
-    kept).
+    kept); ``moved_at`` the steps after which the run continued on another
+    kind of device (a CUDA run resumed on the CPU, say): its diffusion-noise
+    generator then restarts from ``(seed, step)``, so from there on the run no
+    longer matches an uninterrupted one.
     """
 
     step: int = 0
@@ -69,6 +74,7 @@ class RunProgress:
     wall_s: float = 0.0
     resumed_at: list[int] = field(default_factory=list)
     threads: int = 0
+    moved_at: list[int] = field(default_factory=list)
 
 
 def check_losses(value: Any) -> list[list[float]]:
@@ -128,6 +134,7 @@ def save_state(
     tensors["torch_generator"] = parts.generator.get_state()
     tensors["torch_rng"] = torch.get_rng_state()
     meta = {
+        "generator_device": parts.generator.device.type,
         "format": STATE_FORMAT,
         "settings": settings.to_dict(),
         "step": progress.step,
@@ -136,6 +143,7 @@ def save_state(
         "wall_s": progress.wall_s,
         "resumed_at": progress.resumed_at,
         "threads": progress.threads,
+        "moved_at": progress.moved_at,
         "param_groups": opt_state["param_groups"],
         "scheduler": scheduler.state_dict(),
         "ema": ema_meta,
@@ -182,6 +190,7 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
             wall_s=_finite(meta["wall_s"], "wall_s"),
             resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
             threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
+            moved_at=[integer(s, "moved_at entry", low=1, high=settings.steps) for s in meta.get("moved_at", [])],
         )
         if progress.losses and progress.losses[-1][0] > progress.step:
             raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")
@@ -207,7 +216,15 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
             n = len(_params(optimizer))
             ema.load_state_dict({**meta["ema"], "shadow_params": [tensors[f"ema.{i}"] for i in range(n)]})
         parts.rng.bit_generator.state = meta["numpy_rng"]
-        parts.generator.set_state(tensors["torch_generator"])
+        saved_kind = meta.get("generator_device") or _GENERATOR_KIND_BY_SIZE.get(tensors["torch_generator"].numel())
+        if saved_kind is not None and not isinstance(saved_kind, str):
+            raise TypeError(f"'generator_device' must be a device name, got {saved_kind!r}")
+        if saved_kind in (None, parts.generator.device.type):
+            parts.generator.set_state(tensors["torch_generator"])
+        else:  # saved by a generator of another device kind: its state cannot carry over
+            seed = np.random.SeedSequence([settings.seed, progress.step]).generate_state(1)[0]
+            parts.generator.manual_seed(int(seed))
+            progress.moved_at.append(progress.step)
         torch.set_rng_state(tensors["torch_rng"])
     except (KeyError, TypeError, ValueError, RuntimeError) as err:
         raise CheckpointError(f"{src}: the training state does not fit this run ({err})") from None

@@ -246,6 +246,8 @@ def train_policy(
     }
     if done.resumed_at:
         record["resumed_at"] = list(done.resumed_at)
+    if done.moved_at:
+        record["moved_at"] = list(done.moved_at)
     return record
 
 
@@ -467,7 +469,8 @@ def _parser() -> argparse.ArgumentParser:
         "--resume",
         metavar="DIR",
         help="continue the run in DIR (started with --run-dir); it ends with the weights an uninterrupted run "
-        "would have. Takes only --dataset, --threads, --save-every, --no-progress",
+        "would have. Takes only --dataset, --threads, --save-every, --no-progress, and --out and --device "
+        "(a run moved to another kind of device restarts its noise generator there, see run_state)",
     )
     parser.add_argument(
         "--save-every", type=float, default=300.0, metavar="SECONDS", help="state save interval (default 300)"
@@ -511,7 +514,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--fused-optimizer", action="store_true", default=None, help="torch's fused AdamW kernel")
     parser.add_argument("--compile", action="store_true", default=None, help="train a torch.compile of the network")
-    parser.add_argument("--device", default=None, help="torch device, e.g. cuda (default cpu)")
+    parser.add_argument(
+        "--device", default=None, help="torch device, e.g. cuda (default cpu; with --resume: the run's)"
+    )
     parser.add_argument(
         "--progress",
         action=argparse.BooleanOptionalAction,
@@ -550,6 +555,9 @@ _RUN_FLAGS = (
     "compile",
     "device",
 )
+
+#: run flags --resume may change: where the weights go, and the device the rest of the run trains on
+_RESUME_OVERRIDES = ("out", "device")
 
 
 def _check_main(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
@@ -638,7 +646,11 @@ def _stored_out(out: Path, run_dir: str | None) -> str:
 
 def _read_run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, Any]:
     """The run folder's ``run.json``, checked; usage errors name the folder."""
-    given = [f"--{name.replace('_', '-')}" for name in _RUN_FLAGS if getattr(args, name) is not None]
+    given = [
+        f"--{name.replace('_', '-')}"
+        for name in _RUN_FLAGS
+        if getattr(args, name) is not None and name not in _RESUME_OVERRIDES
+    ]
     if given:
         parser.error(f"--resume takes the run's settings from its folder; drop {', '.join(given)}")
     path = Path(args.resume) / RUN_FILE
@@ -672,6 +684,10 @@ def main(argv: list[str] | None = None) -> int:
     run = _read_run(parser, args) if args.resume is not None else _new_run(parser, args, argv)
     run_dir = args.resume if args.resume is not None else args.run_dir
     out = Path(run_dir or ".") / run["out"]  # relative: inside the run folder (the folder may move)
+    if args.resume is not None and args.out is not None:
+        out = Path(args.out)
+    if args.resume is not None and args.device is not None:
+        run["device"] = args.device
     if out.suffix != ".safetensors":
         parser.error(f"--out must end with .safetensors, got {str(out)!r}")
     problem = _unwritable(out)

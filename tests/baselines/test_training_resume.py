@@ -114,6 +114,46 @@ def test_the_state_file_is_checked_before_it_is_loaded(data: TrajectoryDataset, 
         train_policy(fresh, data, settings, progress=False, run_dir=tmp_path, save_every=-1)
 
 
+def test_a_run_moved_to_another_device_kind_restarts_its_noise_generator(
+    data: TrajectoryDataset, tmp_path: Path
+) -> None:
+    """A state saved on a GPU continues on the CPU: everything carries over but the noise generator's state."""
+    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    settings = TrainSettings(steps=12, batch_size=8, log_every=4, warmup_steps=2)
+    train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path, stop_after=6)
+    state = tmp_path / STATE_FILE
+    tensors, meta = read_safetensors(state, "training_state")
+    cuda_like = {**tensors, "torch_generator": torch.zeros(16, dtype=torch.uint8)}  # a CUDA generator's state size
+    write_safetensors(state, cuda_like, "training_state", {**meta, "generator_device": "cuda"})
+    record = train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path)
+    assert record["resumed_at"] == [6] and record["moved_at"] == [6]
+    assert record["losses"][-1][0] == 12 and np.isfinite(record["final_loss"])
+    # a state from before the device was kept: told apart by the generator state's size
+    train_policy(
+        make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path / "b", stop_after=6
+    )
+    tensors, meta = read_safetensors(tmp_path / "b" / STATE_FILE, "training_state")
+    del meta["generator_device"]
+    write_safetensors(tmp_path / "b" / STATE_FILE, cuda_like, "training_state", meta)
+    again = train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path / "b")
+    assert again["moved_at"] == [6] and again["losses"] == record["losses"]
+    # a generator state of no known device, or a bad device name, is refused
+    train_policy(
+        make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path / "c", stop_after=6
+    )
+    tensors, meta = read_safetensors(tmp_path / "c" / STATE_FILE, "training_state")
+    for bad_tensors, bad_meta in (
+        (
+            {**tensors, "torch_generator": torch.zeros(7, dtype=torch.uint8)},
+            {k: v for k, v in meta.items() if k != "generator_device"},
+        ),
+        (tensors, {**meta, "generator_device": 3}),
+    ):
+        write_safetensors(tmp_path / "c" / STATE_FILE, bad_tensors, "training_state", bad_meta)
+        with pytest.raises(CheckpointError, match="does not fit this run"):
+            train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path / "c")
+
+
 def test_speed_options_are_validated_and_recorded(data: TrajectoryDataset) -> None:
     with pytest.raises(ValueError, match="precision must be one of \\['bf16', 'fp32'\\]"):
         TrainSettings(precision="fp16")
@@ -191,6 +231,7 @@ def test_cli_resume_usage_errors(data_file: Path, tmp_path: Path, capsys: pytest
     assert (run / "dp.safetensors").exists() and (run / "dp.json").exists()
     usage([*base, "--run-dir", str(run)], "holds a run already")
     usage(["--resume", str(run), "--steps", "5"], "drop --steps")
+    usage(["--resume", str(run), "--out", str(tmp_path / "x.pt")], "must end with .safetensors")
     usage(["--resume", str(run), "--run-dir", str(run)], "give one of them")
     usage(["--resume", str(tmp_path / "nothing")], "not a run folder")
     usage([*base, "--run-dir", str(tmp_path / "r2"), "--save-every", "-1"], "--save-every")
@@ -208,6 +249,10 @@ def test_cli_resume_usage_errors(data_file: Path, tmp_path: Path, capsys: pytest
     (moved / "dp.safetensors").unlink()
     assert main(["--resume", str(moved), "--no-progress"]) == 0
     assert (moved / "dp.safetensors").read_bytes() == before
+    # --out and --device may change on a resume (a GPU run finished on this machine, its recorded out elsewhere)
+    elsewhere = tmp_path / "elsewhere" / "dp.safetensors"
+    assert main(["--resume", str(moved), "--no-progress", "--device", "cpu", "--out", str(elsewhere)]) == 0
+    assert elsewhere.read_bytes() == before
 
 
 @pytest.mark.slow
