@@ -218,6 +218,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self._memory = np.zeros((1, model.memory_size), dtype=np.int64)
         self._trail: list[np.ndarray] = []
         self._background: np.ndarray | None = None
+        # the last potential computed, keyed by (pos, memory): a step's "before" is the previous step's "after"
+        self._potential_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # ----------------------------------------------------------------- state
     @property
@@ -288,7 +290,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self._trail.append(self._pos[0].copy())
         info = self._info(bool(violation[0]))
         if self.reward_type == "dense":
-            before, after = self.model.potential(prev_memory, prev), self.model.potential(self._memory, self._pos)
+            before, after = self._potential(prev_memory, prev), self._potential(self._memory, self._pos)
         else:
             before = after = np.zeros(1)
         reward = float(self.rewards(np.array([info["success"]]), violation, before, after)[0])
@@ -296,6 +298,15 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.render_mode == "human":
             self.render()
         return self._obs(), reward, bool(terminated), False, info
+
+    def _potential(self, memory: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """``model.potential(memory, pos)``, reusing the last value for the same state (what a dense step costs)."""
+        cached = self._potential_cache
+        if cached is not None and np.array_equal(cached[0], pos) and np.array_equal(cached[1], memory):
+            return cached[2]
+        value = self.model.potential(memory, pos)
+        self._potential_cache = (pos.copy(), memory.copy(), value)
+        return value
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
         """Displace the agent by ``delta`` (or move it ``to`` a state): a push from outside.

@@ -83,6 +83,32 @@ def test_soup_scoop_dense_penalises_a_spill() -> None:
     assert reward < -2 * DENSE_REWARD_SCALE  # two modes lost and the violation
 
 
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_dense_reward_is_the_shaping_between_the_states_also_after_a_push_or_a_reset(env_id: str) -> None:
+    # a step reuses the previous step's potential: a push or a reset in between must not be missed
+    stem, version = env_id.rsplit("-", 1)
+    env = gym.make(f"{stem}Dense-{version}").unwrapped
+    model, rng = env.model, np.random.default_rng(0)
+    env.reset(seed=0)
+    for i in range(60):
+        if i % 20 == 7:
+            env.perturb(delta=rng.normal(size=2))
+        if i % 20 == 14:
+            env.reset(seed=i, options={"state": rng.uniform(model.low, model.high)})
+        pos, memory = env.state[None, :], env._memory.copy()
+        _, reward, terminated, _, info = env.step(env.action_space.sample())
+        violation = np.array([info["constraint_violation"]])
+        expected = env.rewards(
+            np.array([info["success"]]),
+            violation,
+            model.potential(memory, pos),
+            model.potential(env._memory, env.state[None, :]),
+        )[0]
+        assert reward == pytest.approx(expected, abs=1e-9), i
+        if terminated:
+            env.reset(seed=100 + i)
+
+
 HEADINGS = np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
 CANDIDATES = np.concatenate([HEADINGS * scale for scale in (1.0, 0.3, 0.1)])
 
