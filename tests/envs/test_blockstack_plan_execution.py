@@ -215,6 +215,25 @@ def test_plan_target_reads_where_a_plan_heads_grasp_or_not(env: Any, records: li
     assert plan_target(env, hold_plan(env, gripper=1.0)).startswith(f"place_{held}_on_")  # never opens: its end
 
 
+def test_plan_target_tells_the_cubes_of_a_tower_apart(env: Any) -> None:
+    from steer_envs.data.blockstack_skills import record_episode
+    from steer_envs.envs.robosuite.plan_execution import classify_plan, plan_target, towers
+
+    recs = record_episode(env, 0, 2)  # seed 0: cube 2 goes onto cube 0
+    env.reset(seed=0)
+    for action in (a for rec in recs for a in rec.actions):
+        env.step(action)
+    assert [0, 2] in towers(env)
+    pos = env.cube_pos
+    assert np.linalg.norm(pos[0, :2] - pos[2, :2]) > 1e-4  # stacked a little off centre
+    for cube, other in ((0, 2), (2, 0)):  # nearly the same xy: the closing waypoint's height decides
+        point = np.r_[0.3 * pos[cube, :2] + 0.7 * pos[other, :2], pos[cube, 2]]  # xy nearer the other cube
+        plan = np.array([[*env.state, -1.0], [*point, -1.0], [*point, 1.0]])
+        assert plan_target(env, plan) == f"pick_{cube}"
+    top = np.array([[*env.state, -1.0], [*pos[2], -1.0], [*pos[2], 1.0]])
+    assert classify_plan(env, top) == "pick_2"
+
+
 def test_bad_input_is_refused(env: Any, records: list[Any]) -> None:
     from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, plan_target
 

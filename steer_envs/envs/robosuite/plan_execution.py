@@ -333,8 +333,9 @@ def plan_target(env: Any, plan: Any) -> str:
     The thesis's reading of alignment ("the sample corresponds to the intended
     block"): :func:`classify_plan` without its height checks, and with the
     plan's last waypoint standing in when the gripper never switches. Hand
-    empty: ``pick_i`` for the cube xy-nearest the first closing waypoint (else
-    the last). Holding cube i: the held cube's centre at the first opening
+    empty: ``pick_i`` for the cube the first closing waypoint (else the last)
+    closes on, as :func:`classify_plan` reads it (of a tower's cubes, the
+    nearest in 3-D). Holding cube i: the held cube's centre at the first opening
     waypoint (else the last) over a tower top j gives ``place_i_on_j``,
     anywhere else ``place_i_on_table``.
     """
@@ -344,8 +345,7 @@ def plan_target(env: Any, plan: Any) -> str:
     held = base.held_cube
     if held is None:
         k = _first(arr[:, 3] > 0)
-        point = arr[-1 if k is None else k, :3]
-        return f"pick_{int(np.argmin(np.linalg.norm(base.cube_pos[:, :2] - point[:2], axis=1)))}"
+        return f"pick_{_closing_cube(base, arr[-1 if k is None else k, :3])}"
     k = _first(arr[:, 3] <= 0)
     onto = _over_tower(base, _held_centre(base, arr, -1 if k is None else k, held), held)
     return f"place_{held}_on_{'table' if onto is None else onto}"
