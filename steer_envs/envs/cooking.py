@@ -83,7 +83,7 @@ Action
 
 Rewards
     ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
+    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = 2 x foods in the pot + 1 while holding a food still to
     deliver, sub-goal = the pot's entry from the held food's corridor while that food is not yet in the

@@ -39,7 +39,7 @@ Action
 
 Rewards
     ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
+    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = the mode (reach_entry 0, inspect 1, released 2), sub-goal
     = the entry's centre ``(-4.5, 0)``, then ``(4.5, 0)`` just inside the release station.

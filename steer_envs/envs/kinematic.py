@@ -42,8 +42,8 @@ MAX_SPEED = 1e6
 #: accepted ``reward_type`` values (Gymnasium-Robotics' names): ``"sparse"`` (the default) or ``"dense"``.
 REWARD_TYPES: tuple[str, ...] = ("sparse", "dense")
 RewardType = Literal["sparse", "dense"]
-#: dense reward: the reward of one mode advanced (the potential's unit, see :meth:`KinematicTaskModel.potential`);
-#: a constraint violation costs the same. Large enough that moving toward a sub-goal earns a per-step reward
+#: dense reward: the reward of one mode advanced (the potential's unit, see :meth:`KinematicTaskModel.potential`).
+#: Large enough that moving toward a sub-goal earns a per-step reward
 #: SAC's default entropy bonus does not drown (PolygonNav: ~0.4 a step at full speed).
 DENSE_REWARD_SCALE = 100.0
 
@@ -155,11 +155,11 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     shaping, ``DENSE_REWARD_SCALE * (phi(s') - phi(s))`` with ``phi = stage -
     min(distance / diagonal, 1)`` (:meth:`KinematicTaskModel.potential`: modes
     advanced along the task's plan, minus the distance to the current mode's
-    sub-goal in workspace diagonals), and a violation costs another
-    ``DENSE_REWARD_SCALE``. So each mode advanced earns ``DENSE_REWARD_SCALE``
-    (a mode lost costs as much), moving toward the sub-goal earns a little
-    every step, and the shaping of a whole episode telescopes (it cannot be
-    farmed by going back and forth).
+    sub-goal in workspace diagonals). So each mode advanced earns
+    ``DENSE_REWARD_SCALE`` and a mode lost costs as much (a violation costs
+    the modes it loses and the sparse -1, no extra penalty), moving toward the
+    sub-goal earns a little every step, and the shaping of a whole episode
+    telescopes (it cannot be farmed by going back and forth).
 
     Accepted inputs (anything else raises ``TypeError`` for the wrong kind,
     ``ValueError`` for a wrong value, naming the argument): ``dt`` and
@@ -256,8 +256,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         sparse = np.where(success, 1.0, np.where(violation, -1.0, 0.0))
         if self.reward_type == "sparse":
             return sparse
-        shaping = DENSE_REWARD_SCALE * (potential_after - potential_before)
-        return sparse + shaping - DENSE_REWARD_SCALE * violation.astype(np.float64)
+        return sparse + DENSE_REWARD_SCALE * (potential_after - potential_before)
 
     # ------------------------------------------------------------------- API
     def reset(

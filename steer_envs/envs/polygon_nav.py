@@ -36,7 +36,7 @@ Action
 
 Rewards
     ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
+    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = the mode (free 0, polygon j = j), sub-goal = polygon 1's
     centroid from free space (its distance measured along the shortest path around the later polygons,

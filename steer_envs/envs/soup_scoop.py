@@ -69,7 +69,7 @@ Action
 
 Rewards
     ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` and -100 per violation, ``phi(s) =
+    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
     stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
     ``KinematicTaskModel.potential``): stage = the mode (reach 0, scoop 1, transport 2, done 3),
     sub-goal = the mode's segment attractor (yellow's, green's), but the centre ``(4, -6)`` of the scoop zone
