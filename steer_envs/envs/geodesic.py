@@ -71,7 +71,6 @@ class GeodesicDistance:
             dist = np.minimum(dist, dist[:, k : k + 1] + dist[k : k + 1, :])
         #: each node's shortest-path distance to the target
         self.node_distance = dist[:, 0]
-        self._last: tuple[bytes, np.ndarray] = (b"", np.zeros(0))
 
     def _visible(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Whether each segment ``p[i] -> q[i]`` misses every obstacle's interior (Cyrus-Beck clipping)."""
@@ -89,14 +88,6 @@ class GeodesicDistance:
 
     def __call__(self, pos: np.ndarray) -> np.ndarray:
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
-        key = p.tobytes()
-        if key == self._last[0]:  # an env asks for each state twice: after one step, before the next
-            return self._last[1].copy()
-        out = self._compute(p)
-        self._last = (key, out.copy())
-        return out
-
-    def _compute(self, p: np.ndarray) -> np.ndarray:
         n, m = len(p), len(self.nodes)
         seen = self._visible(np.repeat(p, m, axis=0), np.tile(self.nodes, (n, 1))).reshape(n, m)
         via = np.linalg.norm(p[:, None, :] - self.nodes[None], axis=2) + self.node_distance[None]

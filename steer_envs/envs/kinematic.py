@@ -138,6 +138,27 @@ class KinematicTaskModel(ABC):
         """Extra drawing on top of the region map (attractors, outlines)."""
 
 
+class _PotentialMemo:
+    """``model.potential(memory, pos)``, reusing the last value for the same state.
+
+    A dense step asks for the potential before and after it, and its "before"
+    is the previous step's "after"; a push or a reset changes the state, so
+    it is recomputed then.
+    """
+
+    def __init__(self, model: KinematicTaskModel) -> None:
+        self.model = model
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def __call__(self, memory: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        last = self._last
+        if last is not None and np.array_equal(last[0], pos) and np.array_equal(last[1], memory):
+            return last[2]
+        value = self.model.potential(memory, pos)
+        self._last = (pos.copy(), memory.copy(), value)
+        return value
+
+
 class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     """Gymnasium env around a :class:`KinematicTaskModel` (one agent).
 
@@ -218,8 +239,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self._memory = np.zeros((1, model.memory_size), dtype=np.int64)
         self._trail: list[np.ndarray] = []
         self._background: np.ndarray | None = None
-        # the last potential computed, keyed by (pos, memory): a step's "before" is the previous step's "after"
-        self._potential_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._potential = _PotentialMemo(model)
 
     # ----------------------------------------------------------------- state
     @property
@@ -297,15 +317,6 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.render_mode == "human":
             self.render()
         return self._obs(), reward, bool(terminated), False, info
-
-    def _potential(self, memory: np.ndarray, pos: np.ndarray) -> np.ndarray:
-        """``model.potential(memory, pos)``, reusing the last value for the same state (what a dense step costs)."""
-        cached = self._potential_cache
-        if cached is not None and np.array_equal(cached[0], pos) and np.array_equal(cached[1], memory):
-            return cached[2]
-        value = self.model.potential(memory, pos)
-        self._potential_cache = (pos.copy(), memory.copy(), value)
-        return value
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
         """Displace the agent by ``delta`` (or move it ``to`` a state): a push from outside.
@@ -418,6 +429,7 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._needs_reset = np.zeros(n, dtype=bool)
         self._mode_names = np.array(self.model.task.modes, dtype=object)
+        self._potential = _PotentialMemo(self.model)
         # agent i's generator (a single env's ``np_random``), made when first needed from its pending seed
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._pending_seeds: list[int | None] = [None] * n
@@ -505,7 +517,7 @@ class Kinematic2DVectorEnv(VectorEnv):
         velocity = self.env.velocity_of(actions)
         prev = self._pos
         dense = self.env.reward_type == "dense"
-        before = self.model.potential(self._memory, prev) if dense else np.zeros(self.num_envs)
+        before = self._potential(self._memory, prev) if dense else np.zeros(self.num_envs)
         moved = np.clip(prev + self.env.dt * velocity, self.model.low, self.model.high)
         memory, violation = self.model.advance(self._memory, prev, moved)
         # agents whose episode ended last step are reset instead of moved (their own generator draws the start)
@@ -519,7 +531,7 @@ class Kinematic2DVectorEnv(VectorEnv):
         self._pos, self._memory = moved, memory
         self._elapsed = np.where(resetting, 0, self._elapsed + 1)
         infos = self._infos(violation)
-        after = self.model.potential(self._memory, self._pos) if dense else before
+        after = self._potential(self._memory, self._pos) if dense else before
         rewards = self.env.rewards(infos["success"], violation, before, after)
         terminated = infos["success"] | (self.env.terminate_on_violation & violation)
         truncated = np.zeros(self.num_envs, dtype=bool)

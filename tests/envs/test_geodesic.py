@@ -37,7 +37,7 @@ def test_clearance_keeps_the_path_off_the_corners_and_repeated_calls_agree() -> 
     p = np.array([[0.0, -3.0]])
     assert field(p)[0] > tight(p)[0]
     first = field(p)
-    first[0] = -1.0  # the answer is the caller's: the cached copy is not changed
+    first[0] = -1.0  # the answer is the caller's: changing it changes no later answer
     assert field(p)[0] == pytest.approx(tight(p)[0], abs=0.5) and field(p)[0] > 0
     inside = np.array([[0.0, 0.0]])  # sees no node: the straight line
     assert field(inside)[0] == pytest.approx(3.0)

@@ -110,6 +110,29 @@ def test_dense_reward_is_the_shaping_between_the_states_also_after_a_push_or_a_r
             env.reset(seed=100 + i)
 
 
+@pytest.mark.parametrize("env_id", KINEMATIC_BASE)
+def test_vector_dense_reward_is_the_shaping_between_the_states_also_after_a_push(env_id: str) -> None:
+    # the vector env reuses the previous step's potential too: a push (or an autoreset) must not be missed
+    stem, version = env_id.rsplit("-", 1)
+    venv = gym.make_vec(f"{stem}Dense-{version}", num_envs=4, vectorization_mode="vector_entry_point")
+    inner, rng = venv.unwrapped, np.random.default_rng(0)
+    model = inner.model
+    venv.reset(seed=0)
+    for i in range(60):
+        if i % 20 == 7:
+            inner.perturb(rng.uniform(model.low, model.high, size=(4, 2)), np.array([True, False, True, False]))
+        pos, memory = inner._pos.copy(), inner._memory.copy()
+        _, rewards, _, _, infos = venv.step(rng.uniform(-1, 1, size=(4, 2)).astype(np.float32) * inner.env.max_speed)
+        expected = inner.env.rewards(
+            infos["success"],
+            infos["constraint_violation"],
+            model.potential(memory, pos),
+            model.potential(inner._memory, inner._pos),
+        )
+        moved = inner._elapsed > 0  # an agent autoreset in this step is not moved (its reward is 0)
+        np.testing.assert_allclose(rewards[moved], expected[moved], atol=1e-9, err_msg=str(i))
+
+
 HEADINGS = np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
 CANDIDATES = np.concatenate([HEADINGS * scale for scale in (1.0, 0.3, 0.1)])
 
