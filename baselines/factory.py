@@ -104,7 +104,7 @@ def get_preset(name: str, preset: str) -> Preset[Any]:
     """Preset ``preset`` of policy ``name``; ``ValueError`` listing the presets otherwise.
 
     >>> get_preset("dp", "cpu").train.steps
-    30000
+    40000
     """
     presets = _spec(name).presets
     if preset not in presets:

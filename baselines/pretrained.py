@@ -79,7 +79,7 @@ def checkpoint_record(kind: str) -> dict[str, Any]:
     """The training record (config, settings, losses, wall time) written beside the checkpoint.
 
     >>> checkpoint_record("dp")["training"]["settings"]["steps"]
-    30000
+    40000
 
     :class:`~steer_envs.io.CheckpointError` when the record is missing, too large or not a JSON object.
     """

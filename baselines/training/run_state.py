@@ -65,7 +65,8 @@ class RunProgress:
     kept); ``moved_at`` the steps after which the run continued on another
     kind of device (a CUDA run resumed on the CPU, say): its diffusion-noise
     generator then restarts from ``(seed, step)``, so from there on the run no
-    longer matches an uninterrupted one.
+    longer matches an uninterrupted one; ``first_device`` the device kind of
+    the first segment (``""`` in states saved before it was kept).
     """
 
     step: int = 0
@@ -75,6 +76,7 @@ class RunProgress:
     resumed_at: list[int] = field(default_factory=list)
     threads: int = 0
     moved_at: list[int] = field(default_factory=list)
+    first_device: str = ""
 
 
 def check_losses(value: Any) -> list[list[float]]:
@@ -144,6 +146,7 @@ def save_state(
         "resumed_at": progress.resumed_at,
         "threads": progress.threads,
         "moved_at": progress.moved_at,
+        "first_device": progress.first_device,
         "param_groups": opt_state["param_groups"],
         "scheduler": scheduler.state_dict(),
         "ema": ema_meta,
@@ -191,6 +194,7 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
             resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
             threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
             moved_at=[integer(s, "moved_at entry", low=1, high=settings.steps) for s in meta.get("moved_at", [])],
+            first_device=_device_kind(meta.get("first_device", "")),
         )
         if progress.losses and progress.losses[-1][0] > progress.step:
             raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")
@@ -229,6 +233,12 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
     except (KeyError, TypeError, ValueError, RuntimeError) as err:
         raise CheckpointError(f"{src}: the training state does not fit this run ({err})") from None
     return progress
+
+
+def _device_kind(value: Any) -> str:
+    if not isinstance(value, str) or not (value == "" or value.isidentifier()):
+        raise TypeError(f"'first_device' must be a device kind such as 'cpu', got {value!r}")
+    return value
 
 
 def _finite(value: Any, name: str) -> float:

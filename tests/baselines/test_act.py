@@ -197,7 +197,7 @@ def test_bad_input_raises() -> None:
 def test_shipped_checkpoints_exist_and_are_small() -> None:
     for kind in CHECKPOINTS:
         path = checkpoint_path(kind)
-        assert path.stat().st_size < 5_000_000
+        assert path.stat().st_size < 8_000_000  # the 1.7M-parameter DP in float32: 6.9 MB
         assert path.with_suffix(".json").is_file()
 
 

@@ -343,7 +343,7 @@ def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
     assert isinstance(policy, DiffusionPolicy) and policy.horizon == 64 and policy.n_obs_steps == 2
     assert policy.config.obs_indices == (0, 1) and policy.config.relative
     record = checkpoint_record("dp")
-    assert record["kind"] == "dp" and record["training"]["data"]["raw_steps"] == 1_000_000
+    assert record["policy"] == "dp" and record["training"]["data"]["raw_steps"] == 1_000_000
     grid = MazeGrid(maze_map("large"))
     rng = np.random.default_rng(0)
     cells = grid.free_cells[rng.integers(len(grid.free_cells), size=10)]

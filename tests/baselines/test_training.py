@@ -16,6 +16,7 @@ from steer_envs.baselines.common import Preset, TrainSettings
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.factory import POLICIES, get_preset, load_policy, make_policy
 from steer_envs.baselines.training import check_record, main, parse_overrides
+from steer_envs.baselines.training.trainer import CROSS_DEVICE_RTOL
 from steer_envs.data.maze_random_walk import generate_random_walk, save_random_walk
 from steer_envs.data.trajectories import TrajectoryDataset, save_trajectories
 
@@ -181,6 +182,32 @@ def test_check_reruns_a_recorded_run_and_flags_a_difference(
     _usage_error(["--dataset", str(other), *check[2:]], capsys, "seed=4")
 
 
+def test_check_of_a_run_begun_on_another_device_checks_the_recipe(
+    tmp_path: Path, walk_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A record whose first segment ran on CUDA replays on the CPU within CROSS_DEVICE_RTOL, not 1e-3."""
+    out = tmp_path / "dp.safetensors"
+    argv = ["--policy", "dp", "--dataset", str(walk_file), "--out", str(out), "--steps", "3", "--batch-size", "4"]
+    assert main([*argv, *TINY_DP, "--threads", "1", "--no-progress"]) == 0
+    record = out.with_suffix(".json")
+    summary = json.loads(record.read_text())
+    assert summary["training"]["first_device"] == "cpu"
+    summary["training"]["first_device"] = "cuda"
+    summary["training"]["losses"][-1][1] *= 1.05  # another noise stream: a few per cent off
+    record.write_text(json.dumps(summary))
+    check = ["--dataset", str(walk_file), "--check", str(record), "--check-steps", "3", "--no-progress"]
+    assert main(check) == 0
+    printed = capsys.readouterr().out
+    assert "started on cuda" in printed and f"rtol {CROSS_DEVICE_RTOL:g}" in printed
+    assert check_record(record, walk_file, 3)["cross_device"] == "cuda"
+    summary["training"]["losses"][-1][1] *= 1.2  # a recipe that differs: far outside
+    record.write_text(json.dumps(summary))
+    assert main(check) == 1
+    summary["training"]["first_device"] = 3
+    record.write_text(json.dumps(summary))
+    _usage_error(check, capsys, "first_device")
+
+
 def test_check_reads_records_written_before_the_factory(tmp_path: Path, walk_file: Path) -> None:
     """The shipped records use ``kind`` / ``model`` (2-D positions implied); --check upgrades and re-runs them."""
     out = tmp_path / "act.safetensors"
@@ -206,7 +233,7 @@ def test_presets_are_typed_and_registered_per_policy() -> None:
         for preset in spec.presets.values():
             assert isinstance(preset, Preset) and isinstance(preset.model, spec.config_class)
             assert isinstance(preset.train, TrainSettings) and preset.model.obs_dim is None  # features: the data
-    assert get_preset("dp", "cpu").train.steps == 30_000 and get_preset("act", "cpu").train.steps == 3_000
+    assert get_preset("dp", "cpu").train.steps == 40_000 and get_preset("act", "cpu").train.steps == 3_000
     itps = get_preset("dp", "itps")
     assert itps.train.batch_size == 256 and itps.model.down_dims == (128, 256, 512)
     dp = make_policy(itps.model.replace(obs_dim=2, action_dim=2))
