@@ -38,7 +38,8 @@ Observation
 
 Action
     ``Box(float32)``: the next absolute waypoint in ``[0, rows-1] x [0, cols-1]``,
-    tracked by the PD law; ``normalize_actions=True``: ``[-1, 1]^2`` mapped linearly onto it.
+    tracked by the PD law; ``normalize_actions=True``: ``[-1, 1]^2`` mapped linearly onto it;
+    ``relative_actions=True``: the waypoint's offset from the agent, ``[-1, 1]^2`` cells.
 
 Rewards
     ``reward_type="sparse"`` (default): 1 in the goal cell, else 0 (D4RL). ``"dense"``:
@@ -436,6 +437,11 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             Needs ``goal_conditioned=False`` (the Dict already has ``desired_goal``). A bool.
         normalize_actions: the action space is ``[-1, 1]^2``, mapped linearly onto the
             waypoint box ``[0, rows-1] x [0, cols-1]``. A bool.
+        relative_actions: the action is the waypoint's offset from the agent, in
+            ``[-1, 1]^2`` cells (clipped into it; already normalised, so
+            ``normalize_actions`` changes nothing): "head this way" instead of "go
+            to that point", which a goal-conditioned RL policy learns far more easily.
+            A bool.
 
     Booleans must be real bools (``"no"`` is refused, not read as True);
     numbers are never parsed from strings. Actions, ``perturb`` arguments and
@@ -445,7 +451,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
 
     Observation: ``float32`` xy (ITPS policies use xy) or xy + velocity (+ sensors)
     (+ the goal's xy); with ``goal_conditioned`` a Dict of it and the achieved / desired goal.
-    Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it).
+    Action: ``float32`` waypoint in ``[0, rows-1] x [0, cols-1]`` (clipped into it); with
+    ``relative_actions`` its offset from the agent in ``[-1, 1]^2`` cells.
     Reward: ``"sparse"``: 1 when the goal cell is reached, else 0 (D4RL sparse).
     ``"dense"``: ``-MazeGrid.path_distance(xy, goal) / extent`` (the distance along
     the maze, in maze heights; 0 without a goal): non-positive, so reaching the goal
@@ -493,6 +500,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         observe_sensors: bool = False,
         observe_goal: bool = False,
         normalize_actions: bool = False,
+        relative_actions: bool = False,
     ) -> None:
         owner = type(self).__name__
         layout: Sequence[Sequence[int | str]]
@@ -515,6 +523,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         self.observe_sensors = boolean(observe_sensors, "observe_sensors", owner=owner)
         self.observe_goal = boolean(observe_goal, "observe_goal", owner=owner)
         self.normalize_actions = boolean(normalize_actions, "normalize_actions", owner=owner)
+        self.relative_actions = boolean(relative_actions, "relative_actions", owner=owner)
         if self.goal_conditioned and not self.sample_goal:
             raise ValueError(f"{owner}: goal_conditioned=True needs sample_goal=True (a goal every episode)")
         if self.goal_conditioned and self.observe_goal:
@@ -556,7 +565,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             )
         else:
             self.observation_space = inner
-        if self.normalize_actions:
+        if self.normalize_actions or self.relative_actions:
             self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         else:
             self.action_space = spaces.Box(
@@ -716,10 +725,13 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """Track the waypoint ``action`` (2 finite reals, clipped into the grid) for ``frame_skip`` physics steps.
 
-        With ``normalize_actions`` the action is in ``[-1, 1]^2`` (clipped into it) and mapped onto the grid.
+        With ``normalize_actions`` the action is in ``[-1, 1]^2`` (clipped into it) and mapped onto the grid;
+        with ``relative_actions`` it is the offset from the agent in ``[-1, 1]^2`` cells (clipped into it).
         """
         action = _check_action(action, self.action_space, f"{type(self).__name__}.step")
-        if self.normalize_actions:
+        if self.relative_actions:
+            action = self.state + np.clip(action, -1.0, 1.0)
+        elif self.normalize_actions:
             action = self.grid.low + (np.clip(action, -1.0, 1.0) + 1.0) / 2.0 * (self.grid.high - self.grid.low)
         waypoint = np.clip(action, self.grid.low, self.grid.high)
         touched = self.physics.step(waypoint, self.frame_skip)

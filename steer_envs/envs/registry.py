@@ -165,10 +165,11 @@ def _variants() -> tuple[EnvEntry, ...]:
         if e.kinematic:
             out.append(_variant(e, "Dense", reward_type="dense"))
         elif e.entry_point.startswith("steer_envs.envs.maze2d:"):
-            out.append(_variant(e, "Dense", reward_type="dense", observe_goal=True))
+            # the RL variants observe the velocity, as PointMaze does: without it the state is not Markov
+            out.append(_variant(e, "Dense", reward_type="dense", observe_goal=True, observe_velocity=True))
             goal = replace(e, entry_point="steer_envs.envs.maze2d:Maze2DGoalEnv")
-            out.append(_variant(goal, "Goal"))
-            out.append(_variant(goal, "GoalDense", reward_type="dense"))
+            out.append(_variant(goal, "Goal", observe_velocity=True))
+            out.append(_variant(goal, "GoalDense", reward_type="dense", observe_velocity=True))
     return tuple(out)
 
 

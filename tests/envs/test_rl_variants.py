@@ -289,15 +289,18 @@ def test_maze2d_dense_reward_is_minus_the_path_distance() -> None:
     assert -6.0 / env.extent <= reward < 0.0
 
 
-def test_maze2d_dense_ids_observe_the_goal_their_reward_measures() -> None:
+def test_maze2d_dense_ids_observe_velocity_and_the_goal_their_reward_measures() -> None:
     env = gym.make("steer_envs/Maze2D-UmazeDense-v0")
-    assert env.observation_space.shape == (4,)
+    assert env.observation_space.shape == (6,)  # xy, velocity (as PointMaze), goal xy
     for seed in (0, 1, 2):
         obs, info = env.reset(seed=seed)
-        np.testing.assert_allclose(obs[2:], info["goal"])
+        np.testing.assert_allclose(obs[4:], info["goal"])
         assert env.observation_space.contains(obs)
     obs, *_, info = env.step(env.action_space.sample())
-    np.testing.assert_allclose(obs[2:], info["goal"])
+    np.testing.assert_allclose(obs[4:], info["goal"])
+    np.testing.assert_allclose(obs[2:4], env.unwrapped.velocity, atol=1e-5)
+    for goal_id in ("steer_envs/Maze2D-UmazeGoal-v0", "steer_envs/Maze2D-UmazeGoalDense-v0"):
+        assert gym.make(goal_id).observation_space["observation"].shape == (4,)
     assert gym.make("steer_envs/Maze2D-Umaze-v0").observation_space.shape == (2,)  # the ITPS id is unchanged
     both = gym.make("steer_envs/Maze2D-Umaze-v0", observe_sensors=True, observe_goal=True, observe_velocity=True)
     obs, info = both.reset(seed=0)
@@ -325,6 +328,23 @@ def test_maze2d_normalised_actions_map_onto_the_grid() -> None:
         obs, *_ = env.step(a)
         ref_obs, *_ = ref.step(np.array(target, dtype=np.float32))
         np.testing.assert_allclose(obs[:2], ref_obs, atol=1e-5)
+
+
+def test_maze2d_relative_actions_are_offsets_from_the_agent() -> None:
+    env = gym.make("steer_envs/Maze2D-UmazeDense-v0", relative_actions=True)
+    assert env.action_space.low.tolist() == [-1.0, -1.0] and env.action_space.high.tolist() == [1.0, 1.0]
+    ref = gym.make("steer_envs/Maze2D-UmazeDense-v0")
+    options = {"state": [1.0, 1.0], "goal_cell": (3, 1)}
+    obs, _ = env.reset(seed=0, options=options)
+    ref_obs, _ = ref.reset(seed=0, options=options)
+    for offset in ([0.0, 0.7], [0.3, -1.0], [5.0, 0.0]):  # the last is clipped to one cell
+        waypoint = obs[:2] + np.clip(offset, -1.0, 1.0)
+        obs, reward, *_ = env.step(np.array(offset, dtype=np.float32))
+        ref_obs, ref_reward, *_ = ref.step(waypoint.astype(np.float32))
+        np.testing.assert_allclose(obs, ref_obs, atol=1e-5)
+        assert reward == pytest.approx(ref_reward, abs=1e-6)
+    with pytest.raises(TypeError, match="relative_actions"):
+        Maze2DEnv("umaze", relative_actions=1)
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")

@@ -14,7 +14,8 @@ evaluation with the SB3 model (``model.zip``), its replay buffer
 and ``state.json`` (steps, curve, times). A trial whose folder holds a
 checkpoint continues from it, so a killed ``steer-bench run`` loses at most
 one evaluation interval. The recipe hash covers what changes the training
-or the curve (env, method, seed, env options, evaluation settings), not the
+or the curve (env, method, seed, the env's registered and passed options,
+evaluation settings), not the
 budget: a longer ``timesteps`` continues a shorter finished trial. A
 resumed trial is reproducible (its random generators are re-seeded from
 the seed and the step), but differs from an unbroken run of the same seed.
@@ -35,6 +36,7 @@ from typing import Any
 
 from steer_envs.bench.suite import TrialResult
 from steer_envs.bench.suites.sb3.suite import TARGET_SUCCESS, Sb3Params, method_fits
+from steer_envs.envs.registry import entry
 from steer_envs.io import atomic_directory
 from steer_envs.utils.threads import limit_threads
 
@@ -74,6 +76,8 @@ def make_env(env_id: str, method: str, params: Sb3Params) -> Any:
     kwargs: dict[str, Any] = {"normalize_actions": params.normalize_actions}
     if not _is_maze(env_id):
         kwargs["observe_sensors"] = params.observe_sensors
+    elif params.maze_relative_actions:
+        kwargs["relative_actions"] = True
     env: Any = gym.make(train_id, **kwargs)
     if method == "sac" and train_id != env_id:
         env = FlattenObservation(env)
@@ -87,8 +91,11 @@ def run_folder(env_id: str, method: str, seed: int, params: Sb3Params) -> Path:
         "method": method,
         "seed": seed,
         "train_env": train_env_id(env_id, method, params),
+        "env_kwargs": entry(train_env_id(env_id, method, params)).kwargs,
         **{k: getattr(params, k) for k in ("eval_episodes", "eval_every", "normalize_actions", "observe_sensors")},
     }
+    if _is_maze(env_id) and params.maze_relative_actions:
+        recipe["relative_actions"] = True
     digest = hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()[:10]
     return params.cache / f"{env_id.split('/')[-1]}-{method}-seed{seed}-{digest}"
 

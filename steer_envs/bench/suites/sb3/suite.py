@@ -20,7 +20,9 @@ memory and whose ``at_goal`` bit would contradict HER's relabelled goals);
 ``...Dense-v0`` ids trains and evaluates on the ``...GoalDense-v0`` sibling
 (same maze, dynamics and dense reward) flattened to a Box for ``MlpPolicy``,
 as the recorded results did; without it, on the plain id, whose observation
-also carries the goal (``observe_goal``).
+also carries the goal (``observe_goal``). ``maze_relative_actions``: Maze2D's
+action is the waypoint's offset from the agent (``relative_actions``) instead
+of the absolute waypoint.
 
 Training is long on a CPU (tens of steps/s per thread), so a trial
 checkpoints (model, replay buffer, curve) at every evaluation under
@@ -101,7 +103,7 @@ class Sb3Params(SuiteParams):
     ``timesteps``: training steps per trial (``None``: 100k for ``sac``, 50k for
     ``sac-her``); ``eval_episodes`` deterministic episodes per evaluation,
     every ``eval_every`` steps (and at step 0); ``normalize_actions``,
-    ``observe_sensors``, ``maze_goal_obs``: the env options (module docstring);
+    ``observe_sensors``, ``maze_goal_obs``, ``maze_relative_actions``: the env options (module docstring);
     ``threads`` torch / BLAS threads of the trial; ``checkpoint``: save model,
     replay buffer and curve at every evaluation under ``cache_dir`` (default
     :func:`default_cache_dir`) and resume from there; ``stop_success``: end
@@ -115,6 +117,7 @@ class Sb3Params(SuiteParams):
     normalize_actions: bool = True
     observe_sensors: bool = True
     maze_goal_obs: bool = True
+    maze_relative_actions: bool = False
     threads: int = 1
     checkpoint: bool = True
     cache_dir: str = ""
