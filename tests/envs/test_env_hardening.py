@@ -333,7 +333,7 @@ _KWARGS = {
         "min_gap",
         "render_size",
     ),
-    "steer_envs/Maze2D-Umaze-v0": ("frame_skip", "observe_velocity", "sample_goal", "cell_px"),
+    "steer_envs/Maze2D-Umaze-v0": ("frame_skip", "observe_velocity", "sample_goal", "cell_px", "relative_actions"),
 }
 
 

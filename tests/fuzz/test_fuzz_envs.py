@@ -132,7 +132,7 @@ _KWARGS = {
     "ConvexMode": ("layout_seed", "start_noise", "terminate_on_violation", "dt", "max_speed", "render_size"),
     "Cooking": ("dt", "max_speed", "render_size"),
     "PolygonNav": ("layout_seed", "terminate_on_violation", "workspace_margin", "min_gap", "render_size"),
-    "Maze2D": ("frame_skip", "observe_velocity", "sample_goal", "cell_px", "render_mode"),
+    "Maze2D": ("frame_skip", "observe_velocity", "sample_goal", "cell_px", "relative_actions", "render_mode"),
 }
 
 
