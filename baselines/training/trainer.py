@@ -96,7 +96,7 @@ __all__ = [
 
 PROG = "python -m steer_envs.baselines.training"
 #: largest relative loss difference ``--check`` accepts for a run that started on another device (a CUDA run
-#: replayed on the CPU draws other noise; its first 200 logged losses stayed within 4 % of the recorded ones)
+#: replayed on the CPU draws other diffusion noise: only the loss curve's course can match)
 CROSS_DEVICE_RTOL = 0.1
 
 

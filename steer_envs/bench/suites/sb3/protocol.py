@@ -15,8 +15,8 @@ and ``state.json`` (steps, curve, times). A trial whose folder holds a
 checkpoint continues from it, so a killed ``steer-bench run`` loses at most
 one evaluation interval. The recipe hash covers what changes the training
 or the curve (env, method, seed, the env's registered and passed options,
-evaluation settings), not the
-budget: a longer ``timesteps`` continues a shorter finished trial. A
+evaluation settings), not the budget: a longer ``timesteps`` continues a
+shorter finished trial. A
 resumed trial is reproducible (its random generators are re-seeded from
 the seed and the step), but differs from an unbroken run of the same seed.
 
