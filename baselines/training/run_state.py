@@ -37,6 +37,7 @@ __all__ = [
     "STATE_FORMAT",
     "RunProgress",
     "TrainingParts",
+    "check_device_kind",
     "check_losses",
     "load_state",
     "save_state",
@@ -194,7 +195,7 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
             resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
             threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
             moved_at=[integer(s, "moved_at entry", low=1, high=settings.steps) for s in meta.get("moved_at", [])],
-            first_device=_device_kind(meta.get("first_device", "")),
+            first_device=check_device_kind(meta.get("first_device", "")),
         )
         if progress.losses and progress.losses[-1][0] > progress.step:
             raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")
@@ -235,7 +236,8 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
     return progress
 
 
-def _device_kind(value: Any) -> str:
+def check_device_kind(value: Any) -> str:
+    """A device kind (``"cpu"``, ``"cuda"``, ...) or ``""`` (not kept); ``TypeError`` naming ``first_device``."""
     if not isinstance(value, str) or not (value == "" or value.isidentifier()):
         raise TypeError(f"'first_device' must be a device kind such as 'cpu', got {value!r}")
     return value

@@ -71,6 +71,7 @@ from steer_envs.baselines.training.run_state import (
     STATE_FILE,
     RunProgress,
     TrainingParts,
+    check_device_kind,
     check_losses,
     load_state,
     save_state,
@@ -350,8 +351,7 @@ def read_record(summary: Mapping[str, Any]) -> tuple[str, PolicyConfig, TrainSet
         record["losses"] = check_losses(record["losses"])
         if "threads" in record:
             record["threads"] = integer(record["threads"], "threads", low=1, high=MAX_THREADS)
-        if not isinstance(record.get("first_device", "cpu"), str):
-            raise TypeError(f"'first_device' must be a device kind, got {record['first_device']!r}")
+        record["first_device"] = check_device_kind(record.get("first_device", "")) or "cpu"
         if record.get("data") is not None and not isinstance(record["data"], Mapping):
             raise TypeError(f"'data' must be an object, got {type(record['data']).__name__}")
     except (KeyError, TypeError, ValueError) as err:
@@ -407,7 +407,7 @@ def check_record(
         raise CheckpointError(
             f"{path}: its config implies {size:,} parameters, more than the {MAX_PARAMETERS:,} allowed"
         )
-    first_device = str(record.get("first_device", "cpu"))
+    first_device = record["first_device"]
     threads = torch.get_num_threads()
     if first_device == "cpu":  # the same kernels: replay with the recorded thread count
         torch.set_num_threads(int(record.get("threads", threads)))

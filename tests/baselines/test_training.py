@@ -159,15 +159,20 @@ def test_train_settings_overrides(tmp_path: Path, walk_file: Path) -> None:
     assert isinstance(ACTPolicy.load(out), ACTPolicy)
 
 
-def test_check_reruns_a_recorded_run_and_flags_a_difference(
-    tmp_path: Path, walk_file: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """--check re-runs the start of a recorded run: same losses -> exit 0; a tampered record -> exit 1."""
+def _recorded_tiny_dp(tmp_path: Path, walk_file: Path) -> tuple[Path, list[str]]:
+    """A tiny DP trained 3 steps with the CLI: its JSON record and the ``--check`` arguments that replay it."""
     out = tmp_path / "dp.safetensors"
     argv = ["--policy", "dp", "--dataset", str(walk_file), "--out", str(out), "--steps", "3", "--batch-size", "4"]
     assert main([*argv, *TINY_DP, "--threads", "1", "--no-progress"]) == 0
     record = out.with_suffix(".json")
-    check = ["--dataset", str(walk_file), "--check", str(record), "--check-steps", "3", "--no-progress"]
+    return record, ["--dataset", str(walk_file), "--check", str(record), "--check-steps", "3", "--no-progress"]
+
+
+def test_check_reruns_a_recorded_run_and_flags_a_difference(
+    tmp_path: Path, walk_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--check re-runs the start of a recorded run: same losses -> exit 0; a tampered record -> exit 1."""
+    record, check = _recorded_tiny_dp(tmp_path, walk_file)
     assert main(check) == 0
     assert main(["--policy", "dp", *check]) == 0
     assert "dp: reproduced" in capsys.readouterr().out
@@ -186,16 +191,12 @@ def test_check_of_a_run_begun_on_another_device_checks_the_recipe(
     tmp_path: Path, walk_file: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A record whose first segment ran on CUDA replays on the CPU within CROSS_DEVICE_RTOL, not 1e-3."""
-    out = tmp_path / "dp.safetensors"
-    argv = ["--policy", "dp", "--dataset", str(walk_file), "--out", str(out), "--steps", "3", "--batch-size", "4"]
-    assert main([*argv, *TINY_DP, "--threads", "1", "--no-progress"]) == 0
-    record = out.with_suffix(".json")
+    record, check = _recorded_tiny_dp(tmp_path, walk_file)
     summary = json.loads(record.read_text())
     assert summary["training"]["first_device"] == "cpu"
     summary["training"]["first_device"] = "cuda"
     summary["training"]["losses"][-1][1] *= 1.05  # another noise stream: a few per cent off
     record.write_text(json.dumps(summary))
-    check = ["--dataset", str(walk_file), "--check", str(record), "--check-steps", "3", "--no-progress"]
     assert main(check) == 0
     printed = capsys.readouterr().out
     assert "started on cuda" in printed and f"rtol {CROSS_DEVICE_RTOL:g}" in printed

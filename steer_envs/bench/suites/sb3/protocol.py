@@ -40,7 +40,7 @@ from steer_envs.envs.registry import entry
 from steer_envs.io import atomic_directory
 from steer_envs.utils.threads import limit_threads
 
-__all__ = ["evaluate_success", "make_env", "run_folder", "train_and_evaluate"]
+__all__ = ["env_options", "evaluate_success", "make_env", "run_folder", "train_and_evaluate"]
 
 #: at most this many env copies step side by side in an evaluation
 MAX_EVAL_ENVS = 10
@@ -64,6 +64,16 @@ def train_env_id(env_id: str, method: str, params: Sb3Params) -> str:
     return env_id
 
 
+def env_options(env_id: str, params: Sb3Params) -> dict[str, Any]:
+    """The options a trial passes to ``gym.make`` on top of the id's registered ones."""
+    options: dict[str, Any] = {"normalize_actions": params.normalize_actions}
+    if not _is_maze(env_id):
+        options["observe_sensors"] = params.observe_sensors
+    elif params.maze_relative_actions:
+        options["relative_actions"] = True
+    return options
+
+
 def make_env(env_id: str, method: str, params: Sb3Params) -> Any:
     """The ``Monitor``-wrapped env of a trial (flattened to a Box when ``sac`` trains on a goal id)."""
     import gymnasium as gym
@@ -73,12 +83,7 @@ def make_env(env_id: str, method: str, params: Sb3Params) -> Any:
     import steer_envs  # noqa: F401  (registers the ids)
 
     train_id = train_env_id(env_id, method, params)
-    kwargs: dict[str, Any] = {"normalize_actions": params.normalize_actions}
-    if not _is_maze(env_id):
-        kwargs["observe_sensors"] = params.observe_sensors
-    elif params.maze_relative_actions:
-        kwargs["relative_actions"] = True
-    env: Any = gym.make(train_id, **kwargs)
+    env: Any = gym.make(train_id, **env_options(env_id, params))
     if method == "sac" and train_id != env_id:
         env = FlattenObservation(env)
     return Monitor(env)
@@ -86,16 +91,16 @@ def make_env(env_id: str, method: str, params: Sb3Params) -> Any:
 
 def run_folder(env_id: str, method: str, seed: int, params: Sb3Params) -> Path:
     """The trial's checkpoint folder under ``params.cache`` (one per recipe, see the module docstring)."""
+    train_id = train_env_id(env_id, method, params)
     recipe = {
         "env": env_id,
         "method": method,
         "seed": seed,
-        "train_env": train_env_id(env_id, method, params),
-        "env_kwargs": entry(train_env_id(env_id, method, params)).kwargs,
-        **{k: getattr(params, k) for k in ("eval_episodes", "eval_every", "normalize_actions", "observe_sensors")},
+        "train_env": train_id,
+        "env_kwargs": {**entry(train_id).kwargs, **env_options(env_id, params)},
+        "eval_episodes": params.eval_episodes,
+        "eval_every": params.eval_every,
     }
-    if _is_maze(env_id) and params.maze_relative_actions:
-        recipe["relative_actions"] = True
     digest = hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()[:10]
     return params.cache / f"{env_id.split('/')[-1]}-{method}-seed{seed}-{digest}"
 
