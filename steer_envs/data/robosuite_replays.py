@@ -24,6 +24,11 @@ task succeeded by the end and no step reported a constraint violation. A
 successful replay also yields an early-terminated copy (:func:`early_terminated`,
 kind ``"truncated"``): the same states cut before the task was done, a failure.
 
+Recording goes on after success until it has held for :data:`SUCCESS_HOLD_STEPS`
+more steps, as robosuite's human-demonstration collection does (its
+``collect_human_demonstrations.py``; robomimic's data, which the thesis used,
+come from it): the final mode is then seen in more than one state.
+
 >>> FEATURES["can"][:2]
 (('can_pos', 3), ('can_quat', 4))
 >>> feature_columns("lift", ["gripper_state"]).tolist()
@@ -51,6 +56,7 @@ __all__ = [
     "ENV_IDS",
     "FEATURES",
     "PERTURBATIONS",
+    "SUCCESS_HOLD_STEPS",
     "ArmPerturbation",
     "ArmTrajectory",
     "early_terminated",
@@ -71,6 +77,8 @@ ENV_IDS: Mapping[str, str] = {
     "can": "steer_envs/Can-v0",
     "square": "steer_envs/Square-v0",
 }
+#: steps a recording continues once the task succeeds while success holds (robosuite's demo collection: 10).
+SUCCESS_HOLD_STEPS = 10
 #: perturbation kinds of :func:`sample_perturbation` (``"demo"``: none; ``"truncated"``: an early-terminated copy).
 PERTURBATIONS: tuple[str, ...] = ("demo", "kernel", "gripper", "truncated")
 
@@ -185,6 +193,7 @@ class ArmTrajectory:
         violation_step: index of the first state after an invalid transition, -1 if none.
         perturbation: what was done to the demo (kind ``"demo"`` for a demo or a plain replay).
         source: index of the demo it replays (-1 for a demo).
+        success_from: index of the first state of the success the recording ends in (-1: it ends without success).
     """
 
     task: str
@@ -198,14 +207,18 @@ class ArmTrajectory:
     violation_step: int
     perturbation: ArmPerturbation
     source: int = -1
+    success_from: int = -1
 
     def __len__(self) -> int:
         return len(self.features)
 
 
 class _Recorder:
-    def __init__(self, env: RobosuiteEnv, obs: np.ndarray, info: Mapping[str, Any]) -> None:
+    """Records an episode; ``done`` once success has held for ``success_hold`` steps after the first success step."""
+
+    def __init__(self, env: RobosuiteEnv, obs: np.ndarray, info: Mapping[str, Any], success_hold: int) -> None:
         self.env = env
+        self.success_hold = success_hold
         self.features = [feature_vector(env)]
         self.obs = [np.asarray(obs, dtype=np.float32)]
         self.eef = [env.state]
@@ -213,10 +226,11 @@ class _Recorder:
         self.actions: list[np.ndarray] = []
         self.violation = -1
         self.success = bool(info["success"])
-        self.done = False
+        self.success_from = 0 if self.success else -1
+        self.done = self.success and success_hold == 0
 
     def step(self, action: np.ndarray) -> None:
-        obs, _, terminated, _, info = self.env.step(action)
+        obs, _, _, _, info = self.env.step(action)
         self.actions.append(np.asarray(action, dtype=np.float32))
         self.features.append(feature_vector(self.env))
         self.obs.append(np.asarray(obs, dtype=np.float32))
@@ -225,7 +239,12 @@ class _Recorder:
         if info["constraint_violation"] and self.violation < 0:
             self.violation = len(self.modes) - 1
         self.success = bool(info["success"])
-        self.done = bool(terminated)
+        last = len(self.modes) - 1
+        if not self.success:
+            self.success_from = -1
+        elif self.success_from < 0:
+            self.success_from = last
+        self.done = self.success and last - self.success_from >= self.success_hold
 
     def result(self, seed: int, perturbation: ArmPerturbation, source: int) -> ArmTrajectory:
         success = self.success and self.violation < 0
@@ -241,6 +260,7 @@ class _Recorder:
             violation_step=self.violation,
             perturbation=perturbation,
             source=source,
+            success_from=self.success_from,
         )
 
 
@@ -256,18 +276,25 @@ def _max_steps(task: str) -> int:
     return int(steps) if steps is not None else 500
 
 
-def record_demo(env: RobosuiteEnv, seed: int, *, max_steps: int | None = None) -> ArmTrajectory:
-    """One episode of ``env``'s scripted expert from reset seed ``seed`` (until success or ``max_steps``)."""
+def record_demo(
+    env: RobosuiteEnv, seed: int, *, max_steps: int | None = None, success_hold: int = SUCCESS_HOLD_STEPS
+) -> ArmTrajectory:
+    """One episode of ``env``'s scripted expert from reset seed ``seed``.
+
+    It ends when success has held for ``success_hold`` steps (0: at the first
+    success) or after ``max_steps`` steps (the env's step limit by default).
+    """
     from steer_envs.data.experts.robosuite import CanExpert, LiftExpert, SquareExpert
 
     if not isinstance(env, RobosuiteEnv):
         raise TypeError(f"record_demo: `env` must be a RobosuiteEnv, got {type(env).__name__}")
     seed = integer(seed, "seed", low=0, owner="record_demo")
     limit = _max_steps(env.task_name) if max_steps is None else integer(max_steps, "max_steps", low=1)
+    hold = integer(success_hold, "success_hold", low=0, owner="record_demo")
     expert: Any = {"lift": LiftExpert, "can": CanExpert, "square": SquareExpert}[env.task_name](env)
     obs, info = env.reset(seed=seed)
     expert.reset(obs, info)
-    rec = _Recorder(env, obs, info)
+    rec = _Recorder(env, obs, info, hold)
     for _ in range(limit):
         rec.step(expert.act(rec.obs[-1], {}))
         if rec.done:
@@ -337,12 +364,14 @@ def replay(
     source: int = 0,
     gain: float = 10.0,
     extra_steps: int = 40,
+    success_hold: int = SUCCESS_HOLD_STEPS,
 ) -> ArmTrajectory:
     """Replay ``demo`` in ``env`` under ``perturbation`` with the tracking controller.
 
-    After the demo's steps, up to ``extra_steps`` more hold the demo's last
-    position and gripper command while the task has not succeeded (a perturbed
-    replay may finish later than its demo).
+    The replay ends once success has held for ``success_hold`` steps (as
+    :func:`record_demo`). After the demo's steps, up to ``extra_steps`` more
+    hold the demo's last position and gripper command (a perturbed replay may
+    finish later than its demo).
     """
     owner = "replay"
     if not isinstance(env, RobosuiteEnv) or env.task_name != demo.task:
@@ -350,9 +379,10 @@ def replay(
     if perturbation.kind not in ("demo", "kernel", "gripper"):
         raise ValueError(f"{owner}: perturbation kind must be demo, kernel or gripper, got {perturbation.kind!r}")
     gain = real_scalar(gain, "gain", low=0.0, owner=owner)
+    hold = integer(success_hold, "success_hold", low=0, owner=owner)
     ref = _reference(demo, perturbation)
     obs, info = env.reset(seed=demo.seed)
-    rec = _Recorder(env, obs, info)
+    rec = _Recorder(env, obs, info, hold)
     s, e = perturbation.window
     n = len(demo.actions)
     for t in range(n + integer(extra_steps, "extra_steps", low=0, owner=owner)):
@@ -375,11 +405,15 @@ def replay(
 def early_terminated(trajectory: ArmTrajectory, rng: np.random.Generator, *, min_cut: float = 0.3) -> ArmTrajectory:
     """A failure copy of a successful ``trajectory``: its first states, cut before the task was done.
 
-    The cut is uniform in ``[min_cut * T, T - 1)`` (never the last state, where the
-    task succeeded); the copy keeps the perturbation's window and gets kind ``"truncated"``.
+    The copy keeps the states before index ``cut``, uniform in ``[min_cut * S, S]``
+    where ``S`` is the first state of the final success (``success_from``; ``T - 1``
+    when unknown): no state of the copy has succeeded. It keeps the perturbation's
+    window and gets kind ``"truncated"``.
     """
     n = len(trajectory)
-    cut = int(rng.integers(max(2, int(min_cut * n)), n - 1)) if n > 4 else max(1, n - 1)
+    first = trajectory.success_from if 0 < trajectory.success_from < n else n - 1
+    lo = max(2, int(min_cut * first))
+    cut = int(rng.integers(lo, first + 1)) if first > lo else max(1, first)
     p = replace(trajectory.perturbation, kind="truncated")
     return replace(
         trajectory,
@@ -391,12 +425,13 @@ def early_terminated(trajectory: ArmTrajectory, rng: np.random.Generator, *, min
         success=False,
         violation_step=-1,
         perturbation=p,
+        success_from=-1,
     )
 
 
 # ------------------------------------------------------------------------------ files
-#: format version of :func:`save_trajectories` files.
-FORMAT_VERSION = 1
+#: format version of :func:`save_trajectories` files (2: ``success_from``).
+FORMAT_VERSION = 2
 _FILE_SPECS: dict[str, tuple[str, int]] = {
     "features": ("f", 2),
     "obs": ("f", 2),
@@ -411,7 +446,11 @@ _FILE_SPECS: dict[str, tuple[str, int]] = {
     "window": ("iu", 2),
     "target": ("f", 2),
     "source": ("iu", 1),
+    "success_from": ("iu", 1),
 }
+
+
+_PER_TRAJECTORY = ("seed", "violation_step", "kind", "window", "target", "source", "success_from")
 
 
 def save_trajectories(
@@ -446,6 +485,7 @@ def save_trajectories(
         "window": np.array([t.perturbation.window for t in trajs], dtype=np.int32),
         "target": np.array([t.perturbation.target for t in trajs], dtype=np.float64),
         "source": np.array([t.source for t in trajs], dtype=np.int32),
+        "success_from": np.array([t.success_from for t in trajs], dtype=np.int32),
     }
     info = {**dict(meta or {}), "task": trajs[0].task, "format_version": FORMAT_VERSION, "kinds": list(PERTURBATIONS)}
     return atomic_write_npz(path, {**arrays, "meta": np.array(json.dumps(info, sort_keys=True))})
@@ -477,7 +517,7 @@ def load_trajectories(path: str | os.PathLike[str]) -> tuple[list[ArmTrajectory]
         or arrays["features"].shape[1] != dim
         or any(len(arrays[k]) != rows for k in ("obs", "eef", "modes"))
         or arrays["actions"].shape != (rows - n, 7)
-        or any(len(arrays[k]) != n for k in ("seed", "violation_step", "kind", "window", "target", "source"))
+        or any(len(arrays[k]) != n for k in _PER_TRAJECTORY)
         or arrays["window"].shape[1:] != (2,)
         or arrays["target"].shape[1:] != (3,)
         or np.any((arrays["kind"] < 0) | (arrays["kind"] >= len(PERTURBATIONS)))
@@ -504,6 +544,7 @@ def load_trajectories(path: str | os.PathLike[str]) -> tuple[list[ArmTrajectory]
                 violation_step=int(arrays["violation_step"][i]),
                 perturbation=perturbation,
                 source=int(arrays["source"][i]),
+                success_from=int(arrays["success_from"][i]),
             )
         )
     return out, meta

@@ -55,7 +55,7 @@ def test_feasibility_and_plan_choices() -> None:
         dynamics_columns(task, selected_features(task, "no_feature_selection"))
     with pytest.raises(ValueError, match="needs the feature 'robot0_eef_pos'"):
         dynamics_columns("lift", ["block_to_robot0_eef_pos"])
-    assert GroundingSetup().stride_of("lift") == 2 and GroundingSetup(stride=3).stride_of("can") == 3
+    assert GroundingSetup().stride_of("lift") == 1 and GroundingSetup(stride=3).stride_of("can") == 3
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +79,35 @@ def test_data_trials_build_shards_once(cache: Path) -> None:
     again = execute_trial(trials[0])
     assert again.record["metrics"]["built"] == 0.0  # resumed: the shard on disk is reused
     assert again.record["metrics"]["replay_success"] == m0["replay_success"]
+
+
+def test_success_hold_is_a_data_setting() -> None:
+    params = DataParams(replay_demos=1, replays_per_demo=2)
+    assert params.success_hold == 10  # robosuite's demo collection
+    held, at_success = params.shard("lift", 0), DataParams(success_hold=0).shard("lift", 0)
+    assert held.file_name() != at_success.file_name()  # shards of either setting live side by side
+    extra = DataParams(replay_demos=1, replays_per_demo=2, extra_gripper=True)
+    assert extra.shard("lift", 0).file_name() != held.file_name()
+    assert extra.shard("lift", 1).file_name() == params.shard("lift", 1).file_name()  # no replays: same shard
+    with pytest.raises(ValueError, match="success_hold"):
+        DataParams(success_hold=-1)
+
+
+@needs_robosuite
+def test_extra_gripper_replays_leave_the_others_as_they_were() -> None:
+    from steer_envs.bench.suites.glide_robosuite.data import ShardSettings, build_shard
+    from steer_envs.data import robosuite_replays as rr
+
+    env = rr.make_arm_env("lift")
+    try:
+        plain = build_shard(ShardSettings("lift", 0, 1, 2), env)
+        extra = build_shard(ShardSettings("lift", 0, 1, 2, extra_gripper=True), env)
+    finally:
+        env.close()
+    successes = [t for t in plain if t.source >= 0 and t.perturbation.kind != "truncated" and t.success]
+    added = [t for t in extra if not any(t is p or np.array_equal(t.eef, p.eef) for p in plain)]
+    assert len(extra) == len(plain) + len(successes) and len(added) == len(successes)
+    assert all(t.perturbation.kind == "gripper" and t.source == 0 for t in added)
 
 
 @needs_robosuite

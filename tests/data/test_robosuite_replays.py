@@ -52,6 +52,17 @@ def test_demo_is_a_successful_expert_episode(demo: rr.ArmTrajectory) -> None:
     assert np.all(np.diff(demo.modes) >= 0)
 
 
+def test_recording_goes_on_while_success_holds(lift: rr.RobosuiteEnv, demo: rr.ArmTrajectory) -> None:
+    # robosuite's demo collection: recorded until success has held for 10 more steps
+    assert demo.success_from == len(demo) - 1 - rr.SUCCESS_HOLD_STEPS
+    assert np.all(demo.modes[demo.success_from :] == 2) and demo.modes[demo.success_from - 1] != 2
+    short = rr.record_demo(lift, 3, success_hold=0)
+    assert short.success and short.success_from == len(short) - 1 == demo.success_from
+    np.testing.assert_allclose(short.eef, demo.eef[: len(short)], atol=1e-9)
+    with pytest.raises(ValueError, match="success_hold"):
+        rr.record_demo(lift, 3, success_hold=-1)
+
+
 def test_unperturbed_replay_retraces_the_demo(lift: rr.RobosuiteEnv, demo: rr.ArmTrajectory) -> None:
     r = rr.replay(lift, demo, rr.ArmPerturbation("demo"), source=0)
     assert r.success and len(r) == len(demo) and r.source == 0
@@ -90,6 +101,9 @@ def test_early_terminated_copy_is_a_shorter_failure(demo: rr.ArmTrajectory) -> N
     assert not cut.success and cut.perturbation.kind == "truncated"
     assert 2 <= len(cut) < len(demo) and len(cut.actions) == len(cut) - 1
     np.testing.assert_array_equal(cut.features, demo.features[: len(cut)])
+    lengths = {len(rr.early_terminated(demo, np.random.default_rng(s))) for s in range(200)}
+    assert max(lengths) == demo.success_from  # never a state where the task had succeeded
+    assert min(lengths) >= int(0.3 * demo.success_from)
 
 
 def test_files_round_trip_and_refuse_bad_input(tmp_path, demo: rr.ArmTrajectory) -> None:
@@ -100,7 +114,12 @@ def test_files_round_trip_and_refuse_bad_input(tmp_path, demo: rr.ArmTrajectory)
     for a, b in zip(back, [demo, cut], strict=True):
         for name in ("features", "obs", "actions", "eef", "modes"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-        assert (a.success, a.perturbation.kind, a.seed) == (b.success, b.perturbation.kind, b.seed)
+        assert (a.success, a.perturbation.kind, a.seed, a.success_from) == (
+            b.success,
+            b.perturbation.kind,
+            b.seed,
+            b.success_from,
+        )
     with pytest.raises(ValueError, match=r"\.npz"):
         rr.save_trajectories(tmp_path / "t.txt", [demo])
     with pytest.raises(ValueError, match="one task"):

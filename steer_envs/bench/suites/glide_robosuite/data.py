@@ -27,7 +27,7 @@ from steer_envs.data import robosuite_replays as rr
 from steer_envs.io import DatasetError
 
 #: bump when shard contents change for the same settings (old shards are then not reused).
-SHARD_VERSION = 3
+SHARD_VERSION = 4
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,8 @@ class ShardSettings:
     replay_demos: int
     replays_per_demo: int
     truncated_copies: bool = True
+    success_hold: int = rr.SUCCESS_HOLD_STEPS
+    extra_gripper: bool = False
 
     @property
     def has_replays(self) -> bool:
@@ -49,6 +51,8 @@ class ShardSettings:
             "v": SHARD_VERSION,
             "replays": self.replays_per_demo if self.has_replays else 0,
             "truncated": self.truncated_copies and self.has_replays,
+            "hold": self.success_hold,
+            "extra_gripper": self.extra_gripper and self.has_replays,
         }
         digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
         return f"{self.task}-demo{self.index:04d}-{digest}.npz"
@@ -56,16 +60,22 @@ class ShardSettings:
 
 def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv) -> list[rr.ArmTrajectory]:
     """The demo of ``settings.index`` and (when it has replays) its perturbed replays and their truncated copies."""
-    demo = rr.record_demo(env, settings.index)
+    demo = rr.record_demo(env, settings.index, success_hold=settings.success_hold)
     out = [demo]
     if not (settings.has_replays and demo.success):
         return out
     rng = np.random.default_rng([settings.index, 7])
+    extra_rng = np.random.default_rng([settings.index, 11])  # its own stream: the other replays stay as they were
     for _ in range(settings.replays_per_demo):
-        r = rr.replay(env, demo, rr.sample_perturbation(demo, rng), source=settings.index)
+        r = rr.replay(
+            env, demo, rr.sample_perturbation(demo, rng), source=settings.index, success_hold=settings.success_hold
+        )
         out.append(r)
         if settings.truncated_copies and r.success:
             out.append(rr.early_terminated(r, rng))
+        if settings.extra_gripper and r.success:
+            g = rr.sample_perturbation(r, extra_rng, kernel_fraction=0.0)
+            out.append(rr.replay(env, r, g, source=settings.index, success_hold=settings.success_hold))
     return out
 
 
@@ -103,14 +113,22 @@ def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[r
 
 
 def task_dataset(
-    cache_dir: str | Path, task: str, n_demos: int, replay_demos: int, replays_per_demo: int
+    cache_dir: str | Path,
+    task: str,
+    n_demos: int,
+    replay_demos: int,
+    replays_per_demo: int,
+    success_hold: int = rr.SUCCESS_HOLD_STEPS,
+    extra_gripper: bool = False,
 ) -> list[rr.ArmTrajectory]:
     """Every trajectory of ``task``'s shards ``0 .. n_demos - 1`` in shard order (missing shards built here)."""
     out: list[rr.ArmTrajectory] = []
     env = None  # made once, for the first missing shard
     try:
         for i in range(n_demos):
-            settings = ShardSettings(task, i, replay_demos, replays_per_demo)
+            settings = ShardSettings(
+                task, i, replay_demos, replays_per_demo, success_hold=success_hold, extra_gripper=extra_gripper
+            )
             path = shard_path(cache_dir, settings)
             trajs = _read_shard(path)
             if trajs is None:

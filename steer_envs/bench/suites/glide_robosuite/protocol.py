@@ -31,7 +31,7 @@ Choices, and why:
   trained on) with every move feasible; holding the last state of every
   trajectory to the final mode (the polygons' rule) contradicts them.
 * ``stride`` per task (:data:`TASK_STRIDE`): Lift's lift phase lasts ~5
-  control steps, which every 6th state would skip.
+  control steps (sometimes 1-2), which a stride above 1 can skip.
 * Variants: ``full`` (``L_under``, eq. 4.3), ``no_dynamics`` (``L_dyn`` off),
   ``no_prediction`` (``L_succ`` and ``L_fail`` off), ``no_feature_selection``
   (every available feature), ``kmeans`` (k-means++ on the standardised selected
@@ -95,8 +95,9 @@ OBJECT_MOTION: dict[str, str] = {
     "can": "can_to_robot0_eef_pos",
     "square": "nut_to_robot0_eef_pos",
 }
-#: every how many control steps the classifier sees a state (Lift's lift phase is ~5 steps long).
-TASK_STRIDE: dict[str, int] = {"lift": 2, "can": 6, "square": 6}
+#: every how many control steps the classifier sees a state. Lift: every one; its lift phase is ~5
+#: steps long, and at stride 2 it can fall between kept states (the ground truth then skips a mode).
+TASK_STRIDE: dict[str, int] = {"lift": 1, "can": 6, "square": 6}
 
 
 def dynamics_columns(task: str, names: Sequence[str]) -> tuple[tuple[int, ...], tuple[int, ...]]:
@@ -168,6 +169,7 @@ class GroundingSetup:
     dyn_weight: float = 10.0
     stride: int = 0
     train_truncated: bool = True
+    init_mode_bias: float = 0.0
 
     def stride_of(self, task: str) -> int:
         return self.stride or TASK_STRIDE[task]
@@ -227,6 +229,7 @@ def train_predictor(
             dyn_columns=dyn_outputs,
             dyn_inputs=dyn_inputs,
             dyn_input_lag=0,
+            init_mode_bias=setup.init_mode_bias,
         )
         result = train_mode_classifier(
             [t.features[:, cols] for t in train],

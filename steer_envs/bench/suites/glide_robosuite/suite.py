@@ -76,21 +76,55 @@ def _task(env: str | None) -> str:
 
 @dataclass(frozen=True)
 class DataParams(SuiteParams):
-    """What the replay data are built from: demos with replays, replays per demo, the cache folder ("": default)."""
+    """What the replay data are built from: demos with replays, replays per demo, the cache folder ("": default).
+
+    ``success_hold``: steps a recording goes on once the task succeeds (robosuite's
+    demo collection records 10; 0 stops at the first success).
+    """
 
     suite_name: ClassVar[str] = DATA_SUITE
     replay_demos: int = 20
     replays_per_demo: int = 10
     cache_dir: str = ""
+    success_hold: int = 10
+    extra_gripper: bool = False
 
     def __post_init__(self) -> None:
-        self.require_at_least(0, "replay_demos")
+        self.require_at_least(0, "replay_demos", "success_hold")
         self.require_at_least(1, "replays_per_demo")
         self.require_at_most(10_000, "replay_demos", "replays_per_demo")
+        self.require_at_most(1_000, "success_hold")
 
     @property
     def cache(self) -> str:
         return self.cache_dir or default_cache_dir()
+
+    def shard(self, task: str, index: int) -> Any:
+        """The :class:`~steer_envs.bench.suites.glide_robosuite.data.ShardSettings` of demo ``index`` of ``task``."""
+        from steer_envs.bench.suites.glide_robosuite.data import ShardSettings
+
+        return ShardSettings(
+            task,
+            index,
+            self.replay_demos,
+            self.replays_per_demo,
+            success_hold=self.success_hold,
+            extra_gripper=self.extra_gripper,
+        )
+
+    def trajectories(self, task: str, n_demos: int) -> list[Any]:
+        """Every trajectory of ``task``'s first ``n_demos`` shards (missing ones built here)."""
+        from steer_envs.bench.suites.glide_robosuite.data import task_dataset
+
+        return task_dataset(
+            self.cache,
+            task,
+            n_demos,
+            self.replay_demos,
+            self.replays_per_demo,
+            success_hold=self.success_hold,
+            extra_gripper=self.extra_gripper,
+        )
 
 
 @dataclass(frozen=True)
@@ -132,13 +166,12 @@ def run_data_trial(trial: Trial) -> TrialResult:
     """One task x demo index: build (or find) its shard."""
     import numpy as np
 
-    from steer_envs.bench.suites.glide_robosuite.data import ShardSettings, ensure_shard
+    from steer_envs.bench.suites.glide_robosuite.data import ensure_shard
 
     task = _task(trial.env)
     params = DataParams.from_json(trial.params)
-    settings = ShardSettings(task, trial.seed, params.replay_demos, params.replays_per_demo)
     with single_threaded():
-        trajs, path, built = ensure_shard(params.cache, settings)
+        trajs, path, built = ensure_shard(params.cache, params.shard(task, trial.seed))
     replays = [t for t in trajs if t.source >= 0 and t.perturbation.kind != "truncated"]
     metrics = {
         "demo_success": trajs[0].success,
@@ -173,7 +206,6 @@ register_suite(
 # ------------------------------------------------------------ glide-robosuite-grounding
 def run_grounding_trial(trial: Trial) -> TrialResult:
     """One task x variant x training seed: accuracy of the learned modes on every demo sample."""
-    from steer_envs.bench.suites.glide_robosuite.data import task_dataset
     from steer_envs.bench.suites.glide_robosuite.protocol import grounding
 
     task = _task(trial.env)
@@ -182,7 +214,7 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
     params = GroundingParams.from_json(trial.params)
     keep = 3 if trial.seed < params.plot_seeds else 0
     with single_threaded():
-        trajs = task_dataset(params.cache, task, params.n_demos, params.replay_demos, params.replays_per_demo)
+        trajs = params.trajectories(task, params.n_demos)
         res = grounding(task, str(trial.method), trajs, seed=trial.seed, setup=params.setup(), keep=keep)
     metrics = {
         "accuracy": res["accuracy"],
@@ -284,7 +316,7 @@ class PolicyParams(GroundingParams):
 
 def run_policy_trial(trial: Trial) -> TrialResult:
     """One task x method x training seed: success without and with the "+p" perturbations (thesis Table 4.3)."""
-    from steer_envs.bench.suites.glide_robosuite.data import split, task_dataset
+    from steer_envs.bench.suites.glide_robosuite.data import split
     from steer_envs.bench.suites.glide_robosuite.policies import GROUND_TRUTH, KMeansModes, policy_trial
     from steer_envs.bench.suites.glide_robosuite.protocol import train_predictor
 
@@ -293,7 +325,7 @@ def run_policy_trial(trial: Trial) -> TrialResult:
         raise ValueError(f"{POLICY_SUITE}: unknown method {trial.method!r}; expected one of {METHODS}")
     params = PolicyParams.from_json(trial.params)
     with single_threaded():
-        trajs = task_dataset(params.cache, task, params.n_demos, params.replay_demos, params.replays_per_demo)
+        trajs = params.trajectories(task, params.n_demos)
         demos, _ = split(trajs)
         predictor: Any = GROUND_TRUTH
         grounding_seconds = None
