@@ -10,7 +10,10 @@ set atomically beside them.
 Shard ``i`` of a task: the scripted expert from reset seed ``i``; if ``i <
 replay_demos``, ``replays_per_demo`` perturbed replays of it (drawn from
 ``default_rng([i, 7])`` by :func:`~steer_envs.data.robosuite_replays.sample_perturbation`)
-and an early-terminated copy of every successful one.
+and an early-terminated copy of every successful one; with ``extra_gripper``
+(the public GLiDE robosuite code's "extra gripper perturbation", off by
+default) also a replay of every successful replay with the gripper forced open
+(drawn from its own stream, ``default_rng([i, 11])``, so the others do not change).
 """
 
 from __future__ import annotations
