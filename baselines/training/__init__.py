@@ -11,6 +11,13 @@ SystemExit: 2
 """
 
 from steer_envs.baselines.common.configuration import TrainSettings
-from steer_envs.baselines.training.trainer import check_record, main, parse_overrides, read_record, train_policy
+from steer_envs.baselines.training.trainer import (
+    check_record,
+    main,
+    parse_overrides,
+    read_record,
+    snapshot_run,
+    train_policy,
+)
 
-__all__ = ["TrainSettings", "check_record", "main", "parse_overrides", "read_record", "train_policy"]
+__all__ = ["TrainSettings", "check_record", "main", "parse_overrides", "read_record", "snapshot_run", "train_policy"]

@@ -10,7 +10,9 @@
 
 ``--run-dir DIR`` makes a run resumable (its full state saved in ``DIR`` every
 ``--save-every`` seconds and on SIGINT / SIGTERM); ``--resume DIR`` continues
-it, ending with the weights an uninterrupted run would have. ``--precision
+it, ending with the weights an uninterrupted run would have; ``--resume DIR
+--snapshot`` writes the weights it has reached so far (to evaluate a long run
+on the way) without training. ``--precision
 bf16``, ``--fused-optimizer`` and ``--compile`` trade exact reproduction of
 an fp32 run for speed (they are recorded, so ``--check`` replays them).
 
@@ -152,28 +154,14 @@ def train_policy(
     windows = PlanWindows(dataset, **policy.window_layout)
     if len(windows) == 0:
         raise ValueError(f"dataset of {len(dataset)} steps is too short for windows {policy.window_layout}")
-    from diffusers.optimization import get_cosine_schedule_with_warmup
-
     model = policy.model
     rng = np.random.default_rng(settings.seed)
     gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
     tic = time.perf_counter()
     with torch.random.fork_rng(devices=[]), _StopSignals(enabled=state_file is not None) as stop:
         torch.manual_seed(settings.seed)
-        opt = torch.optim.AdamW(
-            model.parameters(),
-            lr=settings.lr,
-            betas=settings.betas,
-            weight_decay=settings.weight_decay,
-            fused=settings.fused_optimizer or None,
-        )
-        sched = get_cosine_schedule_with_warmup(opt, min(settings.warmup_steps, settings.steps), settings.steps)
-        ema = None
-        if settings.ema_power > 0:
-            from diffusers.training_utils import EMAModel
-
-            ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
-        parts = TrainingParts(model, opt, sched, ema, rng, gen)
+        parts = _training_parts(policy, settings, rng, gen)
+        opt, sched, ema = parts.optimizer, parts.scheduler, parts.ema
         done = RunProgress(threads=torch.get_num_threads(), first_device=policy.device.type)
         if state_file is not None and state_file.exists():
             done = load_state(state_file, settings=settings, parts=parts)
@@ -237,7 +225,38 @@ def train_policy(
         raw_weights.update({k: v.detach().clone() for k, v in model.state_dict().items()})
     if ema is not None:
         ema.copy_to(model.parameters())
-    record = {
+    return _record(policy, dataset, settings, done, len(windows))
+
+
+def _training_parts(
+    policy: TorchPolicy, settings: TrainSettings, rng: np.random.Generator, gen: torch.Generator
+) -> TrainingParts:
+    """The optimizer (AdamW), LR schedule (warm-up + cosine), optional EMA and RNGs of a fresh run of ``policy``."""
+    from diffusers.optimization import get_cosine_schedule_with_warmup
+
+    model = policy.model
+    opt = torch.optim.AdamW(
+        model.parameters(),
+        lr=settings.lr,
+        betas=settings.betas,
+        weight_decay=settings.weight_decay,
+        fused=settings.fused_optimizer or None,
+    )
+    sched = get_cosine_schedule_with_warmup(opt, min(settings.warmup_steps, settings.steps), settings.steps)
+    ema = None
+    if settings.ema_power > 0:
+        from diffusers.training_utils import EMAModel
+
+        ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
+    return TrainingParts(model, opt, sched, ema, rng, gen)
+
+
+def _record(
+    policy: TorchPolicy, dataset: TrajectoryDataset, settings: TrainSettings, done: RunProgress, windows: int
+) -> dict[str, Any]:
+    """The training record of a run that stands at ``done`` (see :func:`train_policy`)."""
+    losses = done.losses
+    record: dict[str, Any] = {
         "settings": settings.to_dict(),
         "losses": losses,
         "final_loss": losses[-1][1] if losses else None,
@@ -246,7 +265,7 @@ def train_policy(
         "device": str(policy.device),
         "first_device": done.first_device or policy.device.type,  # where a check's replay can match exactly
         "torch": torch.__version__,
-        "windows": len(windows),
+        "windows": windows,
         "data": dataset.provenance(),
     }
     if done.resumed_at:
@@ -254,6 +273,32 @@ def train_policy(
     if done.moved_at:
         record["moved_at"] = list(done.moved_at)
     return record
+
+
+def snapshot_run(
+    policy: TorchPolicy, dataset: TrajectoryDataset, settings: TrainSettings, run_dir: str | os.PathLike[str]
+) -> dict[str, Any]:
+    """Load the weights a resumable run in ``run_dir`` has reached into ``policy``; nothing is written.
+
+    For evaluating a long run on the way (the run may be going on: its state
+    file is replaced atomically). With an EMA the policy gets the averaged
+    weights, as at the end of a run. Returns the record of the run so far,
+    with ``snapshot_step``; :class:`CheckpointError` when there is no state
+    of this run in ``run_dir``.
+    """
+    state_file = Path(run_dir) / STATE_FILE
+    if not state_file.exists():
+        raise CheckpointError(f"{run_dir}: no saved training state yet ({STATE_FILE})")
+    rng = np.random.default_rng(settings.seed)
+    gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
+    with torch.random.fork_rng(devices=[]):
+        parts = _training_parts(policy, settings, rng, gen)
+        done = load_state(state_file, settings=settings, parts=parts)
+    if parts.ema is not None:
+        parts.ema.copy_to(policy.model.parameters())
+    policy.model.eval()
+    windows = len(PlanWindows(dataset, **policy.window_layout))
+    return {**_record(policy, dataset, settings, done, windows), "snapshot_step": done.step}
 
 
 class TrainingInterrupted(KeyboardInterrupt):
@@ -487,8 +532,14 @@ def _parser() -> argparse.ArgumentParser:
         "--resume",
         metavar="DIR",
         help="continue the run in DIR (started with --run-dir); it ends with the weights an uninterrupted run "
-        "would have. Takes only --dataset, --threads, --save-every, --no-progress, and --out and --device "
+        "would have. Takes only --dataset, --threads, --save-every, --no-progress, --snapshot, and --out and --device "
         "(a run moved to another kind of device restarts its noise generator there, see run_state)",
+    )
+    parser.add_argument(
+        "--snapshot",
+        action="store_true",
+        help="with --resume: write the weights the run has reached so far (default --out: "
+        "DIR/snapshot-step<N>.safetensors) and exit, without training; the run may be going on",
     )
     parser.add_argument(
         "--save-every", type=float, default=300.0, metavar="SECONDS", help="state save interval (default 300)"
@@ -702,6 +753,8 @@ def main(argv: list[str] | None = None) -> int:
         return _check_main(parser, args)
     if args.resume is not None and args.run_dir is not None:
         parser.error("--resume DIR continues the run in DIR; --run-dir starts a new one: give one of them")
+    if args.snapshot and args.resume is None:
+        parser.error("--snapshot needs --resume DIR (the run whose weights to write)")
     if not 1 <= args.threads <= MAX_THREADS:
         parser.error(f"--threads must be in [1, {MAX_THREADS}], got {args.threads}")
     if not args.save_every >= 0:
@@ -711,6 +764,8 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(run_dir or ".") / run["out"]  # relative: inside the run folder (the folder may move)
     if args.resume is not None and args.out is not None:
         out = Path(args.out)
+    elif args.snapshot:
+        out = Path(run_dir) / "snapshot.safetensors"  # checked here; named after the step below
     if args.resume is not None and args.device is not None:
         run["device"] = args.device
     if out.suffix != ".safetensors":
@@ -735,6 +790,8 @@ def main(argv: list[str] | None = None) -> int:
             atomic_write_text(Path(run_dir) / RUN_FILE, json.dumps(run, indent=1) + "\n")
         except OSError as err:
             parser.error(f"cannot write --run-dir {run_dir!r}: {err}")
+    if args.snapshot:
+        return _snapshot_main(parser, args, run, policy, dataset, settings, out)
     print(
         f"{run['policy']} ({run['preset']}): {policy.num_parameters():,} parameters, {len(dataset):,} steps "
         f"(obs {policy.obs_dim}, action {policy.action_dim}), {settings.steps} training steps"
@@ -758,6 +815,33 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"cannot write --out {str(out)!r}: {err}")
     print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
     print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")
+    return 0
+
+
+def _snapshot_main(
+    parser: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    run: dict[str, Any],
+    policy: TorchPolicy,
+    dataset: TrajectoryDataset,
+    settings: TrainSettings,
+    out: Path,
+) -> int:
+    """``--resume DIR --snapshot``: write the run's current weights and record; exit 0 (2: no usable state)."""
+    try:
+        record = snapshot_run(policy, dataset, settings, args.resume)
+    except CheckpointError as err:
+        parser.error(str(err))
+    if args.out is None:
+        out = Path(args.resume) / f"snapshot-step{record['snapshot_step']}.safetensors"
+    record["data"]["file"] = Path(args.dataset or run["dataset"]).name
+    record["preset"] = run["preset"]
+    record["command"] = run["command"]
+    try:
+        save_trained(policy, out, run["policy"], record)
+    except OSError as err:
+        parser.error(f"cannot write --out {str(out)!r}: {err}")
+    print(f"wrote {out}: step {record['snapshot_step']} of {settings.steps}, loss {record['final_loss']:.4f}")
     return 0
 
 

@@ -16,7 +16,7 @@ import torch
 from steer_envs.baselines.common import TrainSettings
 from steer_envs.baselines.common.checkpoint import read_safetensors, write_safetensors
 from steer_envs.baselines.factory import make_policy, make_policy_config
-from steer_envs.baselines.training import main, train_policy
+from steer_envs.baselines.training import main, snapshot_run, train_policy
 from steer_envs.baselines.training.run_state import RUN_FILE, STATE_FILE
 from steer_envs.data.trajectories import TrajectoryDataset, save_trajectories
 from steer_envs.io import CheckpointError
@@ -75,6 +75,43 @@ def test_a_stopped_and_resumed_run_ends_with_the_uninterrupted_weights(
     assert again["losses"] == record["losses"]
     assert again["resumed_at"] == [7, 15]
     assert "resumed_at" not in record
+
+
+@pytest.mark.parametrize("name", ["dp", "act"])
+def test_a_snapshot_holds_the_weights_the_run_has_reached(
+    name: str, data: TrajectoryDataset, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = make_policy_config(name, **TINY[name])  # type: ignore[arg-type]
+    settings = TrainSettings(steps=24, batch_size=8, log_every=5, warmup_steps=4, ema_power=0.75 if name == "dp" else 0)
+    with pytest.raises(CheckpointError, match="no saved training state"):
+        snapshot_run(make_policy(config, dataset=data), data, settings, tmp_path)
+    part = make_policy(config, dataset=data)
+    train_policy(part, data, settings, progress=False, run_dir=tmp_path, stop_after=10)  # the EMA weights at 10
+    state = (tmp_path / STATE_FILE).read_bytes()
+    snap = make_policy(config, dataset=data, seed=3)
+    record = snapshot_run(snap, data, settings, tmp_path)
+    assert _same(_weights(snap), _weights(part)) and record["snapshot_step"] == 10
+    assert record["losses"][-1][0] == 10 and (tmp_path / STATE_FILE).read_bytes() == state  # nothing written
+    # the run goes on to the weights of an uninterrupted run
+    train_policy(make_policy(config, dataset=data, seed=4), data, settings, progress=False, run_dir=tmp_path)
+
+
+def test_cli_snapshot_writes_the_current_weights(
+    data_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    base = ["--policy", "act", "--dataset", str(data_file), "--model", "chunk_size=4", "--model", "d_model=8"]
+    base += ["--model", "n_heads=1", "--model", "dim_feedforward=8", "--steps", "6", "--no-progress"]
+    assert main([*base, "--run-dir", str(run)]) == 0
+    assert main(["--resume", str(run), "--snapshot"]) == 0
+    assert "step 6 of 6" in capsys.readouterr().out
+    snap, _ = read_safetensors(run / "snapshot-step6.safetensors", "config")
+    final, _ = read_safetensors(run / "act.safetensors", "config")
+    assert _same(snap, final)
+    assert json.loads((run / "snapshot-step6.json").read_text())["training"]["snapshot_step"] == 6
+    with pytest.raises(SystemExit) as exc:
+        main([*base, "--snapshot", "--out", str(tmp_path / "x.safetensors")])
+    assert exc.value.code == 2 and "--snapshot needs --resume" in capsys.readouterr().err
 
 
 def test_a_resumed_run_records_its_first_segments_threads(data: TrajectoryDataset, tmp_path: Path) -> None:
