@@ -155,13 +155,11 @@ def train_policy(
     if len(windows) == 0:
         raise ValueError(f"dataset of {len(dataset)} steps is too short for windows {policy.window_layout}")
     model = policy.model
-    rng = np.random.default_rng(settings.seed)
-    gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
     tic = time.perf_counter()
     with torch.random.fork_rng(devices=[]), _StopSignals(enabled=state_file is not None) as stop:
         torch.manual_seed(settings.seed)
-        parts = _training_parts(policy, settings, rng, gen)
-        opt, sched, ema = parts.optimizer, parts.scheduler, parts.ema
+        parts = _training_parts(policy, settings)
+        opt, sched, ema, rng, gen = parts.optimizer, parts.scheduler, parts.ema, parts.rng, parts.generator
         done = RunProgress(threads=torch.get_num_threads(), first_device=policy.device.type)
         if state_file is not None and state_file.exists():
             done = load_state(state_file, settings=settings, parts=parts)
@@ -228,10 +226,8 @@ def train_policy(
     return _record(policy, dataset, settings, done, len(windows))
 
 
-def _training_parts(
-    policy: TorchPolicy, settings: TrainSettings, rng: np.random.Generator, gen: torch.Generator
-) -> TrainingParts:
-    """The optimizer (AdamW), LR schedule (warm-up + cosine), optional EMA and RNGs of a fresh run of ``policy``."""
+def _training_parts(policy: TorchPolicy, settings: TrainSettings) -> TrainingParts:
+    """The optimizer (AdamW), LR schedule (warm-up + cosine), optional EMA and seeded RNGs of a fresh run."""
     from diffusers.optimization import get_cosine_schedule_with_warmup
 
     model = policy.model
@@ -248,6 +244,8 @@ def _training_parts(
         from diffusers.training_utils import EMAModel
 
         ema = EMAModel(model.parameters(), decay=0.9999, use_ema_warmup=True, power=settings.ema_power)
+    rng = np.random.default_rng(settings.seed)
+    gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
     return TrainingParts(model, opt, sched, ema, rng, gen)
 
 
@@ -289,10 +287,8 @@ def snapshot_run(
     state_file = Path(run_dir) / STATE_FILE
     if not state_file.exists():
         raise CheckpointError(f"{run_dir}: no saved training state yet ({STATE_FILE})")
-    rng = np.random.default_rng(settings.seed)
-    gen = torch.Generator(device=policy.device).manual_seed(settings.seed)
     with torch.random.fork_rng(devices=[]):
-        parts = _training_parts(policy, settings, rng, gen)
+        parts = _training_parts(policy, settings)
         done = load_state(state_file, settings=settings, parts=parts)
     if parts.ema is not None:
         parts.ema.copy_to(policy.model.parameters())
@@ -806,6 +802,21 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except CheckpointError as err:
         parser.error(str(err))
+    _write_checkpoint(parser, args, run, policy, record, out)
+    print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
+    print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")
+    return 0
+
+
+def _write_checkpoint(
+    parser: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    run: dict[str, Any],
+    policy: TorchPolicy,
+    record: dict[str, Any],
+    out: Path,
+) -> None:
+    """Complete ``record`` with the run's data file, preset and command; write it and the weights to ``out``."""
     record["data"]["file"] = Path(args.dataset or run["dataset"]).name
     record["preset"] = run["preset"]
     record["command"] = run["command"]
@@ -813,9 +824,6 @@ def main(argv: list[str] | None = None) -> int:
         save_trained(policy, out, run["policy"], record)
     except OSError as err:
         parser.error(f"cannot write --out {str(out)!r}: {err}")
-    print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path(out).name}: ", end="")
-    print(f"final loss {record['final_loss']:.4f}, {record['wall_s']:.0f} s")
-    return 0
 
 
 def _snapshot_main(
@@ -834,13 +842,7 @@ def _snapshot_main(
         parser.error(str(err))
     if args.out is None:
         out = Path(args.resume) / f"snapshot-step{record['snapshot_step']}.safetensors"
-    record["data"]["file"] = Path(args.dataset or run["dataset"]).name
-    record["preset"] = run["preset"]
-    record["command"] = run["command"]
-    try:
-        save_trained(policy, out, run["policy"], record)
-    except OSError as err:
-        parser.error(f"cannot write --out {str(out)!r}: {err}")
+    _write_checkpoint(parser, args, run, policy, record, out)
     print(f"wrote {out}: step {record['snapshot_step']} of {settings.steps}, loss {record['final_loss']:.4f}")
     return 0
 

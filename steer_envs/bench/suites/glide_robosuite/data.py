@@ -125,17 +125,23 @@ def task_dataset(
     extra_gripper: bool = False,
 ) -> list[rr.ArmTrajectory]:
     """Every trajectory of ``task``'s shards ``0 .. n_demos - 1`` in shard order (missing shards built here)."""
+    shards = [
+        ShardSettings(task, i, replay_demos, replays_per_demo, success_hold=success_hold, extra_gripper=extra_gripper)
+        for i in range(n_demos)
+    ]
+    return read_shards(cache_dir, shards)
+
+
+def read_shards(cache_dir: str | Path, shards: Sequence[ShardSettings]) -> list[rr.ArmTrajectory]:
+    """Every trajectory of ``shards`` (one task) in their order; a missing shard is built and written here."""
     out: list[rr.ArmTrajectory] = []
     env = None  # made once, for the first missing shard
     try:
-        for i in range(n_demos):
-            settings = ShardSettings(
-                task, i, replay_demos, replays_per_demo, success_hold=success_hold, extra_gripper=extra_gripper
-            )
+        for settings in shards:
             path = shard_path(cache_dir, settings)
             trajs = _read_shard(path)
             if trajs is None:
-                env = env or rr.make_arm_env(task)
+                env = env or rr.make_arm_env(settings.task)
                 trajs = _write_shard(path, settings, env)
             out += trajs
     finally:

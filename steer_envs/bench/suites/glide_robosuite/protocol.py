@@ -169,7 +169,6 @@ class GroundingSetup:
     dyn_weight: float = 10.0
     stride: int = 0
     train_truncated: bool = True
-    init_mode_bias: float = 0.0
 
     def stride_of(self, task: str) -> int:
         return self.stride or TASK_STRIDE[task]
@@ -229,7 +228,6 @@ def train_predictor(
             dyn_columns=dyn_outputs,
             dyn_inputs=dyn_inputs,
             dyn_input_lag=0,
-            init_mode_bias=setup.init_mode_bias,
         )
         result = train_mode_classifier(
             [t.features[:, cols] for t in train],

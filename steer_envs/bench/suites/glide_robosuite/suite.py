@@ -114,17 +114,9 @@ class DataParams(SuiteParams):
 
     def trajectories(self, task: str, n_demos: int) -> list[Any]:
         """Every trajectory of ``task``'s first ``n_demos`` shards (missing ones built here)."""
-        from steer_envs.bench.suites.glide_robosuite.data import task_dataset
+        from steer_envs.bench.suites.glide_robosuite.data import read_shards
 
-        return task_dataset(
-            self.cache,
-            task,
-            n_demos,
-            self.replay_demos,
-            self.replays_per_demo,
-            success_hold=self.success_hold,
-            extra_gripper=self.extra_gripper,
-        )
+        return read_shards(self.cache, [self.shard(task, i) for i in range(n_demos)])
 
 
 @dataclass(frozen=True)
