@@ -31,21 +31,19 @@ def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
 
 
 def test_findings_check_table_2_2s_trade_off() -> None:
-    # the thesis's TA is its own reading (the plan heads for the intended block): TA_target = TA there
-    thesis_cells = {m: {**v, "TA_target": v["TA"]} for m, v in TABLE_2_2.items()}
     extra = {"DP-GD-B25": {"TA": 0.7, "CS": 0.4, "AS": 0.3}, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
-    thesis = {**thesis_cells, **extra}
-    assert _verdicts(thesis) == [True] * 7
+    thesis = {**TABLE_2_2, **extra}
+    assert _verdicts(thesis) == [True] * 6
     methods = ("DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS")
-    flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25, "TA_target": 0.5} for key in methods}
-    assert _verdicts(flat) == [False, False, True, False, False, False, False]
-    assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 7
-    # the beta-25 and target-alignment findings are checked on their own
-    assert _verdicts({**TABLE_2_2, "DP-GD-B25": {"TA": 0.2, "CS": 0.9, "AS": 0.2}})[5] is False
-    ours = {**thesis_cells, "DP-GD": {**thesis_cells["DP-GD"], "TA": 0.0, "TA_target": 0.9}}
-    verdicts = _verdicts(ours)
-    assert verdicts[0] is False and verdicts[4] is True  # no skill, but heading for the intended cube
-    assert _verdicts({**ours, "DP-GD": {**ours["DP-GD"], "TA_target": 0.3}})[4] is False
+    flat = {key: {"TA": 0.5, "CS": 0.5, "AS": 0.25} for key in methods}
+    assert _verdicts(flat) == [False, False, True, False, False, False]
+    assert _verdicts({"DP-PR": TABLE_2_2["DP-PR"]}) == [None] * 6
+    # the beta-25 finding is checked on its own
+    assert _verdicts({**TABLE_2_2, "DP-GD-B25": {"TA": 0.2, "CS": 0.9, "AS": 0.2}})[4] is False
+    # the findings read the thesis's TA (the plan heads for the intended block), never the strict TA_skill
+    no_skill = {**thesis, "DP-GD": {**thesis["DP-GD"], "TA_skill": 0.0, "AS_skill": 0.0}}
+    assert _verdicts(no_skill) == [True] * 6
+    assert _verdicts({**thesis, "DP-GD": {**thesis["DP-GD"], "TA": 0.3}})[0] is False
     low_pr = {**thesis, "DP-PR": {"TA": 0.3, "CS": 0.24, "AS": 0.2}, "DP-GD": {"TA": 0.5, "CS": 0.12, "AS": 0.1}}
     assert _verdicts(low_pr)[1] is True  # half of PR's CS is "far below" when PR's is low
     assert _verdicts({**low_pr, "DP-GD": {"TA": 0.5, "CS": 0.13, "AS": 0.1}})[1] is False
@@ -94,6 +92,8 @@ def test_one_trial_scores_its_interactions() -> None:
     quadrants = sum(m[k] for k in ("AS", "AF", "MS", "MF"))  # type: ignore[misc]
     assert quadrants == pytest.approx(1.0)
     assert m["TA"] == pytest.approx(m["AS"] + m["AF"]) and m["CS"] == pytest.approx(m["AS"] + m["MS"])  # type: ignore[operator]
+    assert m["TA_skill"] <= m["TA"] and m["AS_skill"] <= m["AS"]  # type: ignore[operator]
+    assert all(r["aligned"] or not r["skill_aligned"] for r in res.extra["interactions"])  # a skill heads somewhere
     kept = res.extra["plans"][0]
     assert np.asarray(kept["plans"]).shape == (4, 32, 4) and len(kept["sketch"]) == 32
     assert sorted(res.extra["order"]) == [0, 1, 2, 3]

@@ -10,14 +10,18 @@ and the plan is executed open-loop
 (:func:`~steer_envs.envs.robosuite.plan_execution.execute_plan`). The thesis's
 scoring, per interaction:
 
-* *aligned*: the picked plan performs the intended skill, read off the plan
-  (:func:`~steer_envs.envs.robosuite.plan_execution.classify_plan`: the cube
-  nearest to where it closes the gripper, the tower top or table where it
-  opens);
-* *target-aligned* (``TA_target``, ``AS_target``): the thesis's own reading,
-  "the sample corresponds to the intended block": the picked plan *heads for*
-  the intended cube or tower, grasp or not
-  (:func:`~steer_envs.envs.robosuite.plan_execution.plan_target`);
+* *aligned* (``TA`` and the AS/AF/MS/MF quadrants): the thesis's definition,
+  "the conditional sample [...] corresponds to the intended block", aligned
+  "regardless of outcome": the picked plan *heads for* the intended cube or
+  tower, grasp or not
+  (:func:`~steer_envs.envs.robosuite.plan_execution.plan_target`: where it
+  closes or opens the gripper, else its last waypoint);
+* *skill-aligned* (``TA_skill``, ``AS_skill``): a stricter reading, the picked
+  plan is also the intended skill in shape
+  (:func:`~steer_envs.envs.robosuite.plan_execution.classify_plan`: it closes
+  at a cube's height, or opens just above the tower top or table); a plan that
+  traces the sketch to the right cube but never grasps is aligned, not
+  skill-aligned;
 * *success*: the executed skill happened in the world (a cube picked, or
   placed and resting) without a drop or a falling tower.
 
@@ -156,8 +160,9 @@ def tower_trial(
             scene = {"cube_pos": env.cube_pos.round(4).tolist(), "eef": env.state.round(4).tolist()}
             result = sampler(policy, obs, sketch, batch, generator=np.random.default_rng([seed, len(rows)]))
             kinds = [classify_plan(env, p) for p in result.plans]
-            aligned = kinds[result.chosen] == skill.name
+            skill_aligned = kinds[result.chosen] == skill.name
             target = plan_target(env, result.plan)
+            aligned = target == skill.name
             outcome = execute_plan(env, result.plan, home_yaw=home_yaw)
             obs = outcome.obs
             rows.append(
@@ -167,7 +172,7 @@ def tower_trial(
                     "target": target,
                     "executed": outcome.executed,
                     "aligned": aligned,
-                    "target_aligned": target == skill.name,
+                    "skill_aligned": skill_aligned,
                     "success": outcome.success,
                     "batch_aligned": float(np.mean([k == skill.name for k in kinds])),
                     "latency_ms": float(result.timings["total_ms"]),
@@ -191,7 +196,7 @@ def tower_trial(
     n = len(rows)
     aligned = np.array([r["aligned"] for r in rows], dtype=bool)
     success = np.array([r["success"] for r in rows], dtype=bool)
-    heads = np.array([r["target_aligned"] for r in rows], dtype=bool)
+    skill_aligned = np.array([r["skill_aligned"] for r in rows], dtype=bool)
 
     def share(mask: np.ndarray) -> float | None:
         return float(mask.mean()) if n else None
@@ -203,8 +208,8 @@ def tower_trial(
         "AF": share(aligned & ~success),
         "MS": share(~aligned & success),
         "MF": share(~aligned & ~success),
-        "TA_target": share(heads),
-        "AS_target": share(heads & success),
+        "TA_skill": share(skill_aligned),
+        "AS_skill": share(skill_aligned & success),
         "batch_aligned": float(np.mean([r["batch_aligned"] for r in rows])) if n else None,
         "tower_built": float(built),
         "interactions": float(n),

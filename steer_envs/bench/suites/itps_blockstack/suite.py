@@ -260,10 +260,6 @@ def steer_findings(table: Any) -> list[Finding]:
         else aligned_success["DP-GD-I50"] > max(aligned_success["DP-PR"], aligned_success["DP-GD"])
     )
     findings.append(Finding(claim, holds, fmt(aligned_success, "DP-GD-I50", "DP-PR", "DP-GD")))
-    claim = "read as the thesis does (the plan heads for the intended cube or tower), GD at beta 100 aligns above PR"
-    heads = table.means("TA_target", ["DP-PR", "DP-GD"])
-    holds = None if heads is None else heads["DP-GD"] > heads["DP-PR"]
-    findings.append(Finding(claim, holds, fmt(heads, "DP-PR", "DP-GD")))
     claim = "GD at the thesis text's beta 25 raises TA above PR"
     b25 = table.means("TA", ["DP-PR", "DP-GD-B25"])
     holds = None if b25 is None else b25["DP-GD-B25"] > b25["DP-PR"]
@@ -302,18 +298,22 @@ register_suite(
             "sketches steering the skill Diffusion Policy (batch 32); TA, CS and the AS/AF/MS/MF quadrants."
         ),
         metrics=(
-            Metric("TA", f"aligned: the picked plan does the intended skill ({_SHARE})", fmt=".2f"),
+            Metric(
+                "TA",
+                f"aligned, the thesis's definition: the picked plan heads for the intended cube or tower ({_SHARE})",
+                fmt=".2f",
+            ),
             Metric("CS", f"success: the executed skill happened, nothing dropped or toppled ({_SHARE})", fmt=".2f"),
             Metric("AS", "aligned success", fmt=".2f"),
             Metric("AF", "aligned failure", higher_is_better=False, fmt=".2f"),
             Metric("MS", "misaligned success", higher_is_better=False, fmt=".2f"),
             Metric("MF", "misaligned failure", higher_is_better=False, fmt=".2f"),
             Metric(
-                "TA_target",
-                f"the picked plan heads for the intended cube or tower, grasp or not: the thesis's reading ({_SHARE})",
+                "TA_skill",
+                f"skill-aligned: the picked plan is also the intended skill in shape (grasp or release) ({_SHARE})",
                 fmt=".2f",
             ),
-            Metric("AS_target", "target-aligned success", fmt=".2f"),
+            Metric("AS_skill", "skill-aligned success", fmt=".2f"),
             Metric("batch_aligned", "share of the batch doing the intended skill", fmt=".2f"),
             Metric("tower_built", "the user's tower stands at the end", fmt=".2f"),
             Metric("interactions", "steering calls of the trial", fmt=".1f"),
