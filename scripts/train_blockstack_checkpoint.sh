@@ -14,7 +14,8 @@
 # Usage: scripts/train_blockstack_checkpoint.sh [--check] [DATA_DIR]   (default: runs/blockstack-data)
 #   --check  build (or reuse) the data, then re-run only the first 200 training steps and compare
 #            the loss curve with the shipped record; exit 1 if it differs.
-# WORKERS=N sets the data job's parallel workers (default 2).
+# WORKERS=N sets the data job's parallel workers (default 2); CHECKPOINT_DIR=DIR writes the new
+# checkpoint there instead of over the shipped one (to compare with it: cmp, or --check its record).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 CHECK=0
@@ -25,7 +26,8 @@ EPISODES=100
 SKILLS=4
 BRANCHES=3
 DATA="$DATA_DIR/blockstack-plans-${EPISODES}x${SKILLS}b${BRANCHES}.npz"
-OUT=baselines/checkpoints/blockstack
+SHIPPED=baselines/checkpoints/blockstack
+OUT=${CHECKPOINT_DIR:-$SHIPPED}
 
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-blockstack-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
@@ -34,8 +36,9 @@ export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
     --skills-per-episode "$SKILLS" --branches "$BRANCHES" --permutations 15 --shift 0.05 --yaw 0.5 --out "$DATA"
 if [ "$CHECK" = 1 ]; then
-  exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
+  exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$SHIPPED/dp.json" --check-steps 200
 fi
 mkdir -p "$OUT"
 "$PY" -m steer_envs.baselines.training --policy dp --preset blockstack --dataset "$DATA" \
     --model obs_octaves=2 --fused-optimizer --out "$OUT/dp.safetensors" --seed 0 --threads 1
+echo "recipe done in $((SECONDS / 60)) min $((SECONDS % 60)) s: $OUT/dp.safetensors"

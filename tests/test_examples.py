@@ -90,7 +90,7 @@ def test_steer_blockstack_builds_part_of_a_tower_and_saves_the_strip(tmp_path: P
     args = ("--method", "DP-PR", "--batch", "4", "--max-skills", "2", "--order", "3,1,0,2")
     res = _run("steer_blockstack.py", *args, "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr
-    assert "skill 1: wanted pick_1" in res.stdout and "skills aligned" in res.stdout
+    assert "skill 1: wanted pick_1" in res.stdout and "plans aligned" in res.stdout
     (png,) = tmp_path.glob("steer_blockstack_DP-PR_seed0.png")
     assert png.stat().st_size > 10_000
     res = _run("steer_blockstack.py", "--order", "0,1,2", "--out", str(tmp_path))
