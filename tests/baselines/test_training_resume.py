@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ from steer_envs.data.trajectories import TrajectoryDataset, save_trajectories
 from steer_envs.io import CheckpointError
 
 ROOT = Path(__file__).resolve().parents[2]
-TINY = {
+TINY: dict[str, dict[str, Any]] = {
     "dp": {"horizon": 8, "down_dims": (8, 16), "step_embed_dim": 16, "obs_embed_dim": 8, "kernel_size": 3},
     "act": {"chunk_size": 4, "d_model": 8, "n_heads": 1, "dim_feedforward": 8, "n_encoder_layers": 1},
 }
@@ -62,8 +63,8 @@ def _same(a: dict[str, torch.Tensor], b: dict[str, torch.Tensor]) -> bool:
 def test_a_stopped_and_resumed_run_ends_with_the_uninterrupted_weights(
     name: str, options: dict[str, object], data: TrajectoryDataset, tmp_path: Path
 ) -> None:
-    config = make_policy_config(name, **TINY[name])  # type: ignore[arg-type]
-    settings = TrainSettings(steps=24, batch_size=8, log_every=5, warmup_steps=4, **options)  # type: ignore[arg-type]
+    config = make_policy_config(name, **TINY[name])
+    settings = TrainSettings(steps=24, batch_size=8, log_every=5, warmup_steps=4, **options)
     whole = make_policy(config, dataset=data)
     record = train_policy(whole, data, settings, progress=False)
     for seed, stop in ((0, 7), (1, 15)):  # two stops: resumed twice
@@ -81,7 +82,7 @@ def test_a_stopped_and_resumed_run_ends_with_the_uninterrupted_weights(
 def test_a_snapshot_holds_the_weights_the_run_has_reached(
     name: str, data: TrajectoryDataset, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    config = make_policy_config(name, **TINY[name])  # type: ignore[arg-type]
+    config = make_policy_config(name, **TINY[name])
     settings = TrainSettings(steps=24, batch_size=8, log_every=5, warmup_steps=4, ema_power=0.75 if name == "dp" else 0)
     with pytest.raises(CheckpointError, match="no saved training state"):
         snapshot_run(make_policy(config, dataset=data), data, settings, tmp_path)
@@ -118,7 +119,7 @@ def test_a_resumed_run_records_its_first_segments_threads(data: TrajectoryDatase
     """A check replays a run's first steps, so the record keeps the thread count they ran on."""
     from steer_envs.utils.threads import limit_threads
 
-    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    config = make_policy_config("dp", **TINY["dp"])
     settings = TrainSettings(steps=12, batch_size=8, log_every=4, warmup_steps=2)
     with limit_threads(torch_threads=2):
         train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path, stop_after=6)
@@ -128,7 +129,7 @@ def test_a_resumed_run_records_its_first_segments_threads(data: TrajectoryDatase
 
 
 def test_the_state_file_is_checked_before_it_is_loaded(data: TrajectoryDataset, tmp_path: Path) -> None:
-    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    config = make_policy_config("dp", **TINY["dp"])
     settings = TrainSettings(steps=10, batch_size=4, log_every=5)
     train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path, stop_after=4)
     state = tmp_path / STATE_FILE
@@ -137,7 +138,7 @@ def test_the_state_file_is_checked_before_it_is_loaded(data: TrajectoryDataset, 
         train_policy(fresh, data, settings.replace(lr=0.5), progress=False, run_dir=tmp_path)
     with pytest.raises(ValueError, match="already at step 4"):
         train_policy(fresh, data, settings, progress=False, run_dir=tmp_path, stop_after=2)
-    wider = make_policy(make_policy_config("dp", **{**TINY["dp"], "down_dims": (8, 32)}), dataset=data)  # type: ignore[arg-type]
+    wider = make_policy(make_policy_config("dp", **{**TINY["dp"], "down_dims": (8, 32)}), dataset=data)
     with pytest.raises(CheckpointError, match=r"do not match the network|shape"):
         train_policy(wider, data, settings, progress=False, run_dir=tmp_path)
     tensors, meta = read_safetensors(state, "training_state")
@@ -155,7 +156,7 @@ def test_a_run_moved_to_another_device_kind_restarts_its_noise_generator(
     data: TrajectoryDataset, tmp_path: Path
 ) -> None:
     """A state saved on a GPU continues on the CPU: everything carries over but the noise generator's state."""
-    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    config = make_policy_config("dp", **TINY["dp"])
     settings = TrainSettings(steps=12, batch_size=8, log_every=4, warmup_steps=2)
     train_policy(make_policy(config, dataset=data), data, settings, progress=False, run_dir=tmp_path, stop_after=6)
     state = tmp_path / STATE_FILE
@@ -195,11 +196,11 @@ def test_speed_options_are_validated_and_recorded(data: TrajectoryDataset) -> No
     with pytest.raises(ValueError, match="precision must be one of \\['bf16', 'fp32'\\]"):
         TrainSettings(precision="fp16")
     with pytest.raises(TypeError, match="fused_optimizer"):
-        TrainSettings(fused_optimizer="yes")  # type: ignore[arg-type]
+        TrainSettings(fused_optimizer="yes")
     with pytest.raises(TypeError, match="compile_model"):
-        TrainSettings(compile_model=1)  # type: ignore[arg-type]
+        TrainSettings(compile_model=1)
     settings = TrainSettings(steps=30, batch_size=16, log_every=10, precision="bf16", fused_optimizer=True)
-    policy = make_policy(make_policy_config("dp", **TINY["dp"]), dataset=data)  # type: ignore[arg-type]
+    policy = make_policy(make_policy_config("dp", **TINY["dp"]), dataset=data)
     record = train_policy(policy, data, settings, progress=False)
     assert record["settings"]["precision"] == "bf16" and record["settings"]["fused_optimizer"] is True
     assert all(p.dtype == torch.float32 for p in policy.model.parameters())  # autocast keeps float32 weights
@@ -295,7 +296,7 @@ def test_cli_resume_usage_errors(data_file: Path, tmp_path: Path, capsys: pytest
 @pytest.mark.slow
 def test_compiled_training_resumes_and_learns(data: TrajectoryDataset, tmp_path: Path) -> None:
     """torch.compile costs minutes on first use: slow."""
-    config = make_policy_config("dp", **TINY["dp"])  # type: ignore[arg-type]
+    config = make_policy_config("dp", **TINY["dp"])
     settings = TrainSettings(steps=20, batch_size=8, log_every=5, compile_model=True)
     whole = make_policy(config, dataset=data)
     train_policy(whole, data, settings, progress=False)
