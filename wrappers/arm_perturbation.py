@@ -9,6 +9,11 @@ open[s] the gripper":
   (2) have already happened this episode, a gripper opening is still running,
   or the next step is one of the last ``quiet_steps`` (10) of the step limit.
   The first step of an episode is never perturbed (a push needs a step to land on).
+  With ``after_mode_change=True`` none starts before the episode's ground-truth
+  mode (``info["mode"]``) has first changed, i.e. once the arm has left reach:
+  the polygon study's evaluation schedule in GLiDE's public code. Without it the
+  pushes mostly land during reach, where the gripper is open anyway and a push
+  costs a few steps.
 - **kind**: with probability ``gripper_fraction`` (1/2) a *gripper opening*,
   otherwise an *end-effector push*. Half and half because the thesis names
   both kinds and no ratio; GLiDE's own replays use 1 gripper in 3, but a push
@@ -81,6 +86,7 @@ class ArmPerturbationWrapper(
         push_range: ``(lo, hi)`` length of a push, m (0 <= lo <= hi).
         gripper_fraction: chance that a perturbation is a gripper opening, in [0, 1].
         gripper_steps: ``(lo, hi)`` steps a gripper opening lasts (ints, 1 <= lo <= hi).
+        after_mode_change: start none before the episode's mode first changes (bool).
         max_episode_steps: the episode's step limit; None reads it from ``env.spec``
             (the registry's TimeLimit), and it is an error if there is none.
 
@@ -102,6 +108,7 @@ class ArmPerturbationWrapper(
         push_range: tuple[float, float] = (0.05, 0.1),
         gripper_fraction: float = 0.5,
         gripper_steps: tuple[int, int] = (5, 20),
+        after_mode_change: bool = False,
         max_episode_steps: int | None = None,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
@@ -112,6 +119,7 @@ class ArmPerturbationWrapper(
             push_range=push_range,
             gripper_fraction=gripper_fraction,
             gripper_steps=gripper_steps,
+            after_mode_change=after_mode_change,
             max_episode_steps=max_episode_steps,
         )
         if not isinstance(env, gym.Env) or not isinstance(env.unwrapped, RobosuiteEnv):
@@ -124,6 +132,9 @@ class ArmPerturbationWrapper(
         self.gripper_fraction = real_scalar(gripper_fraction, "gripper_fraction", low=0.0, high=1.0, owner=_OWNER)
         lo, hi = _pair(gripper_steps, "gripper_steps", as_int=True, low=1)
         self.gripper_steps = (int(lo), int(hi))
+        if not isinstance(after_mode_change, bool):
+            raise TypeError(f"{_OWNER}: `after_mode_change` must be a bool, got {describe(after_mode_change)}")
+        self.after_mode_change = after_mode_change
         if max_episode_steps is None:
             spec = env.spec
             max_episode_steps = spec.max_episode_steps if spec is not None else None
@@ -138,6 +149,8 @@ class ArmPerturbationWrapper(
         self._count = 0
         self._open_left = 0  # steps of the running gripper opening still to force
         self._floor = -np.inf
+        self._start_mode: Any = None  # the episode's first mode
+        self._mode_changed = False
         self._push_info: dict[str, Any] = {}
         #: the perturbations of the current episode: (step they affect, kind, push delta or opening length)
         self.log: list[tuple[int, str, Any]] = []
@@ -159,6 +172,7 @@ class ArmPerturbationWrapper(
             self._rng = np.random.default_rng([seed, 1])
         self._t = self._count = self._open_left = 0
         self._floor = float(self.arm.object_pos[2])
+        self._start_mode, self._mode_changed = info.get("mode"), False
         self.log = []
         return obs, self._annotate(info, perturbed=False, started=None)
 
@@ -173,6 +187,7 @@ class ArmPerturbationWrapper(
             self._open_left -= 1
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._t += 1
+        self._mode_changed = self._mode_changed or info.get("mode") != self._start_mode
         started, pushed = None, False
         if not (terminated or truncated) and self._may_start():
             started = self._start()
@@ -188,6 +203,8 @@ class ArmPerturbationWrapper(
     def _may_start(self) -> bool:
         """A perturbation may start now, to affect step ``self._t`` (0-based), and the coin says it does."""
         if self._count >= self.max_perturbations or self._open_left > 0:
+            return False
+        if self.after_mode_change and not self._mode_changed:
             return False
         if self._t >= self.max_episode_steps - self.quiet_steps:
             return False

@@ -161,6 +161,9 @@ def test_policy_params_and_table_4_3_finding() -> None:
         PolicyParams(predictor="oracle")
     with pytest.raises(ValueError, match="n_episodes"):
         PolicyParams(n_episodes=0)
+    assert PolicyParams.from_json({"perturb_after_mode_change": True}).perturb_after_mode_change is True
+    with pytest.raises((TypeError, ValueError), match="perturb_after_mode_change"):
+        PolicyParams.from_json({"perturb_after_mode_change": "yes"})
 
     def findings(drop: dict) -> list:
         records = [

@@ -86,6 +86,26 @@ def test_a_seed_replays_the_same_perturbations(lift: gym.Env[Any, Any]) -> None:
     assert first == again and first
 
 
+def test_after_mode_change_waits_until_the_arm_leaves_its_first_mode(lift: gym.Env[Any, Any]) -> None:
+    from steer_envs.data.experts.robosuite import LiftExpert
+
+    kwargs = {"probability": 1.0, "max_perturbations": 1, "gripper_fraction": 1.0, "gripper_steps": (3, 3)}
+    env = ArmPerturbationWrapper(lift, after_mode_change=True, **kwargs)
+    infos = _run(env, 0, 20)  # the arm held still never leaves reach
+    assert env.log == [] and {i["mode"] for i in infos} == {infos[0]["mode"]}
+    obs, info = env.reset(seed=0)
+    expert = LiftExpert(env.arm)
+    expert.reset(obs, info)
+    modes = [info["mode"]]
+    while not env.log:
+        obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
+        modes.append(info["mode"])
+        assert not (terminated or truncated)
+    ((step, kind, _),) = env.log
+    changed = next(t for t, m in enumerate(modes) if m != modes[0])
+    assert kind == "gripper" and step == changed  # starts on the first step after the change
+
+
 def test_the_spec_records_the_arguments(lift: gym.Env[Any, Any]) -> None:
     env = ArmPerturbationWrapper(lift, probability=0.2)
     (spec,) = env.spec.additional_wrappers
@@ -110,6 +130,7 @@ def test_the_spec_records_the_arguments(lift: gym.Env[Any, Any]) -> None:
         ({"gripper_steps": (9, 5)}, ValueError),
         ({"gripper_steps": (5.0, 9)}, TypeError),
         ({"max_episode_steps": 0}, ValueError),
+        ({"after_mode_change": 1}, TypeError),
     ],
 )
 def test_bad_arguments_are_refused(lift: gym.Env[Any, Any], kwargs: dict[str, Any], error: type) -> None:

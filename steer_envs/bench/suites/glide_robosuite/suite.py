@@ -293,11 +293,18 @@ PREDICTORS: tuple[str, ...] = ("classifier", "kmeans", "ground_truth")
 
 @dataclass(frozen=True)
 class PolicyParams(GroundingParams):
-    """Parameters of ``glide-robosuite`` (Table 4.3): the grounding's, the evaluation episodes, the predictor."""
+    """Parameters of ``glide-robosuite`` (Table 4.3): the grounding's, the evaluation episodes, the predictor.
+
+    ``perturb_after_mode_change``: the "+p" perturbations start only once the
+    episode's ground-truth mode has first changed (the arm has left reach;
+    :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
+    ``after_mode_change``); off, most of them land during reach.
+    """
 
     suite_name: ClassVar[str] = POLICY_SUITE
     n_episodes: int = 50
     predictor: str = "classifier"
+    perturb_after_mode_change: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -334,6 +341,7 @@ def run_policy_trial(trial: Trial) -> TrialResult:
             predictor=predictor,
             n_episodes=params.n_episodes,
             perturbed="both",
+            perturbation={"after_mode_change": True} if params.perturb_after_mode_change else None,
         )
     clean, pert = res["eval"]["clean"], res["eval"]["perturbed"]
     metrics = {
