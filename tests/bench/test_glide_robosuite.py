@@ -165,20 +165,20 @@ def test_policy_params_and_table_4_3_finding() -> None:
     with pytest.raises((TypeError, ValueError), match="perturb_after_mode_change"):
         PolicyParams.from_json({"perturb_after_mode_change": "yes"})
 
-    def findings(drop: dict) -> list:
-        records = [
-            {
-                "config": {"suite": POLICY_SUITE, "env": e, "method": m, "params": {}},
-                "seed": 0,
-                "metrics": {"success": 0.9, "success_perturbed": 0.9 - drop[m], "success_drop": drop[m]},
-                "key": f"{e}-{m}",
-            }
-            for e in ENV_IDS
-            for m in METHODS
-        ]
+    def findings(drop: dict, clean: float = 0.9, square_clean: float = 0.9) -> list:
+        records = []
+        for e in ENV_IDS:
+            success = square_clean if "Square" in e else clean
+            for m in METHODS:
+                metrics = {"success": success, "success_perturbed": success - drop[m], "success_drop": drop[m]}
+                config = {"suite": POLICY_SUITE, "env": e, "method": m, "params": {}}
+                records.append({"config": config, "seed": 0, "metrics": metrics, "key": f"{e}-{m}"})
         (table,) = summarize(records)
         return table.findings
 
     assert [f.holds for f in findings({"bc": 0.6, "glide_bc": 0.3})] == [True]
+    # a task where a policy (almost) never succeeds cannot show a smaller loss: the finding is not shown there
+    (vacuous,) = findings({"bc": 0.05, "glide_bc": 0.0}, square_clean=0.05)
+    assert vacuous.holds is False and "not tested on square" in vacuous.detail
     (worse,) = findings({"bc": 0.3, "glide_bc": 0.3})
     assert worse.holds is False and "can 0.30 vs 0.30" in worse.detail

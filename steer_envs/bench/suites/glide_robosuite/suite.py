@@ -362,18 +362,32 @@ def run_policy_trial(trial: Trial) -> TrialResult:
     return TrialResult(metrics, extra)
 
 
+#: a task tests the perturbation finding only where both methods succeed in at least this share of clean episodes
+#: (the thesis's lowest clean success in Table 4.3 is 0.25): a policy that never succeeds cannot lose success.
+MIN_CLEAN_SUCCESS = 0.2
+
+
 def policy_findings(table: Any) -> list[Finding]:
     """Thesis Table 4.3: GLiDE+BC loses less success under the perturbations than BC, on every task."""
     claim = "GLiDE+BC loses less success under perturbation than BC on every task"
     drops = {env: table.means("success_drop", METHODS, env) for env in ENV_IDS}
-    if any(v is None for v in drops.values()):
+    clean = {env: table.means("success", METHODS, env) for env in ENV_IDS}
+    if any(v is None for v in drops.values()) or any(v is None for v in clean.values()):
         return [Finding(claim, None)]
     detail = ", ".join(
         f"{_task(e)} {drops[e]['glide_bc']:.2f} vs {drops[e]['bc']:.2f}"  # type: ignore[index]
         for e in ENV_IDS
     )
-    holds = all(drops[e]["glide_bc"] < drops[e]["bc"] for e in ENV_IDS)  # type: ignore[index]
-    return [Finding(claim, holds, detail + " (drop in success, GLiDE+BC vs BC)")]
+    untested = [e for e in ENV_IDS if min(clean[e].values()) < MIN_CLEAN_SUCCESS]  # type: ignore[union-attr]
+    holds = not untested and all(drops[e]["glide_bc"] < drops[e]["bc"] for e in ENV_IDS)  # type: ignore[index]
+    detail += " (drop in success, GLiDE+BC vs BC)"
+    if untested:
+        detail += "; not tested on " + ", ".join(
+            f"{_task(e)} (clean success {clean[e]['bc']:.2f} / {clean[e]['glide_bc']:.2f}, "  # type: ignore[index]
+            f"below {MIN_CLEAN_SUCCESS})"
+            for e in untested
+        )
+    return [Finding(claim, holds, detail)]
 
 
 def _policy_references() -> tuple[Reference, ...]:
