@@ -9,7 +9,7 @@
 #    (python -m steer_envs.bench.suites.itps_blockstack.data);
 # 3. the Diffusion Policy, preset `blockstack` with 2 Fourier octaves of the observation
 #    (--model obs_octaves=2: less room to memorise scenes), fused AdamW, seed 0, ONE torch thread
-#    (bit-identical for the same thread count, torch version and CPU kind).
+#    (bit-identical for the same thread count, torch version and CPU kind; ~32 min). In all ~44 min.
 #
 # Usage: scripts/train_blockstack_checkpoint.sh [--check] [DATA_DIR]   (default: runs/blockstack-data)
 #   --check  build (or reuse) the data, then re-run only the first 200 training steps and compare
