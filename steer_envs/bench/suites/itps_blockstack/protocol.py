@@ -162,7 +162,7 @@ def tower_trial(
             kinds = [classify_plan(env, p) for p in result.plans]
             skill_aligned = kinds[result.chosen] == skill.name
             target = plan_target(env, result.plan)
-            aligned = target == skill.name
+            on_target = target == skill.name
             outcome = execute_plan(env, result.plan, home_yaw=home_yaw)
             obs = outcome.obs
             rows.append(
@@ -171,7 +171,7 @@ def tower_trial(
                     "planned": kinds[result.chosen],
                     "target": target,
                     "executed": outcome.executed,
-                    "aligned": aligned,
+                    "aligned": on_target,
                     "skill_aligned": skill_aligned,
                     "success": outcome.success,
                     "batch_aligned": float(np.mean([k == skill.name for k in kinds])),
@@ -186,7 +186,7 @@ def tower_trial(
                         "sketch": np.round(sketch.points, 4).tolist(),
                         "plans": _plan_list(result.plans),
                         "chosen": int(result.chosen),
-                        "aligned": aligned,
+                        "aligned": on_target,
                         "success": outcome.success,
                     }
                 )
@@ -196,7 +196,7 @@ def tower_trial(
     n = len(rows)
     aligned = np.array([r["aligned"] for r in rows], dtype=bool)
     success = np.array([r["success"] for r in rows], dtype=bool)
-    skill_aligned = np.array([r["skill_aligned"] for r in rows], dtype=bool)
+    skill_shaped = np.array([r["skill_aligned"] for r in rows], dtype=bool)
 
     def share(mask: np.ndarray) -> float | None:
         return float(mask.mean()) if n else None
@@ -208,8 +208,8 @@ def tower_trial(
         "AF": share(aligned & ~success),
         "MS": share(~aligned & success),
         "MF": share(~aligned & ~success),
-        "TA_skill": share(skill_aligned),
-        "AS_skill": share(skill_aligned & success),
+        "TA_skill": share(skill_shaped),
+        "AS_skill": share(skill_shaped & success),
         "batch_aligned": float(np.mean([r["batch_aligned"] for r in rows])) if n else None,
         "tower_built": float(built),
         "interactions": float(n),
