@@ -155,6 +155,7 @@ def test_findings_check_table_4_2() -> None:
 
 def test_policy_params_and_table_4_3_finding() -> None:
     from steer_envs.bench.report import summarize
+    from steer_envs.bench.suites.glide_robosuite.policies import ArmBCSettings
     from steer_envs.bench.suites.glide_robosuite.suite import METHODS, POLICY_SUITE, PolicyParams
 
     with pytest.raises(ValueError, match="predictor"):
@@ -164,6 +165,12 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert PolicyParams.from_json({"perturb_after_mode_change": True}).perturb_after_mode_change is True
     with pytest.raises((TypeError, ValueError), match="perturb_after_mode_change"):
         PolicyParams.from_json({"perturb_after_mode_change": "yes"})
+    assert PolicyParams().bc_settings() == ArmBCSettings()  # the defaults are ArmBCSettings'
+    big = PolicyParams.from_json({"bc_hidden": [512, 512, 512], "bc_steps": 40000}).bc_settings()
+    assert big.hidden == (512, 512, 512) and big.steps == 40000
+    for bad in ({"bc_hidden": []}, {"bc_hidden": [0]}, {"bc_steps": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            PolicyParams.from_json(bad)
 
     def findings(drop: dict, clean: float = 0.9, square_clean: float = 0.9) -> list:
         records = []

@@ -299,18 +299,31 @@ class PolicyParams(GroundingParams):
     episode's ground-truth mode has first changed (the arm has left reach;
     :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
     ``after_mode_change``); off, most of them land during reach.
+    ``bc_hidden`` / ``bc_steps``: the hidden layers and training steps of every
+    BC MLP (BC's, and GLiDE+BC's one per mode;
+    :class:`~steer_envs.bench.suites.glide_robosuite.policies.ArmBCSettings`).
     """
 
     suite_name: ClassVar[str] = POLICY_SUITE
     n_episodes: int = 50
     predictor: str = "classifier"
     perturb_after_mode_change: bool = False
+    bc_hidden: tuple[int, ...] = (256, 256)
+    bc_steps: int = 8000
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.require_at_least(1, "n_episodes")
         self.require_at_most(100_000, "n_episodes")
         self.require_in("predictor", PREDICTORS)
+        self.require("bc_hidden", bool(self.bc_hidden) and min(self.bc_hidden) >= 1, "a non-empty list of ints >= 1")
+        self.require_at_least(1, "bc_steps")
+
+    def bc_settings(self) -> Any:
+        """The :class:`~steer_envs.bench.suites.glide_robosuite.policies.ArmBCSettings` of these parameters."""
+        from steer_envs.bench.suites.glide_robosuite.policies import ArmBCSettings
+
+        return ArmBCSettings(hidden=tuple(self.bc_hidden), steps=self.bc_steps)
 
 
 def run_policy_trial(trial: Trial) -> TrialResult:
@@ -342,6 +355,7 @@ def run_policy_trial(trial: Trial) -> TrialResult:
             n_episodes=params.n_episodes,
             perturbed="both",
             perturbation={"after_mode_change": True} if params.perturb_after_mode_change else None,
+            bc=params.bc_settings(),
         )
     clean, pert = res["eval"]["clean"], res["eval"]["perturbed"]
     metrics = {
