@@ -189,3 +189,5 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert vacuous.holds is False and "not tested on square" in vacuous.detail
     (worse,) = findings({"bc": 0.3, "glide_bc": 0.3})
     assert worse.holds is False and "can 0.30 vs 0.30" in worse.detail
+    (harmless,) = findings({"bc": 0.0, "glide_bc": 0.0})
+    assert harmless.holds is False and "cost BC nothing on can, lift, square" in harmless.detail
