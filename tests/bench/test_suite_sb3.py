@@ -124,6 +124,7 @@ def test_findings_on_a_synthetic_table() -> None:
         {"stop_success": 120.0},
         {"timesteps": "many"},
         {"normalize_actions": "yes"},
+        {"max_episode_steps": -1},
     ],
 )
 def test_bad_parameters_are_refused(overrides: dict[str, Any]) -> None:
@@ -140,3 +141,25 @@ def test_trial_arguments_are_checked() -> None:
         train_and_evaluate("steer_envs/SoupScoopDense-v0", "sac", 0, {"timesteps": 5})  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="method"):
         Sb3Params().budget("ppo")
+
+
+def test_max_episode_steps_truncates_and_keeps_default_folders(tmp_path: Path) -> None:
+    from steer_envs.bench.suites.sb3.protocol import make_env, run_folder
+
+    env_id = "steer_envs/Maze2D-UmazeDense-v0"
+    short = Sb3Params(max_episode_steps=7, cache_dir=str(tmp_path))
+    env = make_env(env_id, "sac", short)
+    assert env.spec is not None and env.spec.max_episode_steps == 7
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        steps += 1
+        assert not terminated or steps < 7
+        if terminated:
+            env.reset()
+            steps = 0
+    assert steps == 7
+    default = Sb3Params(cache_dir=str(tmp_path))
+    assert run_folder(env_id, "sac", 0, short) != run_folder(env_id, "sac", 0, default)
+    assert make_env(env_id, "sac", default).spec.max_episode_steps == 300  # Umaze's registered limit

@@ -71,6 +71,8 @@ def env_options(env_id: str, params: Sb3Params) -> dict[str, Any]:
         options["observe_sensors"] = params.observe_sensors
     elif params.maze_relative_actions:
         options["relative_actions"] = True
+    if params.max_episode_steps:  # a gym.make argument; only when set, so the default recipes keep their folders
+        options["max_episode_steps"] = params.max_episode_steps
     return options
 
 

@@ -22,7 +22,9 @@ memory and whose ``at_goal`` bit would contradict HER's relabelled goals);
 as the recorded results did; without it, on the plain id, whose observation
 also carries the goal (``observe_goal``). ``maze_relative_actions``: Maze2D's
 action is the waypoint's offset from the agent (``relative_actions``) instead
-of the absolute waypoint.
+of the absolute waypoint. ``max_episode_steps``: truncate training and
+evaluation episodes there instead of at the id's registered limit (0, the
+default).
 
 Training is long on a CPU (tens of steps/s per thread), so a trial
 checkpoints (model, replay buffer, curve) at every evaluation under
@@ -103,7 +105,8 @@ class Sb3Params(SuiteParams):
     ``timesteps``: training steps per trial (``None``: 100k for ``sac``, 50k for
     ``sac-her``); ``eval_episodes`` deterministic episodes per evaluation,
     every ``eval_every`` steps (and at step 0); ``normalize_actions``,
-    ``observe_sensors``, ``maze_goal_obs``, ``maze_relative_actions``: the env options (module docstring);
+    ``observe_sensors``, ``maze_goal_obs``, ``maze_relative_actions``, ``max_episode_steps``: the env options
+    (module docstring);
     ``threads`` torch / BLAS threads of the trial; ``checkpoint``: save model,
     replay buffer and curve at every evaluation under ``cache_dir`` (default
     :func:`default_cache_dir`) and resume from there; ``stop_success``: end
@@ -118,6 +121,7 @@ class Sb3Params(SuiteParams):
     observe_sensors: bool = True
     maze_goal_obs: bool = True
     maze_relative_actions: bool = False
+    max_episode_steps: int = 0
     threads: int = 1
     checkpoint: bool = True
     cache_dir: str = ""
@@ -127,6 +131,8 @@ class Sb3Params(SuiteParams):
         ok = self.timesteps is None or 1 <= self.timesteps <= MAX_TIMESTEPS
         self.require("timesteps", ok, f"None or an int in [1, {MAX_TIMESTEPS}]")
         self.require_at_least(1, "eval_episodes", "eval_every", "threads")
+        self.require_at_least(0, "max_episode_steps")
+        self.require_at_most(MAX_TIMESTEPS, "max_episode_steps")
         self.require_at_most(1000, "eval_episodes")
         self.require_at_most(MAX_TIMESTEPS, "eval_every")
         self.require_at_most(64, "threads")
