@@ -393,7 +393,7 @@ def policy_findings(table: Any) -> list[Finding]:
         for e in ENV_IDS
     )
     untested = [e for e in ENV_IDS if min(clean[e].values()) < MIN_CLEAN_SUCCESS]  # type: ignore[union-attr]
-    # where the perturbations cost BC nothing, no method can lose less: said, and the claim fails there
+    # where the perturbations cost BC nothing, the claim has no loss to improve on: the detail says so
     harmless = [e for e in ENV_IDS if e not in untested and drops[e]["bc"] <= 0]  # type: ignore[index]
     holds = not untested and all(drops[e]["glide_bc"] < drops[e]["bc"] for e in ENV_IDS)  # type: ignore[index]
     detail += " (drop in success, GLiDE+BC vs BC)"

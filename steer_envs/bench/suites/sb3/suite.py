@@ -132,9 +132,8 @@ class Sb3Params(SuiteParams):
         self.require("timesteps", ok, f"None or an int in [1, {MAX_TIMESTEPS}]")
         self.require_at_least(1, "eval_episodes", "eval_every", "threads")
         self.require_at_least(0, "max_episode_steps")
-        self.require_at_most(MAX_TIMESTEPS, "max_episode_steps")
         self.require_at_most(1000, "eval_episodes")
-        self.require_at_most(MAX_TIMESTEPS, "eval_every")
+        self.require_at_most(MAX_TIMESTEPS, "eval_every", "max_episode_steps")
         self.require_at_most(64, "threads")
         self.require("stop_success", 0.0 <= self.stop_success <= 100.0, "in [0, 100] (%)")
 
