@@ -37,7 +37,7 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   log=.venv/bootstrap.log
   # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
   if ! { .venv/bin/python -m pip install -q --upgrade "pip>=24" \
-         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui,onnx,human]"; } >"$log" 2>&1; then
+         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui,onnx,openvino,human]"; } >"$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "[bootstrap] pip install failed; full log in $log" >&2
     exit 1

@@ -39,7 +39,13 @@ from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
-from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS, FastNetwork, onnx_missing, resolve_acceleration
+from steer_envs.baselines.diffusion.acceleration import (
+    ACCELERATIONS,
+    FastNetwork,
+    onnx_missing,
+    openvino_missing,
+    resolve_acceleration,
+)
 from steer_envs.baselines.diffusion.configuration import DiffusionConfig
 from steer_envs.core.validation import describe, real_array
 
@@ -273,20 +279,24 @@ class DiffusionPolicy(TorchPolicy):
         SS's re-noising amplifies it). ``"onnx"``: an ONNX export run by ONNX
         Runtime on CPU (~1 s per plan shape, any batch size; the fastest of the
         three on CPU, float32 rounding apart the eager plans; needs the
-        ``onnx`` extra). ``"auto"``: ``"onnx"`` where ONNX Runtime is installed,
-        else ``"trace"`` (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
+        ``onnx`` extra). ``"openvino"``: that export compiled by OpenVINO per
+        input shape, in bfloat16 on a CPU with native bfloat16 (AMX,
+        AVX512-BF16: the fastest mode there, plans within bfloat16 rounding of
+        eager's), float32 elsewhere; needs the ``openvino`` extra. ``"auto"``:
+        ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``
+        (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
         samplers' ``predict_noise``) are accelerated; gradient calls and
         training run eagerly. Weights are followed (after replacing parameter
         objects, call again). Returns self; ``ValueError`` for another ``mode``,
-        ``ImportError`` naming the extra when ``"onnx"`` lacks ONNX Runtime.
+        ``ImportError`` naming the extra when ``"onnx"`` or ``"openvino"`` lacks its packages.
         """
         mode = resolve_acceleration(mode, owner="DiffusionPolicy.accelerate")
-        if mode == "onnx":
-            missing = onnx_missing()
+        if mode in ("onnx", "openvino"):
+            missing = onnx_missing() if mode == "onnx" else openvino_missing()
             if missing:
                 raise ImportError(
-                    f"DiffusionPolicy.accelerate: mode 'onnx' needs {' and '.join(missing)}; "
-                    "install them with: pip install 'steer-envs[onnx]'"
+                    f"DiffusionPolicy.accelerate: mode {mode!r} needs {' and '.join(missing)}; "
+                    f"install them with: pip install 'steer-envs[{mode}]'"
                 )
         self._fast = None if mode == "none" else FastNetwork(mode)
         return self
