@@ -94,8 +94,8 @@ class FastNetwork:
     compiles again, up to dynamo's recompile limit); ``"trace"`` traces it per
     input shape; ``"onnx"`` exports it to ONNX (any batch size) and runs it in an
     ONNX Runtime session on as many threads as torch uses; ``"openvino"`` compiles
-    that export with OpenVINO per input shape (static shapes are ~1.2x faster than
-    a free batch size there) in :func:`openvino_precision`. Compile and trace read
+    that export with OpenVINO per input shape (faster there than a free batch
+    size) in :func:`openvino_precision`. Compile and trace read
     the model's parameters live; the exports hold a copy, redone when a
     parameter or buffer changes in place (a training step, ``load_state_dict``).
     Another model object starts afresh.
@@ -144,7 +144,7 @@ class FastNetwork:
         shared = t.numel() == 1 and cond.shape[0] == 1 and x.device.type == "cpu" and _is_diffusion_net(model)
         if not shared:
             t, cond = t.expand(n), cond.expand(n, -1)
-        if x.device.type != "cpu":  # ONNX Runtime's CPU provider only; elsewhere the network runs as is
+        if x.device.type != "cpu":  # CPU runtimes only; elsewhere the network runs as is
             return cast(torch.Tensor, model(x, t, cond))
         # ONNX Runtime: one export serves any batch size; OpenVINO compiles each input shape
         size = tuple(x.shape) if self.mode == "openvino" else tuple(x.shape[1:])
@@ -271,7 +271,7 @@ def _openvino_model(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: to
 
     core = ov.Core()
     graph = core.read_model(_onnx_graph(model, x, t, cond, shared=shared), b"")  # ONNX bytes, weights inside
-    graph.reshape({"x": list(x.shape)})
+    graph.reshape({"x": list(x.shape), "t": list(t.shape), "cond": list(cond.shape)})
     config = {
         "INFERENCE_NUM_THREADS": torch.get_num_threads(),
         "INFERENCE_PRECISION_HINT": openvino_precision(),
