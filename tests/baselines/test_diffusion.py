@@ -532,7 +532,7 @@ def test_openvino_is_safe_to_call_from_many_threads() -> None:
 def test_openvino_gives_the_shipped_checkpoints_noise_estimates(
     monkeypatch: pytest.MonkeyPatch, precision: str
 ) -> None:
-    """The shipped DP: noise estimates within 2 % of their range in bfloat16 (float32 rounding elsewhere).
+    """The shipped DP: noise estimates within 2 % of their range in bfloat16, 0.01 % in float32.
 
     Plans are not compared: in bfloat16 a rounding early in the denoising can
     send a plan to the other side of a wall (the suite's statistics are what
@@ -542,7 +542,7 @@ def test_openvino_gives_the_shipped_checkpoints_noise_estimates(
     eager, fast = load_pretrained("dp"), load_pretrained("dp")
     assert isinstance(eager, DiffusionPolicy) and isinstance(fast, DiffusionPolicy)
     fast.accelerate("openvino")
-    tolerance = 2e-2 if _openvino_precision(monkeypatch, precision) == "bf16" else 1e-5
+    tolerance = 2e-2 if _openvino_precision(monkeypatch, precision) == "bf16" else 1e-4
     x = torch.randn(32, eager.horizon, 2, generator=torch.Generator().manual_seed(0))
     cond = eager.encode_obs([3.0, 4.0])
     with torch.no_grad():
