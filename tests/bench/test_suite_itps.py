@@ -216,6 +216,25 @@ def test_dp_accelerate_reaches_the_policy_with_the_same_plans(suite: Any, tmp_pa
         plan_trials(suite, build_request(suite, methods=["DP-RS"], params={**FAST, "dp_accelerate": "trace"}))
 
 
+def test_dp_accelerate_openvino_runs_the_ss_benchmark(suite: Any, tmp_path: Path) -> None:
+    """--param dp_accelerate=openvino: a DP-SS trial with its GD benchmark, in OpenVINO's precision here."""
+    pytest.importorskip("openvino")
+    from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
+
+    tiny = DiffusionConfig(
+        obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
+    )
+    bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
+    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
+    params = {**FAST, "dp_checkpoint": str(path), "dp_accelerate": "openvino"}
+    plan = plan_trials(suite, build_request(suite, methods=["DP-SS"], seeds=1, params=params))
+    outcome = execute_trial(plan.trials[0])
+    assert outcome.ok, outcome.error
+    metrics = outcome.record["metrics"]
+    assert 0.0 <= metrics["collision"] <= 1.0 and metrics["min_l2"] <= metrics["avg_l2"]
+    assert metrics["latency_ms"] > 0 and metrics["ss_gd_latency"] > 0 and metrics["network_evals"] == 40
+
+
 def _summary_record(method: str, seed: int, min_l2: float, avg_l2: float, collision: float) -> dict[str, Any]:
     metrics = {"min_l2": min_l2, "avg_l2": avg_l2, "collision": collision}
     config = {"suite": "itps-maze2d", "env": suites_itps.ENV_ID, "method": method, "params": {}}
