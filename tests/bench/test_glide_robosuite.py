@@ -31,6 +31,12 @@ def test_params_refuse_bad_values() -> None:
         GroundingParams(stride=-1)
     with pytest.raises(ValueError, match="dyn_weight"):
         GroundingParams(dyn_weight=float("nan"))
+    with pytest.raises(ValueError, match="best_head_weight"):
+        GroundingParams(best_head_weight=1.5)
+    with pytest.raises(ValueError, match="prune_to"):
+        GroundingParams(prune_to=0)
+    setup = GroundingParams(n_heads=16, best_head_weight=0.0, prune_to=16).setup()
+    assert (setup.n_heads, setup.best_head_weight, setup.prune_to) == (16, 0.0, 16)
     assert DataParams().cache.endswith("glide-robosuite")
     assert DataParams(cache_dir="/x").cache == "/x"
 

@@ -158,7 +158,9 @@ class GroundingSetup:
 
     ``stride``: the classifier sees every ``stride``-th state (20 Hz control
     moves little per step; the losses cost time per state); 0: the task's
-    (:data:`TASK_STRIDE`).
+    (:data:`TASK_STRIDE`). ``n_heads``, ``best_head_weight``, ``prune_to``: the
+    classifier's heads (:class:`~steer_envs.baselines.glide.classifier.GlideTrainConfig`;
+    ``best_head_weight=0`` and ``prune_to >= n_heads`` train them as independent restarts).
     """
 
     n_demos: int = 50
@@ -166,6 +168,8 @@ class GroundingSetup:
     replays_per_demo: int = 10
     epochs: int = 1000
     n_heads: int = 5
+    best_head_weight: float = 0.9
+    prune_to: int = 2
     dyn_weight: float = 10.0
     stride: int = 0
     train_truncated: bool = True
@@ -223,6 +227,8 @@ def train_predictor(
         config = GlideTrainConfig(
             epochs=setup.epochs,
             n_heads=setup.n_heads,
+            best_head_weight=setup.best_head_weight,
+            prune_to=setup.prune_to,
             stride=setup.stride_of(task),
             seed=seed,
             dyn_columns=dyn_outputs,

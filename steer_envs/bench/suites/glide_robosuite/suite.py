@@ -127,17 +127,23 @@ class GroundingParams(DataParams):
     n_demos: int = 50
     epochs: int = 1000
     n_heads: int = 5
+    best_head_weight: float = 0.9
+    prune_to: int = 2
     stride: int = 0
     dyn_weight: float = 10.0
     plot_seeds: int = 1
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self.require_at_least(1, "n_demos", "epochs", "n_heads")
+        self.require_at_least(1, "n_demos", "epochs", "n_heads", "prune_to")
         self.require_at_least(0, "plot_seeds", "stride")
         self.require_at_most(10_000, "n_demos")
         if not self.dyn_weight >= 0:
             raise ValueError(f"{self.suite_name}: parameter 'dyn_weight' must be >= 0, got {self.dyn_weight}")
+        if not 0 <= self.best_head_weight <= 1:
+            raise ValueError(
+                f"{self.suite_name}: parameter 'best_head_weight' must be in [0, 1], got {self.best_head_weight}"
+            )
 
     def setup(self) -> Any:
         from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup
@@ -148,6 +154,8 @@ class GroundingParams(DataParams):
             replays_per_demo=self.replays_per_demo,
             epochs=self.epochs,
             n_heads=self.n_heads,
+            best_head_weight=self.best_head_weight,
+            prune_to=self.prune_to,
             stride=self.stride,
             dyn_weight=self.dyn_weight,
         )
