@@ -6,7 +6,8 @@ picks a mode of :data:`ACCELERATIONS`; ``"auto"`` is ONNX Runtime where it is
 installed (the fastest float32 mode on CPU) and a trace (eager's plans, bit for
 bit) elsewhere (:func:`resolve_acceleration`). ``"openvino"`` is the fastest on a
 CPU with native bfloat16 (AMX or AVX512-BF16), where it computes in bfloat16 and
-so moves the plans by bfloat16 rounding; it is never chosen by ``"auto"``.
+so moves the plans by bfloat16 rounding; ``"fastest"`` chooses it where it is
+installed (``"auto"`` never does).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ __all__ = [
 ]
 
 #: the modes of :meth:`DiffusionPolicy.accelerate`.
-ACCELERATIONS: tuple[str, ...] = ("auto", "none", "compile", "onnx", "openvino", "trace")
+ACCELERATIONS: tuple[str, ...] = ("auto", "fastest", "none", "compile", "onnx", "openvino", "trace")
 #: the most input shapes whose traces (or ONNX exports) one policy keeps.
 MAX_TRACES = 16
 _version = operator.attrgetter("_version")
@@ -60,12 +61,17 @@ def openvino_precision() -> str:
 
 
 def resolve_acceleration(mode: str, *, owner: str = "accelerate") -> str:
-    """``mode`` checked against :data:`ACCELERATIONS`; ``"auto"`` becomes ``"onnx"``, or ``"trace"`` without ORT.
+    """``mode`` checked against :data:`ACCELERATIONS`, with the two choosing modes resolved.
 
-    ``ValueError`` naming ``owner`` for another mode.
+    ``"auto"`` (float32, eager's plans up to rounding) becomes ``"onnx"``, or
+    ``"trace"`` without ONNX Runtime; ``"fastest"`` becomes ``"openvino"`` where
+    OpenVINO is installed, else what ``"auto"`` becomes. ``ValueError`` naming
+    ``owner`` for another mode.
     """
     mode = one_of(mode, "mode", ACCELERATIONS, owner=owner)
-    if mode == "auto":
+    if mode == "fastest" and not openvino_missing():
+        return "openvino"
+    if mode in ("auto", "fastest"):
         return "trace" if onnx_missing() else "onnx"
     return mode
 
@@ -74,12 +80,12 @@ def accelerated(policy: Any, mode: str, *, owner: str = "accelerate") -> Any:
     """``policy`` with its denoiser in ``mode`` (unchanged if it already is); returns ``policy``.
 
     A policy without an ``accelerate`` method (ACT, a test double) is returned
-    as is for ``"auto"`` and ``"none"``; another mode is a ``TypeError`` naming ``owner``.
+    as is for ``"auto"``, ``"fastest"`` and ``"none"``; another mode is a ``TypeError`` naming ``owner``.
     """
     resolved = resolve_acceleration(mode, owner=owner)
     speed_up = getattr(policy, "accelerate", None)
     if not callable(speed_up):
-        if mode in ("auto", "none"):
+        if mode in ("auto", "fastest", "none"):
             return policy
         raise TypeError(f"{owner}: mode {mode!r} needs a policy with an accelerate method, got {type(policy).__name__}")
     if getattr(policy, "acceleration", None) != resolved:

@@ -283,7 +283,8 @@ class DiffusionPolicy(TorchPolicy):
         input shape, in bfloat16 on a CPU with native bfloat16 (AMX,
         AVX512-BF16: the fastest mode there, plans within bfloat16 rounding of
         eager's), float32 elsewhere; needs the ``openvino`` extra. ``"auto"``:
-        ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``
+        ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``;
+        ``"fastest"``: ``"openvino"`` where it is installed, else as ``"auto"``
         (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
         samplers' ``predict_noise``) are accelerated; gradient calls and
         training run eagerly. Weights are followed (after replacing parameter

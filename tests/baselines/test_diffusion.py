@@ -384,7 +384,7 @@ def test_accelerate_checks_its_mode() -> None:
     policy = _tiny()
     assert policy.acceleration == "none"
     for bad in ("jit", "", None, 1):
-        modes = r"\['auto', 'compile', 'none', 'onnx', 'openvino', 'trace'\]"
+        modes = r"\['auto', 'compile', 'fastest', 'none', 'onnx', 'openvino', 'trace'\]"
         with pytest.raises(ValueError, match=r"accelerate: mode must be one of " + modes):
             policy.accelerate(bad)  # type: ignore[arg-type]
     assert policy.accelerate("trace") is policy and policy.acceleration == "trace"
@@ -462,6 +462,17 @@ def test_onnx_without_onnxruntime_names_the_extra(monkeypatch: pytest.MonkeyPatc
 def test_auto_acceleration_is_onnx_where_onnx_runtime_is_installed() -> None:
     pytest.importorskip("onnxruntime")
     assert _tiny().accelerate("auto").acceleration == "onnx"
+
+
+def test_fastest_acceleration_is_openvino_where_installed_else_auto(monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+
+    pytest.importorskip("openvino")
+    pytest.importorskip("onnxruntime")
+    assert _tiny().accelerate("fastest").acceleration == "openvino"
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "openvino" else real(name, *a))
+    assert _tiny().accelerate("fastest").acceleration == "onnx"
 
 
 def _openvino_precision(monkeypatch: pytest.MonkeyPatch, precision: str) -> str:

@@ -32,8 +32,11 @@ OpenMP threads per process contend for the cores and distort the SS/GD ratio;
 to float32 rounding, faster calls; compilation, tracing and export happen in the
 warm-up) or ``"openvino"`` (bfloat16 on a CPU that has it: the fastest, with
 plans within bfloat16 rounding;
-:meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`). The goal
-on ``latency_ms`` is 250 ms a call (issue #19's target for SS on one core).
+:meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`). The
+default, ``"fastest"``, is ``"openvino"`` where OpenVINO is installed, else
+``"onnx"`` (or ``"trace"``); ``--param dp_accelerate=none`` gives eager's plans.
+The goal on ``latency_ms`` is 250 ms a call (issue #19's target for SS on one
+core).
 
 Policies come from :func:`steer_envs.baselines.pretrained.load_pretrained`
 (``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the
@@ -108,7 +111,8 @@ class ItpsParams(SuiteParams):
     ``latency_repeats`` interleaved SS/GD calls; ``{dp,act}_loader`` a
     ``module:function`` returning the policy and ``{dp,act}_checkpoint`` a
     checkpoint file that replaces it; ``dp_accelerate`` the DP's inference
-    acceleration (``"none"``, ``"compile"``, ``"trace"``).
+    acceleration (``"fastest"``, the default, or another mode of
+    :meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`).
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -121,7 +125,7 @@ class ItpsParams(SuiteParams):
     act_loader: str = PRETRAINED_LOADER
     dp_checkpoint: str = ""
     act_checkpoint: str = ""
-    dp_accelerate: str = "none"
+    dp_accelerate: str = "fastest"
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "batch")
@@ -129,7 +133,7 @@ class ItpsParams(SuiteParams):
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
         self.require_at_least(1, "latency_repeats")
         self.require_at_least(0, "plot_seeds")
-        if self.dp_accelerate != "none":  # the import pulls in torch: only for a non-default value
+        if self.dp_accelerate not in ("fastest", "none"):  # the import pulls in torch: only for another value
             from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 
             self.require_in("dp_accelerate", ACCELERATIONS)
