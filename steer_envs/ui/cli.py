@@ -40,8 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--accelerate",
         choices=ACCELERATIONS,
-        default="auto",
-        help="the DP network's inference mode (default: auto, ONNX Runtime where installed, else trace)",
+        default="fastest",
+        help="the DP network's inference mode (default: fastest, OpenVINO where installed, else ONNX Runtime or trace)",
     )
     parser.add_argument("--seed", type=int, default=0, help="first start state and noise seed (default: 0)")
     parser.add_argument("--workers", type=int, default=2, help="steering calls run at once (default: 2)")

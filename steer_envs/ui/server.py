@@ -53,7 +53,7 @@ class UIConfig:
     env: str | None = None
     policy: str | None = None
     checkpoint: str | None = None
-    accelerate: str = "auto"
+    accelerate: str = "fastest"
     seed: int = 0
     #: session calls running at once (the rest wait in line; one torch thread each)
     workers: int = 2

@@ -305,12 +305,12 @@ _POLICIES: dict[tuple[str, str, str], TrajectoryPolicy] = {}
 _POLICIES_LOCK = threading.Lock()
 
 
-def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "auto") -> TrajectoryPolicy:
+def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "fastest") -> TrajectoryPolicy:
     """A shipped policy (or ``checkpoint``), loaded once per process and shared.
 
     ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large) or ``"blockstack"`` (the BlockStack skill DP).
-    ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"auto"``: ONNX
-    Runtime where installed, else a trace with the same plans as eager); ACT ignores it.
+    ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"fastest"``:
+    OpenVINO where installed, else ONNX Runtime or a trace); ACT ignores it.
     """
     from steer_envs.baselines.diffusion.acceleration import resolve_acceleration
     from steer_envs.baselines.pretrained import load_blockstack, load_checkpoint, load_pretrained
@@ -420,8 +420,8 @@ class Session:
         settings: the sampler and knobs (default: the domain's).
         seed: the first reset's seed (start state and sampling noise).
         env_kwargs: passed to ``gymnasium.make`` with an id (default: the domain's).
-        accelerate: the network's inference mode for a named policy (``"auto"`` by default:
-            ONNX Runtime where installed, else a trace).
+        accelerate: the network's inference mode for a named policy (``"fastest"`` by default:
+            OpenVINO where installed, else ONNX Runtime or a trace).
         threads: torch threads for a steering call (default 1; ``None``: leave torch's setting,
             as the server does after setting it once per process).
     """
@@ -436,7 +436,7 @@ class Session:
         settings: SteerSettings | None = None,
         seed: int = 0,
         env_kwargs: Mapping[str, Any] | None = None,
-        accelerate: str = "auto",
+        accelerate: str = "fastest",
         threads: int | None = 1,
     ) -> None:
         self.domain = DOMAINS[one_of(domain, "domain", tuple(DOMAINS), owner="Session")]

@@ -31,7 +31,7 @@ class UIParams(SuiteParams):
     sampler: str = "SS"
     batch: int = 32
     mcmc_steps: int | None = None
-    accelerate: str = "auto"
+    accelerate: str = "fastest"
     threads: int = 1
     roundtrips: int = 10
     target_ms: float = TARGET_MS
