@@ -167,8 +167,6 @@ class FastNetwork:
                     session = build(model, x, t.reshape(-1), cond, shared=shared)
                     self._sessions[key] = entry = (versions, session)
         feeds = {"x": x.detach().numpy(), "t": t.detach().reshape(-1).numpy(), "cond": cond.detach().numpy()}
-        if self.mode == "openvino":
-            return cast(_OpenVinoRunner, entry[1])(feeds)
         return torch.from_numpy(entry[1].run(None, feeds)[0])
 
 
@@ -289,7 +287,10 @@ def _openvino_model(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: to
 
 
 class _OpenVinoRunner:
-    """A compiled OpenVINO model called from any thread: each call borrows an infer request from a pool."""
+    """A compiled OpenVINO model run as an ONNX Runtime session is (:meth:`run`), from any thread.
+
+    Each call borrows an infer request from a pool.
+    """
 
     def __init__(self, compiled: Any) -> None:
         import queue
@@ -297,7 +298,8 @@ class _OpenVinoRunner:
         self.compiled = compiled
         self._requests: queue.SimpleQueue[Any] = queue.SimpleQueue()
 
-    def __call__(self, feeds: dict[str, Any]) -> torch.Tensor:
+    def run(self, output_names: None, feeds: dict[str, Any]) -> list[Any]:
+        """``[output]`` for ``feeds``, as ``InferenceSession.run(None, feeds)`` returns it."""
         import queue
 
         try:
@@ -305,7 +307,6 @@ class _OpenVinoRunner:
         except queue.Empty:
             request = self.compiled.create_infer_request()
         try:
-            out = request.infer(feeds)[self.compiled.output(0)]
-            return torch.from_numpy(out.copy())  # the request reuses its output buffer
+            return [request.infer(feeds)[self.compiled.output(0)].copy()]  # the request reuses its output buffer
         finally:
             self._requests.put(request)

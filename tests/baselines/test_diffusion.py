@@ -447,16 +447,24 @@ def test_onnx_gives_the_eager_plans_of_the_shipped_checkpoint() -> None:
         np.testing.assert_allclose(plans, expected[name], rtol=0, atol=1e-4, err_msg=name)
 
 
-def test_onnx_without_onnxruntime_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize(
+    ("mode", "package", "chooser", "fallback", "needs"),
+    [("onnx", "onnxruntime", "auto", "trace", ()), ("openvino", "openvino", "fastest", "onnx", ("onnxruntime",))],
+)
+def test_a_runtime_mode_without_its_package_names_the_extra_and_its_chooser_falls_back(
+    monkeypatch: pytest.MonkeyPatch, mode: str, package: str, chooser: str, fallback: str, needs: tuple[str, ...]
+) -> None:
     import importlib.util
 
+    for name in needs:
+        pytest.importorskip(name)
     real = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "onnxruntime" else real(name, *a))
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == package else real(name, *a))
     policy = _tiny()
-    with pytest.raises(ImportError, match=r"mode 'onnx' needs onnxruntime.*steer-envs\[onnx\]"):
-        policy.accelerate("onnx")
+    with pytest.raises(ImportError, match=rf"mode '{mode}' needs {package}.*steer-envs\[{mode}\]"):
+        policy.accelerate(mode)
     assert policy.acceleration == "none"
-    assert policy.accelerate("auto").acceleration == "trace"  # auto falls back to the trace
+    assert policy.accelerate(chooser).acceleration == fallback  # auto falls back to the trace, fastest to onnx
 
 
 def test_auto_acceleration_is_onnx_where_onnx_runtime_is_installed() -> None:
@@ -464,15 +472,9 @@ def test_auto_acceleration_is_onnx_where_onnx_runtime_is_installed() -> None:
     assert _tiny().accelerate("auto").acceleration == "onnx"
 
 
-def test_fastest_acceleration_is_openvino_where_installed_else_auto(monkeypatch: pytest.MonkeyPatch) -> None:
-    import importlib.util
-
+def test_fastest_acceleration_is_openvino_where_installed() -> None:
     pytest.importorskip("openvino")
-    pytest.importorskip("onnxruntime")
-    assert _tiny().accelerate("fastest").acceleration == "openvino"
-    real = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "openvino" else real(name, *a))
-    assert _tiny().accelerate("fastest").acceleration == "onnx"
+    assert _tiny().accelerate("fastest").acceleration == "openvino"  # without it: see the test above
 
 
 def _openvino_precision(monkeypatch: pytest.MonkeyPatch, precision: str) -> str:
@@ -560,17 +562,6 @@ def test_openvino_gives_the_shipped_checkpoints_noise_estimates(
         for t in (90, 50, 10, 0):
             want, got = eager.predict_noise(x, t, cond), fast.predict_noise(x, t, cond)
             assert (got - want).abs().max() <= tolerance * want.abs().max(), (t, (got - want).abs().max())
-
-
-def test_openvino_without_its_packages_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
-    import importlib.util
-
-    real = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "openvino" else real(name, *a))
-    policy = _tiny()
-    with pytest.raises(ImportError, match=r"mode 'openvino' needs openvino.*steer-envs\[openvino\]"):
-        policy.accelerate("openvino")
-    assert policy.acceleration == "none"
 
 
 @pytest.mark.slow

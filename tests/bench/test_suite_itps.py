@@ -168,15 +168,20 @@ def test_references_and_quick_settings(suite: Any) -> None:
     assert execute_trial(trial).record["metrics"]["collision"] >= 0.0  # type: ignore[index]
 
 
-def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Path) -> None:
-    """--param dp_checkpoint=FILE runs the suite on another trained checkpoint (e.g. a GPU run)."""
+def _tiny_dp_checkpoint(folder: Path) -> Path:
+    """An untrained tiny Maze2D DP saved in ``folder`` (a stand-in for a trained checkpoint file)."""
     from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
 
     tiny = DiffusionConfig(
         obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
     )
     bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
-    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
+    return DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(folder / "dp.safetensors")
+
+
+def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Path) -> None:
+    """--param dp_checkpoint=FILE runs the suite on another trained checkpoint (e.g. a GPU run)."""
+    path = _tiny_dp_checkpoint(tmp_path)
     params = {**FAST, "dp_loader": "steer_envs.no_such_module:f", "dp_checkpoint": str(path)}
     plan = plan_trials(suite, build_request(suite, methods=["DP-GD"], seeds=1, params=params))
     outcome = execute_trial(plan.trials[0])
@@ -188,14 +193,9 @@ def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Pat
 
 def test_dp_accelerate_reaches_the_policy_with_the_same_plans(suite: Any, tmp_path: Path) -> None:
     """--param dp_accelerate=trace: the DP's denoiser is traced; plans and metrics as in eager mode."""
-    from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
     from steer_envs.bench.suites.itps.protocol import load_policy
 
-    tiny = DiffusionConfig(
-        obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
-    )
-    bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
-    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
+    path = _tiny_dp_checkpoint(tmp_path)
     base = {**FAST, "dp_checkpoint": str(path)}
     records = {}
     for mode in ("none", "trace"):
@@ -219,13 +219,7 @@ def test_dp_accelerate_reaches_the_policy_with_the_same_plans(suite: Any, tmp_pa
 def test_dp_accelerate_openvino_runs_the_ss_benchmark(suite: Any, tmp_path: Path) -> None:
     """--param dp_accelerate=openvino: a DP-SS trial with its GD benchmark, in OpenVINO's precision here."""
     pytest.importorskip("openvino")
-    from steer_envs.baselines.diffusion.modeling import DiffusionConfig, DiffusionPolicy
-
-    tiny = DiffusionConfig(
-        obs_dim=2, action_dim=2, horizon=16, down_dims=(8, 16), step_embed_dim=16, kernel_size=3, obs_embed_dim=16
-    )
-    bounds = {"min": [0.5, 0.5], "max": [7.5, 10.5]}
-    path = DiffusionPolicy(tiny, {"observation": bounds, "action": bounds}).save(tmp_path / "dp.safetensors")
+    path = _tiny_dp_checkpoint(tmp_path)
     params = {**FAST, "dp_checkpoint": str(path), "dp_accelerate": "openvino"}
     plan = plan_trials(suite, build_request(suite, methods=["DP-SS"], seeds=1, params=params))
     outcome = execute_trial(plan.trials[0])
