@@ -6,7 +6,7 @@ open[s] the gripper":
 
 - **schedule**: after each step, with probability ``probability`` (0.1) a
   perturbation starts (it affects the next step), unless ``max_perturbations``
-  (2) have already happened this episode, a gripper opening is still running,
+  (2) have already happened this episode, a gripper opening or a drive push is still running,
   or the next step is one of the last ``quiet_steps`` (10) of the step limit.
   The first step of an episode is never perturbed (a push needs a step to land on).
   With ``after_mode_change=True`` none starts before the episode's ground-truth
@@ -19,13 +19,22 @@ open[s] the gripper":
   both kinds and no ratio; GLiDE's own replays use 1 gripper in 3, but a push
   of a free arm mostly costs a few steps while an opening drops a held
   object, so the even split keeps both failure kinds in the numbers.
-- **push**: a displacement of the eef by ``delta``: a uniform direction on
-  the sphere, a length uniform in ``push_range`` ((0.05, 0.1) m, the size of
-  GLiDE's replay perturbations), done by ``env.unwrapped.perturb(delta=...)``
-  (closed-loop OSC steps, not env steps) right after the step, so the policy
-  sees the pushed state. A push that would take the eef below the object's
-  height at reset has its vertical part flipped upward: pushing the fingers
-  into the table is not a push the arm could take.
+- **push**, ``push_style="displace"`` (the default): a displacement of the eef
+  by ``delta``: a uniform direction on the sphere, a length uniform in
+  ``push_range`` ((0.05, 0.1) m, the size of GLiDE's replay perturbations),
+  done by ``env.unwrapped.perturb(delta=...)`` (closed-loop OSC steps, not env
+  steps) right after the step, so the policy sees the pushed state. A push
+  that would take the eef below the object's height at reset has its vertical
+  part flipped upward: pushing the fingers into the table is not a push the
+  arm could take.
+- **push**, ``push_style="drive"`` (GLiDE's public evaluation code, robomimic's
+  ``EnvPerturber``): for the next ``push_steps`` (10) env steps the position
+  part of the policy's action gets a unit vector added, pointing from that
+  action to a target drawn once per push, uniform in ``[-1, 1]^3`` with its
+  height raised to at least 0.5 (so pushes lean upward, away from the table);
+  the env clips the sum to ``[-1, 1]``. At full speed that is up to 0.05 m a
+  step, i.e. pushes of tens of centimetres that the policy fights while they
+  last. :data:`PUBLIC_CODE_SETTINGS` is that code's whole schedule.
 - **gripper opening**: the gripper command of the next ``n`` steps is forced
   to open (-1), ``n`` uniform in ``gripper_steps`` ((5, 20), the replays'
   range), cut short so the opening ends before the last ``quiet_steps``.
@@ -42,20 +51,37 @@ episode), ``gripper_forced`` (the gripper command was overridden).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
-from steer_envs.core.validation import describe, integer, real_scalar
+from steer_envs.core.validation import describe, integer, one_of, real_scalar
 from steer_envs.envs.kinematic import check_seed
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
 
-__all__ = ["PERTURBATION_KINDS", "ArmPerturbationWrapper"]
+__all__ = ["PERTURBATION_KINDS", "PUBLIC_CODE_SETTINGS", "PUSH_STYLES", "ArmPerturbationWrapper"]
 
 #: the kinds of perturbation the wrapper starts (``info["perturbation"]``).
 PERTURBATION_KINDS: tuple[str, ...] = ("push", "gripper")
+#: how a push moves the arm (see the module): an instant displacement or a drive over several steps.
+PUSH_STYLES: tuple[str, ...] = ("displace", "drive")
+#: the schedule of GLiDE's public robosuite evaluation (robomimic ``EnvPerturber``'s defaults): a push starts
+#: with probability 0.1 a step, lasts 10 steps, at most 2 an episode, from the first steps on; its gripper
+#: perturbation has probability 0 there, so none here.
+PUBLIC_CODE_SETTINGS: Mapping[str, Any] = MappingProxyType(
+    {
+        "probability": 0.1,
+        "max_perturbations": 2,
+        "quiet_steps": 0,
+        "push_style": "drive",
+        "push_steps": 10,
+        "gripper_fraction": 0.0,
+    }
+)
+_DRIVE_MIN_HEIGHT = 0.5  # a drive's target height is at least this (action units), as in the public code
 _OWNER = "ArmPerturbationWrapper"
 
 
@@ -83,7 +109,9 @@ class ArmPerturbationWrapper(
         probability: chance per step that a perturbation starts, in [0, 1].
         max_perturbations: at most this many per episode (int >= 0).
         quiet_steps: no perturbation affects the last this many steps of the step limit (int >= 0).
-        push_range: ``(lo, hi)`` length of a push, m (0 <= lo <= hi).
+        push_range: ``(lo, hi)`` length of a ``"displace"`` push, m (0 <= lo <= hi).
+        push_style: ``"displace"`` or ``"drive"`` (see the module).
+        push_steps: env steps a ``"drive"`` push lasts (int >= 1).
         gripper_fraction: chance that a perturbation is a gripper opening, in [0, 1].
         gripper_steps: ``(lo, hi)`` steps a gripper opening lasts (ints, 1 <= lo <= hi).
         after_mode_change: start none before the episode's mode first changes (bool).
@@ -106,6 +134,8 @@ class ArmPerturbationWrapper(
         max_perturbations: int = 2,
         quiet_steps: int = 10,
         push_range: tuple[float, float] = (0.05, 0.1),
+        push_style: str = "displace",
+        push_steps: int = 10,
         gripper_fraction: float = 0.5,
         gripper_steps: tuple[int, int] = (5, 20),
         after_mode_change: bool = False,
@@ -117,6 +147,8 @@ class ArmPerturbationWrapper(
             max_perturbations=max_perturbations,
             quiet_steps=quiet_steps,
             push_range=push_range,
+            push_style=push_style,
+            push_steps=push_steps,
             gripper_fraction=gripper_fraction,
             gripper_steps=gripper_steps,
             after_mode_change=after_mode_change,
@@ -129,6 +161,8 @@ class ArmPerturbationWrapper(
         self.max_perturbations = integer(max_perturbations, "max_perturbations", low=0, owner=_OWNER)
         self.quiet_steps = integer(quiet_steps, "quiet_steps", low=0, owner=_OWNER)
         self.push_range = _pair(push_range, "push_range", as_int=False, low=0.0)
+        self.push_style = one_of(push_style, "push_style", PUSH_STYLES, owner=_OWNER)
+        self.push_steps = integer(push_steps, "push_steps", low=1, owner=_OWNER)
         self.gripper_fraction = real_scalar(gripper_fraction, "gripper_fraction", low=0.0, high=1.0, owner=_OWNER)
         lo, hi = _pair(gripper_steps, "gripper_steps", as_int=True, low=1)
         self.gripper_steps = (int(lo), int(hi))
@@ -148,6 +182,8 @@ class ArmPerturbationWrapper(
         self._t = 0  # steps taken this episode
         self._count = 0
         self._open_left = 0  # steps of the running gripper opening still to force
+        self._drive_left = 0  # steps of the running drive push still to apply
+        self._drive_target = np.zeros(3)
         self._floor = -np.inf
         self._start_mode: Any = None  # the episode's first mode
         self._mode_changed = False
@@ -170,39 +206,43 @@ class ArmPerturbationWrapper(
         obs, info = self.env.reset(seed=seed, options=options)
         if seed is not None:
             self._rng = np.random.default_rng([seed, 1])
-        self._t = self._count = self._open_left = 0
+        self._t = self._count = self._open_left = self._drive_left = 0
         self._floor = float(self.arm.object_pos[2])
         self._start_mode, self._mode_changed = info.get("mode"), False
         self.log = []
         return obs, self._annotate(info, perturbed=False, started=None)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
-        """One env step (gripper forced open during an opening), then maybe a perturbation for the next one."""
-        forced = self._open_left > 0
-        if forced:
+        """One env step (gripper forced open, or the action driven, while one runs), then maybe the next one."""
+        forced, driven = self._open_left > 0, self._drive_left > 0
+        if forced or driven:
             act = np.array(action, dtype=np.float32, copy=True)
             if act.shape == (7,):  # a malformed action is the env's to refuse
-                act[6] = -1.0
+                if forced:
+                    act[6] = -1.0
+                if driven:
+                    act[:3] += self._drive_direction(act[:3])
             action = act
-            self._open_left -= 1
+            self._open_left = max(self._open_left - 1, 0)
+            self._drive_left = max(self._drive_left - 1, 0)
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._t += 1
         self._mode_changed = self._mode_changed or info.get("mode") != self._start_mode
         started, pushed = None, False
         if not (terminated or truncated) and self._may_start():
             started = self._start()
-            if started == "push":
+            if started == "push" and self.push_style == "displace":
                 pushed = True
                 obs = self._observation()
                 info = self._after_push(info)
-        info = self._annotate(info, perturbed=forced or pushed, started=started)
+        info = self._annotate(info, perturbed=forced or driven or pushed, started=started)
         info["gripper_forced"] = forced
         return obs, reward, terminated, truncated, info
 
     # ---------------------------------------------------------------- schedule
     def _may_start(self) -> bool:
         """A perturbation may start now, to affect step ``self._t`` (0-based), and the coin says it does."""
-        if self._count >= self.max_perturbations or self._open_left > 0:
+        if self._count >= self.max_perturbations or self._open_left > 0 or self._drive_left > 0:
             return False
         if self.after_mode_change and not self._mode_changed:
             return False
@@ -220,6 +260,13 @@ class ArmPerturbationWrapper(
             self._open_left = n
             self.log.append((self._t, "gripper", n))
             return "gripper"
+        if self.push_style == "drive":
+            target = self._rng.uniform(-1.0, 1.0, size=3)
+            target[2] = max(_DRIVE_MIN_HEIGHT, target[2])
+            self._drive_target = target
+            self._drive_left = min(self.push_steps, max(self.max_episode_steps - self.quiet_steps - self._t, 1))
+            self.log.append((self._t, "push", target.copy()))
+            return "push"
         direction = self._rng.normal(size=3)
         direction /= max(float(np.linalg.norm(direction)), 1e-12)
         delta = direction * float(self._rng.uniform(*self.push_range))
@@ -228,6 +275,11 @@ class ArmPerturbationWrapper(
         self.log.append((self._t, "push", delta))
         self._push_info = self.arm.perturb(delta=delta)
         return "push"
+
+    def _drive_direction(self, position_action: np.ndarray) -> np.ndarray:
+        """The unit vector from the policy's position action toward the running drive's target."""
+        offset = self._drive_target - np.asarray(position_action, dtype=np.float64)
+        return (offset / max(float(np.linalg.norm(offset)), 1e-12)).astype(np.float32)
 
     def _after_push(self, info: dict[str, Any]) -> dict[str, Any]:
         """The step's ``info`` updated to the pushed state (mode, sensors); the step's violation and success kept."""

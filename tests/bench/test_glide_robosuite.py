@@ -171,6 +171,13 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert PolicyParams.from_json({"perturb_after_mode_change": True}).perturb_after_mode_change is True
     with pytest.raises((TypeError, ValueError), match="perturb_after_mode_change"):
         PolicyParams.from_json({"perturb_after_mode_change": "yes"})
+    from steer_envs.wrappers.arm_perturbation import PUBLIC_CODE_SETTINGS
+
+    assert PolicyParams().perturbation_settings() == {}  # the wrapper's defaults
+    public = PolicyParams.from_json({"perturbation": "public_code", "perturb_after_mode_change": True})
+    assert public.perturbation_settings() == {**PUBLIC_CODE_SETTINGS, "after_mode_change": True}
+    with pytest.raises(ValueError, match="perturbation"):
+        PolicyParams.from_json({"perturbation": "shove"})
     assert PolicyParams().bc_settings() == ArmBCSettings()  # the defaults are ArmBCSettings'
     big = PolicyParams.from_json({"bc_hidden": [512, 512, 512], "bc_steps": 40000}).bc_settings()
     assert big.hidden == (512, 512, 512) and big.steps == 40000

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from typing import Any
 
@@ -14,6 +15,7 @@ import steer_envs  # noqa: F401 - registers the ids
 pytest.importorskip("robosuite")
 
 from steer_envs.wrappers import ArmPerturbationWrapper
+from steer_envs.wrappers.arm_perturbation import PUBLIC_CODE_SETTINGS
 
 LIFT = "steer_envs/Lift-v0"
 
@@ -76,6 +78,39 @@ def test_gripper_openings_force_the_gripper_open(lift: gym.Env[Any, Any]) -> Non
     assert infos[1]["perturbation"] == "gripper" and not infos[1]["perturbed"]
 
 
+def test_drive_pushes_steer_the_action_for_push_steps(lift: gym.Env[Any, Any]) -> None:
+    kwargs = {"probability": 1.0, "max_perturbations": 1, "gripper_fraction": 0.0}
+    env = ArmPerturbationWrapper(lift, push_style="drive", push_steps=4, **kwargs)
+    _, info = env.reset(seed=3)
+    start = env.arm.state.copy()
+    _, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))
+    assert info["perturbation"] == "push" and not info["perturbed"]  # it starts now and drives the next steps
+    ((step, kind, target),) = env.log
+    assert (step, kind) == (1, "push") and target[2] >= 0.5 and np.all(np.abs(target) <= 1.0)
+    np.testing.assert_allclose(env.arm.state, start, atol=0.01)  # nothing was moved on the spot
+    before = env.arm.state.copy()
+    perturbed = []
+    for _ in range(6):
+        _, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))
+        perturbed.append(info["perturbed"])
+    assert perturbed == [True] * 4 + [False] * 2
+    moved = env.arm.state - before
+    assert float(np.linalg.norm(moved)) > 0.03  # four steps at full speed toward the target (the OSC lags)
+    assert float(moved @ (target / np.linalg.norm(target))) > 0.8 * float(np.linalg.norm(moved))  # ... along it
+
+
+def test_public_code_settings(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(lift, **PUBLIC_CODE_SETTINGS)
+    counts = []
+    for seed in range(4):
+        infos = _run(env, seed, 60)
+        assert {kind for _, kind, _ in env.log} <= {"push"} and len(env.log) <= 2
+        steps = [t for t, _, _ in env.log]
+        assert all(b - a >= 10 for a, b in itertools.pairwise(steps))  # one push at a time
+        counts.append(sum(i["perturbed"] for i in infos))
+    assert max(counts) > 10  # two 10-step pushes in 60 steps happen at probability 0.1 a step
+
+
 def test_a_seed_replays_the_same_perturbations(lift: gym.Env[Any, Any]) -> None:
     env = ArmPerturbationWrapper(lift, probability=0.3, max_episode_steps=30)
     _run(env, 7, 30)
@@ -131,6 +166,8 @@ def test_the_spec_records_the_arguments(lift: gym.Env[Any, Any]) -> None:
         ({"gripper_steps": (5.0, 9)}, TypeError),
         ({"max_episode_steps": 0}, ValueError),
         ({"after_mode_change": 1}, TypeError),
+        ({"push_style": "shove"}, ValueError),
+        ({"push_steps": 0}, ValueError),
     ],
 )
 def test_bad_arguments_are_refused(lift: gym.Env[Any, Any], kwargs: dict[str, Any], error: type) -> None:

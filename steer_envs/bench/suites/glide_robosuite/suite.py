@@ -297,12 +297,19 @@ register_suite(
 #: what GLiDE+BC segments the demos by: the trained GLiDE classifier, the k-means baseline, or the
 #: ground-truth modes (a stand-in that shows what a perfect grounding would give).
 PREDICTORS: tuple[str, ...] = ("classifier", "kmeans", "ground_truth")
+#: the "+p" schedules (``PolicyParams.perturbation``): the wrapper's own, or GLiDE's public evaluation code's.
+PERTURBATION_SCHEDULES: tuple[str, ...] = ("displace", "public_code")
 
 
 @dataclass(frozen=True)
 class PolicyParams(GroundingParams):
     """Parameters of ``glide-robosuite`` (Table 4.3): the grounding's, the evaluation episodes, the predictor.
 
+    ``perturbation``: the "+p" schedule. ``"displace"`` (default): the
+    wrapper's own, a push moves the eef 5-10 cm at once, or the gripper is
+    forced open. ``"public_code"``: GLiDE's public evaluation code's
+    (:data:`~steer_envs.wrappers.arm_perturbation.PUBLIC_CODE_SETTINGS`): pushes
+    that drive the arm toward a random target for 10 steps, no gripper openings.
     ``perturb_after_mode_change``: the "+p" perturbations start only once the
     episode's ground-truth mode has first changed (the arm has left reach;
     :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
@@ -315,6 +322,7 @@ class PolicyParams(GroundingParams):
     suite_name: ClassVar[str] = POLICY_SUITE
     n_episodes: int = 50
     predictor: str = "classifier"
+    perturbation: str = "displace"
     perturb_after_mode_change: bool = False
     bc_hidden: tuple[int, ...] = (256, 256)
     bc_steps: int = 8000
@@ -324,8 +332,18 @@ class PolicyParams(GroundingParams):
         self.require_at_least(1, "n_episodes")
         self.require_at_most(100_000, "n_episodes")
         self.require_in("predictor", PREDICTORS)
+        self.require_in("perturbation", PERTURBATION_SCHEDULES)
         self.require("bc_hidden", bool(self.bc_hidden) and min(self.bc_hidden) >= 1, "a non-empty list of ints >= 1")
         self.require_at_least(1, "bc_steps")
+
+    def perturbation_settings(self) -> dict[str, Any]:
+        """The :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper` keyword arguments."""
+        from steer_envs.wrappers.arm_perturbation import PUBLIC_CODE_SETTINGS
+
+        out: dict[str, Any] = dict(PUBLIC_CODE_SETTINGS) if self.perturbation == "public_code" else {}
+        if self.perturb_after_mode_change:
+            out["after_mode_change"] = True
+        return out
 
     def bc_settings(self) -> Any:
         """The :class:`~steer_envs.bench.suites.glide_robosuite.policies.ArmBCSettings` of these parameters."""
@@ -362,7 +380,7 @@ def run_policy_trial(trial: Trial) -> TrialResult:
             predictor=predictor,
             n_episodes=params.n_episodes,
             perturbed="both",
-            perturbation={"after_mode_change": True} if params.perturb_after_mode_change else None,
+            perturbation=params.perturbation_settings(),
             bc=params.bc_settings(),
         )
     clean, pert = res["eval"]["clean"], res["eval"]["perturbed"]
