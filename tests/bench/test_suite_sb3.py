@@ -162,4 +162,4 @@ def test_max_episode_steps_truncates_and_keeps_default_folders(tmp_path: Path) -
     assert steps == 7
     default = Sb3Params(cache_dir=str(tmp_path))
     assert run_folder(env_id, "sac", 0, short) != run_folder(env_id, "sac", 0, default)
-    assert make_env(env_id, "sac", default).spec.max_episode_steps == 300  # Umaze's registered limit
+    assert make_env(env_id, "sac", default).spec.max_episode_steps == 150  # UmazeDense's registered limit
