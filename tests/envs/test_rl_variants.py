@@ -315,6 +315,19 @@ def test_maze2d_dense_ids_observe_velocity_and_the_goal_their_reward_measures() 
         Maze2DEnv("umaze", observe_goal="yes")
 
 
+def test_maze2d_dense_ids_act_at_half_the_itps_rate_in_the_same_time() -> None:
+    from steer_envs.envs.registry import MAZE_DENSE_FRAME_SKIP
+
+    for maze in MAZES:
+        base = gym.make(f"steer_envs/Maze2D-{maze}-v0")
+        assert base.unwrapped.frame_skip == 4  # the ITPS data rate
+        seconds = base.spec.max_episode_steps * base.unwrapped.dt
+        for suffix, skip in (("Dense", MAZE_DENSE_FRAME_SKIP), ("GoalDense", MAZE_DENSE_FRAME_SKIP), ("Goal", 4)):
+            env = gym.make(f"steer_envs/Maze2D-{maze}{suffix}-v0")
+            assert env.unwrapped.frame_skip == skip
+            assert env.spec.max_episode_steps * env.unwrapped.dt == pytest.approx(seconds)
+
+
 def test_maze2d_normalised_actions_map_onto_the_grid() -> None:
     env = gym.make("steer_envs/Maze2D-Umaze-v0", normalize_actions=True, observe_sensors=True)
     assert env.action_space.low.tolist() == [-1.0, -1.0]
