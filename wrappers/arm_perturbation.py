@@ -247,7 +247,7 @@ class ArmPerturbationWrapper(
             return False
         if self.after_mode_change and not self._mode_changed:
             return False
-        if self._t >= self.max_episode_steps - self.quiet_steps:
+        if self._steps_before_quiet() <= 0:
             return False
         return bool(self._rng.random() < self.probability)
 
@@ -257,7 +257,7 @@ class ArmPerturbationWrapper(
         if self._rng.random() < self.gripper_fraction:
             lo, hi = self.gripper_steps
             n = int(self._rng.integers(lo, hi + 1))
-            n = min(n, self.max_episode_steps - self.quiet_steps - self._t)  # over before the quiet steps
+            n = min(n, self._steps_before_quiet())  # over before the quiet steps
             self._open_left = n
             self.log.append((self._t, "gripper", n))
             return "gripper"
@@ -265,7 +265,7 @@ class ArmPerturbationWrapper(
             target = self._rng.uniform(-1.0, 1.0, size=3)
             target[2] = max(_DRIVE_MIN_HEIGHT, target[2])
             self._drive_target = target
-            self._drive_left = min(self.push_steps, max(self.max_episode_steps - self.quiet_steps - self._t, 1))
+            self._drive_left = min(self.push_steps, self._steps_before_quiet())  # over before the quiet steps
             self.log.append((self._t, "push", target.copy()))
             return "push"
         direction = self._rng.normal(size=3)
@@ -276,6 +276,10 @@ class ArmPerturbationWrapper(
         self.log.append((self._t, "push", delta))
         self._push_info = self.arm.perturb(delta=delta)
         return "push"
+
+    def _steps_before_quiet(self) -> int:
+        """Steps from step ``self._t`` (0-based) up to the quiet steps at the end of the step limit."""
+        return self.max_episode_steps - self.quiet_steps - self._t
 
     def _drive_direction(self, position_action: np.ndarray) -> np.ndarray:
         """The unit vector from the policy's position action toward the running drive's target."""
