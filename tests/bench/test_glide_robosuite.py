@@ -176,6 +176,8 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert PolicyParams().perturbation_settings() == {}  # the wrapper's defaults
     public = PolicyParams.from_json({"perturbation": "public_code", "perturb_after_mode_change": True})
     assert public.perturbation_settings() == {**PUBLIC_CODE_SETTINGS, "after_mode_change": True}
+    with_gripper = PolicyParams.from_json({"perturbation": "public_code_gripper"}).perturbation_settings()
+    assert {k: v for k, v in PUBLIC_CODE_SETTINGS.items() if k != "gripper_fraction"} == with_gripper
     with pytest.raises(ValueError, match="perturbation"):
         PolicyParams.from_json({"perturbation": "shove"})
     assert PolicyParams().bc_settings() == ArmBCSettings()  # the defaults are ArmBCSettings'

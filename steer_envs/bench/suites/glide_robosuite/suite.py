@@ -297,8 +297,9 @@ register_suite(
 #: what GLiDE+BC segments the demos by: the trained GLiDE classifier, the k-means baseline, or the
 #: ground-truth modes (a stand-in that shows what a perfect grounding would give).
 PREDICTORS: tuple[str, ...] = ("classifier", "kmeans", "ground_truth")
-#: the "+p" schedules (``PolicyParams.perturbation``): the wrapper's own, or GLiDE's public evaluation code's.
-PERTURBATION_SCHEDULES: tuple[str, ...] = ("displace", "public_code")
+#: the "+p" schedules (``PolicyParams.perturbation``): the wrapper's own, GLiDE's public evaluation code's, or
+#: that code's drive pushes with the gripper openings the thesis's text names.
+PERTURBATION_SCHEDULES: tuple[str, ...] = ("displace", "public_code", "public_code_gripper")
 
 
 @dataclass(frozen=True)
@@ -310,6 +311,10 @@ class PolicyParams(GroundingParams):
     forced open. ``"public_code"``: GLiDE's public evaluation code's
     (:data:`~steer_envs.wrappers.arm_perturbation.PUBLIC_CODE_SETTINGS`): pushes
     that drive the arm toward a random target for 10 steps, no gripper openings.
+    ``"public_code_gripper"``: the same schedule, but half of the perturbations
+    force the gripper open for 5-20 steps instead (the wrapper's split and
+    range), as the thesis's text ("displace the end-effector or open the
+    gripper") and issue #16 name both kinds.
     ``perturb_after_mode_change``: the "+p" perturbations start only once the
     episode's ground-truth mode has first changed (the arm has left reach;
     :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
@@ -340,7 +345,9 @@ class PolicyParams(GroundingParams):
         """The :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper` keyword arguments."""
         from steer_envs.wrappers.arm_perturbation import PUBLIC_CODE_SETTINGS
 
-        out: dict[str, Any] = dict(PUBLIC_CODE_SETTINGS) if self.perturbation == "public_code" else {}
+        out: dict[str, Any] = dict(PUBLIC_CODE_SETTINGS) if self.perturbation.startswith("public_code") else {}
+        if self.perturbation == "public_code_gripper":
+            del out["gripper_fraction"]  # the wrapper's default: half of them open the gripper
         if self.perturb_after_mode_change:
             out["after_mode_change"] = True
         return out
