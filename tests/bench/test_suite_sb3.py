@@ -152,8 +152,8 @@ def test_max_episode_steps_truncates_and_keeps_default_folders(tmp_path: Path) -
     env = make_env(env_id, "sac", short)
     assert env.spec is not None and env.spec.max_episode_steps == 7
     env.reset(seed=0)
-    # a fixed waypoint (the maze's centre) from a seeded start: deterministic, and it does not reach the goal
-    # (random actions did, now and then, on the 7th step, which ends an episode both ways)
+    # a fixed waypoint (the maze's centre) from a seeded start: deterministic, and it never reaches the goal
+    # (random actions sometimes did, which ends the episode at the limit's step both ways)
     centre = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
     for step in range(1, 8):
         _, _, terminated, truncated, _ = env.step(centre)

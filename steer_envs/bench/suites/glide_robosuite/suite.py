@@ -345,7 +345,7 @@ class PolicyParams(GroundingParams):
         """The :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper` keyword arguments."""
         from steer_envs.wrappers.arm_perturbation import PUBLIC_CODE_SETTINGS
 
-        out: dict[str, Any] = dict(PUBLIC_CODE_SETTINGS) if self.perturbation.startswith("public_code") else {}
+        out: dict[str, Any] = dict(PUBLIC_CODE_SETTINGS) if self.perturbation != "displace" else {}
         if self.perturbation == "public_code_gripper":
             del out["gripper_fraction"]  # the wrapper's default: half of them open the gripper
         if self.perturb_after_mode_change:
