@@ -136,6 +136,21 @@ def test_grounding_trial_scores_demo_samples(cache: Path) -> None:
         grounding("lift", "oracle", trajs, setup=setup)
 
 
+@needs_robosuite
+def test_grounding_trials_report_the_kept_heads_training_loss(cache: Path) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+
+    suite = get_suite(GROUNDING_SUITE)
+    params = GroundingParams(
+        n_demos=2, replay_demos=1, replays_per_demo=2, epochs=5, n_heads=2, plot_seeds=0, cache_dir=str(cache)
+    )
+    full, kmeans = (execute_trial(suite.trial("steer_envs/Lift-v0", m, 0, params)) for m in ("full", "kmeans"))
+    assert full.ok and kmeans.ok, (full.error, kmeans.error)
+    assert np.isfinite(full.record["metrics"]["train_loss"])
+    assert "train_loss" not in kmeans.record["metrics"]  # k-means has no training loss
+
+
 def _record(env: str, method: str, accuracy: float) -> dict:
     config = {"suite": GROUNDING_SUITE, "env": env, "method": method, "params": {}}
     return {"config": config, "seed": 0, "metrics": {"accuracy": accuracy}, "key": f"{env}-{method}"}

@@ -222,6 +222,8 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
         / len(res["accuracy_per_mode"]),
         "train_seconds": res["train_seconds"],
     }
+    if res.get("head_losses"):  # the kept head's: set beside accuracy, it shows whether the loss ranks the truth first
+        metrics["train_loss"] = min(res["head_losses"])
     extra = {k: v for k, v in res.items() if k not in metrics}
     return TrialResult(metrics, extra)
 
@@ -268,6 +270,12 @@ register_suite(
         metrics=(
             Metric("accuracy", "demo samples whose learned mode is the ground truth's", fmt=".3f"),
             Metric("demo_modes_found", "ground-truth modes recovered on more than half their samples", fmt=".2f"),
+            Metric(
+                "train_loss",
+                "training loss of the kept classifier head (GLiDE variants; comparable across seeds of one variant)",
+                higher_is_better=False,
+                fmt=".4f",
+            ),
             Metric(
                 "train_seconds",
                 "classifier training (or k-means) wall time (s)",
