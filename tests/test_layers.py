@@ -1,4 +1,9 @@
-"""Dependencies point one way (docs/architecture.md, "Layers"): every import in the library, lazy ones included."""
+"""Dependencies point one way (docs/architecture.md, "Layers") and never in a circle.
+
+Every import in the library counts, lazy ones (inside functions) included:
+a module may import only from layers of lower rank or its own layer, and no
+chain of imports between modules may lead back to where it started.
+"""
 
 from __future__ import annotations
 
@@ -16,13 +21,15 @@ RANKS = {
     "core": 1,
     "ltl": 2,
     "envs": 2,
-    "users": 3,
-    "data": 3,
-    "utils": 3,
-    "wrappers": 4,
+    "control": 3,
+    "data": 4,
+    "users": 4,
+    "utils": 4,
     "baselines": 5,
-    "ui": 6,
-    "bench": 7,
+    "steering": 5,
+    "wrappers": 6,
+    "ui": 7,
+    "bench": 8,
 }
 
 
@@ -40,18 +47,36 @@ def _layer(module: str) -> str | None:
     return parts[1]
 
 
+def _is_package(path: Path) -> bool:
+    return path.name == "__init__.py"
+
+
+def _absolute(path: Path, node: ast.ImportFrom) -> str:
+    """The absolute module a (possibly relative) ``from ... import`` names."""
+    if node.level == 0:
+        return node.module or ""
+    parts = _module_name(path).split(".")
+    base = parts if _is_package(path) else parts[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join([*base, node.module] if node.module else base)
+
+
 def _imports(path: Path) -> list[tuple[int, str]]:
+    """``(line, module)`` of every import in ``path``; ``from pkg import sub`` names ``pkg.sub`` when it is a module."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
     found: list[tuple[int, str]] = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name) for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            found.append((node.lineno, node.module))
+        elif isinstance(node, ast.ImportFrom):
+            module = _absolute(path, node)
+            subs = [f"{module}.{alias.name}" for alias in node.names if f"{module}.{alias.name}" in MODULES]
+            found += [(node.lineno, sub) for sub in subs] or [(node.lineno, module)]
     return found
 
 
 SOURCES = sorted(p for folder in PACKAGES for p in (ROOT / folder).rglob("*.py"))
+MODULES = {_module_name(p): p for p in SOURCES}
 
 
 def test_every_layer_has_a_rank() -> None:
@@ -89,3 +114,62 @@ def test_suites_do_not_import_each_other(path: Path) -> None:
         if target.startswith("steer_envs.bench.suites.") and target.split(".")[3] != own
     ]
     assert not bad, f"{module} imports another suite (share code through a lower layer):\n" + "\n".join(bad)
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the library modules it imports (the nearest existing module for attribute imports)."""
+    graph: dict[str, set[str]] = {}
+    for module, path in MODULES.items():
+        targets = set()
+        for _, target in _imports(path):
+            while target and target not in MODULES:
+                target = target.rpartition(".")[0]
+            if target and target != module:
+                targets.add(target)
+        graph[module] = targets
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_cycle_finder_finds_a_cycle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycles() -> None:
+    cycles = _cycles(_import_graph())
+    assert not cycles, "import cycles (lazy imports count):\n" + "\n".join(" <-> ".join(c) for c in cycles)

@@ -6,7 +6,8 @@
 """
 
 from steer_envs.baselines.diffusion.configuration import PREDICTIONS, PRESETS, DiffusionConfig
-from steer_envs.baselines.diffusion.modeling import ConditionalUnet1D, DiffusionNet, DiffusionPolicy, ObsEncoder
+from steer_envs.baselines.diffusion.modeling import DiffusionPolicy
+from steer_envs.baselines.diffusion.network import ConditionalUnet1D, DiffusionNet, ObsEncoder
 
 __all__ = [
     "PREDICTIONS",

@@ -22,6 +22,8 @@ from typing import Any, cast
 import torch
 from torch import nn
 
+from steer_envs.baselines.diffusion.export import ExportDenoiser
+from steer_envs.baselines.diffusion.network import DiffusionNet
 from steer_envs.core.validation import one_of
 
 __all__ = [
@@ -209,8 +211,6 @@ def _for_export(model: nn.Module) -> nn.Module:
 
 
 def _is_diffusion_net(model: nn.Module) -> bool:
-    from steer_envs.baselines.diffusion.modeling import DiffusionNet
-
     return isinstance(model, DiffusionNet)
 
 
@@ -224,8 +224,6 @@ def _onnx_graph(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.
     """
     import os
     import tempfile
-
-    from steer_envs.baselines.diffusion.export import ExportDenoiser
 
     exported = ExportDenoiser(model, shared_condition=shared) if _is_diffusion_net(model) else _for_export(model)
     axes = {"x": {0: "n"}, "out": {0: "n"}} | ({} if shared else {"t": {0: "n"}, "cond": {0: "n"}})

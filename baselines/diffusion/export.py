@@ -31,7 +31,7 @@ import torch.nn.functional as F
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from steer_envs.baselines.diffusion.modeling import ConditionalUnet1D, DiffusionNet, _ConvBlock, _FiLMResBlock
+from steer_envs.baselines.diffusion.network import ConditionalUnet1D, DiffusionNet, _ConvBlock, _FiLMResBlock
 
 __all__ = ["ExportDenoiser"]
 

@@ -80,7 +80,8 @@ from steer_envs.baselines.training.run_state import (
 )
 from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import integer, real_scalar
-from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset, load_trajectories
+from steer_envs.data.datasets import load_dataset
+from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset
 from steer_envs.io import CheckpointError, atomic_write_text
 from steer_envs.utils.cli import parse_key_value
 from steer_envs.utils.threads import MAX_THREADS
@@ -438,7 +439,7 @@ def check_record(
     if policy is not None and policy != name:
         raise ValueError(f"--policy is {policy!r} but {path} records a {name!r} run")
     steps = integer(steps, "steps", low=1, high=settings.steps)
-    dataset = data if isinstance(data, TrajectoryDataset) else load_trajectories(data)
+    dataset = data if isinstance(data, TrajectoryDataset) else load_dataset(data)
     require_same_data(dataset, record.get("data"))
     try:
         size = with_dataset_features(config, dataset).parameter_count()
@@ -773,7 +774,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = get_policy_class(run["policy"]).config_class.from_dict(run["config"])
         settings = TrainSettings.from_dict(run["settings"])
-        dataset = load_trajectories(args.dataset or run["dataset"])
+        dataset = load_dataset(args.dataset or run["dataset"])
         if args.resume is not None:
             require_same_data(dataset, run.get("data"))
         policy = make_policy(config, dataset=dataset, seed=settings.seed, device=run["device"])

@@ -258,15 +258,34 @@ def goal_lines(table: Table) -> list[str]:
     return lines
 
 
+def seeds_run(table: Table) -> int:
+    """The most seeds any row of ``table`` ran (0 for an empty table)."""
+    return max((len(r.seeds) for r in table.rows), default=0)
+
+
+def judged(table: Table) -> bool:
+    """Whether ``table`` ran the seeds its suite's findings are meant for (unregistered suites: always)."""
+    return table.default_seeds is None or seeds_run(table) >= table.default_seeds
+
+
 def finding_lines(table: Table) -> list[str]:
-    """``finding holds|FAILS|not checked: claim (detail)`` lines; a run on fewer seeds than the suite's says so."""
+    """``finding holds|FAILS|not checked|not judged: claim (detail)`` lines.
+
+    A run on fewer seeds than the suite's default cannot judge a claim made
+    about the full run: its verdicts print as ``not judged``, with the seeds
+    run and needed and the verdict these seeds lean to, never as a failure.
+    """
     verdict = {True: "holds", False: "FAILS", None: "not checked"}
-    lines = [f"finding {verdict[f.holds]}: {f.claim}" + (f" ({f.detail})" if f.detail else "") for f in table.findings]
-    seeds = max((len(r.seeds) for r in table.rows), default=0)
-    if lines and table.default_seeds is not None and seeds < table.default_seeds:
-        lines.append(
-            f"findings above come from {seeds} seed(s); the claims are about the full run's {table.default_seeds}"
-        )
+    seeds, enough = seeds_run(table), judged(table)
+    lines = []
+    for f in table.findings:
+        detail = f" ({f.detail})" if f.detail else ""
+        if f.holds is None or enough:
+            lines.append(f"finding {verdict[f.holds]}: {f.claim}{detail}")
+        else:
+            lean = "holds" if f.holds else "fails"
+            need = f"{seeds} of the {table.default_seeds} seeds it needs; on these it {lean}"
+            lines.append(f"finding not judged ({need}): {f.claim}{detail}")
     return lines
 
 
@@ -373,7 +392,7 @@ def render_csv(tables: Sequence[Table]) -> str:
 
 def render_json(tables: Sequence[Table]) -> str:
     """JSON: ``{"rows": [...], "findings": [...]}``; rows in the same long format as the CSV."""
-    findings = [{"suite": t.suite, **asdict(f)} for t in tables for f in t.findings]
+    findings = [{"suite": t.suite, **asdict(f), "judged": judged(t)} for t in tables for f in t.findings]
     return json.dumps({"rows": _long_rows(tables), "findings": findings}, indent=2, sort_keys=True) + "\n"
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,6 +47,7 @@ __all__ = [
     "TrajectoryDataset",
     "load_trajectories",
     "save_trajectories",
+    "trajectories_from_arrays",
 ]
 
 FORMAT = "steer_envs.trajectories/1"
@@ -292,7 +293,7 @@ def save_trajectories(dataset: TrajectoryDataset, path: str | os.PathLike[str]) 
 
 
 def load_trajectories(path: str | os.PathLike[str]) -> TrajectoryDataset:
-    """Read a file of :func:`save_trajectories`, or a Maze2D random walk (converted with its declarations).
+    """Read a file of :func:`save_trajectories` (:func:`steer_envs.data.datasets.load_dataset` also reads random walks).
 
     :class:`~steer_envs.io.DatasetError` (a ``ValueError``) naming the file
     when it is missing, not an ``.npz`` of plain arrays, of another format, or
@@ -301,28 +302,28 @@ def load_trajectories(path: str | os.PathLike[str]) -> TrajectoryDataset:
     src = Path(path)
     if not src.is_file():
         raise DatasetError(f"no dataset file at {str(src)!r}")
-    arrays = read_npz(src)
-    if "header" in arrays:
-        header = npz_json(src, arrays, "header")
-        if header.get("format") != FORMAT:
-            raise DatasetError(f"{src} has format {header.get('format')!r}, expected {FORMAT!r}")
-        require_arrays(src, arrays, {"observations": ("iuf", 2), "actions": ("iuf", 2), "episode_starts": ("iu", 1)})
-        meta = header.get("meta") or {}
-        if not isinstance(meta, dict):
-            raise DatasetError(f"{src}: the header's meta must be a JSON object, got {type(meta).__name__}")
-        try:
-            return TrajectoryDataset(
-                arrays["observations"],
-                arrays["actions"],
-                arrays["episode_starts"],
-                obs_indices=header.get("obs_indices"),
-                action_obs_indices=header.get("action_obs_indices"),
-                meta=dict(meta),
-            )
-        except (TypeError, ValueError) as err:
-            raise DatasetError(f"{src}: {err}") from None
-    if "meta" in arrays:
-        from steer_envs.data.maze_random_walk import random_walk_from_arrays
+    return trajectories_from_arrays(src, read_npz(src))
 
-        return random_walk_from_arrays(src, arrays).to_trajectories()
-    raise DatasetError(f"{src} is not a trajectory dataset (no header; expected {FORMAT!r} or a maze2d random walk)")
+
+def trajectories_from_arrays(src: Path, arrays: Mapping[str, np.ndarray]) -> TrajectoryDataset:
+    """A :class:`TrajectoryDataset` from the arrays of the file ``src`` (checked; ``DatasetError`` naming it)."""
+    if "header" not in arrays:
+        raise DatasetError(f"{src} is not a trajectory dataset (no header; expected {FORMAT!r})")
+    header = npz_json(src, arrays, "header")
+    if header.get("format") != FORMAT:
+        raise DatasetError(f"{src} has format {header.get('format')!r}, expected {FORMAT!r}")
+    require_arrays(src, arrays, {"observations": ("iuf", 2), "actions": ("iuf", 2), "episode_starts": ("iu", 1)})
+    meta = header.get("meta") or {}
+    if not isinstance(meta, dict):
+        raise DatasetError(f"{src}: the header's meta must be a JSON object, got {type(meta).__name__}")
+    try:
+        return TrajectoryDataset(
+            arrays["observations"],
+            arrays["actions"],
+            arrays["episode_starts"],
+            obs_indices=header.get("obs_indices"),
+            action_obs_indices=header.get("action_obs_indices"),
+            meta=dict(meta),
+        )
+    except (TypeError, ValueError) as err:
+        raise DatasetError(f"{src}: {err}") from None

@@ -28,7 +28,7 @@ False
 from steer_envs.ltl.automaton import Automaton, Edge
 from steer_envs.ltl.buchi import BACKENDS, TranslationTooLarge, translate, translate_native
 from steer_envs.ltl.gr1 import GR1Spec
-from steer_envs.ltl.hoa import from_hoa, to_hoa
+from steer_envs.ltl.hoa import from_hoa, to_hoa, write_hoa
 from steer_envs.ltl.parser import MAX_PARSE_DEPTH, LTLParseError, parse
 from steer_envs.ltl.replanner import (
     ModeReplanner,
@@ -108,4 +108,5 @@ __all__ = [
     "translate",
     "translate_native",
     "translate_spot",
+    "write_hoa",
 ]

@@ -17,7 +17,6 @@ acceptance set (Tarjan's algorithm).
 
 from __future__ import annotations
 
-import os
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
@@ -368,26 +367,6 @@ class Automaton:
         return replace(self, aps=aps, edges=edges)
 
     # ---------------------------------------------------------------- export
-    def to_hoa(self) -> str:
-        """The automaton in the HOA v1 format (readable by Spot's ``autfilt``)."""
-        from steer_envs.ltl.hoa import to_hoa
-
-        return to_hoa(self)
-
-    def write_hoa(self, path: str | os.PathLike[str]) -> None:
-        """Write :meth:`to_hoa` to ``path`` atomically (:func:`steer_envs.io.atomic_write_text`: a temp file in
-        the target's folder, ``fsync``, ``os.replace``, usual file mode)."""
-        from steer_envs.io import atomic_write_text
-
-        atomic_write_text(path, self.to_hoa())
-
-    @classmethod
-    def from_hoa(cls, text: str) -> Automaton:
-        """Read an automaton in HOA v1 (generalized Büchi acceptance, explicit labels)."""
-        from steer_envs.ltl.hoa import from_hoa
-
-        return from_hoa(text)
-
     def to_networkx(self) -> nx.MultiDiGraph:
         """A ``networkx.MultiDiGraph``: node attrs ``name``/``initial``, edge attrs ``guard``/``label``/``acc``."""
         import networkx as nx

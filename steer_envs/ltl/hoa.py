@@ -15,13 +15,15 @@ to themselves, and an automaton has at most
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 
+from steer_envs.io import atomic_write_text
 from steer_envs.ltl.automaton import MAX_STATES, Automaton, Edge
 from steer_envs.ltl.guards import MAX_APS, ap_mask, cubes_to_str, full_mask, isop
 
-__all__ = ["MAX_LABEL_DEPTH", "from_hoa", "to_hoa"]
+__all__ = ["MAX_LABEL_DEPTH", "from_hoa", "to_hoa", "write_hoa"]
 
 #: deepest nesting of ``!`` / ``(`` / alias references in one HOA edge label
 MAX_LABEL_DEPTH = 100
@@ -103,6 +105,19 @@ class _Tok:
     kind: str
     text: str
     pos: int
+
+
+def write_hoa(aut: Automaton, path: str | os.PathLike[str]) -> None:
+    """Write :func:`to_hoa` of ``aut`` to ``path`` atomically (temp file in the target's folder, ``fsync``, rename).
+
+    >>> import os, tempfile
+    >>> from steer_envs.ltl.buchi import translate
+    >>> path = os.path.join(tempfile.mkdtemp(), "fa.hoa")
+    >>> write_hoa(translate("F a"), path)
+    >>> from_hoa(open(path).read()).accepts([], [{"a"}])
+    True
+    """
+    atomic_write_text(path, to_hoa(aut))
 
 
 def _lex(text: str) -> list[_Tok]:

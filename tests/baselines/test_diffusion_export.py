@@ -10,7 +10,7 @@ from torch import nn
 from steer_envs.baselines.diffusion import DiffusionConfig
 from steer_envs.baselines.diffusion.acceleration import FastNetwork
 from steer_envs.baselines.diffusion.export import ExportDenoiser
-from steer_envs.baselines.diffusion.modeling import DiffusionNet
+from steer_envs.baselines.diffusion.network import DiffusionNet
 
 #: networks unlike the shipped one: two or four levels, kernel 3 or 7, no time channel, no observation encoder
 CONFIGS = [

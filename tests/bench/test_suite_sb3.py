@@ -5,20 +5,20 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
 
 from matplotlib.figure import Figure
 
+from steer_envs.baselines.sb3 import GOAL_ENVS
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
 from steer_envs.bench.runner import build_request, plan_trials
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
 from steer_envs.bench.suites.sb3.plots import plot_learning_curves
-from steer_envs.bench.suites.sb3.suite import GOAL_ENVS, Sb3Params, dense_envs, sb3_findings
+from steer_envs.bench.suites.sb3.suite import Sb3Params, dense_envs, sb3_findings
 
 DENSE = [
     "SoupScoopDense",
@@ -85,7 +85,8 @@ def test_tiny_trials_resume_findings_and_figure(tmp_path: Path, monkeypatch: pyt
         return original(self, *args, **kwargs)
 
     monkeypatch.setattr(Figure, "savefig", capture)
-    paths = plot_learning_curves(get_suite("sb3"), [sac.record, her.record, maze.record], str(tmp_path))
+    records = [sac.record, her.record, maze.record]
+    paths = plot_learning_curves(get_suite("sb3"), records, str(tmp_path), methods=("sac", "sac-her"), target=80.0)
     assert [Path(p).name for p in paths] == ["sb3_learning_curves.png"] and Path(paths[0]).is_file()
     assert len(figures) == 1 and figure_problems(figures[0]) == []
 
@@ -133,31 +134,9 @@ def test_bad_parameters_are_refused(overrides: dict[str, Any]) -> None:
         get_suite("sb3").resolve_params(overrides)
 
 
-def test_trial_arguments_are_checked() -> None:
-    from steer_envs.bench.suites.sb3.protocol import train_and_evaluate
-
-    with pytest.raises(ValueError, match="does not run on env"):
-        train_and_evaluate("steer_envs/SoupScoopDense-v0", "sac-her", 0, Sb3Params())
-    with pytest.raises(TypeError, match="params"):
-        train_and_evaluate("steer_envs/SoupScoopDense-v0", "sac", 0, {"timesteps": 5})  # type: ignore[arg-type]
+def test_params_make_the_library_settings(tmp_path: Path) -> None:
+    settings = Sb3Params(timesteps=500, cache_dir=str(tmp_path), stop_success=80.0).settings("sac")
+    assert (settings.timesteps, settings.cache, settings.stop_success) == (500, tmp_path, 80.0)
+    assert Sb3Params().settings("sac-her").timesteps == 50_000
     with pytest.raises(ValueError, match="method"):
         Sb3Params().budget("ppo")
-
-
-def test_max_episode_steps_truncates_and_keeps_default_folders(tmp_path: Path) -> None:
-    from steer_envs.bench.suites.sb3.protocol import make_env, run_folder
-
-    env_id = "steer_envs/Maze2D-UmazeDense-v0"
-    short = Sb3Params(max_episode_steps=7, cache_dir=str(tmp_path))
-    env = make_env(env_id, "sac", short)
-    assert env.spec is not None and env.spec.max_episode_steps == 7
-    env.reset(seed=0)
-    # a fixed waypoint (the maze's centre) from a seeded start: deterministic, and it never reaches the goal
-    # (random actions sometimes did, which ends the episode at the limit's step both ways)
-    centre = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
-    for step in range(1, 8):
-        _, _, terminated, truncated, _ = env.step(centre)
-        assert not terminated and truncated == (step == 7), step
-    default = Sb3Params(cache_dir=str(tmp_path))
-    assert run_folder(env_id, "sac", 0, short) != run_folder(env_id, "sac", 0, default)
-    assert make_env(env_id, "sac", default).spec.max_episode_steps == 150  # UmazeDense's registered limit

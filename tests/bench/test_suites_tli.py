@@ -139,6 +139,6 @@ def test_single_mode_findings_check_fig_3_5_claims() -> None:
     worse = {**THESIS_SINGLE_MODE, "ds+mod": (100.0, 96.0, 99.8)}
     assert [f.holds for f in table(worse).findings] == [True, False, False]
     md = render_markdown([table(worse)])
-    assert "finding FAILS: DS+mod succeeds from every start at every noise level (ds+mod 100.0/96.0/99.8)" in md
+    assert "on these it fails): DS+mod succeeds from every start at every noise level (ds+mod 100.0/96.0/99.8)" in md
     partial = {"bc": THESIS_SINGLE_MODE["bc"]}
     assert [f.holds for f in table(partial).findings] == [None, None, None]

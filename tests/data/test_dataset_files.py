@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from samples import tiny_counterfactual
 
 from steer_envs.data.counterfactual_dataset import CounterfactualDataset
+from steer_envs.data.datasets import load_dataset
 from steer_envs.data.maze_random_walk import generate_random_walk, load_random_walk, save_random_walk
 from steer_envs.data.trajectories import DatasetError, TrajectoryDataset, load_trajectories, save_trajectories
 
@@ -93,7 +94,9 @@ def test_trajectory_files(tmp_path: Path) -> None:
 
 def test_random_walk_files(walk_file: Path, tmp_path: Path) -> None:
     arrays = _arrays(walk_file)
-    assert len(load_trajectories(walk_file)) == len(load_random_walk(walk_file))
+    assert len(load_dataset(walk_file)) == len(load_random_walk(walk_file))
+    with pytest.raises(DatasetError, match="no header"):
+        load_trajectories(walk_file)
     meta = json.loads(str(arrays["meta"]))
     cases: list[tuple[dict[str, Any], str]] = [
         ({"meta": np.array("nope")}, "'meta' is not JSON"),

@@ -35,7 +35,7 @@ from steer_envs.core.validation import BoundExceeded
 from steer_envs.envs.maze2d import Maze2DEnv, MazeGrid
 from steer_envs.envs.registry import entry, env_ids
 from steer_envs.envs.soup_scoop import SOUP_TASK
-from steer_envs.ltl import Atom, ModeReplanner, Next, Xor, from_hoa, parse, simplify, specs, translate
+from steer_envs.ltl import Atom, ModeReplanner, Next, Xor, from_hoa, parse, simplify, specs, to_hoa, translate
 from steer_envs.users.sketcher import SketchUser
 
 pytestmark = pytest.mark.slow
@@ -283,7 +283,7 @@ def _case_ltl(rng: np.random.Generator) -> tuple[str, Callable[[], Any], bool]:
             True,
         )
     if which == 4:
-        good = translate("G(a -> F b)").to_hoa()
+        good = to_hoa(translate("G(a -> F b)"))
         cut, at = int(rng.integers(len(good))), int(rng.integers(len(good)))
         junk = "".join(chr(int(c)) for c in rng.integers(32, 127, size=int(rng.integers(1, 6))))
         text = good[:cut] if rng.random() < 0.5 else good[:at] + junk + good[at:]

@@ -39,6 +39,7 @@ from steer_envs.ltl import (
     parse,
     simplify,
     specs,
+    to_hoa,
     translate,
 )
 from steer_envs.ltl import parser as ltl_parser
@@ -165,7 +166,7 @@ def test_readings_as_name_sets_hold_strings() -> None:
 
 
 # ---------------------------------------------------------------------- HOA
-GOOD_HOA = translate("G(a -> F b)").to_hoa()
+GOOD_HOA = to_hoa(translate("G(a -> F b)"))
 
 
 @pytest.mark.parametrize(

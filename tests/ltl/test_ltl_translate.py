@@ -24,8 +24,10 @@ from steer_envs.ltl import (
     from_hoa,
     parse,
     spot_available,
+    to_hoa,
     translate,
     translate_native,
+    write_hoa,
 )
 from steer_envs.ltl.guards import ap_mask, cube_mask, formula_mask, full_mask, isop, remap_guard
 
@@ -38,7 +40,7 @@ def test_automaton_accepts_exactly_the_models(f: Formula, words: list) -> None:
     aut = translate(f, APS)
     for prefix, loop in words:
         expected = evaluate(f, prefix, loop, aps=APS)
-        assert aut.accepts(prefix, loop) is expected, (str(f), prefix, loop, aut.to_hoa())
+        assert aut.accepts(prefix, loop) is expected, (str(f), prefix, loop, to_hoa(aut))
 
 
 @pytest.mark.slow
@@ -48,7 +50,7 @@ def test_deep_fuzz_every_automaton_form_agrees_with_the_semantics() -> None:
     for _ in range(3000):
         f = random_formula(rng)
         aut = translate(f, APS)
-        forms = [aut, aut.degeneralize(), aut.degeneralize(state_based=False), from_hoa(aut.to_hoa())]
+        forms = [aut, aut.degeneralize(), aut.degeneralize(state_based=False), from_hoa(to_hoa(aut))]
         for _ in range(20):
             prefix = [rng.randrange(8) for _ in range(rng.randrange(5))]
             loop = [rng.randrange(8) for _ in range(1 + rng.randrange(4))]
@@ -64,8 +66,8 @@ def test_degeneralized_and_hoa_round_tripped_automata_agree(f: Formula, words: l
     variants = [
         aut.degeneralize(),
         aut.degeneralize(state_based=False),
-        from_hoa(aut.to_hoa()),
-        from_hoa(aut.degeneralize().to_hoa()),
+        from_hoa(to_hoa(aut)),
+        from_hoa(to_hoa(aut.degeneralize())),
         translate_native(f, APS, simplify_formula=False, reduce=False),
     ]
     for ba in variants[:2]:
@@ -145,7 +147,7 @@ def test_automaton_validation_and_views(tmp_path: object) -> None:
     for _, _, data in g.edges(data=True):  # labels are formulas denoting the guards
         assert formula_mask(parse(data["label"]), aut.aps) == data["guard"]
     path = tmp_path / "aut.hoa"  # type: ignore[operator]
-    aut.write_hoa(path)
+    write_hoa(aut, path)
     assert from_hoa(path.read_text()).num_states == aut.num_states
     assert "Automaton(" in repr(aut)
 
@@ -197,7 +199,7 @@ def test_spot_backend_glue_with_a_stub_module(monkeypatch: pytest.MonkeyPatch) -
         def to_str(self, fmt: str) -> str:
             assert fmt == "hoa"
             # like Spot: only the APs that matter, in Spot's own order
-            return translate_native(self.text, sorted(parse(self.text).atoms(), reverse=True)).to_hoa()
+            return to_hoa(translate_native(self.text, sorted(parse(self.text).atoms(), reverse=True)))
 
     def stub_translate(text: str, *options: str) -> _StubAutomaton:
         calls.append((text, options))

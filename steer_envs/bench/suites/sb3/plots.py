@@ -2,7 +2,7 @@
 
 Each line is the mean over the seeds of a cell (the curves of a cell share
 their evaluation steps; a seed stopped early or cut short ends its line where
-fewer seeds remain). The issue's 80 % target is a dashed line.
+fewer seeds remain). The 80 % target is a dashed line.
 
 >>> from steer_envs.bench.suite import get_suite
 >>> plot_learning_curves(get_suite("sb3"), [], "unused")  # no records: nothing to draw
@@ -19,7 +19,6 @@ import numpy as np
 
 from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
 from steer_envs.bench.suite import Suite
-from steer_envs.bench.suites.sb3.suite import METHODS, TARGET_SUCCESS
 
 __all__ = ["learning_curves", "plot_learning_curves"]
 
@@ -49,10 +48,13 @@ def learning_curves(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str,
     return out
 
 
-def plot_learning_curves(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
-    """Write ``<suite>_learning_curves.png`` (nothing without stored curves); returns the written paths."""
+def plot_learning_curves(
+    suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str, *, methods: Sequence[str], target: float
+) -> list[str]:
+    """Write ``<suite>_learning_curves.png`` (nothing without stored curves): ``methods`` first, ``target`` dashed."""
     curves = learning_curves(records)
-    methods = [m for m in METHODS if m in curves] + sorted(set(curves) - set(METHODS))
+    order = methods
+    methods = [m for m in order if m in curves] + sorted(set(curves) - set(order))
     if not methods:
         return []
     from matplotlib import colormaps
@@ -68,13 +70,13 @@ def plot_learning_curves(suite: Suite, records: Sequence[Mapping[str, Any]], out
             ax.plot(steps / 1000.0, means, "o-", ms=3, lw=1.5, color=colour)
             label = f"{env.split('/')[-1]} ({method})"
             handles.append(key_line(label, color=colour, marker="o", ms=3, lw=1.5))
-        ax.axhline(TARGET_SUCCESS, color="black", ls="--", lw=1)
+        ax.axhline(target, color="black", ls="--", lw=1)
         ax.set_ylim(-3, 103)
         ax.set_xlabel("training steps (thousands)")
         ax.set_ylabel("success rate (%, deterministic evaluation)")
         ax.set_title(_TITLES.get(method, method), fontsize=10)
         ax.grid(alpha=0.3)
-    handles.append(key_line(f"target {TARGET_SUCCESS:.0f} %", color="black", ls="--", lw=1))
+    handles.append(key_line(f"target {target:.0f} %", color="black", ls="--", lw=1))
     fig.suptitle(f"{suite.name}: success rate vs training steps (mean over seeds)")
     figure_legend(fig, handles, ncol=3, fontsize=8)
     return [str(save_figure(fig, Path(out_dir) / f"{suite.name}_learning_curves.png"))]

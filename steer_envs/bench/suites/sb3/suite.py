@@ -5,7 +5,7 @@ dense env (the registered ids ending ``Dense-v0``, not the goal ones); method
 ``sac-her``: SAC with ``HerReplayBuffer`` (SB3's default ``future`` strategy,
 4 sampled goals) on the goal-conditioned ``steer_envs/Maze2D-UmazeGoal-v0``
 (sparse reward). A trial trains one agent for ``timesteps`` steps (default
-100k for ``sac``, 50k for ``sac-her``, the issue's budgets), evaluates it
+100k for ``sac``, 50k for ``sac-her``, the RL-readiness budgets), evaluates it
 deterministically on ``eval_episodes`` episodes every ``eval_every`` steps
 (success = ``info["is_success"]`` at the episode's end) and reports the final
 success rate, the first step an evaluation reached 80 %, training steps/s and
@@ -29,7 +29,7 @@ default).
 Training is long on a CPU (tens of steps/s per thread), so a trial
 checkpoints (model, replay buffer, curve) at every evaluation under
 ``cache_dir`` and a killed run resumes there; see
-:mod:`steer_envs.bench.suites.sb3.protocol`. ``stop_success`` (off by
+:mod:`steer_envs.baselines.sb3`, the library code every trial calls. ``stop_success`` (off by
 default) ends a trial once an evaluation reaches that success rate.
 
 >>> Sb3Params().budget("sac"), Sb3Params().budget("sac-her"), Sb3Params(timesteps=500).budget("sac")
@@ -38,12 +38,12 @@ default) ends a trial once an evaluation reaches that success rate.
 
 from __future__ import annotations
 
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
+from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Settings, default_cache_dir, method_fits, train_and_evaluate
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import (
     Finding,
@@ -56,17 +56,15 @@ from steer_envs.bench.suite import (
     TrialResult,
     register_suite,
 )
+from steer_envs.bench.suites.sb3.plots import plot_learning_curves
 
-__all__ = ["DEFAULT_TIMESTEPS", "GOAL_ENVS", "METHODS", "SB3", "Sb3Params", "dense_envs", "sb3_findings"]
+__all__ = ["DEFAULT_TIMESTEPS", "SB3", "Sb3Params", "dense_envs", "sb3_findings"]
 
 SUITE_NAME = "sb3"
-METHODS: tuple[str, ...] = ("sac", "sac-her")
-#: the issue's budgets: SAC within 100k steps, SAC + HER within 50k
+#: the RL-readiness budgets: SAC within 100k steps, SAC + HER within 50k
 DEFAULT_TIMESTEPS: dict[str, int] = {"sac": 100_000, "sac-her": 50_000}
-#: the issue's success threshold (%)
+#: the RL-readiness success threshold (%)
 TARGET_SUCCESS = 80.0
-#: the goal-conditioned envs ``sac-her`` trains on (the issue names Umaze; Medium / Large can be added here)
-GOAL_ENVS: tuple[str, ...] = ("steer_envs/Maze2D-UmazeGoal-v0",)
 MAX_TIMESTEPS = 10_000_000
 
 
@@ -79,23 +77,6 @@ def dense_envs() -> list[str]:
 
 def _all_envs() -> list[str]:
     return [*dense_envs(), *GOAL_ENVS]
-
-
-def method_fits(env: str | None, method: str | None) -> bool:
-    """Whether ``method`` runs on ``env``: ``sac`` on the dense ids, ``sac-her`` on :data:`GOAL_ENVS`.
-
-    >>> method_fits("steer_envs/SoupScoopDense-v0", "sac"), method_fits("steer_envs/SoupScoopDense-v0", "sac-her")
-    (True, False)
-    """
-    if env is None or method is None:
-        return False
-    return env in GOAL_ENVS if method == "sac-her" else method == "sac" and env.endswith("Dense-v0")
-
-
-def default_cache_dir() -> str:
-    """``$XDG_CACHE_HOME/steer-envs/sb3`` (``~/.cache`` when unset)."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return str(Path(root) / "steer-envs" / SUITE_NAME)
 
 
 @dataclass(frozen=True)
@@ -143,10 +124,22 @@ class Sb3Params(SuiteParams):
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
         return self.timesteps if self.timesteps is not None else DEFAULT_TIMESTEPS[method]
 
-    @property
-    def cache(self) -> Path:
-        """The folder of the trials' checkpoints."""
-        return Path(self.cache_dir or default_cache_dir())
+    def settings(self, method: str) -> Sb3Settings:
+        """The library's :class:`~steer_envs.baselines.sb3.Sb3Settings` of a ``method`` trial."""
+        return Sb3Settings(
+            timesteps=self.budget(method),
+            eval_episodes=self.eval_episodes,
+            eval_every=self.eval_every,
+            normalize_actions=self.normalize_actions,
+            observe_sensors=self.observe_sensors,
+            maze_goal_obs=self.maze_goal_obs,
+            maze_relative_actions=self.maze_relative_actions,
+            max_episode_steps=self.max_episode_steps,
+            threads=self.threads,
+            checkpoint=self.checkpoint,
+            cache=Path(self.cache_dir) if self.cache_dir else default_cache_dir(),
+            stop_success=self.stop_success,
+        )
 
 
 def generate_sb3(suite: Suite, request: TrialRequest) -> TrialPlan:
@@ -166,14 +159,31 @@ def generate_sb3(suite: Suite, request: TrialRequest) -> TrialPlan:
 
 def run_sb3_trial(trial: Trial) -> TrialResult:
     """Train (or resume) one agent and evaluate it along the way (a line on stderr per evaluation)."""
-    from steer_envs.bench.suites.sb3.protocol import train_and_evaluate
-
     params = Sb3Params.from_json(trial.params)
 
     def report(step: int, success: float) -> None:  # one line per evaluation: a long trial is not silent
         print(f"[sb3] {trial.label}: step {step}, success {success:.0f} %", file=sys.stderr, flush=True)
 
-    return train_and_evaluate(str(trial.env), str(trial.method), trial.seed, params, on_eval=report)
+    method = str(trial.method)
+    run = train_and_evaluate(str(trial.env), method, trial.seed, params.settings(method), on_eval=report)
+    reached = run.steps_to(TARGET_SUCCESS)
+    metrics: dict[str, float | None] = {
+        "success": run.successes[-1],
+        "steps_to_goal": None if reached is None else float(reached),
+        "best_success": max(run.successes),
+        "timesteps": float(run.timesteps),
+        "steps_per_s": run.timesteps / run.train_s if run.train_s > 0 else None,
+        "wall_min": run.wall_s / 60.0,
+    }
+    extra = {
+        "curve": run.curve,
+        "train_env": run.train_env,
+        "learning_starts": run.learning_starts,
+        "resumed_from": run.resumed_from,
+        "stopped_early": run.stopped_early,
+        "stable_baselines3": run.stable_baselines3,
+    }
+    return TrialResult(metrics, extra)
 
 
 def _short(env: str | None) -> str:
@@ -205,7 +215,7 @@ def _claim(table: Any, method: str, envs: list[str], budget: int, claim: str) ->
 
 
 def sb3_findings(table: Any) -> list[Finding]:
-    """The issue's two claims, judged on the final success of each env (mean over seeds).
+    """The two RL-readiness claims, judged on the final success of each env (mean over seeds).
 
     A claim is ``None`` when none of its cells ran (or all trained past the
     budget), ``False`` as soon as one env trained to the budget misses 80 %,
@@ -227,9 +237,7 @@ def sb3_findings(table: Any) -> list[Finding]:
 
 
 def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.sb3.plots import plot_learning_curves
-
-    return plot_learning_curves(suite, records, out_dir)
+    return plot_learning_curves(suite, records, out_dir, methods=METHODS, target=TARGET_SUCCESS)
 
 
 SB3 = register_suite(
@@ -260,8 +268,8 @@ SB3 = register_suite(
         default_seeds=1,
         generate=generate_sb3,
         references=(
-            Reference("success", TARGET_SUCCESS, method="sac", source="issue #21 target (100k steps)"),
-            Reference("success", TARGET_SUCCESS, method="sac-her", source="issue #21 target (50k steps)"),
+            Reference("success", TARGET_SUCCESS, method="sac", source="RL-readiness target (100k steps)"),
+            Reference("success", TARGET_SUCCESS, method="sac-her", source="RL-readiness target (50k steps)"),
         ),
         plot=_plot,
         findings=sb3_findings,

@@ -1,0 +1,348 @@
+"""Train stable-baselines3 agents on steer-envs ids, evaluating along the way, checkpointing and resuming.
+
+:func:`train_and_evaluate` trains SAC (``"sac"``: ``SAC("MlpPolicy", env)``
+with every SB3 default, on the dense ``...Dense-v0`` ids) or SAC + HER
+(``"sac-her"``: SB3's ``HerReplayBuffer`` on the goal-conditioned ids) and
+evaluates at step 0 and after every ``eval_every`` training steps:
+``eval_episodes`` deterministic episodes on a ``DummyVecEnv`` of up to 10
+``Monitor``-wrapped copies of the env, seeded the same way at every
+evaluation (so the curve compares the same starts), success =
+``info["is_success"]`` at each episode's end.
+
+Checkpoints: with ``checkpoint`` on, the run's folder
+``<cache>/<env>-<method>-seed<seed>-<recipe hash>/checkpoint`` is rewritten
+atomically (:func:`steer_envs.io.atomic_directory`) after every evaluation
+with the SB3 model (``model.zip``), its replay buffer (``replay_buffer.pkl``,
+SB3's pickle: a private cache, not a shipped file) and ``state.json``
+(steps, curve, times). A run whose folder holds a checkpoint continues from
+it, so a killed run loses at most one evaluation interval. The recipe hash
+covers what changes the training or the curve (env, method, seed, the env's
+registered and passed options, evaluation settings), not the budget: a
+longer ``timesteps`` continues a shorter finished run. A resumed run is
+reproducible (its random generators are re-seeded from the seed and the
+step), but differs from an unbroken run of the same seed.
+
+``sac-her``: SB3's ``HerReplayBuffer`` cannot sample before the first
+episode ends, so ``learning_starts`` is the env's episode limit (300 on
+Maze2D-Umaze) instead of SB3's 100; everything else is SB3's default.
+
+Needs the ``rl`` extra (``pip install "steer-envs[rl]"``).
+
+>>> method_fits("steer_envs/SoupScoopDense-v0", "sac"), method_fits("steer_envs/SoupScoopDense-v0", "sac-her")
+(True, False)
+>>> train_env_id("steer_envs/Maze2D-UmazeDense-v0", "sac", Sb3Settings(timesteps=1000))
+'steer_envs/Maze2D-UmazeGoalDense-v0'
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from steer_envs.core.validation import boolean, integer, real_scalar
+from steer_envs.envs.registry import entry
+from steer_envs.io import atomic_directory
+from steer_envs.utils.threads import limit_threads
+
+__all__ = [
+    "GOAL_ENVS",
+    "METHODS",
+    "Sb3Run",
+    "Sb3Settings",
+    "default_cache_dir",
+    "env_options",
+    "evaluate_success",
+    "make_env",
+    "method_fits",
+    "run_folder",
+    "train_and_evaluate",
+    "train_env_id",
+]
+
+#: the two recipes: SAC with SB3's defaults, SAC + HER
+METHODS: tuple[str, ...] = ("sac", "sac-her")
+#: the goal-conditioned ids ``sac-her`` trains on
+GOAL_ENVS: tuple[str, ...] = ("steer_envs/Maze2D-UmazeGoal-v0",)
+#: at most this many env copies step side by side in an evaluation
+MAX_EVAL_ENVS = 10
+#: evaluation seeds start here (away from the training seeds)
+EVAL_SEED_OFFSET = 1_000_000
+CHECKPOINT = "checkpoint"
+
+
+def default_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/steer-envs/sb3`` (``~/.cache`` when unset): where runs checkpoint by default."""
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root) / "steer-envs" / "sb3"
+
+
+@dataclass(frozen=True)
+class Sb3Settings:
+    """How a run trains, evaluates and checkpoints.
+
+    ``timesteps``: training steps; ``eval_episodes`` deterministic episodes per
+    evaluation, every ``eval_every`` steps (and at step 0);
+    ``normalize_actions`` (``[-1, 1]`` actions, which SAC's tanh policy
+    assumes), ``observe_sensors`` (the task's sensor bits in the observation;
+    ignored on Maze2D), ``maze_goal_obs`` (``sac`` on a plain Maze2D
+    ``...Dense-v0`` id trains on its ``...GoalDense-v0`` sibling, flattened),
+    ``maze_relative_actions``, ``max_episode_steps`` (0: the id's limit): the
+    env options; ``threads``: torch / BLAS threads; ``checkpoint``: save and
+    resume under ``cache``; ``stop_success``: end training once an evaluation
+    reaches this success (%; 0 = never).
+
+    >>> Sb3Settings(timesteps=0)
+    Traceback (most recent call last):
+    ValueError: Sb3Settings.timesteps must be an int in [1, inf], got 0
+    """
+
+    timesteps: int
+    eval_episodes: int = 20
+    eval_every: int = 10_000
+    normalize_actions: bool = True
+    observe_sensors: bool = True
+    maze_goal_obs: bool = True
+    maze_relative_actions: bool = False
+    max_episode_steps: int = 0
+    threads: int = 1
+    checkpoint: bool = True
+    cache: Path = field(default_factory=default_cache_dir)
+    stop_success: float = 0.0
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        integer(self.timesteps, f"{name}.timesteps", low=1)
+        integer(self.eval_episodes, f"{name}.eval_episodes", low=1)
+        integer(self.eval_every, f"{name}.eval_every", low=1)
+        integer(self.max_episode_steps, f"{name}.max_episode_steps", low=0)
+        integer(self.threads, f"{name}.threads", low=1)
+        for flag in ("normalize_actions", "observe_sensors", "maze_goal_obs", "maze_relative_actions", "checkpoint"):
+            boolean(getattr(self, flag), f"{name}.{flag}")
+        real_scalar(self.stop_success, f"{name}.stop_success", low=0.0, high=100.0)
+        object.__setattr__(self, "cache", Path(self.cache))
+
+
+@dataclass(frozen=True)
+class Sb3Run:
+    """What a run measured: ``curve`` ``[[step, success %], ...]`` and its bookkeeping."""
+
+    curve: list[list[float]]
+    timesteps: int
+    train_s: float
+    wall_s: float
+    train_env: str
+    learning_starts: int
+    resumed_from: int
+    stopped_early: bool
+    stable_baselines3: str
+
+    @property
+    def successes(self) -> list[float]:
+        """The success rate (%) of every evaluation, in order."""
+        return [s for _, s in self.curve]
+
+    def steps_to(self, target: float) -> int | None:
+        """The first evaluated step whose success reached ``target`` (%), ``None`` if none did."""
+        return next((int(n) for n, s in self.curve if s >= target), None)
+
+
+def method_fits(env: str | None, method: str | None) -> bool:
+    """Whether ``method`` runs on ``env``: ``sac`` on the dense ids, ``sac-her`` on :data:`GOAL_ENVS`."""
+    if env is None or method is None:
+        return False
+    return env in GOAL_ENVS if method == "sac-her" else method == "sac" and env.endswith("Dense-v0")
+
+
+def _is_maze(env_id: str) -> bool:
+    return "/Maze2D-" in env_id
+
+
+def train_env_id(env_id: str, method: str, settings: Sb3Settings) -> str:
+    """The id a run trains on: the ``...GoalDense-v0`` sibling for ``sac`` on Maze2D with ``maze_goal_obs``."""
+    if method == "sac" and _is_maze(env_id) and settings.maze_goal_obs and not env_id.endswith("GoalDense-v0"):
+        return env_id.removesuffix("Dense-v0") + "GoalDense-v0"
+    return env_id
+
+
+def env_options(env_id: str, settings: Sb3Settings) -> dict[str, Any]:
+    """The options a run passes to ``gym.make`` on top of the id's registered ones."""
+    options: dict[str, Any] = {"normalize_actions": settings.normalize_actions}
+    if not _is_maze(env_id):
+        options["observe_sensors"] = settings.observe_sensors
+    elif settings.maze_relative_actions:
+        options["relative_actions"] = True
+    if settings.max_episode_steps:  # a gym.make argument; only when set, so the default recipes keep their folders
+        options["max_episode_steps"] = settings.max_episode_steps
+    return options
+
+
+def make_env(env_id: str, method: str, settings: Sb3Settings) -> Any:
+    """The ``Monitor``-wrapped env of a run (flattened to a Box when ``sac`` trains on a goal id)."""
+    import gymnasium as gym
+    from gymnasium.wrappers import FlattenObservation
+    from stable_baselines3.common.monitor import Monitor
+
+    import steer_envs  # noqa: F401  (registers the ids)
+
+    train_id = train_env_id(env_id, method, settings)
+    env: Any = gym.make(train_id, **env_options(env_id, settings))
+    if method == "sac" and train_id != env_id:
+        env = FlattenObservation(env)
+    return Monitor(env)
+
+
+def run_folder(env_id: str, method: str, seed: int, settings: Sb3Settings) -> Path:
+    """The run's checkpoint folder under ``settings.cache`` (one per recipe, see the module docstring)."""
+    train_id = train_env_id(env_id, method, settings)
+    recipe = {
+        "env": env_id,
+        "method": method,
+        "seed": seed,
+        "train_env": train_id,
+        "env_kwargs": {**entry(train_id).kwargs, **env_options(env_id, settings)},
+        "eval_episodes": settings.eval_episodes,
+        "eval_every": settings.eval_every,
+    }
+    digest = hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()[:10]
+    return settings.cache / f"{env_id.split('/')[-1]}-{method}-seed{seed}-{digest}"
+
+
+def evaluate_success(model: Any, vec_env: Any, episodes: int, seed: int) -> float:
+    """Success rate (%) of ``model`` acting deterministically over ``episodes`` episodes of ``vec_env``."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    outcomes: list[bool] = []
+
+    def record(local: dict[str, Any], _: dict[str, Any]) -> None:
+        if local["done"] and "episode" in local["info"]:  # Monitor's true episode end
+            outcomes.append(bool(local["info"].get("is_success", False)))
+
+    vec_env.seed(seed)
+    evaluate_policy(model, vec_env, n_eval_episodes=episodes, deterministic=True, callback=record, warn=False)
+    if len(outcomes) != episodes:
+        raise RuntimeError(f"evaluation finished {len(outcomes)} episodes, expected {episodes}")
+    return 100.0 * sum(outcomes) / episodes
+
+
+def _new_model(env: Any, method: str, seed: int) -> Any:
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    if method == "sac":
+        return SAC("MlpPolicy", env, seed=seed, device="cpu", verbose=0)
+    limit = env.spec.max_episode_steps if env.spec is not None else None
+    return SAC(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        learning_starts=max(100, int(limit or 0)),
+        seed=seed,
+        device="cpu",
+        verbose=0,
+    )
+
+
+def _load_checkpoint(folder: Path, env: Any, seed: int, total: int) -> tuple[Any, dict[str, Any]] | None:
+    """The model (with its replay buffer) and state saved in ``folder``; ``None`` without a usable one."""
+    from stable_baselines3 import SAC
+
+    path = folder / CHECKPOINT
+    if not (path / "state.json").is_file():
+        return None
+    state = json.loads((path / "state.json").read_text())
+    if int(state["timesteps"]) > total:  # trained past this budget: start over rather than report a longer run
+        return None
+    model = SAC.load(path / "model.zip", env=env, device="cpu")
+    model.load_replay_buffer(path / "replay_buffer.pkl")
+    model.set_random_seed(seed + int(state["timesteps"]))
+    return model, state
+
+
+def _save_checkpoint(folder: Path, model: Any, state: dict[str, Any]) -> None:
+    with atomic_directory(folder / CHECKPOINT, overwrite=True) as tmp:
+        model.save(tmp / "model.zip")
+        model.save_replay_buffer(tmp / "replay_buffer.pkl")
+        (tmp / "state.json").write_text(json.dumps(state))
+
+
+def _start(env: Any, method: str, seed: int, settings: Sb3Settings, folder: Path) -> tuple[Any, dict[str, Any]]:
+    """The checkpointed model and state when there is one (and ``checkpoint`` is on), else a fresh model."""
+    loaded = _load_checkpoint(folder, env, seed, settings.timesteps) if settings.checkpoint else None
+    if loaded is not None:
+        return loaded
+    return _new_model(env, method, seed), {"timesteps": 0, "curve": [], "train_s": 0.0, "wall_s": 0.0}
+
+
+def train_and_evaluate(
+    env_id: str,
+    method: str,
+    seed: int,
+    settings: Sb3Settings,
+    *,
+    on_eval: Callable[[int, float], None] | None = None,
+) -> Sb3Run:
+    """Train ``method`` on ``env_id`` for ``settings.timesteps`` steps (resuming a checkpoint), evaluating.
+
+    ``on_eval(step, success)`` is called after every evaluation (progress
+    reports). Raises ``ValueError`` when the method does not fit the env.
+    """
+    if not isinstance(settings, Sb3Settings):
+        raise TypeError(f"settings must be Sb3Settings, got {type(settings).__name__}")
+    if not method_fits(env_id, method):
+        raise ValueError(f"method {method!r} does not run on env {env_id!r} (sac: ...Dense-v0 ids, sac-her: goal ids)")
+    import stable_baselines3 as sb3
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    folder = run_folder(env_id, method, seed, settings)
+    start = time.perf_counter()
+    with limit_threads(blas_threads=settings.threads, torch_threads=settings.threads):
+        env = make_env(env_id, method, settings)
+        n_eval = min(settings.eval_episodes, MAX_EVAL_ENVS)
+        eval_env = DummyVecEnv([lambda: make_env(env_id, method, settings) for _ in range(n_eval)])
+        model, state = _start(env, method, seed, settings, folder)
+        resumed_from = int(state["timesteps"])
+        curve: list[list[float]] = [list(p) for p in state["curve"]]
+        train_s, wall_before = float(state["train_s"]), float(state["wall_s"])
+
+        def evaluate(step: int) -> float:
+            success = evaluate_success(model, eval_env, settings.eval_episodes, seed + EVAL_SEED_OFFSET)
+            curve.append([step, success])
+            if on_eval is not None:
+                on_eval(step, success)
+            return success
+
+        if not curve:
+            evaluate(0)
+        steps = int(model.num_timesteps)
+        stopped = settings.stop_success > 0 and curve[-1][1] >= settings.stop_success
+        while steps < settings.timesteps and not stopped:
+            chunk = min(settings.eval_every - steps % settings.eval_every, settings.timesteps - steps)
+            t0 = time.perf_counter()
+            model.learn(total_timesteps=chunk, reset_num_timesteps=False, progress_bar=False)
+            train_s += time.perf_counter() - t0
+            steps = int(model.num_timesteps)
+            success = evaluate(steps)
+            stopped = settings.stop_success > 0 and success >= settings.stop_success
+            if settings.checkpoint:
+                wall = wall_before + time.perf_counter() - start
+                _save_checkpoint(
+                    folder, model, {"timesteps": steps, "curve": curve, "train_s": train_s, "wall_s": wall}
+                )
+        env.close()
+        eval_env.close()
+    return Sb3Run(
+        curve=curve,
+        timesteps=steps,
+        train_s=train_s,
+        wall_s=wall_before + time.perf_counter() - start,
+        train_env=train_env_id(env_id, method, settings),
+        learning_starts=int(model.learning_starts),
+        resumed_from=resumed_from,
+        stopped_early=bool(stopped and steps < settings.timesteps),
+        stable_baselines3=sb3.__version__,
+    )
