@@ -38,14 +38,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from steer_envs.core.extras import require
 from steer_envs.core.validation import boolean, integer, real_scalar
+from steer_envs.data.shards import default_cache_dir
 from steer_envs.envs.registry import entry
 from steer_envs.io import atomic_directory
 from steer_envs.utils.threads import limit_threads
@@ -55,7 +56,6 @@ __all__ = [
     "METHODS",
     "Sb3Run",
     "Sb3Settings",
-    "default_cache_dir",
     "env_options",
     "evaluate_success",
     "make_env",
@@ -74,12 +74,13 @@ MAX_EVAL_ENVS = 10
 #: evaluation seeds start here (away from the training seeds)
 EVAL_SEED_OFFSET = 1_000_000
 CHECKPOINT = "checkpoint"
+#: what needs the ``rl`` extra here, as the missing-extra message names it.
+RL_FEATURE = "training stable-baselines3 agents (SAC, SAC + HER)"
 
 
-def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/steer-envs/sb3`` (``~/.cache`` when unset): where runs checkpoint by default."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(root) / "steer-envs" / "sb3"
+def _default_cache() -> Path:
+    """``default_cache_dir("sb3")``: ``$XDG_CACHE_HOME/steer-envs/sb3`` (``~/.cache`` when unset)."""
+    return default_cache_dir("sb3")
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,7 @@ class Sb3Settings:
     max_episode_steps: int = 0
     threads: int = 1
     checkpoint: bool = True
-    cache: Path = field(default_factory=default_cache_dir)
+    cache: Path = field(default_factory=_default_cache)
     stop_success: float = 0.0
 
     def __post_init__(self) -> None:
@@ -184,6 +185,7 @@ def env_options(env_id: str, settings: Sb3Settings) -> dict[str, Any]:
 
 def make_env(env_id: str, method: str, settings: Sb3Settings) -> Any:
     """The ``Monitor``-wrapped env of a run (flattened to a Box when ``sac`` trains on a goal id)."""
+    require("stable_baselines3", "rl", RL_FEATURE)
     import gymnasium as gym
     from gymnasium.wrappers import FlattenObservation
     from stable_baselines3.common.monitor import Monitor
@@ -278,6 +280,37 @@ def _start(env: Any, method: str, seed: int, settings: Sb3Settings, folder: Path
     return _new_model(env, method, seed), {"timesteps": 0, "curve": [], "train_s": 0.0, "wall_s": 0.0}
 
 
+def _learn(
+    model: Any,
+    settings: Sb3Settings,
+    folder: Path,
+    evaluate: Callable[[int], float],
+    curve: list[list[float]],
+    train_s: float,
+    wall: tuple[float, float],
+) -> tuple[int, float, bool]:
+    """Learn in chunks of ``settings.eval_every`` steps, evaluating (and checkpointing) after each, until
+    ``settings.timesteps`` or ``settings.stop_success``: the steps, the training seconds and whether it stopped early.
+
+    ``curve``: the evaluations so far (``evaluate`` appends); ``wall``: the wall seconds of the runs
+    before this one and this one's ``time.perf_counter()`` at its start (a checkpoint records the sum).
+    """
+    steps = int(model.num_timesteps)
+    stopped = settings.stop_success > 0 and curve[-1][1] >= settings.stop_success
+    while steps < settings.timesteps and not stopped:
+        chunk = min(settings.eval_every - steps % settings.eval_every, settings.timesteps - steps)
+        t0 = time.perf_counter()
+        model.learn(total_timesteps=chunk, reset_num_timesteps=False, progress_bar=False)
+        train_s += time.perf_counter() - t0
+        steps = int(model.num_timesteps)
+        success = evaluate(steps)
+        stopped = settings.stop_success > 0 and success >= settings.stop_success
+        if settings.checkpoint:
+            wall_s = wall[0] + time.perf_counter() - wall[1]
+            _save_checkpoint(folder, model, {"timesteps": steps, "curve": curve, "train_s": train_s, "wall_s": wall_s})
+    return steps, train_s, stopped
+
+
 def train_and_evaluate(
     env_id: str,
     method: str,
@@ -289,13 +322,14 @@ def train_and_evaluate(
     """Train ``method`` on ``env_id`` for ``settings.timesteps`` steps (resuming a checkpoint), evaluating.
 
     ``on_eval(step, success)`` is called after every evaluation (progress
-    reports). Raises ``ValueError`` when the method does not fit the env.
+    reports). Raises ``ValueError`` when the method does not fit the env, an ``ImportError`` naming
+    ``pip install "steer-envs[rl]"`` without stable-baselines3.
     """
     if not isinstance(settings, Sb3Settings):
         raise TypeError(f"settings must be Sb3Settings, got {type(settings).__name__}")
     if not method_fits(env_id, method):
         raise ValueError(f"method {method!r} does not run on env {env_id!r} (sac: ...Dense-v0 ids, sac-her: goal ids)")
-    import stable_baselines3 as sb3
+    sb3 = require("stable_baselines3", "rl", RL_FEATURE)
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     folder = run_folder(env_id, method, seed, settings)
@@ -318,21 +352,7 @@ def train_and_evaluate(
 
         if not curve:
             evaluate(0)
-        steps = int(model.num_timesteps)
-        stopped = settings.stop_success > 0 and curve[-1][1] >= settings.stop_success
-        while steps < settings.timesteps and not stopped:
-            chunk = min(settings.eval_every - steps % settings.eval_every, settings.timesteps - steps)
-            t0 = time.perf_counter()
-            model.learn(total_timesteps=chunk, reset_num_timesteps=False, progress_bar=False)
-            train_s += time.perf_counter() - t0
-            steps = int(model.num_timesteps)
-            success = evaluate(steps)
-            stopped = settings.stop_success > 0 and success >= settings.stop_success
-            if settings.checkpoint:
-                wall = wall_before + time.perf_counter() - start
-                _save_checkpoint(
-                    folder, model, {"timesteps": steps, "curve": curve, "train_s": train_s, "wall_s": wall}
-                )
+        steps, train_s, stopped = _learn(model, settings, folder, evaluate, curve, train_s, (wall_before, start))
         env.close()
         eval_env.close()
     return Sb3Run(

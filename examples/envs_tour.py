@@ -22,8 +22,8 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 from steer_envs.data.experts import make_expert
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 
 @dataclass

@@ -21,23 +21,30 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.baselines.glide import FREE_SPACE_PLANNERS, GlidePlanningPolicy, PlannerConfig
-from steer_envs.baselines.glide.classifier import mode_iou, mode_overlap, workspace_grid
-from steer_envs.bench.suites.glide.plots import ModeMapRow, plot_mode_maps
-from steer_envs.bench.suites.glide.protocol import (
+from steer_envs.baselines.glide import (
+    FREE_SPACE_PLANNERS,
+    GlidePlanningPolicy,
     GlideSetup,
+    PlannerConfig,
     counterfactual_data,
-    demonstrations,
-    evaluate_policy,
+    evaluate_polygon_policy,
     learn_grounding,
-    make_policy,
+    make_polygon_policy,
+    mode_iou,
+    mode_overlap,
+    polygon_demonstrations,
+    workspace_grid,
 )
 from steer_envs.utils.threads import add_threads_argument, limit_threads
+
+#: mode colours (free space first), none of them the rollouts' blue or red
+MODE_COLORS = ("#f2f2f2", "#8dd3c7", "#ffffb3", "#bebada", "#fdb462", "#b3de69")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -102,6 +109,48 @@ def record_rollouts(
     return [np.asarray(p) for p in paths], success.tolist()
 
 
+def draw_modes(
+    model: Any,
+    panels: dict[str, np.ndarray],
+    paths: list[np.ndarray],
+    success: list[bool],
+    mode_names: list[str],
+    png: Path,
+    title: str,
+) -> None:
+    """One panel per labelling of the 200 x 200 grid, with the polygons and the rollouts (blue: success, red: not)."""
+    from matplotlib.artist import Artist
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    colors = list(MODE_COLORS[: len(mode_names)])
+    fig = Figure(figsize=(4.2 * len(panels), 4.8), layout="constrained")
+    extent = (model.low[0], model.high[0], model.low[1], model.high[1])
+    for ax, (name, labels) in zip(fig.subplots(1, len(panels), squeeze=False)[0], panels.items(), strict=True):
+        image = np.asarray(labels).reshape(200, 200)
+        ax.imshow(image, origin="lower", extent=extent, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(colors) - 0.5)
+        for vertices in model.vertices:
+            loop = np.vstack([vertices, vertices[:1]])
+            ax.plot(loop[:, 0], loop[:, 1], color="k", lw=0.6)
+        for path, ok in zip(paths, success, strict=True):
+            ax.plot(path[:, 0], path[:, 1], color="#1f3fbf" if ok else "#d62728", lw=0.7)
+        ax.set(title=name, xticks=[], yticks=[], aspect="equal")
+    handles: list[Artist] = [
+        Patch(facecolor=c, edgecolor="0.4", label=f"mode {m}: {n}")
+        for m, (c, n) in enumerate(zip(colors, mode_names, strict=True))
+    ]
+    handles += [
+        Line2D([], [], color="#1f3fbf", label="rollout, success"),
+        Line2D([], [], color="#d62728", label="rollout, failure"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize="small")
+    fig.suptitle(title, fontsize=10)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=120)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     with limit_threads(blas_threads=args.threads, torch_threads=args.threads):
@@ -122,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     cache = args.out / "cache"
     say(f"{env_id} layout {args.layout}: {setup.n_demos} demos, {args.replays} + {args.replays} replays ...")
     tic = time.perf_counter()
-    demos = demonstrations(env_id, args.layout, setup.n_demos, args.seed, goal_steps=setup.demo_goal_steps)
+    demos = polygon_demonstrations(env_id, args.layout, setup.n_demos, args.seed, goal_steps=setup.demo_goal_steps)
     data = counterfactual_data(env_id, args.layout, args.seed, setup, demos, cache)  # cached for learn_grounding
     say(
         f"replays: {len(data.success)} labelled trajectories ({time.perf_counter() - tic:.1f} s); training the mode "
@@ -144,11 +193,11 @@ def run(args: argparse.Namespace) -> int:
     iou = mode_iou(learned, truth, args.modes)
     print(f"learned modes: overlap {mode_overlap(learned, truth):.3f}, IoU per mode {np.round(iou, 2).tolist()}")
 
-    policy, _ = make_policy("glide_planning", env_id, args.layout, args.seed, setup=setup, cache_dir=cache)
+    policy, _ = make_polygon_policy("glide_planning", env_id, args.layout, args.seed, setup=setup, cache_dir=cache)
     assert isinstance(policy, GlidePlanningPolicy)
     for perturbed in (False, True):
         say(f"evaluating GLiDE+Planning on {args.rollouts} episodes {'with' if perturbed else 'without'} teleports ...")
-        res = evaluate_policy(
+        res = evaluate_polygon_policy(
             policy,
             env_id,
             args.layout,
@@ -165,14 +214,9 @@ def run(args: argparse.Namespace) -> int:
         )
 
     paths, success = record_rollouts(policy, env_id, args.layout, args.show, args.seed + 1)
-    png = plot_mode_maps(
-        [ModeMapRow(model, {"learned modes": learned}, f"{args.modes} modes, layout {args.layout}", paths, success)],
-        args.out / f"glide_{args.modes}modes_layout{args.layout}.png",
-        title=f"GLiDE on PolygonNav-{args.modes}Mode (layout {args.layout}): true vs learned modes, rollouts",
-        panel_size=4.0,
-        trajectories_on_every_panel=True,
-        mode_names=mode_names,
-    )
+    png = args.out / f"glide_{args.modes}modes_layout{args.layout}.png"
+    title = f"GLiDE on PolygonNav-{args.modes}Mode (layout {args.layout}): true vs learned modes, rollouts"
+    draw_modes(model, {"true modes": truth, "learned modes": learned}, paths, success, mode_names, png, title)
     print(f"wrote {png}")
     return 0
 

@@ -9,8 +9,8 @@ mode classifier learns from the recorded LLM response's features (thesis
 appendix) with the full underactuated loss (eq. 4.3); printed are the replays'
 success rate, the training time and the accuracy of the learned modes against
 the ground truth on every demo sample, with the k-means baseline beside it.
-The PNG shows the true and learned modes along the first demos. Shards are
-cached under ``--out`` (a second run reuses the replays).
+The PNG shows the true and learned modes along the first demos. The replays
+are cached under ``--out`` (a second run with the same settings reuses them).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from steer_envs.bench.suites.glide_robosuite.data import split, task_dataset
-from steer_envs.bench.suites.glide_robosuite.plots import save_mode_strips
-from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup, grounding
+from steer_envs.baselines.glide import ArmGroundingSetup, evaluate_arm_grounding
+from steer_envs.data import robosuite_replays as rr
+from steer_envs.data.robosuite_replay_sets import replay_set, split_demos
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS
 from steer_envs.utils.threads import add_threads_argument, set_process_threads
 
@@ -46,31 +46,67 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def trajectories(args: argparse.Namespace) -> list[rr.ArmTrajectory]:
+    """The demos and their replays, read from ``--out``'s cache when an earlier run wrote them."""
+    cache = args.out / "cache" / f"{args.task}-{args.demos}demos-{args.replays}replays.npz"
+    if cache.exists():
+        return rr.load_trajectories(cache)[0]
+    trajs = replay_set(args.task, args.demos, replays_per_demo=args.replays)
+    rr.save_trajectories(cache, trajs)
+    return trajs
+
+
+def save_mode_strips(labels: dict[str, list[dict[str, list[int]]]], task: str, png: Path) -> Path:
+    """One panel per kept demo: a strip of the true modes, then one per variant's learned modes, over time."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    names, colors = TASKS[task].modes, ("#4c72b0", "#dd8452", "#55a868", "#c44e52")
+    first = next(iter(labels.values()))
+    fig = Figure(figsize=(9.0, 1.2 + 0.35 * len(first) * (len(labels) + 1)), layout="constrained")
+    for i, ax in enumerate(fig.subplots(len(first), 1, squeeze=False)[:, 0]):
+        rows = [("ground truth", first[i]["true"])] + [(v, lab[i]["pred"]) for v, lab in labels.items()]
+        grid = np.full((len(rows), max(len(m) for _, m in rows)), np.nan)
+        for r, (_, modes) in enumerate(rows):
+            grid[r, : len(modes)] = modes
+        cmap = ListedColormap(list(colors[: len(names)]))
+        ax.imshow(grid, aspect="auto", cmap=cmap, vmin=-0.5, vmax=len(names) - 0.5, interpolation="nearest")
+        ax.set_yticks(range(len(rows)), [label for label, _ in rows])
+        ax.set(xlabel="control step (20 Hz)", title=f"demo {i}")
+    handles = [Patch(color=colors[m], label=name) for m, name in enumerate(names)]
+    fig.legend(handles=handles, loc="outside right upper", fontsize="small")
+    fig.suptitle(f"{task}: learned vs ground-truth modes along the demos", fontsize=10)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=120)
+    return png
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     set_process_threads(args.threads)
     start = time.perf_counter()
-    trajs = task_dataset(args.out / "cache", args.task, args.demos, args.demos, args.replays)
-    demos, replays = split(trajs)
+    trajs = trajectories(args)
+    demos, replays = split_demos(trajs)
     plain = [r for r in replays if r.perturbation.kind != "truncated"]
     print(
         f"{args.task}: {len(demos)} demos, {len(plain)} replays ({np.mean([r.success for r in plain]):.0%} "
         f"successful) in {time.perf_counter() - start:.0f} s"
     )
-    setup = GroundingSetup(
+    setup = ArmGroundingSetup(
         n_demos=args.demos, replay_demos=args.demos, replays_per_demo=args.replays, epochs=args.epochs
     )
     show = min(args.show, len(demos))
     results = {}
     for variant in ("full", "kmeans"):
-        res = grounding(args.task, variant, trajs, seed=args.seed, setup=setup, keep=show)
+        res = evaluate_arm_grounding(args.task, variant, trajs, seed=args.seed, setup=setup, keep=show)
         results[variant] = res
         per_mode = ", ".join(
             f"{name} {acc:.2f}" for name, acc in zip(TASKS[args.task].modes, res["accuracy_per_mode"], strict=True)
         )
         print(f"{variant:>6}: accuracy {res['accuracy']:.3f} ({per_mode}); {res['train_seconds']:.0f} s")
     labels = {variant: res["labels"] for variant, res in results.items()}
-    path = save_mode_strips(labels, args.task, args.task, args.out / f"glide_{args.task}_modes.png")
+    path = save_mode_strips(labels, args.task, args.out / f"glide_{args.task}_modes.png")
     print(f"wrote {path}")
     return 0
 

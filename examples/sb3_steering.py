@@ -21,27 +21,17 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.bench.suites.itps.protocol import load_policy
+from steer_envs.baselines.pretrained import PRETRAINED_LOADER, add_policy_arguments, resolve_policy
 from steer_envs.io import atomic_open
+from steer_envs.steering import SAMPLERS, make_sampler
 from steer_envs.utils.threads import add_threads_argument, set_process_threads
-from steer_envs.wrappers import SteeringWrapper, make_sampler
-
-#: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
-DEFAULT_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
+from steer_envs.wrappers import SteeringWrapper
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--policy", choices=("dp", "act"), default="dp", help="frozen policy (default: dp)")
-    parser.add_argument(
-        "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
-    )
-    parser.add_argument(
-        "--checkpoint",
-        default="",
-        help="a checkpoint of --policy from python -m steer_envs.baselines.training (default: the shipped one)",
-    )
-    parser.add_argument("--sampler", choices=("RS", "PR", "OP", "BI", "GD", "SS"), default="PR", help="default: PR")
+    add_policy_arguments(parser)
+    parser.add_argument("--sampler", choices=tuple(SAMPLERS), default="PR", help="default: PR")
     parser.add_argument("--batch", type=int, default=8, help="plans per steering call (default: 8)")
     parser.add_argument("--steps", type=int, default=16, help="PPO training steps (default: 16)")
     parser.add_argument("--seed", type=int, default=0, help="seed of env, agent and sampling (default: 0)")
@@ -60,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
         print("--steps and --batch must be >= 1", file=sys.stderr)
         return 2
     try:
-        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy, args.checkpoint)
+        policy = resolve_policy(args.loader or PRETRAINED_LOADER, args.policy, args.checkpoint)
     except (ImportError, AttributeError, FileNotFoundError, ValueError) as exc:
         print(f"the {args.policy} policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
@@ -89,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     path = args.out / "ppo_steering.zip"
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(path, "wb") as fh:
-        agent.save(fh)
+        agent.save(fh)  # type: ignore[arg-type]  # a binary file object, as SB3 accepts
     print(f"saved the agent to {path}")
     env.close()
     return 0

@@ -7,7 +7,7 @@ wants the tower ``--order`` (cube ids bottom to top: 0 red, 1 green, 2 blue,
 3 yellow). At every skill it sketches in 3D from the end effector toward the
 cube to pick or the spot to place on; the committed BlockStack Diffusion
 Policy samples a batch of whole-skill plans steered by the sketch (``--method``:
-the ``itps-blockstack`` suite's methods), and the picked plan is executed in
+the methods of :mod:`steer_envs.steering.blockstack`), and the picked plan is executed in
 robosuite. Each step of the strip shows the scene before the skill with the
 sketch (magenta) and the picked plan (cyan aligned / orange not) projected
 into the camera. A plan is *aligned* when it heads for the intended cube or
@@ -20,20 +20,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
-from steer_envs.bench.suites.itps_blockstack.protocol import (
-    METHOD_SAMPLERS,
-    load_skill_policy,
-    make_method_sampler,
-    tower_stands,
-)
-from steer_envs.bench.suites.itps_blockstack.suite import BLOCKSTACK_LOADER
+from steer_envs.baselines.pretrained import POLICY_UNAVAILABLE, load_pretrained
+from steer_envs.control.blockstack import classify_plan, execute_plan, plan_target, yaw_of
 from steer_envs.envs.robosuite.blockstack import BlockStackEnv
-from steer_envs.envs.robosuite.plan_execution import classify_plan, execute_plan, plan_target, yaw_of
+from steer_envs.steering.blockstack import METHOD_SAMPLERS, make_method_sampler, tower_stands
 from steer_envs.users.block_sketcher import TowerSketchUser
+from steer_envs.utils.plots import figure_legend, key_line, new_figure, save_figure
 from steer_envs.utils.threads import add_threads_argument, set_process_threads
 
 
@@ -68,12 +64,45 @@ def _overlay(ax: object, env: BlockStackEnv, points: np.ndarray, **style: object
     ax.plot(uv[:, 0], uv[:, 1], **style)  # type: ignore[attr-defined]
 
 
+def _strip(
+    env: BlockStackEnv,
+    frames: list[tuple[np.ndarray, np.ndarray, np.ndarray, str, bool]],
+    final: np.ndarray,
+    built: bool,
+    title: str,
+) -> Any:
+    """One panel per skill (the scene, the sketch and the picked plan projected), then the end."""
+    cols = len(frames) + 1
+    fig = new_figure(max(2.3 * cols, 6.0), 3.1)
+    axes = fig.subplots(1, cols, squeeze=False)[0]
+    for ax, (image, sketch_points, plan, name, aligned) in zip(axes, frames, strict=False):
+        ax.imshow(image)
+        _overlay(ax, env, sketch_points, color="magenta", linewidth=2)
+        _overlay(ax, env, plan, color="cyan" if aligned else "orange", linewidth=1.5)
+        ax.set_title(f"{name}\n{'aligned' if aligned else 'misaligned'}", fontsize=8)
+        ax.axis("off")
+    axes[-1].imshow(final)
+    axes[-1].set_title(f"end: tower {'built' if built else 'not built'}", fontsize=8)
+    axes[-1].axis("off")
+    fig.suptitle(title, fontsize=10)
+    figure_legend(
+        fig,
+        [
+            key_line("user sketch", color="magenta", lw=2),
+            key_line("steered plan, aligned", color="cyan", lw=1.5),
+            key_line("steered plan, misaligned", color="orange", lw=1.5),
+        ],
+        ncol=3,
+    )
+    return fig
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     set_process_threads(args.threads)
     try:
-        policy = load_skill_policy(BLOCKSTACK_LOADER, args.checkpoint)
-    except (ValueError, ImportError, AttributeError, FileNotFoundError) as exc:  # POLICY_UNAVAILABLE + bad files
+        policy = load_pretrained("blockstack", checkpoint=args.checkpoint or None)
+    except (ValueError, *POLICY_UNAVAILABLE) as exc:  # a missing or bad checkpoint file
         print(f"the BlockStack policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
     sampler = make_method_sampler(args.method)
@@ -110,29 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     final = env.render()
     assert final is not None
-
-    cols = len(frames) + 1
-    fig = new_figure(max(2.3 * cols, 6.0), 3.1)
-    axes = fig.subplots(1, cols, squeeze=False)[0]
-    for ax, (image, sketch_points, plan, name, aligned) in zip(axes, frames, strict=False):
-        ax.imshow(image)
-        _overlay(ax, env, sketch_points, color="magenta", linewidth=2)
-        _overlay(ax, env, plan, color="cyan" if aligned else "orange", linewidth=1.5)
-        ax.set_title(f"{name}\n{'aligned' if aligned else 'misaligned'}", fontsize=8)
-        ax.axis("off")
-    axes[-1].imshow(final)
-    axes[-1].set_title(f"end: tower {'built' if built else 'not built'}", fontsize=8)
-    axes[-1].axis("off")
-    fig.suptitle(f"BlockStack, tower {args.order} by sketching ({args.method}, seed {args.seed})", fontsize=10)
-    figure_legend(
-        fig,
-        [
-            key_line("user sketch", color="magenta", lw=2),
-            key_line("steered plan, aligned", color="cyan", lw=1.5),
-            key_line("steered plan, misaligned", color="orange", lw=1.5),
-        ],
-        ncol=3,
-    )
+    title = f"BlockStack, tower {args.order} by sketching ({args.method}, seed {args.seed})"
+    fig = _strip(env, frames, final, built, title)
     path = save_figure(fig, args.out / f"steer_blockstack_{args.method}_seed{args.seed}.png")
     print(f"wrote {path}")
     env.close()

@@ -6,8 +6,8 @@ Each ``--pixel U V`` (column, row of the 256 x 256 scene camera frame; give it
 again for the next skill) is one click: its 3D point comes from the depth
 buffer (``env.pixel_to_world``) and is read as the legal skill whose target is
 nearest (for the aligned / misaligned verdict), the Kitchen Diffusion Policy samples a batch of
-whole-skill plans steered toward it (``--method``: the ``itps-kitchen`` suite's
-methods; OP pushes the end effector toward the point instead), and the chosen
+whole-skill plans steered toward it (``--method``: the methods of
+:mod:`steer_envs.steering.kitchen`; OP pushes the end effector toward the point instead), and the chosen
 plan runs on the arm. Without ``--pixel`` the simulated user
 (:class:`~steer_envs.users.kitchen_clicker.KitchenClickUser`) clicks, for
 ``--max-skills`` skills, the target of a legal skill other than the one it
@@ -21,10 +21,11 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.suites.itps_kitchen.protocol import METHODS
+from steer_envs.steering.kitchen import METHODS
 
 #: the scene camera's frame size (the pixels' range)
 FRAME = 256
@@ -71,23 +72,31 @@ def _meant(env: object, point: np.ndarray) -> str | None:
     return min(legal, key=lambda s: float(np.linalg.norm(skill_centre(env, s) - point)))
 
 
+def _click(env: Any, user: Any, pixel: tuple[float, float] | None, watched: str | None) -> Any:
+    """``((u, v), 3D point, intended skill)`` of a given pixel, or the simulated user's click (None: no click)."""
+    if pixel is None:
+        click = user.act(env, watched)
+        return None if click is None else (click.pixel, click.point, click.skill)
+    u, v = pixel
+    point = env.pixel_to_world(u, v)
+    return (u, v), point, _meant(env, point)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the clicks, print each skill, save the strip; 0 on success, 2 without a policy."""
     args = parse_args(argv)
-    from steer_envs.bench.suites.itps_kitchen.plots import rollout_strip
-    from steer_envs.bench.suites.itps_kitchen.protocol import load_kitchen_policy, make_method_sampler, steered_plan
-    from steer_envs.bench.suites.itps_kitchen.suite import KITCHEN_LOADER
-    from steer_envs.envs.robosuite.kitchen_plan_execution import classify_kitchen_plan, execute_kitchen_plan
+    from steer_envs.baselines.pretrained import POLICY_UNAVAILABLE, load_pretrained
+    from steer_envs.control.kitchen import classify_kitchen_plan, execute_kitchen_plan
+    from steer_envs.steering import RandomSampling
+    from steer_envs.steering.figures import rollout_strip
+    from steer_envs.steering.kitchen import make_env, make_method_sampler, steered_plan
     from steer_envs.users.kitchen_clicker import KitchenClickUser
-    from steer_envs.wrappers.samplers import RandomSampling
 
     try:
-        policy = load_kitchen_policy(KITCHEN_LOADER, args.checkpoint)
-    except (ValueError, ImportError, AttributeError, FileNotFoundError) as exc:  # POLICY_UNAVAILABLE + bad files
+        policy = load_pretrained("kitchen", checkpoint=args.checkpoint or None)
+    except (ValueError, *POLICY_UNAVAILABLE) as exc:  # a missing or bad checkpoint file
         print(f"the Kitchen policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
-    from steer_envs.bench.suites.itps_kitchen.protocol import make_env
-
     env = make_env(args.task)
     try:
         obs, _ = env.reset(seed=args.seed)
@@ -98,17 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         for k, pixel in enumerate(clicks):
             rng = np.random.default_rng([args.seed, k])
             watched = classify_kitchen_plan(env, RandomSampling()(policy, obs, None, args.batch, generator=rng).plan)
-            intended: str | None
-            if pixel is None:
-                click = user.act(env, watched)
-                if click is None:
-                    print(f"skill {k + 1}: no legal skill other than the watched {watched}; stopping")
-                    break
-                (u, v), point, intended = click.pixel, click.point, click.skill
-            else:
-                u, v = pixel
-                point = env.pixel_to_world(u, v)
-                intended = _meant(env, point)
+            target = _click(env, user, pixel, watched)
+            if target is None:
+                print(f"skill {k + 1}: no legal skill other than the watched {watched}; stopping")
+                break
+            (u, v), point, intended = target
             image = env.render()
             plan, obs, ms = steered_plan(env, policy, obs, args.method, point, sampler, args.batch, rng)
             planned = classify_kitchen_plan(env, plan)

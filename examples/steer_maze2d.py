@@ -22,13 +22,13 @@ import gymnasium as gym
 import numpy as np
 
 import steer_envs  # noqa: F401 - registers the envs
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
-from steer_envs.bench.suites.itps.protocol import load_policy
+from steer_envs.baselines.pretrained import PRETRAINED_LOADER, add_policy_arguments, resolve_policy
 from steer_envs.core.metrics import sketch_distances
+from steer_envs.steering import SAMPLERS, OutputPerturbation, make_sampler
 from steer_envs.users.sketcher import SketchUser
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 from steer_envs.utils.threads import add_threads_argument, set_process_threads
-from steer_envs.wrappers import OutputPerturbation, SteeringWrapper, make_sampler
-from steer_envs.wrappers.samplers import SAMPLERS
+from steer_envs.wrappers import SteeringWrapper
 
 #: the colours ``Maze2DEnv.render_overlay`` draws with (RGB 0-255), named in the figure's legend
 OVERLAY_COLOURS = {
@@ -40,21 +40,10 @@ OVERLAY_COLOURS = {
     "wall": (90, 90, 100),
 }
 
-#: the committed checkpoints (``load_pretrained("dp")`` / ``load_pretrained("act")``)
-DEFAULT_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
-
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--policy", choices=("dp", "act"), default="dp", help="frozen policy (default: dp)")
-    parser.add_argument(
-        "--loader", default=None, help="'module:function' returning the policy (default: the checkpoint)"
-    )
-    parser.add_argument(
-        "--checkpoint",
-        default="",
-        help="a checkpoint of --policy from python -m steer_envs.baselines.training (default: the shipped one)",
-    )
+    add_policy_arguments(parser)
     parser.add_argument("--sampler", choices=sorted(SAMPLERS), default="SS", help="steering sampler (default: SS)")
     parser.add_argument("--batch", type=int, default=32, help="plans sampled per call (default: 32)")
     parser.add_argument("--seed", type=int, default=0, help="start location, sketch and noise seed (default: 0)")
@@ -94,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     set_process_threads(args.threads)  # one thread: an SS call took 15-23 s instead of 0.9 s on a busy machine
     try:
-        policy = load_policy(args.loader or DEFAULT_LOADER, args.policy, args.checkpoint)
+        policy = resolve_policy(args.loader or PRETRAINED_LOADER, args.policy, args.checkpoint)
     except (ImportError, AttributeError, FileNotFoundError, ValueError) as exc:
         print(f"the {args.policy} policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
@@ -102,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     sampler = OutputPerturbation() if args.sampler == "OP" else make_sampler(args.sampler)
     steer = SteeringWrapper(env, policy, sampler, batch=args.batch)
     steer.reset(seed=args.seed)
-    maze = env.unwrapped
+    maze: Any = env.unwrapped
     user = SketchUser(maze, seed=args.seed)
     drawn = user.draw(maze.state, kind="through" if args.through_wall else None)
     try:

@@ -35,9 +35,10 @@ want=$(cat setup.cfg pyproject.toml requirements/constraints.txt | sha256sum | c
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "[bootstrap] installing steer-envs and pinned dependencies (about 2 minutes the first time)"
   log=.venv/bootstrap.log
+  # everything: every feature extra (all), the test tools (dev) and the docs site (docs), at the pinned versions.
   # torch==2.13.0 is pinned: a bare torch would pull a multi-GB CUDA build.
   if ! { .venv/bin/python -m pip install -q --upgrade "pip>=24" \
-         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[dev,ray,ui,onnx,openvino,human]"; } >"$log" 2>&1; then
+         && .venv/bin/python -m pip install -q -c requirements/constraints.txt -e ".[all,dev,docs]"; } >"$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "[bootstrap] pip install failed; full log in $log" >&2
     exit 1

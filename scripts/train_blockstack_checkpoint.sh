@@ -6,7 +6,7 @@
 #    itps-blockstack-data, one shard per seed, resumable; ~12 min on two workers);
 # 2. the plan data set: one (32 x [x, y, z, gripper]) plan per successful skill, each also with the
 #    cubes listed in 15 other orders and the scene shifted (<= 5 cm) and turned (<= 0.5 rad)
-#    (python -m steer_envs.bench.suites.itps_blockstack.data);
+#    (python -m steer_envs.data.blockstack_shards);
 # 3. the Diffusion Policy, preset `blockstack` with 2 Fourier octaves of the observation
 #    (--model obs_octaves=2: less room to memorise scenes), fused AdamW, seed 0, ONE torch thread
 #    (bit-identical for the same thread count, torch version and CPU kind; ~32 min). In all ~44 min.
@@ -16,12 +16,8 @@
 #            the loss curve with the shipped record; exit 1 if it differs.
 # WORKERS=N sets the data job's parallel workers (default 2); CHECKPOINT_DIR=DIR writes the new
 # checkpoint there instead of over the shipped one (to compare with it: cmp, or --check its record).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-CHECK=0
-if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
-PY=${PYTHON:-.venv/bin/python}
-DATA_DIR=${1:-runs/blockstack-data}
+source "$(dirname "$0")/recipe.sh"
+recipe_args runs/blockstack-data "$@"
 EPISODES=100
 SKILLS=4
 BRANCHES=3
@@ -33,11 +29,9 @@ export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-blockstack-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
     --param "cache_dir=$DATA_DIR" --param "skills_per_episode=$SKILLS" --param "branches=$BRANCHES" \
     --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_blockstack.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
+"$PY" -m steer_envs.data.blockstack_shards --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
     --skills-per-episode "$SKILLS" --branches "$BRANCHES" --permutations 15 --shift 0.05 --yaw 0.5 --out "$DATA"
-if [ "$CHECK" = 1 ]; then
-  exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$SHIPPED/dp.json" --check-steps 200
-fi
+check_dp "$DATA" "$SHIPPED/dp.json"
 mkdir -p "$OUT"
 "$PY" -m steer_envs.baselines.training --policy dp --preset blockstack --dataset "$DATA" \
     --model obs_octaves=2 --fused-optimizer --out "$OUT/dp.safetensors" --seed 0 --threads 1

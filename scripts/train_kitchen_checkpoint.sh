@@ -9,7 +9,7 @@
 #    steer-bench suite itps-kitchen-data with every_task and perturbed_starts, one trial per
 #    scene, resumable;
 # 2. the plan data set: one (32 x [x, y, z, yaw, gripper]) plan per successful skill, the two
-#    tasks and both kinds of start merged (python -m steer_envs.bench.suites.itps_kitchen.data
+#    tasks and both kinds of start merged (python -m steer_envs.data.kitchen_shards
 #    --every-task --perturbed-starts);
 # 3. the Diffusion Policy, preset `kitchen` (baselines/diffusion/configuration.py), 20k steps,
 #    seed 0, one torch thread (bit-identical for the same thread count, torch version and CPU kind;
@@ -19,12 +19,8 @@
 #   --check  build (or reuse) the data, then re-run only the first 200 training steps and compare
 #            the loss curve with the shipped record; exit 1 if it differs.
 # WORKERS=N sets the data job's parallel workers (default 2).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-CHECK=0
-if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
-PY=${PYTHON:-.venv/bin/python}
-DATA_DIR=${1:-runs/kitchen-data}
+source "$(dirname "$0")/recipe.sh"
+recipe_args runs/kitchen-data "$@"
 EPISODES=60
 DATA="$DATA_DIR/kitchen-plans-${EPISODES}all-push.npz"
 OUT=baselines/checkpoints/kitchen
@@ -32,11 +28,9 @@ OUT=baselines/checkpoints/kitchen
 export MUJOCO_GL=${MUJOCO_GL:-osmesa}
 "$PY" -m steer_envs.bench run itps-kitchen-data --seeds "$EPISODES" --workers "${WORKERS:-2}" \
     --param "cache_dir=$DATA_DIR" --param every_task=true --param perturbed_starts=true --out "$DATA_DIR/run"
-"$PY" -m steer_envs.bench.suites.itps_kitchen.data --cache-dir "$DATA_DIR" --episodes "$EPISODES" --every-task \
+"$PY" -m steer_envs.data.kitchen_shards --cache-dir "$DATA_DIR" --episodes "$EPISODES" --every-task \
     --perturbed-starts --out "$DATA"
-if [ "$CHECK" = 1 ]; then
-  exec "$PY" -m steer_envs.baselines.training --policy dp --dataset "$DATA" --check "$OUT/dp.json" --check-steps 200
-fi
+check_dp "$DATA" "$OUT/dp.json"
 mkdir -p "$OUT"
 "$PY" -m steer_envs.baselines.training --policy dp --preset kitchen --dataset "$DATA" \
     --steps 20000 --out "$OUT/dp.safetensors" --seed 0 --threads 1

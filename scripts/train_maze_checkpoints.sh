@@ -7,7 +7,7 @@
 #    The shipped dp.safetensors began on a GPU (its record: `command`, `first_device`, `moved_at`): the
 #    first 21,618 steps ran on an H200, the rest on a CPU (`--resume DIR --device cpu`). A run of this
 #    recipe on a CPU alone draws other diffusion noise, so it ends with other weights: run end to end on
-#    2026-12-05 (6.5 h of one core beside other jobs, resumed 3 times; final loss 0.0414 vs 0.0417) it
+#    once (6.5 h of one core beside other jobs, resumed 3 times; final loss 0.0414 vs 0.0417) it
 #    scores as the shipped DP does (RS collision 0.030 vs 0.036, all four Table 2.1 findings; see
 #    docs/results.md).
 # 3. ACT with a fixed seed and ONE torch thread: bit-identical for the same thread count, torch
@@ -19,12 +19,8 @@
 #            (200 DP steps, 100 ACT steps; ~5 minutes) and compare their loss curves with the
 #            shipped records; exit 1 if either differs (the DP's began on a GPU: its CPU replay
 #            draws other noise and is held to 10 %, ACT's to 1e-3).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-CHECK=0
-if [ "${1:-}" = "--check" ]; then CHECK=1; shift; fi
-PY=${PYTHON:-.venv/bin/python}
-DATA_DIR=${1:-runs/maze2d-data}
+source "$(dirname "$0")/recipe.sh"
+recipe_args runs/maze2d-data "$@"
 DATA="$DATA_DIR/maze2d-large-randomwalk-seed0.npz"
 OUT=baselines/checkpoints/maze2d_large
 

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+import pytest
 
 from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset
+from steer_envs.data.maze_random_walk import generate_random_walk
+from steer_envs.data.trajectories import TrajectoryDataset
 
 
 def tiny_counterfactual(scale: float = 1.0) -> CounterfactualDataset:
@@ -21,3 +26,13 @@ def tiny_counterfactual(scale: float = 1.0) -> CounterfactualDataset:
         violation_step=np.array([-1, 1], np.int32),
         meta={"env_id": "x"},
     )
+
+
+def maze_walk_fixture(seed: int) -> Callable[[], TrajectoryDataset]:
+    """A module-scoped fixture: the training view of a 20k-step Maze2D-Large random walk (5k samples) of ``seed``."""
+
+    @pytest.fixture(scope="module")
+    def walk() -> TrajectoryDataset:
+        return generate_random_walk("large", 20_000, seed=seed, progress=False).to_trajectories()
+
+    return walk

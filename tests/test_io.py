@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import multiprocessing
 import os
 import stat
 import time
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from kills import FORK, kill_mid_write
 
 from steer_envs import io as sio
 from steer_envs.io import (
@@ -29,8 +29,6 @@ from steer_envs.io import (
     clean_stale_temps,
     read_npz,
 )
-
-FORK = multiprocessing.get_context("fork")
 
 
 def _mode(path: Path) -> int:
@@ -241,33 +239,6 @@ def test_read_npz_of_damaged_bytes_reads_or_raises_dataset_error(cut: int, flips
 
 
 # ------------------------------------------------------------------------------ kills
-def kill_mid_write(write: Callable[[Callable[[], None]], Any], *, at_fsync: bool = True) -> None:
-    """Run ``write(pause)`` in a forked child and SIGKILL it where it calls ``pause()``.
-
-    With ``at_fsync`` the child's first ``os.fsync`` pauses too: all data written, not yet renamed.
-    """
-    started = FORK.Event()
-
-    def pause(*_: Any) -> None:
-        started.set()
-        time.sleep(60)
-
-    def child() -> None:
-        if at_fsync:
-            os.fsync = pause  # type: ignore[assignment]
-        write(pause)
-        os._exit(3)  # not reached when the kill comes first
-
-    proc = FORK.Process(target=child)
-    proc.start()
-    try:
-        assert started.wait(60), "the child never reached the write"
-    finally:
-        proc.kill()
-        proc.join()
-    assert proc.exitcode == -9
-
-
 def test_kill_mid_write_leaves_the_old_file_and_the_next_write_cleans_up(tmp_path: Path) -> None:
     target = tmp_path / "r.bin"
     atomic_write_bytes(target, b"old")

@@ -33,9 +33,9 @@ def test_help_and_usage_errors(tmp_path: Path) -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed")
 def test_a_click_steers_one_skill_and_saves_the_strip(tmp_path: Path) -> None:
-    sys.path.insert(0, str(ROOT / "tests" / "bench"))
+    sys.path.insert(0, str(ROOT / "tests" / "steering"))
     try:
-        from test_itps_kitchen_protocol import tiny_policy
+        from test_kitchen_steering import tiny_policy
     finally:
         sys.path.pop(0)
     checkpoint = tiny_policy().save(tmp_path / "tiny.safetensors")

@@ -7,10 +7,8 @@ unchanged, and the next write must remove the child's leftover.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import stat
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -18,6 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+from kills import kill_mid_write
 from samples import tiny_counterfactual
 
 from steer_envs.baselines.bc import BCConfig, BCPolicy
@@ -34,34 +33,9 @@ from steer_envs.data.maze_random_walk import (
 )
 from steer_envs.data.trajectories import TrajectoryDataset, load_trajectories, save_trajectories
 
-FORK = multiprocessing.get_context("fork")
-
 
 def _temps(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.endswith(".tmp"))
-
-
-def kill_at_fsync(write: Callable[[], Any]) -> None:
-    """Run ``write`` in a forked child; SIGKILL it at its first fsync (data written, rename not done)."""
-    started = FORK.Event()
-
-    def child() -> None:
-        def pause(*_: Any) -> None:
-            started.set()
-            time.sleep(60)
-
-        os.fsync = pause  # type: ignore[assignment]
-        write()
-        os._exit(3)
-
-    proc = FORK.Process(target=child)
-    proc.start()
-    try:
-        assert started.wait(60), "the child never reached its fsync"
-    finally:
-        proc.kill()
-        proc.join()
-    assert proc.exitcode == -9
 
 
 def _walk(scale: float) -> RandomWalkDataset:
@@ -132,7 +106,7 @@ def test_writer_survives_a_kill_and_cleans_up(name: str, tmp_path: Path) -> None
         os.umask(mask)
     assert stat.S_IMODE(path.stat().st_mode) == 0o644  # not mkstemp's 0o600
     before = read(path)
-    kill_at_fsync(lambda: write(new, path))
+    kill_mid_write(lambda _: write(new, path))
     assert read(path) == before, "the old version must survive the kill"
     assert len(_temps(tmp_path)) == 1
     write(new, path)
@@ -146,7 +120,7 @@ def test_minari_export_killed_leaves_no_dataset_and_the_rerun_succeeds(
     pytest.importorskip("h5py")
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
     walk = generate_random_walk("umaze", 80, seed=0, progress=False)
-    kill_at_fsync(lambda: to_minari(walk, "steer/walk-v0"))
+    kill_mid_write(lambda _: to_minari(walk, "steer/walk-v0"))
     assert not (tmp_path / "steer" / "walk-v0").exists()
     assert len(_temps(tmp_path / "steer")) == 1
     data = to_minari(walk, "steer/walk-v0")  # the re-run works and removes the leftover

@@ -1,14 +1,15 @@
 """Composable wrappers of steer-envs (installed as ``steer_envs.wrappers``).
 
 * :class:`SteeringWrapper` - the action becomes a user interaction; a frozen
-  policy plans and an ITPS sampler steers it (:mod:`~steer_envs.wrappers.samplers`).
+  policy plans and an ITPS sampler (:mod:`steer_envs.steering`) steers it.
 * :class:`LTLReplanWrapper` - adds the LTL-planned next mode to the observation.
 * :class:`DSModulationWrapper` - modulates velocity actions by cuts learned on
-  invariance failures.
+  invariance failures (an adapter over :mod:`steer_envs.baselines.lpv_ds.cuts`
+  and :mod:`~steer_envs.baselines.lpv_ds.modulation`).
 
 Every wrapper records its constructor arguments, so ``env.spec`` shows the
 stack. Names are imported lazily, so ``from steer_envs.wrappers import
-LTLReplanWrapper`` does not pay for torch (the ITPS samplers) or scipy (the DS cuts).
+LTLReplanWrapper`` does not pay for torch (the ITPS samplers) or the LPV-DS stack (the DS cuts).
 
 >>> import gymnasium as gym
 >>> import steer_envs
@@ -20,44 +21,19 @@ LTLReplanWrapper`` does not pay for torch (the ITPS samplers) or scipy (the DS c
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from steer_envs.core.lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
     # ITPS steering
     "SteeringWrapper": "steering",
-    "Sampler": "samplers",
-    "SteeringResult": "samplers",
-    "RandomSampling": "samplers",
-    "PostHocRanking": "samplers",
-    "OutputPerturbation": "samplers",
-    "BiasedInitialization": "samplers",
-    "GuidedDiffusion": "samplers",
-    "StochasticSampling": "samplers",
-    "make_sampler": "samplers",
-    "benchmark_latency": "samplers",
     # LTL replanning
     "LTLReplanWrapper": "ltl_replan",
-    # DS modulation
+    # DS modulation (the cuts and the modulation themselves: steer_envs.baselines.lpv_ds)
     "DSModulationWrapper": "ds_modulation",
-    "ModulatedPolicy": "ds_modulation",
-    "Cut": "ds_modulation",
-    "CutSet": "ds_modulation",
-    "solve_cut": "ds_modulation",
-    "modulate": "ds_modulation",
     "ArmPerturbationWrapper": "arm_perturbation",
 }
 
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

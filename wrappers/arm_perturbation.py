@@ -60,7 +60,7 @@ import gymnasium as gym
 import numpy as np
 
 from steer_envs.core.validation import describe, integer, one_of, real_scalar
-from steer_envs.envs.kinematic import check_seed
+from steer_envs.envs.checks import check_seed
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
 
 __all__ = ["PERTURBATION_KINDS", "PUBLIC_CODE_SETTINGS", "PUSH_STYLES", "ArmPerturbationWrapper"]
@@ -97,6 +97,19 @@ def _pair(value: Any, name: str, *, as_int: bool, low: float) -> tuple[float, fl
     if lo > hi:
         raise ValueError(f"{_OWNER}: `{name}` must have lo <= hi, got {tuple(value)!r}")
     return lo, hi
+
+
+def _step_limit(env: gym.Env[Any, Any], max_episode_steps: int | None) -> int:
+    """``max_episode_steps`` checked, or (``None``) the step limit of ``env.spec`` (``ValueError`` if it has none)."""
+    if max_episode_steps is None:
+        spec = env.spec
+        max_episode_steps = spec.max_episode_steps if spec is not None else None
+        if max_episode_steps is None:
+            raise ValueError(
+                f"{_OWNER}: `env` has no step limit in its spec; pass `max_episode_steps` "
+                "(or wrap the gym.make env, which has the registry's TimeLimit)"
+            )
+    return integer(max_episode_steps, "max_episode_steps", low=1, owner=_OWNER)
 
 
 class ArmPerturbationWrapper(
@@ -170,15 +183,7 @@ class ArmPerturbationWrapper(
         if not isinstance(after_mode_change, bool):
             raise TypeError(f"{_OWNER}: `after_mode_change` must be a bool, got {describe(after_mode_change)}")
         self.after_mode_change = after_mode_change
-        if max_episode_steps is None:
-            spec = env.spec
-            max_episode_steps = spec.max_episode_steps if spec is not None else None
-            if max_episode_steps is None:
-                raise ValueError(
-                    f"{_OWNER}: `env` has no step limit in its spec; pass `max_episode_steps` "
-                    "(or wrap the gym.make env, which has the registry's TimeLimit)"
-                )
-        self.max_episode_steps = integer(max_episode_steps, "max_episode_steps", low=1, owner=_OWNER)
+        self.max_episode_steps = _step_limit(env, max_episode_steps)
         self._rng = np.random.default_rng()
         self._t = 0  # steps taken this episode
         self._count = 0

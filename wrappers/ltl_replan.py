@@ -18,7 +18,6 @@ policy, one DS per mode as in LTL-DS, an SB3 agent) can act on it:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -27,38 +26,11 @@ from gymnasium import spaces
 
 from steer_envs.core.env import HasTask, task_of
 from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import boolean, describe
+from steer_envs.core.validation import sensor_reading
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
 
-__all__ = ["LTLReplanWrapper", "sensor_reading"]
-
-
-def sensor_reading(info: Any, sensors: Sequence[str], *, owner: str) -> dict[str, bool]:
-    """``info["sensors"]`` checked as a reading of exactly the APs ``sensors``, each a real bool.
-
-    Sensor values must be ``True``/``False`` (Python or numpy bools): the string
-    ``"False"``, a NaN or a number is a ``TypeError``, not a silent ``True``; a
-    missing or extra AP is a ``ValueError``; no ``info["sensors"]`` is a ``KeyError``.
-
-    >>> sensor_reading({"sensors": {"r": False, "s": np.bool_(True)}}, ("r", "s"), owner="demo")
-    {'r': False, 's': True}
-    >>> sensor_reading({"sensors": {"r": "False", "s": True}}, ("r", "s"), owner="demo")
-    Traceback (most recent call last):
-    TypeError: demo: info['sensors']['r'] must be a bool, got str 'False'
-    """
-    if not isinstance(info, Mapping) or "sensors" not in info:
-        raise KeyError(f"{owner} needs info['sensors'] (AP -> bool) from the wrapped env")
-    raw = info["sensors"]
-    if not isinstance(raw, Mapping):
-        raise TypeError(f"{owner}: info['sensors'] must be a mapping AP -> bool, got {describe(raw)}")
-    missing = [ap for ap in sensors if ap not in raw]
-    extra = sorted(str(k) for k in raw if k not in sensors)
-    if missing or extra:
-        raise ValueError(
-            f"{owner}: info['sensors'] must hold exactly the APs {list(sensors)}; missing {missing}, unknown {extra}"
-        )
-    return {ap: boolean(raw[ap], f"info['sensors'][{ap!r}]", owner=owner) for ap in sensors}
+__all__ = ["LTLReplanWrapper"]
 
 
 class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.RecordConstructorArgs):
@@ -76,7 +48,7 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
     Unknown variant names, specs over APs the task does not define and a
     ``task`` whose sensors the env does not report are refused here. Every
     reading (``info["sensors"]`` of ``reset``, ``step`` and :meth:`sync`) must
-    name exactly the task's sensor APs with real bools (see :func:`sensor_reading`).
+    name exactly the task's sensor APs with real bools (see :func:`~steer_envs.core.validation.sensor_reading`).
 
     >>> import gymnasium as gym
     >>> import numpy as np

@@ -4,7 +4,7 @@ ITPS (thesis ch. 2) keeps the policy frozen and lets a user steer it at
 inference time. Wrapped this way, an env is driven by *interactions*: each
 :meth:`SteeringWrapper.step` takes a :class:`~steer_envs.core.interaction.Point`,
 ``Sketch`` or ``Nudge`` (or ``None``: no steering), samples a batch of plans from
-the policy with the sampler (:mod:`steer_envs.wrappers.samplers`) and executes
+the policy with the sampler (:mod:`steer_envs.steering`) and executes
 the chosen plan's waypoints (its action chunk) in the wrapped env, one inner
 step per waypoint. A simulated user, a person or an RL agent can drive it.
 
@@ -28,7 +28,7 @@ its ``plan[0]`` restates the current position) has ``plan[k:]`` executed.
 Observation histories: a policy with ``n_obs_steps > 1`` (LeRobot's DP: 2)
 receives the last ``n_obs_steps`` observations stacked ``(n_obs_steps, obs_dim)``
 (the first one repeated after a reset), others the current observation; see
-:func:`policy_observation`.
+:func:`~steer_envs.steering.policy_observation`.
 """
 
 from __future__ import annotations
@@ -44,34 +44,21 @@ from steer_envs.core.env import HasInteractionKinds, perturbable_env
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
 from steer_envs.core.policy import TrajectoryPolicy
 from steer_envs.core.validation import describe, integer, real_array
+from steer_envs.steering import (
+    MAX_BATCH,
+    OutputPerturbation,
+    RandomSampling,
+    Sampler,
+    place_observation,
+    policy_observation,
+)
 from steer_envs.utils.threads import limit_threads
 
-from .samplers import MAX_BATCH, OutputPerturbation, RandomSampling, Sampler, place_observation
-
-__all__ = ["InteractionSpace", "SteeringWrapper", "policy_observation"]
+__all__ = ["InteractionSpace", "SteeringWrapper"]
 
 _KIND_CLASSES: dict[str, type] = {"point": Point, "sketch": Sketch, "nudge": Nudge}
 #: the most points of a flattened sketch action (``sketch_points``).
 MAX_SKETCH_POINTS = 100_000
-
-
-def policy_observation(policy: Any, history: Sequence[Any]) -> Any:
-    """What ``policy.sample`` gets from an observation history (oldest first, current last).
-
-    ``policy.n_obs_steps > 1``: the last ``n_obs_steps`` observations stacked
-    ``(n_obs_steps, obs_dim)``, padded at the front with the oldest one (a
-    freshly reset agent has been at rest). Otherwise the current observation.
-    """
-    if len(history) == 0:
-        raise ValueError("`history` must hold at least the current observation")
-    steps = getattr(policy, "n_obs_steps", 1)
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ValueError(f"policy.n_obs_steps must be a positive int, got {steps!r}")
-    if steps == 1:
-        return history[-1]
-    recent = list(history[-int(steps) :])
-    recent = [recent[0]] * (steps - len(recent)) + recent
-    return np.stack([np.asarray(o, dtype=np.float32) for o in recent])
 
 
 class InteractionSpace(spaces.Space[Any]):
@@ -142,6 +129,39 @@ class InteractionSpace(spaces.Space[Any]):
         )
 
 
+def _check_arguments(policy: Any, sampler: Any, unsteered: Any, batch: Any, execute: Any, sketch_points: Any) -> None:
+    """Refuse :class:`SteeringWrapper` arguments that can never work (its docstring says which)."""
+    if not isinstance(policy, TrajectoryPolicy):
+        raise TypeError(f"`policy` must be a TrajectoryPolicy (horizon, action_dim, sample), got {policy!r}")
+    if not isinstance(sampler, Sampler):
+        raise TypeError(f"`sampler` must be a Sampler (RS, PR, OP, BI, GD, SS), got {type(sampler).__name__}")
+    if unsteered is not None and not isinstance(unsteered, Sampler):
+        raise TypeError(f"`unsteered` must be a Sampler or None, got {type(unsteered).__name__}")
+    # a diffusion sampler given a policy that is no DiffusionPolicyLike would fail at every step
+    sampler.check_policy(policy)
+    if unsteered is not None:
+        unsteered.check_policy(policy)
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)):
+        raise TypeError(f"SteeringWrapper: `batch` must be a positive integer, got {describe(batch)}")
+    if not 1 <= batch <= MAX_BATCH:
+        raise ValueError(f"SteeringWrapper: `batch` must be a positive integer <= {MAX_BATCH}, got {batch!r}")
+    if execute is not None and (isinstance(execute, bool) or not isinstance(execute, (int, np.integer))):
+        raise TypeError(f"`execute` must be a positive int or None, got {execute!r}")
+    if execute is not None and execute < 1:
+        raise ValueError(f"`execute` must be >= 1, got {execute!r}")
+    if sketch_points is not None and (
+        isinstance(sketch_points, bool) or not isinstance(sketch_points, (int, np.integer))
+    ):
+        raise TypeError(
+            f"SteeringWrapper: `sketch_points` must be an integer >= 2 or None, got {describe(sketch_points)}"
+        )
+    if sketch_points is not None and not 2 <= sketch_points <= MAX_SKETCH_POINTS:
+        raise ValueError(
+            f"SteeringWrapper: `sketch_points` must be an integer in [2, {MAX_SKETCH_POINTS}] or None, "
+            f"got {sketch_points!r}"
+        )
+
+
 class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstructorArgs):
     """Drive ``env`` with user interactions; ``policy`` plans, ``sampler`` steers (see the module docstring).
 
@@ -173,7 +193,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
     >>> import numpy as np
     >>> import steer_envs
     >>> from steer_envs.core.interaction import Sketch
-    >>> from steer_envs.wrappers.samplers import PostHocRanking
+    >>> from steer_envs.steering import PostHocRanking
     >>> class Straight:  # a stand-in policy: 8 waypoints from the agent toward the maze's top-left free cell
     ...     horizon, action_dim = 8, 2
     ...     def sample(self, obs, n, *, generator=None):
@@ -212,35 +232,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
             _disable_deepcopy=True,
         )
         gym.Wrapper.__init__(self, env)
-        if not isinstance(policy, TrajectoryPolicy):
-            raise TypeError(f"`policy` must be a TrajectoryPolicy (horizon, action_dim, sample), got {policy!r}")
-        if not isinstance(sampler, Sampler):
-            raise TypeError(f"`sampler` must be a Sampler (RS, PR, OP, BI, GD, SS), got {type(sampler).__name__}")
-        if unsteered is not None and not isinstance(unsteered, Sampler):
-            raise TypeError(f"`unsteered` must be a Sampler or None, got {type(unsteered).__name__}")
-        # a diffusion sampler given a policy that is no DiffusionPolicyLike would fail at every step
-        sampler._check_policy(policy)
-        if unsteered is not None:
-            unsteered._check_policy(policy)
-        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)):
-            raise TypeError(f"SteeringWrapper: `batch` must be a positive integer, got {describe(batch)}")
-        if not 1 <= batch <= MAX_BATCH:
-            raise ValueError(f"SteeringWrapper: `batch` must be a positive integer <= {MAX_BATCH}, got {batch!r}")
-        if execute is not None and (isinstance(execute, bool) or not isinstance(execute, (int, np.integer))):
-            raise TypeError(f"`execute` must be a positive int or None, got {execute!r}")
-        if execute is not None and execute < 1:
-            raise ValueError(f"`execute` must be >= 1, got {execute!r}")
-        if sketch_points is not None and (
-            isinstance(sketch_points, bool) or not isinstance(sketch_points, (int, np.integer))
-        ):
-            raise TypeError(
-                f"SteeringWrapper: `sketch_points` must be an integer >= 2 or None, got {describe(sketch_points)}"
-            )
-        if sketch_points is not None and not 2 <= sketch_points <= MAX_SKETCH_POINTS:
-            raise ValueError(
-                f"SteeringWrapper: `sketch_points` must be an integer in [2, {MAX_SKETCH_POINTS}] or None, "
-                f"got {sketch_points!r}"
-            )
+        _check_arguments(policy, sampler, unsteered, batch, execute, sketch_points)
         inner = env.action_space
         if not isinstance(inner, spaces.Box) or inner.shape != (int(policy.action_dim),):
             raise ValueError(
@@ -258,16 +250,14 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         self.execute = None if execute is None else int(execute)
         self.sketch_points = None if sketch_points is None else int(sketch_points)
         d = int(policy.action_dim)
+        declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
+        self._kinds: tuple[str, ...] = tuple(k for k in declared if k in _KIND_CLASSES) or tuple(_KIND_CLASSES)
         if self.sketch_points is not None:
             self.action_space = spaces.Box(
                 np.tile(inner.low, self.sketch_points), np.tile(inner.high, self.sketch_points), dtype=np.float32
             )
         else:
-            declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
-            kinds = tuple(k for k in declared if k in _KIND_CLASSES)
-            self.action_space = InteractionSpace(inner.low, inner.high, kinds or tuple(_KIND_CLASSES))
-        declared = base.interaction_kinds if isinstance(base, HasInteractionKinds) else tuple(_KIND_CLASSES)
-        self._kinds: tuple[str, ...] = tuple(k for k in declared if k in _KIND_CLASSES) or tuple(_KIND_CLASSES)
+            self.action_space = InteractionSpace(inner.low, inner.high, self._kinds)
         start = getattr(policy, "exec_start", 0)
         if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < int(policy.horizon):
             raise ValueError(f"policy.exec_start must be an int in [0, horizon), got {start!r}")

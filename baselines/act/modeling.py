@@ -118,38 +118,8 @@ class ACTPolicy(TorchPolicy):
     config: ACTConfig
     model: ACTModel
 
-    def __init__(
-        self,
-        config: ACTConfig,
-        stats: Mapping[str, Any] | None = None,
-        *,
-        seed: int = 0,
-        device: str | torch.device = "cpu",
-    ) -> None:
-        super().__init__(config, stats, seed=seed, device=device)
-
     def _build_model(self) -> nn.Module:
         return ACTModel(self.config)
-
-    @property
-    def horizon(self) -> int:
-        """Waypoints per plan (the chunk size)."""
-        return self.config.horizon
-
-    @property
-    def n_obs_steps(self) -> int:
-        """ACT conditions on the current observation only."""
-        return self.config.n_obs_steps
-
-    @property
-    def exec_start(self) -> int:
-        """Every waypoint of a chunk is executed."""
-        return self.config.exec_start
-
-    @property
-    def window_layout(self) -> dict[str, int]:
-        """``PlanWindows`` arguments giving this policy's training pairs (LeRobot ACT layout)."""
-        return self.config.window_layout
 
     def _anchor(self, state: torch.Tensor) -> torch.Tensor:
         """The normalized current values of ``action_obs_indices``, ``(B, 1, action_dim)`` (``relative``)."""

@@ -161,6 +161,27 @@ class PolicyConfig(_FieldsMixin):
                 "the dataset declares none: set relative=False or declare them"
             )
 
+    # ------------------------------------------------- plan layout (each config class gives its own)
+    @property
+    def horizon(self) -> int:
+        """Waypoints per plan."""
+        raise NotImplementedError
+
+    @property
+    def n_obs_steps(self) -> int:
+        """Observations of history the policy conditions on."""
+        raise NotImplementedError
+
+    @property
+    def exec_start(self) -> int:
+        """Index of the first plan waypoint to execute (``plan[:exec_start]`` re-states observed steps)."""
+        raise NotImplementedError
+
+    @property
+    def window_layout(self) -> dict[str, int]:
+        """:class:`~steer_envs.data.trajectories.PlanWindows` arguments giving the policy's training pairs."""
+        raise NotImplementedError
+
     def parameter_count(self) -> int | None:
         """Numbers in the state dict of the network this config builds, computed without building it.
 

@@ -235,24 +235,24 @@ class TorchPolicy(ABC):
         return self.config.action_dim
 
     @property
-    @abstractmethod
     def horizon(self) -> int:
-        """Waypoints per plan."""
+        """Waypoints per plan (the config's)."""
+        return self.config.horizon
 
     @property
-    @abstractmethod
     def n_obs_steps(self) -> int:
-        """Observations of history the policy conditions on."""
+        """Observations of history the policy conditions on (the config's)."""
+        return self.config.n_obs_steps
 
     @property
-    @abstractmethod
     def exec_start(self) -> int:
-        """Index of the first plan waypoint to execute."""
+        """Index of the first plan waypoint to execute (the config's)."""
+        return self.config.exec_start
 
     @property
-    @abstractmethod
     def window_layout(self) -> dict[str, int]:
         """:class:`~steer_envs.data.trajectories.PlanWindows` arguments giving this policy's training pairs."""
+        return self.config.window_layout
 
     @abstractmethod
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:

@@ -169,6 +169,12 @@ class DiffusionConfig(PolicyConfig):
 #: the optimizer of Diffusion Policy / ITPS (betas, weight decay); the cpu preset raises the learning rate.
 _DP_TRAIN = TrainSettings(lr=2e-3, weight_decay=1e-6, betas=(0.95, 0.999), static_history_prob=0.2)
 
+#: the shipped skill policies (BlockStack, Kitchen): one whole skill per plan of 32 waypoints, DDIM with 100 steps
+_SKILL_PLANS = DiffusionConfig(
+    horizon=32, n_obs_steps=1, down_dims=(32, 64, 128), num_inference_steps=100, relative=False
+)
+_SKILL_PLANS_TRAIN = _DP_TRAIN.replace(steps=30_000, lr=1e-3)
+
 #: named (config, training) presets; the feature fields are taken from the dataset.
 PRESETS: dict[str, Preset[DiffusionConfig]] = {
     "cpu": Preset(
@@ -178,26 +184,14 @@ PRESETS: dict[str, Preset[DiffusionConfig]] = {
         "40k steps at batch 256 (10.2M samples)",
     ),
     "blockstack": Preset(
-        DiffusionConfig(
-            horizon=32,
-            n_obs_steps=1,
-            down_dims=(32, 64, 128),
-            num_inference_steps=100,
-            relative=False,
-        ),
-        _DP_TRAIN.replace(steps=30_000, lr=1e-3),
+        _SKILL_PLANS,
+        _SKILL_PLANS_TRAIN,
         "the shipped BlockStack checkpoint: one pick-or-place skill per plan (32 waypoints x [x, y, z, "
         "gripper], steer_envs.data.blockstack_plans), DDIM with 100 steps as in the thesis",
     ),
     "kitchen": Preset(
-        DiffusionConfig(
-            horizon=32,
-            n_obs_steps=1,
-            down_dims=(32, 64, 128),
-            num_inference_steps=100,
-            relative=False,
-        ),
-        _DP_TRAIN.replace(steps=30_000, lr=1e-3),
+        _SKILL_PLANS,
+        _SKILL_PLANS_TRAIN,
         "the shipped Kitchen skill policy: one door or bowl skill per plan (32 waypoints x [x, y, z, yaw, "
         "gripper], steer_envs.data.kitchen_plans) from the microwave and sink demos merged, DDIM with 100 steps",
     ),

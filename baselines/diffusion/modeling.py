@@ -160,26 +160,6 @@ class DiffusionPolicy(TorchPolicy):
         return DiffusionNet(self.config)
 
     # ------------------------------------------------------------ protocol
-    @property
-    def horizon(self) -> int:
-        """Waypoints per plan."""
-        return self.config.horizon
-
-    @property
-    def n_obs_steps(self) -> int:
-        """Observations of history the policy conditions on."""
-        return self.config.n_obs_steps
-
-    @property
-    def exec_start(self) -> int:
-        """Index of the first plan waypoint to execute (``plan[:exec_start]`` re-states observed steps)."""
-        return self.config.exec_start
-
-    @property
-    def window_layout(self) -> dict[str, int]:
-        """``PlanWindows`` arguments giving this policy's training pairs (LeRobot layout)."""
-        return self.config.window_layout
-
     def encode_obs(self, obs: Any) -> torch.Tensor:
         """Global condition ``(1, n_obs_steps * obs_dim)``: the normalized observation history."""
         hist = self.observation_history(obs)

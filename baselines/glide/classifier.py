@@ -20,8 +20,9 @@ forward model of task success built on the feasibility matrix ``F``
 with the public code's weights 1000 / 1 / 10 / 10 as defaults (``w_dyn = 0``
 for the fully actuated PolygonNav). Any weight set to 0 ablates its term.
 
-Optimisation (:class:`GlideTrainConfig`): several heads train in parallel
-(loss ``(1 - b) * mean_head + b * best_head``) and the head with the lowest
+Optimisation (:class:`GlideTrainConfig`,
+:func:`~steer_envs.baselines.glide.training.train_mode_classifier`): several
+heads train in parallel (loss ``(1 - b) * mean_head + b * best_head``) and the head with the lowest
 *training loss* is kept (never one chosen by ground truth); after a fraction
 of training only the best few heads train on. The weight of ``L_succ`` is
 warmed up geometrically over the first half of training: at full weight from
@@ -30,21 +31,19 @@ regions before the failures can act. Training is full batch over *distinct*
 states and *distinct* transitions: replays share most of their states and
 whole stretches of transitions with their demo, so per-trajectory sums are
 taken over runs of consecutive transitions with one cumulative sum (exact,
-see :func:`pack_trajectories`).
+see :func:`~steer_envs.baselines.glide.packing.pack_trajectories`).
 
 Once trained, the classifier only provides labels:
-:func:`label_demonstrations` labels every state of the demonstrations, which
+:func:`~steer_envs.baselines.glide.modes.label_demonstrations` labels every state of the demonstrations, which
 :mod:`steer_envs.data.segmentation` (and GLiDE's policies) turn into modes.
 """
 
 from __future__ import annotations
 
 import os
-import time
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import torch
@@ -56,7 +55,7 @@ from steer_envs.baselines.common.checkpoint import (
     read_safetensors,
     write_safetensors,
 )
-from steer_envs.core.progress import check_progress, progress_bar
+from steer_envs.core.progress import check_progress
 from steer_envs.core.validation import integer, real_array
 from steer_envs.io import CheckpointError
 
@@ -106,7 +105,7 @@ class GlideLossWeights:
 
 @dataclass(frozen=True)
 class GlideTrainConfig:
-    """Optimisation settings of :func:`train_mode_classifier`.
+    """Optimisation settings of :func:`~steer_envs.baselines.glide.training.train_mode_classifier`.
 
     Args:
         epochs: full-batch Adam steps.
@@ -216,40 +215,6 @@ class GlideTrainConfig:
             raise ValueError(f"prune_to must be a positive int, got {self.prune_to!r}")
         if self.num_threads is not None and (not isinstance(self.num_threads, int) or self.num_threads < 1):
             raise ValueError(f"num_threads must be None or a positive int, got {self.num_threads!r}")
-
-
-class ModePredictor(Protocol):
-    """Anything that labels states with mode indices (classifier, k-means baseline)."""
-
-    def predict(self, states: np.ndarray) -> np.ndarray:
-        """The mode index of each state ``(N, d) -> (N,)``."""
-        ...
-
-
-def label_demonstrations(predictor: ModePredictor, demos: Sequence[np.ndarray], num_modes: int) -> list[np.ndarray]:
-    """The predicted mode of every state of every demo (``(T_i,)`` int arrays).
-
-    The labels are what :func:`~steer_envs.data.segmentation.segment_demonstrations`
-    splits demonstrations by; a mode outside ``[0, num_modes)`` is an error.
-
-    >>> import numpy as np
-    >>> class LeftRight:  # mode 1 right of x = 0
-    ...     def predict(self, s): return (np.asarray(s)[:, 0] > 0).astype(int)
-    >>> label_demonstrations(LeftRight(), [np.array([[-1.0, 0.0], [1.0, 0.0]])], 2)
-    [array([0, 1])]
-    """
-    if len(demos) == 0:
-        raise ValueError("demos must not be empty")
-    out = []
-    for i, d in enumerate(demos):
-        arr = np.asarray(d, dtype=np.float64)
-        if arr.ndim != 2:
-            raise ValueError(f"demos[{i}] must be (T, d), got {arr.shape}")
-        modes = np.asarray(predictor.predict(arr), dtype=np.int64)
-        if np.any((modes < 0) | (modes >= num_modes)):
-            raise ValueError(f"the predictor returned modes outside [0, {num_modes}) for demos[{i}]")
-        out.append(modes)
-    return out
 
 
 # -------------------------------------------------------------------------- models
@@ -422,448 +387,10 @@ class ForwardModel(nn.Module):
         return out.reshape(out.shape[0], out.shape[1], self.num_modes, self.state_dim)
 
 
-# ---------------------------------------------------------------------- data packing
-@dataclass
-class PackedTrajectories:
-    """Trajectories flattened for full-batch training (built by :func:`pack_trajectories`)."""
-
-    states: torch.Tensor  # (N, d) distinct states
-    pair_a: torch.Tensor  # (U,) index of s_t of each distinct transition (s_t, s_{t+1})
-    pair_b: torch.Tensor  # (U,) index of s_{t+1}
-    run_traj: torch.Tensor  # (R,) trajectory of each run of transitions
-    run_start: torch.Tensor  # (R,) a run is the distinct transitions run_start .. run_end - 1
-    run_end: torch.Tensor  # (R,)
-    pairs_per_traj: torch.Tensor  # (n,) float
-    init: torch.Tensor  # (n,) index of each trajectory's first state
-    final: torch.Tensor  # (n,) index of each trajectory's last state
-    success: torch.Tensor  # (n,) bool
-    dyn_prev: torch.Tensor  # (M,) index of s_{t-1} for interior states
-    dyn_mid: torch.Tensor  # (M,) index of s_t
-    dyn_next: torch.Tensor  # (M,) index of s_{t+1}
-
-    @property
-    def num_trajectories(self) -> int:
-        return len(self.success)
-
-
-def pack_trajectories(
-    trajectories: Sequence[np.ndarray], success: Sequence[bool] | np.ndarray, stride: int = 1
-) -> PackedTrajectories:
-    """Flatten ``(T_i, d)`` trajectories (keeping every ``stride``-th state and the last one)."""
-    if len(trajectories) == 0:
-        raise ValueError("trajectories must not be empty")
-    labels = np.asarray(success, dtype=bool)
-    if labels.shape != (len(trajectories),):
-        raise ValueError(f"success must have one label per trajectory ({len(trajectories)}), got {labels.shape}")
-    if isinstance(stride, bool) or not isinstance(stride, (int, np.integer)) or stride < 1:
-        raise ValueError(f"stride must be a positive int, got {stride!r}")
-    dim = None
-    parts, a, b, traj, npairs, init, final, prev, mid, nxt = [], [], [], [], [], [], [], [], [], []
-    offset = 0
-    for i, tr in enumerate(trajectories):
-        arr = np.asarray(tr, dtype=np.float32)
-        if arr.ndim != 2 or len(arr) < 1:
-            raise ValueError(f"trajectories[{i}] must have shape (T >= 1, d), got {arr.shape}")
-        if dim is None:
-            dim = arr.shape[1]
-        elif arr.shape[1] != dim:
-            raise ValueError(f"trajectories[{i}] has dimension {arr.shape[1]}, expected {dim}")
-        keep = np.arange(0, len(arr), stride)
-        if keep[-1] != len(arr) - 1:
-            keep = np.append(keep, len(arr) - 1)
-        sub = arr[keep]
-        m = len(sub)
-        idx = np.arange(offset, offset + m)
-        parts.append(sub)
-        a.append(idx[:-1])
-        b.append(idx[1:])
-        traj.append(np.full(m - 1, i))
-        npairs.append(m - 1)
-        init.append(idx[0])
-        final.append(idx[-1])
-        prev.append(idx[:-2])
-        mid.append(idx[1:-1])
-        nxt.append(idx[2:])
-        offset += m
-
-    # replays share most states with their demo (the tracking controller visits the demo's own
-    # waypoints): the classifier runs once per distinct state and pairs index into those
-    unique, inverse = np.unique(np.concatenate(parts), axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-
-    def cat(xs: list[np.ndarray]) -> torch.Tensor:
-        return torch.from_numpy(inverse[np.concatenate(xs).astype(np.int64)])
-
-    # whole stretches of transitions recur too (a replay repeats its demo before and after the
-    # perturbation): number the distinct transitions in order of first occurrence, so a stretch
-    # shared with an earlier trajectory is a run of consecutive numbers, summed per trajectory
-    # with one cumulative sum over the distinct transitions instead of pair by pair
-    pairs = np.stack([cat(a).numpy(), cat(b).numpy()], axis=1)
-    upairs, first, pair_inverse = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    q = rank[pair_inverse.reshape(-1)]
-    traj_of_pair = np.concatenate(traj).astype(np.int64)
-    new_run = np.ones(len(q), dtype=bool)
-    new_run[1:] = (q[1:] != q[:-1] + 1) | (traj_of_pair[1:] != traj_of_pair[:-1])
-    starts = np.flatnonzero(new_run)
-    ends = np.append(starts[1:], len(q))
-    upairs = upairs[order]
-
-    return PackedTrajectories(
-        states=torch.from_numpy(np.ascontiguousarray(unique)),
-        pair_a=torch.from_numpy(upairs[:, 0].copy()),
-        pair_b=torch.from_numpy(upairs[:, 1].copy()),
-        run_traj=torch.from_numpy(traj_of_pair[starts]),
-        run_start=torch.from_numpy(q[starts]),
-        run_end=torch.from_numpy(q[ends - 1] + 1),
-        pairs_per_traj=torch.tensor(npairs, dtype=torch.float32),
-        init=torch.from_numpy(inverse[np.array(init, dtype=np.int64)]),
-        final=torch.from_numpy(inverse[np.array(final, dtype=np.int64)]),
-        success=torch.from_numpy(labels.copy()),
-        dyn_prev=cat(prev),
-        dyn_mid=cat(mid),
-        dyn_next=cat(nxt),
-    )
-
-
-# ---------------------------------------------------------------------------- losses
-def glide_losses(
-    logits: torch.Tensor,
-    data: PackedTrajectories,
-    feasibility: torch.Tensor,
-    weights: GlideLossWeights,
-    *,
-    psi: ForwardModel | None = None,
-    init_mode: int = 0,
-    final_mode: int | None = None,
-    state_scale: torch.Tensor | None = None,
-    dyn_columns: torch.Tensor | None = None,
-    dyn_inputs: torch.Tensor | None = None,
-    dyn_input_lag: int = 1,
-) -> dict[str, torch.Tensor]:
-    """Every loss term per head, ``(H,)`` tensors, plus their weighted ``"total"``.
-
-    ``logits`` are the classifier outputs ``(H, N, K)`` on ``data.states``.
-    The dynamics loss works on state changes divided by ``state_scale``
-    (default 1), so its size does not depend on the units of the state.
-    """
-    h, _, k = logits.shape
-    final_mode = k - 1 if final_mode is None else final_mode
-    logp = torch.log_softmax(logits, dim=-1)
-    probs = logp.exp()
-    zero = logits.new_zeros(h)
-    out: dict[str, torch.Tensor] = {}
-    if weights.succ > 0 or weights.fail > 0:
-        pa, pb = probs[:, data.pair_a], probs[:, data.pair_b]
-        f = torch.einsum("hpk,kl,hpl->hp", pa, feasibility, pb)
-        cum = torch.nn.functional.pad(torch.cumsum(f.double(), dim=1), (1, 0))
-        runs = (cum[:, data.run_end] - cum[:, data.run_start]).float()
-        per_traj = logits.new_zeros(h, data.num_trajectories).index_add_(1, data.run_traj, runs)
-        has_pairs = data.pairs_per_traj > 0
-        succ = data.success & has_pairs
-        fail = ~data.success & has_pairs
-        mean_f = per_traj / data.pairs_per_traj.clamp_min(1.0)
-        out["succ"] = -mean_f[:, succ].mean(1) if succ.any() else zero
-        if weights.unfinished_fails > 0:
-            per_traj = per_traj - weights.unfinished_fails * (1.0 - probs[:, data.final, final_mode])
-            fail = ~data.success
-        out["fail"] = per_traj[:, fail].clamp_min(weights.fail_clip).mean(1) if fail.any() else zero
-    else:
-        out["succ"] = out["fail"] = zero
-    out["init"] = -logp[:, data.init, init_mode].mean(1)
-    final_states = data.final[data.success] if weights.unfinished_fails > 0 else data.final
-    out["final"] = -logp[:, final_states, final_mode].mean(1) if len(final_states) else zero
-    if weights.dyn > 0:
-        if psi is None:
-            raise ValueError("the dynamics loss (weights.dyn > 0) needs a forward model psi")
-        if len(data.dyn_mid) == 0:
-            out["dyn"] = zero
-        else:
-            s = data.states if state_scale is None else data.states / state_scale
-            s_out = s if dyn_columns is None else s[:, dyn_columns]
-            s_in = s_out if dyn_inputs is None else s[:, dyn_inputs]
-            if dyn_input_lag == 1:
-                delta_in = s_in[data.dyn_mid] - s_in[data.dyn_prev]
-            else:
-                delta_in = s_in[data.dyn_next] - s_in[data.dyn_mid]
-            delta_next = s_out[data.dyn_next] - s_out[data.dyn_mid]
-            pred_k = psi(delta_in)  # (H, M, K, d)
-            pred = torch.einsum("hmk,hmkd->hmd", probs[:, data.dyn_mid], pred_k)
-            out["dyn"] = ((pred - delta_next) ** 2).sum(-1).mean(1)
-    else:
-        out["dyn"] = zero
-    out["total"] = sum(getattr(weights, t) * out[t] for t in LOSS_TERMS)
-    return out
-
-
-# -------------------------------------------------------------------------- training
-@dataclass
-class GlideTrainResult:
-    """A trained classifier and its training record."""
-
-    classifier: ModeClassifier
-    psi: ForwardModel | None
-    seconds: float
-    #: per step: each loss term and the total of the head that was best at that step; ``"heads"``:
-    #: every head's total (full weights) every 50 steps and at the last step
-    history: dict[str, list[Any]] = field(default_factory=dict)
-    head_losses: list[float] = field(default_factory=list)
-    config: dict[str, Any] = field(default_factory=dict)
-
-
-def _check_feasibility(feasibility: Any) -> np.ndarray:
-    feas = np.asarray(feasibility, dtype=np.float64)
-    if feas.ndim != 2 or feas.shape[0] != feas.shape[1] or feas.shape[0] < 2:
-        raise ValueError(f"feasibility must be a square (K, K) matrix with K >= 2, got {feas.shape}")
-    if not np.all(np.isfinite(feas)) or np.any(feas > 0):
-        raise ValueError("feasibility entries must be finite and <= 0 (0 = feasible move)")
-    return feas
-
-
-_OPTIM_READY = False
-
-
-def _warm_up_torch_optim() -> None:
-    """Build a throw-away Adam once: its first construction imports torch._dynamo (seconds), which
-    must not count as training time."""
-    global _OPTIM_READY
-    if not _OPTIM_READY:
-        torch.optim.Adam([nn.Parameter(torch.zeros(1))])
-        _OPTIM_READY = True
-
-
-def _succ_ramp(step: int, steps: int, config: GlideTrainConfig) -> float:
-    """Multiplier of the ``L_succ`` weight at ``step`` (geometric warm-up, then 1)."""
-    span = config.succ_warmup * steps
-    if span <= 0 or step >= span:
-        return 1.0
-    return float(config.succ_warmup_start ** (1.0 - step / span))
-
-
-def _keep_heads(
-    opt: torch.optim.Optimizer, modules: Sequence[nn.Module], keep: torch.Tensor
-) -> tuple[torch.optim.Optimizer, list[nn.Parameter]]:
-    """Keep only the heads ``keep`` of the head-batched ``modules``: new parameters, and a new Adam
-    that carries on with the kept heads' moments (returns it and the new parameter list)."""
-    params: list[nn.Parameter] = []
-    moved: list[tuple[nn.Parameter, dict[str, Any]]] = []
-    for module in modules:
-        for name, old in list(module._parameters.items()):
-            if old is None:
-                continue
-            new = nn.Parameter(old.detach()[keep].clone())
-            module._parameters[name] = new
-            params.append(new)
-            state = opt.state.get(old, {})
-            moved.append(
-                (new, {k: (v[keep].clone() if k in ("exp_avg", "exp_avg_sq") else v) for k, v in state.items()})
-            )
-        if isinstance(module, ModeClassifier):
-            module.n_heads = len(keep)
-    new_opt = torch.optim.Adam(params, lr=opt.param_groups[0]["lr"])
-    for param, state in moved:
-        if state:
-            new_opt.state[param] = state
-    return new_opt, params
-
-
-def train_mode_classifier(
-    trajectories: Sequence[np.ndarray],
-    success: Sequence[bool] | np.ndarray,
-    feasibility: np.ndarray,
-    *,
-    weights: GlideLossWeights | None = None,
-    config: GlideTrainConfig | None = None,
-    init_mode: int = 0,
-    final_mode: int | None = None,
-) -> GlideTrainResult:
-    """Fit a :class:`ModeClassifier` to success-labelled trajectories (Adam, CPU).
-
-    Args:
-        trajectories: ``(T_i, d)`` state sequences (demos and perturbed replays).
-        success: one task-success label per trajectory.
-        feasibility: the ``(K, K)`` feasibility matrix; ``K`` is the number of modes.
-        weights: loss weights (default: the public code's 1000 / 1 / 10 / 10).
-        config: optimisation settings.
-        init_mode, final_mode: the plan's first and last mode (default ``0`` and ``K - 1``).
-
-    >>> import numpy as np
-    >>> line = np.stack([np.linspace(-1, 1, 21), np.zeros(21)], axis=1)
-    >>> feasibility = np.array([[0.0, 0.0], [-1.0, 0.0]])  # mode 1 -> 0 is infeasible
-    >>> result = train_mode_classifier(  # a success, and a failure that turns back
-    ...     [line, line[::-1][:8]], [True, False], feasibility, config=GlideTrainConfig(epochs=50, n_heads=2))
-    >>> result.classifier.predict(np.array([[-1.0, 0.0], [1.0, 0.0]])).tolist(), len(result.head_losses)
-    ([0, 1], 2)
-    """
-    weights = weights or GlideLossWeights()
-    config = config or GlideTrainConfig()
-    feas = _check_feasibility(feasibility)
-    k = feas.shape[0]
-    final_mode = k - 1 if final_mode is None else int(final_mode)
-    if not (0 <= init_mode < k and 0 <= final_mode < k):
-        raise ValueError(f"init_mode and final_mode must be in [0, {k}), got {init_mode}, {final_mode}")
-    labels = np.asarray(success, dtype=bool)
-    if labels.shape != (len(trajectories),):
-        raise ValueError(f"success must have one label per trajectory ({len(trajectories)}), got {labels.shape}")
-    _warm_up_torch_optim()
-    start = time.perf_counter()
-    data = pack_trajectories(trajectories, labels, config.stride)
-    # fixed, seeded partition of the trajectories into minibatches, each packed once
-    order = np.random.default_rng(config.seed).permutation(len(trajectories))
-    n_batches = min(config.n_batches, len(trajectories))
-    batches = (
-        [data]
-        if n_batches == 1
-        else [
-            pack_trajectories([trajectories[i] for i in part], labels[part], config.stride)
-            for part in np.array_split(order, n_batches)
-        ]
-    )
-    steps = config.epochs * len(batches)
-    old_threads = torch.get_num_threads()
-    if config.num_threads is not None:
-        torch.set_num_threads(config.num_threads)
-    try:
-        clf = ModeClassifier(data.states.shape[1], k, hidden=config.hidden, n_heads=config.n_heads, seed=config.seed)
-        clf.set_normalization(data.states.numpy())
-        with torch.no_grad():
-            clf.b2[:, :, init_mode] += float(config.init_mode_bias)
-        psi = None
-        params = list(clf.parameters())
-        if weights.dyn > 0:
-            for name in ("dyn_columns", "dyn_inputs"):
-                cols = getattr(config, name)
-                if cols is not None and max(cols) >= data.states.shape[1]:
-                    raise ValueError(f"{name} {cols} index past the {data.states.shape[1]} state columns")
-            d_out = data.states.shape[1] if config.dyn_columns is None else len(config.dyn_columns)
-            psi = ForwardModel(
-                d_out,
-                k,
-                n_heads=config.n_heads,
-                hidden=config.psi_hidden,
-                seed=config.seed,
-                input_dim=None if config.dyn_inputs is None else len(config.dyn_inputs),
-            )
-            params += list(psi.parameters())
-        feas_t = torch.as_tensor(feas, dtype=torch.float32)
-        loss_kwargs: dict[str, Any] = {
-            "psi": psi,
-            "init_mode": init_mode,
-            "final_mode": final_mode,
-            "state_scale": clf.scale,
-            "dyn_columns": None if config.dyn_columns is None else torch.tensor(config.dyn_columns),
-            "dyn_inputs": None if config.dyn_inputs is None else torch.tensor(config.dyn_inputs),
-            "dyn_input_lag": config.dyn_input_lag,
-        }
-        opt: torch.optim.Optimizer = torch.optim.Adam(params, lr=config.lr)
-        lr_min = config.lr * config.lr_final_ratio
-        prune_step = round(config.prune_at * steps) if config.prune_to < config.n_heads else -1
-        history: dict[str, list[Any]] = {t: [] for t in (*LOSS_TERMS, "total", "heads")}
-        b = config.best_head_weight
-        bar = progress_bar(range(steps), enabled=config.progress, desc="GLiDE classifier", leave=False)
-        for step in bar:
-            if step == prune_step:
-                with torch.no_grad():
-                    ranking = glide_losses(clf(data.states), data, feas_t, weights, **loss_kwargs)["total"]
-                opt, params = _keep_heads(
-                    opt, [clf] if psi is None else [clf, psi], ranking.argsort()[: config.prune_to]
-                )
-            for group in opt.param_groups:  # cosine decay from lr to lr_min
-                group["lr"] = lr_min + (config.lr - lr_min) * 0.5 * (1.0 + np.cos(np.pi * step / steps))
-            batch = batches[step % len(batches)]
-            losses = glide_losses(clf(batch.states), batch, feas_t, weights, **loss_kwargs)
-            total = losses["total"]
-            ramp = _succ_ramp(step, steps, config)
-            if ramp < 1.0:  # L_succ warm-up: the optimised objective, not the reported loss
-                total = total - (1.0 - ramp) * weights.succ * losses["succ"]
-            objective = (1 - b) * total.mean() + b * total.min()
-            opt.zero_grad(set_to_none=True)
-            objective.backward()
-            opt.step()
-            best = int(total.argmin())
-            for t in (*LOSS_TERMS, "total"):
-                history[t].append(float(losses[t][best].detach()))
-            if step % 50 == 0 or step == steps - 1:
-                history["heads"].append([float(v) for v in losses["total"].detach()])
-            if not bar.disable:
-                bar.set_postfix(loss=f"{float(total.min().detach()):.4g}")
-        with torch.no_grad():
-            final = glide_losses(clf(data.states), data, feas_t, weights, **loss_kwargs)["total"]
-        clf.head = int(final.argmin())
-        clf.eval()
-    finally:
-        torch.set_num_threads(old_threads)
-    return GlideTrainResult(
-        classifier=clf,
-        psi=psi,
-        seconds=time.perf_counter() - start,
-        history=history,
-        head_losses=[float(v) for v in final],
-        config={"weights": asdict(weights), "train": asdict(config), "num_modes": k},
-    )
-
-
-# --------------------------------------------------------------------------- metrics
-def workspace_grid(low: np.ndarray, high: np.ndarray, resolution: int = 200) -> np.ndarray:
-    """``resolution x resolution`` grid points ``(R*R, 2)`` spanning the box ``[low, high]``.
-
-    >>> workspace_grid(np.zeros(2), np.ones(2), 2).tolist()
-    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
-    """
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 2:
-        raise ValueError(f"resolution must be an int >= 2, got {resolution!r}")
-    lo, hi = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
-    if lo.shape != (2,) or hi.shape != (2,) or np.any(lo >= hi):
-        raise ValueError("low and high must be 2-vectors with low < high")
-    xs, ys = np.linspace(lo[0], hi[0], resolution), np.linspace(lo[1], hi[1], resolution)
-    gx, gy = np.meshgrid(xs, ys)
-    return np.stack([gx.ravel(), gy.ravel()], axis=1)
-
-
-def mode_overlap(predicted: np.ndarray, truth: np.ndarray) -> float:
-    """Fraction of points whose predicted mode equals the true mode (the grounding study's overlap).
-
-    >>> mode_overlap(np.array([0, 1, 1, 2]), np.array([0, 1, 2, 2]))
-    0.75
-    """
-    p, t = np.asarray(predicted), np.asarray(truth)
-    if p.shape != t.shape or p.ndim != 1 or len(p) == 0:
-        raise ValueError(f"predicted and truth must be equal-length 1-D arrays, got {p.shape} and {t.shape}")
-    return float(np.mean(p == t))
-
-
-def mode_iou(predicted: np.ndarray, truth: np.ndarray, num_modes: int) -> np.ndarray:
-    """Per-mode intersection over union ``(K,)`` (stricter than overlap where one mode dominates the grid).
-
-    >>> mode_iou(np.array([0, 1, 1, 2]), np.array([0, 1, 2, 2]), 3).round(2).tolist()
-    [1.0, 0.5, 0.5]
-    """
-    p, t = np.asarray(predicted), np.asarray(truth)
-    if p.shape != t.shape:
-        raise ValueError(f"predicted and truth must have the same shape, got {p.shape} and {t.shape}")
-    out = np.zeros(num_modes)
-    for m in range(num_modes):
-        union = np.sum((p == m) | (t == m))
-        out[m] = np.sum((p == m) & (t == m)) / union if union else 1.0
-    return out
-
-
 __all__ = [
     "LOSS_TERMS",
     "ForwardModel",
     "GlideLossWeights",
     "GlideTrainConfig",
-    "GlideTrainResult",
     "ModeClassifier",
-    "ModePredictor",
-    "PackedTrajectories",
-    "glide_losses",
-    "label_demonstrations",
-    "mode_iou",
-    "mode_overlap",
-    "pack_trajectories",
-    "train_mode_classifier",
-    "workspace_grid",
 ]

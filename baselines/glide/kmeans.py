@@ -6,6 +6,11 @@ by its nearest cluster centre. Clusters carry no mode index of their own, so
 they are ordered by *when* the demonstrations visit them (mean normalised
 time of their member states): the earliest cluster is mode 0, the latest mode
 ``K - 1``. The baseline uses only statistical similarity, no success labels.
+
+* :class:`KMeansSegmentation` clusters raw states (PolygonNav's positions);
+* :class:`KMeansModes` is the robosuite arms' version (thesis Table 4.2
+  "kmeans"): the LLM's selected features of the demos, standardised (the
+  features mix metres and quaternion components), then clustered.
 """
 
 from __future__ import annotations
@@ -15,7 +20,9 @@ from collections.abc import Sequence
 import numpy as np
 from sklearn.cluster import KMeans
 
+from steer_envs.baselines.glide.arm_plan import num_modes, selected_columns
 from steer_envs.core.validation import integer, real_array
+from steer_envs.data.robosuite_replays import ArmTrajectory
 
 
 class KMeansSegmentation:
@@ -72,4 +79,36 @@ class KMeansSegmentation:
         return d2.argmin(axis=1).astype(np.int64)
 
 
-__all__ = ["KMeansSegmentation"]
+class KMeansModes:
+    """The k-means baseline on an arm task: standardised selected features, clusters in temporal order.
+
+    A mode predictor (``predict(features[:, selected_columns(task)])``) for the
+    robosuite tasks: the columns are the LLM's selected features
+    (:func:`~steer_envs.baselines.glide.arm_plan.selected_columns`), each
+    standardised with the demos' mean and std, and clustered into the task's
+    ground-truth number of modes by :class:`KMeansSegmentation`.
+
+    Args:
+        task: ``"lift"``, ``"can"`` or ``"square"``.
+        demos: the successful demonstrations
+            (:class:`~steer_envs.data.robosuite_replays.ArmTrajectory`).
+        seed: seeds k-means++.
+    """
+
+    def __init__(self, task: str, demos: Sequence[ArmTrajectory], *, seed: int = 0) -> None:
+        k = num_modes(task)
+        self.task = task
+        cols = selected_columns(task, "kmeans")
+        x = [np.asarray(d.features[:, cols], dtype=np.float64) for d in demos]
+        if not x:
+            raise ValueError("KMeansModes: demos must not be empty")
+        stacked = np.concatenate(x)
+        self.mean, self.std = stacked.mean(0), stacked.std(0) + 1e-6
+        self.kmeans = KMeansSegmentation(k, seed=seed).fit([(s - self.mean) / self.std for s in x])
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        """Mode of each row of selected features ``(N, d) -> (N,)``."""
+        return self.kmeans.predict((np.asarray(states, dtype=np.float64) - self.mean) / self.std)
+
+
+__all__ = ["KMeansModes", "KMeansSegmentation"]

@@ -258,6 +258,58 @@ def _as_int(value: Any, what: str) -> int:
     raise ValueError(f"{what} must be an integer id, got {value!r}")
 
 
+def _plan_steps(body: str) -> list[PlanStep]:
+    """The steps of a ``<plan>`` body: at least two, with distinct integer ids."""
+    raw_steps = _literal(body, "plan")
+    if not isinstance(raw_steps, (list, tuple)) or not raw_steps:
+        raise ValueError("<plan> must be a non-empty list of {'id': ..., 'desc': ...} dicts")
+    steps = []
+    for s in raw_steps:
+        if not isinstance(s, Mapping) or "id" not in s or "desc" not in s:
+            raise ValueError(f"<plan> step {s!r} must be a dict with 'id' and 'desc'")
+        steps.append(PlanStep(_as_int(s["id"], "<plan> step id"), str(s["desc"]).strip()))
+    ids = [s.id for s in steps]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"<plan> has duplicate step ids: {ids}")
+    if len(steps) < 2:
+        raise ValueError("<plan> must have at least two steps (modes)")
+    return steps
+
+
+def _plan_feasibility(body: str, ids: list[int]) -> dict[tuple[int, int], bool]:
+    """The ``<feasibility>`` body's ``{(i, j): bool}`` over the plan's step ``ids``."""
+    raw_feas = _literal(body, "feasibility")
+    if not isinstance(raw_feas, Mapping):
+        raise ValueError("<feasibility> must be a dict {(i, j): bool}")
+    feas: dict[tuple[int, int], bool] = {}
+    for pair, ok in raw_feas.items():
+        if not (isinstance(pair, tuple) and len(pair) == 2):
+            raise ValueError(f"<feasibility> key {pair!r} must be a pair of step ids")
+        a, b = _as_int(pair[0], "<feasibility> step id"), _as_int(pair[1], "<feasibility> step id")
+        if a not in ids or b not in ids:
+            raise ValueError(f"<feasibility> pair ({a}, {b}) names a step not in the plan {ids}")
+        if not isinstance(ok, (bool, np.bool_)):
+            raise ValueError(f"<feasibility> value of ({a}, {b}) must be True/False, got {ok!r}")
+        feas[(a, b)] = bool(ok)
+    return feas
+
+
+def _plan_goals(body: str, ids: list[int]) -> dict[int, str]:
+    """The ``<goal>`` body's goal feature of each step (by id) that has one."""
+    raw = _literal(body, "goal")
+    if not isinstance(raw, (list, tuple)):
+        raise ValueError("<goal> must be a list of {'id': ..., 'feature': ...} dicts")
+    goals: dict[int, str] = {}
+    for g in raw:
+        if not isinstance(g, Mapping) or "id" not in g or "feature" not in g:
+            raise ValueError(f"<goal> entry {g!r} must be a dict with 'id' and 'feature'")
+        gid = _as_int(g["id"], "<goal> step id")
+        if gid not in ids:
+            raise ValueError(f"<goal> names step {gid}, which is not in the plan {ids}")
+        goals[gid] = str(g["feature"]).strip()
+    return goals
+
+
 def parse_plan_response(text: str) -> GlidePlan:
     """Parse an LLM response in the thesis appendix format into a :class:`GlidePlan`.
 
@@ -286,53 +338,16 @@ def parse_plan_response(text: str) -> GlidePlan:
     if bodies["feasibility"] is None:
         raise ValueError("response has no <feasibility>...</feasibility>")
 
-    raw_steps = _literal(bodies["plan"], "plan")
-    if not isinstance(raw_steps, (list, tuple)) or not raw_steps:
-        raise ValueError("<plan> must be a non-empty list of {'id': ..., 'desc': ...} dicts")
-    steps = []
-    for s in raw_steps:
-        if not isinstance(s, Mapping) or "id" not in s or "desc" not in s:
-            raise ValueError(f"<plan> step {s!r} must be a dict with 'id' and 'desc'")
-        steps.append(PlanStep(_as_int(s["id"], "<plan> step id"), str(s["desc"]).strip()))
+    steps = _plan_steps(bodies["plan"])
     ids = [s.id for s in steps]
-    if len(set(ids)) != len(ids):
-        raise ValueError(f"<plan> has duplicate step ids: {ids}")
-    if len(steps) < 2:
-        raise ValueError("<plan> must have at least two steps (modes)")
-
-    raw_feas = _literal(bodies["feasibility"], "feasibility")
-    if not isinstance(raw_feas, Mapping):
-        raise ValueError("<feasibility> must be a dict {(i, j): bool}")
-    feas: dict[tuple[int, int], bool] = {}
-    for pair, ok in raw_feas.items():
-        if not (isinstance(pair, tuple) and len(pair) == 2):
-            raise ValueError(f"<feasibility> key {pair!r} must be a pair of step ids")
-        a, b = _as_int(pair[0], "<feasibility> step id"), _as_int(pair[1], "<feasibility> step id")
-        if a not in ids or b not in ids:
-            raise ValueError(f"<feasibility> pair ({a}, {b}) names a step not in the plan {ids}")
-        if not isinstance(ok, (bool, np.bool_)):
-            raise ValueError(f"<feasibility> value of ({a}, {b}) must be True/False, got {ok!r}")
-        feas[(a, b)] = bool(ok)
-
+    feas = _plan_feasibility(bodies["feasibility"], ids)
     features: tuple[str, ...] = ()
     if bodies["selected_features"] is not None:
         raw = _literal(bodies["selected_features"], "selected_features")
         if not isinstance(raw, (list, tuple)) or not all(isinstance(f, str) for f in raw):
             raise ValueError("<selected_features> must be a list of feature names")
         features = tuple(f.strip() for f in raw)
-
-    goals: dict[int, str] = {}
-    if bodies["goal"] is not None:
-        raw = _literal(bodies["goal"], "goal")
-        if not isinstance(raw, (list, tuple)):
-            raise ValueError("<goal> must be a list of {'id': ..., 'feature': ...} dicts")
-        for g in raw:
-            if not isinstance(g, Mapping) or "id" not in g or "feature" not in g:
-                raise ValueError(f"<goal> entry {g!r} must be a dict with 'id' and 'feature'")
-            gid = _as_int(g["id"], "<goal> step id")
-            if gid not in ids:
-                raise ValueError(f"<goal> names step {gid}, which is not in the plan {ids}")
-            goals[gid] = str(g["feature"]).strip()
+    goals = {} if bodies["goal"] is None else _plan_goals(bodies["goal"], ids)
     return GlidePlan(steps=tuple(steps), feasibility=feas, features=features, goals=goals)
 
 

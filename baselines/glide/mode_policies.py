@@ -13,7 +13,9 @@ the agents whose episodes restart.
   plus a pseudo-attractor (the mean state where the demos enter the next mode;
   in the final mode, the mean state where they end) that pulls the agent back
   toward the demonstrations when it is farther from the attractor than most
-  demo states of its mode.
+  demo states of its mode. Built on GLiDE+BC's shared core
+  (:class:`~steer_envs.baselines.glide.glide_bc.GlideBC`), as the arms'
+  :class:`~steer_envs.baselines.glide.arm_policies.GlideArmPolicy` is.
 * :class:`GlidePlanningPolicy` -- GLiDE+Planning: a waypoint per mode (the
   mean first-entry state of the mode in the demos); from mode ``k`` the agent
   moves to the waypoint of mode ``k + 1`` staying inside the learned modes
@@ -34,7 +36,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from steer_envs.baselines.bc import modeling as bc
-from steer_envs.baselines.glide.classifier import ModePredictor, label_demonstrations
+from steer_envs.baselines.glide.glide_bc import GlideBC
+from steer_envs.baselines.glide.modes import ModePredictor, label_demonstrations
 from steer_envs.baselines.glide.planners import LearnedModeMap, PlannerConfig, potential_field, rrt
 from steer_envs.core.validation import integer, real_array, real_scalar
 from steer_envs.data.segmentation import segment_demonstration
@@ -155,8 +158,16 @@ def mean_end_state(demos: Sequence[np.ndarray]) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- GLiDE+BC
-class GlideBCPolicy:
-    """GLiDE+BC: per-mode BC policies chosen by the classifier, with pseudo-attractors.
+class GlideBCPolicy(GlideBC[bc.BCPolicy]):
+    """GLiDE+BC on PolygonNav: per-mode BC policies chosen by the classifier, with pseudo-attractors.
+
+    The shared part (per-mode training, threshold, blend) is
+    :class:`~steer_envs.baselines.glide.glide_bc.GlideBC`; this domain's part:
+    the attractor of mode ``k`` is a point, the mean state where the demos
+    first enter mode ``k + 1`` (:func:`mode_entry_points`; in the final mode
+    the mean end state, :func:`mean_end_state`), and the pull a step of the
+    full speed limit toward it. A mode with fewer than 2 demo pairs gets no
+    BC policy: the attractor alone moves the agent there.
 
     Args:
         classifier: the learned mode classifier.
@@ -197,41 +208,47 @@ class GlideBCPolicy:
                 f"demos and actions must be non-empty and of equal length, got {len(demos)} and {len(actions)}"
             )
         who = "GlideBCPolicy"
-        attractor_weight = real_scalar(attractor_weight, "attractor_weight", low=0.0, high=1.0, owner=who)
+        super().__init__(num_modes, attractor_weight=attractor_weight, owner=who)
         attractor_quantile = real_scalar(
             attractor_quantile, "attractor_quantile", low=0.0, high=1.0, low_inclusive=False, owner=who
         )
         _check_predictor(classifier, who)
         self.classifier = classifier
-        self.num_modes = integer(num_modes, "num_modes", low=1, owner=who)
         self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner=who)
         seed = integer(seed, "seed", owner=who)
-        self.attractor_weight = float(attractor_weight)
         modes = label_demonstrations(classifier, demos, self.num_modes)
-        entries = mode_entry_points(demos, modes, self.num_modes)
-        goal = mean_end_state(demos)
         states = np.concatenate([np.asarray(d, dtype=np.float64)[:-1] for d in demos])
         acts = np.concatenate([np.asarray(a, dtype=np.float64) for a in actions])
         state_modes = np.concatenate([m[:-1] for m in modes])
         if len(states) != len(acts):
             raise ValueError(f"every demo needs T - 1 actions for its T states, got {len(acts)} for {len(states)}")
-        self.policies: list[bc.BCPolicy | None] = []
+
+        def fit(s: np.ndarray, a: np.ndarray, k: int) -> bc.BCPolicy | None:
+            return train_bc(s, a, max_speed=max_speed, seed=seed + k, config=config) if len(s) >= 2 else None
+
+        self.fit_modes(states, acts, state_modes, fit)
+        self._set_attractors(demos, modes, states, state_modes, attractor_quantile)
+
+    def _set_attractors(
+        self,
+        demos: Sequence[np.ndarray],
+        modes: Sequence[np.ndarray],
+        states: np.ndarray,
+        state_modes: np.ndarray,
+        quantile: float,
+    ) -> None:
+        """Mode ``k``'s attractor: where the demos enter mode ``k + 1``; in the final mode, where they end."""
+        entries = mode_entry_points(demos, modes, self.num_modes)
+        goal = mean_end_state(demos)
         self.attractors = np.full((self.num_modes, states.shape[1]), np.nan)
         self.thresholds = np.full(self.num_modes, np.inf)
         for k in range(self.num_modes):
             sel = state_modes == k
-            self.policies.append(
-                train_bc(states[sel], acts[sel], max_speed=max_speed, seed=seed + k, config=config)
-                if sel.sum() >= 2
-                else None
-            )
-            # mode k's attractor: where the demos enter mode k + 1; in the final mode, where they end
             target = entries[k + 1] if k + 1 < self.num_modes else goal
             if np.all(np.isfinite(target)):
                 self.attractors[k] = target
                 if sel.any():
-                    dist = np.linalg.norm(states[sel] - target, axis=1)
-                    self.thresholds[k] = float(np.quantile(dist, attractor_quantile))
+                    self.thresholds[k] = self.threshold(np.linalg.norm(states[sel] - target, axis=1), quantile)
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Velocities ``(N, 2)``: each agent's mode policy, pulled toward its attractor when far from the demos."""
@@ -248,8 +265,7 @@ class GlideBCPolicy:
                 dist = np.linalg.norm(delta, axis=1, keepdims=True)
                 pull = delta / np.maximum(dist, 1e-12) * self.max_speed
                 far = dist[:, 0] > self.thresholds[k]
-                w = self.attractor_weight
-                v[far] = (1 - w) * v[far] + w * pull[far]
+                v[far] = self.blend(v[far], pull[far])
                 if policy is None:  # no demo states in this mode: the attractor alone
                     v = pull
             out[sel] = v

@@ -25,7 +25,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse.csgraph import dijkstra
 
-from steer_envs.baselines.glide.classifier import ModePredictor
+from steer_envs.baselines.glide.modes import ModePredictor
 from steer_envs.core.validation import BoundExceeded, integer, real_array, real_scalar
 
 __all__ = ["FREE_SPACE_PLANNERS", "LearnedModeMap", "PlannerConfig", "potential_field", "rrt"]
@@ -352,16 +352,36 @@ def rrt(
     tolerance = real_scalar(tolerance, "tolerance", low=0.0, owner="rrt")
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rrt: rng must be a numpy Generator, got {type(rng).__name__}")
-    nodes = [np.asarray(start, dtype=np.float64)]
+    origin = np.asarray(start, dtype=np.float64)
+    goal = np.asarray(goal, dtype=np.float64)
+    if valid_segment(origin, goal):
+        return [origin, goal]
+    path = _tree_path(
+        origin, goal, valid_point, valid_segment, (low, high), rng, iterations, goal_bias, step, tolerance
+    )
+    return None if path is None else _shortcut(path, valid_segment)
+
+
+def _tree_path(
+    start: np.ndarray,
+    goal: np.ndarray,
+    valid_point: Callable[[np.ndarray], bool],
+    valid_segment: Callable[[np.ndarray, np.ndarray], bool],
+    bounds: tuple[np.ndarray, np.ndarray],
+    rng: np.random.Generator,
+    iterations: int,
+    goal_bias: float,
+    step: float,
+    tolerance: float,
+) -> list[np.ndarray] | None:
+    """Grow :func:`rrt`'s tree from ``start`` until a node reaches ``goal``: the path ``[start, ..., goal]`` or None."""
+    nodes = [start]
     parents = [-1]
     pts = np.empty((iterations + 1, len(start)))
     pts[0] = nodes[0]
-    goal = np.asarray(goal, dtype=np.float64)
     found = -1
-    if valid_segment(nodes[0], goal):
-        return [nodes[0], goal]
     for _ in range(iterations):
-        target = goal if rng.random() < goal_bias else rng.uniform(low, high)
+        target = goal if rng.random() < goal_bias else rng.uniform(*bounds)
         near = int(np.argmin(np.sum((pts[: len(nodes)] - target) ** 2, axis=1)))
         delta = target - nodes[near]
         dist = float(np.linalg.norm(delta))
@@ -384,7 +404,11 @@ def rrt(
         path.append(nodes[k])
         k = parents[k]
     path.reverse()
-    # greedy shortcut: from each point jump to the farthest directly reachable one
+    return path
+
+
+def _shortcut(path: list[np.ndarray], valid_segment: Callable[[np.ndarray, np.ndarray], bool]) -> list[np.ndarray]:
+    """Greedy shortcut: from each point jump to the farthest one directly reachable."""
     short = [path[0]]
     i = 0
     while i < len(path) - 1:

@@ -5,7 +5,7 @@ sensors ``alpha`` tell the task automaton which mode ``m`` the system is in
 (:class:`~steer_envs.ltl.replanner.ModeReplanner`), the mode's dynamical
 system ``f_m`` (an :class:`~steer_envs.baselines.lpv_ds.lpvds.LPVDS`, stable at the
 mode's attractor) drives the state toward the guard of the next planned mode,
-and the modulation ``M_m`` (:func:`~steer_envs.wrappers.ds_modulation.modulate`)
+and the modulation ``M_m`` (:func:`~steer_envs.baselines.lpv_ds.modulation.modulate`)
 keeps the flow behind the cuts learned from the mode's invariance failures.
 
 **Fitting** (:func:`fit_mode_dynamics`): demonstrations are segmented by their
@@ -30,14 +30,15 @@ updates the automaton and returns the (modulated) velocity of the current
 mode. A mode change that is not the plan's next mode and was not caused by a
 push is an *invariance failure*: with ``modulation=True`` it adds a cut
 through the last in-mode state and re-solves all cuts of that mode
-(:func:`~steer_envs.wrappers.ds_modulation.resolve_cuts`); the mode's entry
+(:func:`~steer_envs.baselines.lpv_ds.cuts.resolve_cuts`); the mode's entry
 state, the other last-in-mode states and the attractor stay inside. Pushes are
 recognised by ``info["perturbed"]`` (the ``info`` that
 ``env.unwrapped.perturb`` returns; pass it to ``act``) or, with ``dt`` given,
 by a state jump larger than the last command can explain. Cuts persist across
 episodes (that is the learning); :meth:`LTLDSPolicy.clear_cuts` forgets them.
 One extension of the thesis: a state that re-enters a mode *beyond* one of its
-cuts gets no further outward motion (:func:`hold_beyond_cuts`), because a
+cuts gets no further outward motion
+(:func:`~steer_envs.baselines.lpv_ds.modulation.hold_beyond_cuts`), because a
 guard can lie on a cut and re-entries there would otherwise loop.
 """
 
@@ -53,17 +54,17 @@ from typing import Any, Literal, cast
 import numpy as np
 from numpy.typing import ArrayLike
 
+from steer_envs.baselines.lpv_ds.cuts import ATTRACTOR_MARGIN, CutSet, FailureRecord, resolve_cuts
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS, MIN_POINTS_PER_DIM
+from steer_envs.baselines.lpv_ds.modulation import clip_speed, hold_beyond_cuts, modulate
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import boolean, real_array, real_scalar
+from steer_envs.core.validation import boolean, real_array, real_scalar, sensor_reading
 from steer_envs.data.segmentation import segment_demonstrations
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
-from steer_envs.wrappers.ds_modulation import ATTRACTOR_MARGIN, CutSet, FailureRecord, modulate, resolve_cuts
-from steer_envs.wrappers.ltl_replan import sensor_reading
 
-__all__ = ["AttractorRule", "LTLDSPolicy", "ModeDynamics", "ModeEvent", "fit_mode_dynamics", "hold_beyond_cuts"]
+__all__ = ["AttractorRule", "LTLDSPolicy", "ModeDynamics", "ModeEvent", "fit_mode_dynamics", "repeated_failures"]
 
 AttractorRule = Literal["guard", "last"]
 #: slack of the push detection by state jumps (relative to the commanded step, plus an absolute floor).
@@ -173,30 +174,55 @@ def fit_mode_dynamics(
     # the last state has no velocity: it only serves as the transition state of the final segment
     seg = segment_demonstrations([(x[:-1], lab[:-1], v) for x, lab, v in parsed], task=task)
     d = parsed[0][0].shape[1]
-    entered_from: dict[str, Counter[str]] = {}  # mode -> the modes the demonstrations entered it from
-    for _, lab, _ in parsed:
-        names = [task.modes[task.mode_index(cast(str | int, m))] for m in lab]
-        for a, b in itertools.pairwise(names):
-            if a != b:
-                entered_from.setdefault(b, Counter())[a] += 1
     out: dict[str, ModeDynamics] = {}
     for key, data in seg.modes.items():
         mode = str(key)
         if sum(len(s) for s in data.segments) < MIN_POINTS_PER_DIM * d:
             continue  # too little data: reuses its predecessor's DS below
-        if attractor_rule == "guard":  # the first state after each segment (the demo's last state at its end)
-            after = np.stack([parsed[s.demo][0][s.stop] for s in data.segments])
-            attractor = after.mean(axis=0)
-            steps = after - data.last_states
-            steps = steps / np.maximum(np.linalg.norm(steps, axis=1, keepdims=True), 1e-12)
-            direction = steps.mean(axis=0)
-            if overshoot > 0 and np.linalg.norm(direction) > 1e-9:
-                attractor = attractor + overshoot * direction / np.linalg.norm(direction)
-        else:
-            attractor = data.attractor
+        attractor = _guard_attractor(parsed, data, overshoot) if attractor_rule == "guard" else data.attractor
         ds = LPVDS(random_state=random_state, **dict(ds_options or {}))
         ds.fit(data.states, data.velocities, attractor=attractor)
         out[mode] = ModeDynamics(mode, ds, attractor, mode, data.entry_states, data.last_states)
+    missing = _borrow_dynamics(out, task, seg, _entered_from(parsed, task), d)
+    if missing:
+        raise ValueError(
+            f"the demonstrations never visit mode(s) {missing} of task {task.name!r} (with enough data, or as the "
+            "target of a demonstrated transition); LTL-DS needs demonstrations covering every mode (thesis Asm. 3)"
+        )
+    return {m: out[m] for m in task.modes}
+
+
+def _entered_from(
+    parsed: Sequence[tuple[np.ndarray, list[Hashable], np.ndarray]], task: TaskSpec
+) -> dict[str, Counter[str]]:
+    """Mode -> how often the demonstrations entered it from each other mode."""
+    entered_from: dict[str, Counter[str]] = {}
+    for _, lab, _ in parsed:
+        names = [task.modes[task.mode_index(cast(str | int, m))] for m in lab]
+        for a, b in itertools.pairwise(names):
+            if a != b:
+                entered_from.setdefault(b, Counter())[a] += 1
+    return entered_from
+
+
+def _guard_attractor(
+    parsed: Sequence[tuple[np.ndarray, list[Hashable], np.ndarray]], data: Any, overshoot: float
+) -> np.ndarray:
+    """The ``"guard"`` attractor: the mean first state after each segment, ``overshoot`` along the mean crossing."""
+    after = np.stack([parsed[s.demo][0][s.stop] for s in data.segments])  # the demo's last state at its end
+    attractor = after.mean(axis=0)
+    steps = after - data.last_states
+    steps = steps / np.maximum(np.linalg.norm(steps, axis=1, keepdims=True), 1e-12)
+    direction = steps.mean(axis=0)
+    if overshoot > 0 and np.linalg.norm(direction) > 1e-9:
+        attractor = attractor + overshoot * direction / np.linalg.norm(direction)
+    return attractor
+
+
+def _borrow_dynamics(
+    out: dict[str, ModeDynamics], task: TaskSpec, seg: Any, entered_from: Mapping[str, Counter[str]], d: int
+) -> list[str]:
+    """Give each mode without a DS the DS of the mode most often entering it (in place); the modes left without."""
     missing = []
     for mode in task.modes:
         if mode in out:
@@ -210,60 +236,7 @@ def fit_mode_dynamics(
         entry = np.stack([s.entry for s in segs]) if segs else np.zeros((0, d))
         last = np.stack([s.last for s in segs]) if segs else np.zeros((0, d))
         out[mode] = ModeDynamics(mode, src.policy, src.attractor, src.source, entry, last)
-    if missing:
-        raise ValueError(
-            f"the demonstrations never visit mode(s) {missing} of task {task.name!r} (with enough data, or as the "
-            "target of a demonstrated transition); LTL-DS needs demonstrations covering every mode (thesis Asm. 3)"
-        )
-    return {m: out[m] for m in task.modes}
-
-
-def _clip(v: np.ndarray, max_speed: float) -> np.ndarray:
-    speed = np.linalg.norm(v, axis=1, keepdims=True)
-    return v * np.minimum(1.0, max_speed / np.maximum(speed, 1e-300))
-
-
-def hold_beyond_cuts(x: ArrayLike, velocity: ArrayLike, cuts: CutSet) -> np.ndarray:
-    """For states beyond a cut (``Gamma_k > 1``), stop the motion further out; other rows unchanged.
-
-    The thesis leaves the nominal flow outside the cuts, which is harmless when
-    a mode is entered inside them. LTL-DS re-enters a mode through its guards,
-    and a guard can lie on a cut: the b -> c guard of soup scooping (soup -> pink
-    column) is the same line as the c -> b spill boundary, so re-entries land a
-    hair beyond the cut through the previous spill and exit again (a discrete
-    loop that more cuts do not end). This applies the modulation's
-    ``lambda_r = max(0, 1 - Gamma_k) = 0`` there: for each cut ``k`` the row is
-    beyond and moves away from (``n_k^T v > 0``), ``v <- v - (n_k^T v)
-    (x - r) / (n_k^T (x - r))``, which zeroes ``n_k^T v`` and, like the
-    modulation, only lowers ``dV/dt`` (``n_k^T (x - r) > 0``). Cuts are taken
-    in decreasing ``Gamma_k``; each step only lowers the approach to the other
-    cuts beyond which the row lies, so none is left approached (a residual from
-    rounding is zeroed).
-
-    >>> import numpy as np
-    >>> from steer_envs.wrappers.ds_modulation import Cut, CutSet
-    >>> cuts = CutSet(np.zeros(2), [Cut(point=np.array([1.0, 0.0]), normal=np.array([1.0, 0.0]))])
-    >>> hold_beyond_cuts(np.array([[2.0, 0.0], [0.5, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]), cuts).tolist()
-    [[0.0, 0.0], [1.0, 0.0]]
-    """
-    xb = np.asarray(x, dtype=np.float64)
-    v = np.array(velocity, dtype=np.float64)
-    if len(cuts) == 0:
-        return v
-    _, nrm, h = cuts.arrays()
-    rel = xb - cuts.reference
-    gam = (rel @ nrm.T) / h  # (N, K)
-    rows = np.nonzero(np.any(gam > 1.0, axis=1))[0]
-    for i in rows:
-        for k in np.argsort(-gam[i]):
-            if gam[i, k] <= 1.0:
-                break
-            approach = float(nrm[k] @ v[i])
-            if approach > 0:
-                v[i] = v[i] - approach * rel[i] / (gam[i, k] * h[k])
-        if np.any((nrm @ v[i] > 1e-12) & (gam[i] > 1.0)):
-            v[i] = 0.0  # rounding only (see the docstring)
-    return v
+    return missing
 
 
 class LTLDSPolicy:
@@ -422,7 +395,7 @@ class LTLDSPolicy:
             raise ValueError(f"the policy of mode {mode!r} returned shape {v.shape} for states {xb.shape}")
         cuts = self.cut_sets[mode]
         if self.max_speed is not None:
-            v = _clip(v, self.max_speed)
+            v = clip_speed(v, self.max_speed)
         if not (self.modulation and len(cuts)):
             return v
         out = modulate(xb, v, cuts, self.max_speed)
@@ -512,3 +485,25 @@ class LTLDSPolicy:
             return False
         self.cut_sets[mode].set_cuts(cuts)
         return True
+
+
+def repeated_failures(policy: LTLDSPolicy) -> int:
+    """Invariance failures that crossed a cut learned from the earlier failures of their mode.
+
+    The cuts are re-solved from the failures recorded before each one (what a
+    policy with modulation had at that moment; without modulation what it would
+    have had): a failure whose last in-mode state was inside those cuts and
+    whose failure state lies beyond one of them is a failure experienced again.
+    With modulation the thesis's guarantee says there are none.
+    """
+    repeats = 0
+    for mode, records in policy.failures.items():
+        attractor = policy.dynamics[mode].attractor
+        for k in range(1, len(records)):
+            try:
+                cuts = CutSet(attractor, resolve_cuts(records[:k], attractor, policy.margin))
+            except ValueError:
+                continue  # no cut for an earlier failure (the policy skipped it too)
+            last, fail = records[k].last_in_mode[None], records[k].failure[None]
+            repeats += bool(cuts.inside(last)[0] and not cuts.inside(fail)[0])
+    return repeats

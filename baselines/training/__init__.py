@@ -11,13 +11,7 @@ SystemExit: 2
 """
 
 from steer_envs.baselines.common.configuration import TrainSettings
-from steer_envs.baselines.training.trainer import (
-    check_record,
-    main,
-    parse_overrides,
-    read_record,
-    snapshot_run,
-    train_policy,
-)
+from steer_envs.baselines.training.cli import main, parse_overrides
+from steer_envs.baselines.training.trainer import check_record, read_record, snapshot_run, train_policy
 
 __all__ = ["TrainSettings", "check_record", "main", "parse_overrides", "read_record", "snapshot_run", "train_policy"]

@@ -1,5 +1,5 @@
-"""``python -m steer_envs.baselines.training``: the training CLI (see :mod:`.trainer`)."""
+"""``python -m steer_envs.baselines.training``: the training CLI (see :mod:`.cli`)."""
 
-from steer_envs.baselines.training.trainer import main
+from steer_envs.baselines.training.cli import main
 
 raise SystemExit(main())

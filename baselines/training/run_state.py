@@ -177,63 +177,86 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
     was saved with other settings, or does not fit the network, optimizer or
     RNGs; nothing is changed then except what the error names.
     """
-    model, optimizer, scheduler, ema = parts.model, parts.optimizer, parts.scheduler, parts.ema
     src = Path(path)
     tensors, meta = read_safetensors(src, "training_state")
     try:
-        if meta.get("format") != STATE_FORMAT:
-            raise ValueError(f"format {meta.get('format')!r}, expected {STATE_FORMAT!r}")
-        saved = TrainSettings.from_dict(meta["settings"])
-        if saved != settings:
-            changed = sorted(k for k, v in settings.to_dict().items() if saved.to_dict().get(k) != v)
-            raise ValueError(f"it was saved by a run with other training settings (differ: {', '.join(changed)})")
-        progress = RunProgress(
-            step=integer(meta["step"], "step", low=1, high=settings.steps),
-            losses=check_losses(meta["losses"]),
-            running=_finite(meta["running"], "running"),
-            wall_s=_finite(meta["wall_s"], "wall_s"),
-            resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
-            threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
-            moved_at=[integer(s, "moved_at entry", low=1, high=settings.steps) for s in meta.get("moved_at", [])],
-            first_device=check_device_kind(meta.get("first_device", "")),
-        )
-        if progress.losses and progress.losses[-1][0] > progress.step:
-            raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")
-        if (meta["ema"] is None) != (ema is None):
-            raise ValueError("the EMA of the weights is " + ("missing" if ema is not None else "unexpected"))
+        progress = _saved_progress(meta, settings, has_ema=parts.ema is not None)
     except (KeyError, TypeError, ValueError) as err:
         what = f"missing {err}" if isinstance(err, KeyError) else str(err)
         raise CheckpointError(f"{src}: not a training state of this run ({what})") from None
+    model, optimizer, ema = parts.model, parts.optimizer, parts.ema
     check_state(_expected_tensors(model, optimizer, ema), {k: v for k, v in tensors.items() if "." in k}, str(src))
     try:
-        model.load_state_dict({k[len("model.") :]: v for k, v in tensors.items() if k.startswith("model.")})
-        groups = meta["param_groups"]
-        for group in groups:
-            if "betas" in group:
-                group["betas"] = tuple(group["betas"])
-        state = {
-            i: {key: tensors[f"optim.{i}.{key}"] for key in ("step", "exp_avg", "exp_avg_sq")}
-            for i in range(len(_params(optimizer)))
-        }
-        optimizer.load_state_dict({"state": state, "param_groups": groups})
-        scheduler.load_state_dict(meta["scheduler"])
-        if ema is not None:
-            n = len(_params(optimizer))
-            ema.load_state_dict({**meta["ema"], "shadow_params": [tensors[f"ema.{i}"] for i in range(n)]})
-        parts.rng.bit_generator.state = meta["numpy_rng"]
-        saved_kind = meta.get("generator_device") or _GENERATOR_KIND_BY_SIZE.get(tensors["torch_generator"].numel())
-        if saved_kind is not None and not isinstance(saved_kind, str):
-            raise TypeError(f"'generator_device' must be a device name, got {saved_kind!r}")
-        if saved_kind in (None, parts.generator.device.type):
-            parts.generator.set_state(tensors["torch_generator"])
-        else:  # saved by a generator of another device kind: its state cannot carry over
-            seed = np.random.SeedSequence([settings.seed, progress.step]).generate_state(1)[0]
-            parts.generator.manual_seed(int(seed))
-            progress.moved_at.append(progress.step)
-        torch.set_rng_state(tensors["torch_rng"])
+        _restore_training(parts, tensors, meta)
+        _restore_generators(parts, tensors, meta, settings, progress)
     except (KeyError, TypeError, ValueError, RuntimeError) as err:
         raise CheckpointError(f"{src}: the training state does not fit this run ({err})") from None
     return progress
+
+
+def _saved_progress(meta: dict[str, Any], settings: TrainSettings, *, has_ema: bool) -> RunProgress:
+    """The progress a state's metadata records, checked against this run's ``settings`` (and EMA or not)."""
+    if meta.get("format") != STATE_FORMAT:
+        raise ValueError(f"format {meta.get('format')!r}, expected {STATE_FORMAT!r}")
+    saved = TrainSettings.from_dict(meta["settings"])
+    if saved != settings:
+        changed = sorted(k for k, v in settings.to_dict().items() if saved.to_dict().get(k) != v)
+        raise ValueError(f"it was saved by a run with other training settings (differ: {', '.join(changed)})")
+    progress = RunProgress(
+        step=integer(meta["step"], "step", low=1, high=settings.steps),
+        losses=check_losses(meta["losses"]),
+        running=_finite(meta["running"], "running"),
+        wall_s=_finite(meta["wall_s"], "wall_s"),
+        resumed_at=[integer(s, "resumed_at entry", low=1, high=settings.steps) for s in meta["resumed_at"]],
+        threads=integer(meta.get("threads", 0), "threads", low=0, high=MAX_THREADS),
+        moved_at=[integer(s, "moved_at entry", low=1, high=settings.steps) for s in meta.get("moved_at", [])],
+        first_device=check_device_kind(meta.get("first_device", "")),
+    )
+    if progress.losses and progress.losses[-1][0] > progress.step:
+        raise ValueError(f"losses logged up to step {progress.losses[-1][0]}, after the state's {progress.step}")
+    if (meta["ema"] is None) != (not has_ema):
+        raise ValueError("the EMA of the weights is " + ("missing" if has_ema else "unexpected"))
+    return progress
+
+
+def _restore_training(parts: TrainingParts, tensors: dict[str, torch.Tensor], meta: dict[str, Any]) -> None:
+    """Load the weights, the optimizer's moments and groups, the LR schedule and the EMA into ``parts``."""
+    model, optimizer, ema = parts.model, parts.optimizer, parts.ema
+    model.load_state_dict({k[len("model.") :]: v for k, v in tensors.items() if k.startswith("model.")})
+    groups = meta["param_groups"]
+    for group in groups:
+        if "betas" in group:
+            group["betas"] = tuple(group["betas"])
+    state = {
+        i: {key: tensors[f"optim.{i}.{key}"] for key in ("step", "exp_avg", "exp_avg_sq")}
+        for i in range(len(_params(optimizer)))
+    }
+    optimizer.load_state_dict({"state": state, "param_groups": groups})
+    parts.scheduler.load_state_dict(meta["scheduler"])
+    if ema is not None:
+        n = len(_params(optimizer))
+        ema.load_state_dict({**meta["ema"], "shadow_params": [tensors[f"ema.{i}"] for i in range(n)]})
+
+
+def _restore_generators(
+    parts: TrainingParts,
+    tensors: dict[str, torch.Tensor],
+    meta: dict[str, Any],
+    settings: TrainSettings,
+    progress: RunProgress,
+) -> None:
+    """Restore the batch RNG, the noise generator (reseeded when saved on another device kind) and torch's RNG."""
+    parts.rng.bit_generator.state = meta["numpy_rng"]
+    saved_kind = meta.get("generator_device") or _GENERATOR_KIND_BY_SIZE.get(tensors["torch_generator"].numel())
+    if saved_kind is not None and not isinstance(saved_kind, str):
+        raise TypeError(f"'generator_device' must be a device name, got {saved_kind!r}")
+    if saved_kind in (None, parts.generator.device.type):
+        parts.generator.set_state(tensors["torch_generator"])
+    else:  # saved by a generator of another device kind: its state cannot carry over
+        seed = np.random.SeedSequence([settings.seed, progress.step]).generate_state(1)[0]
+        parts.generator.manual_seed(int(seed))
+        progress.moved_at.append(progress.step)
+    torch.set_rng_state(tensors["torch_rng"])
 
 
 def check_device_kind(value: Any) -> str:

@@ -7,7 +7,12 @@ line and resumes killed runs; ``report.py`` / ``plots.py`` turn the lines into
 tables and figures; ``cli.py`` is the ``steer-bench`` command.
 
 A suite's parameters are a frozen dataclass (``params.py``,
-:class:`SuiteParams`), coerced and checked before any trial runs.
+:class:`SuiteParams`), coerced and checked before any trial runs. What
+several suites declare or do alike lives here too: ``findings.py`` (claims
+judged on a summary table), ``metrics.py`` (metrics and references declared
+alike), ``trials.py`` (the guard and prologue of trial functions, and what
+the robot-experiment protocols share) and ``policies.py`` (suites that steer
+one frozen policy).
 
 Python API:
 
@@ -20,9 +25,10 @@ suite,env,method,params,metric,kind,trials,n,mean,std,min,max,reference,diff,sou
 
 from steer_envs.bench.executors import Executor, ExecutorStartError, Outcome, execute_trial, make_executor
 from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.records import ResultsDirError, read_jsonl
 from steer_envs.bench.report import render, summarize
 from steer_envs.bench.runner import MAX_PLANNED_TRIALS, RunSummary, build_request, plan_trials, run_suite
-from steer_envs.bench.store import ResultsDirError, ResultStore, StoreLockedError, load_results, read_jsonl
+from steer_envs.bench.store import ResultStore, StoreLockedError, load_results
 from steer_envs.bench.suite import (
     Finding,
     Metric,

@@ -119,7 +119,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p_list = sub.add_parser("list", parents=[plugin], help="list suites, their envs, methods and metrics")
     p_list.add_argument("suite", nargs="?", help="show only this suite")
+    _add_run_parser(sub, plugin)
+    p_report = sub.add_parser("report", parents=[plugin], help="tables (and plots) from a results directory")
+    p_report.add_argument("dir", type=_path, help="a --out directory of `steer-bench run`")
+    p_report.add_argument("--format", choices=FORMATS, default="md", help="output format (default: md)")
+    p_report.add_argument("--plots", action="store_true", help="also write PNG figures")
+    p_report.add_argument("--plots-dir", type=_path, metavar="DIR", help="where the PNGs go (default: DIR/plots)")
+    return parser
 
+
+def _add_run_parser(sub: Any, plugin: argparse.ArgumentParser) -> None:
+    """The ``run`` sub-command: what to run, how many, where, on which executor."""
     p_run = sub.add_parser(
         "run",
         parents=[plugin],
@@ -169,13 +179,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="show (or hide) the progress bar (default: shown only when stderr is a terminal)",
     )
-
-    p_report = sub.add_parser("report", parents=[plugin], help="tables (and plots) from a results directory")
-    p_report.add_argument("dir", type=_path, help="a --out directory of `steer-bench run`")
-    p_report.add_argument("--format", choices=FORMATS, default="md", help="output format (default: md)")
-    p_report.add_argument("--plots", action="store_true", help="also write PNG figures")
-    p_report.add_argument("--plots-dir", type=_path, metavar="DIR", help="where the PNGs go (default: DIR/plots)")
-    return parser
 
 
 def _describe(suite: Suite) -> list[str]:

@@ -6,7 +6,7 @@ objects as trials finish (completion order, not submission order). Because a
 trial is a pure function of its config and seed, the ``value`` metrics are
 identical whichever executor runs them.
 
-Ray is optional (``pip install 'steer-envs[ray]'``) and imported only when
+Ray is optional (``pip install "steer-envs[ray]"``) and imported only when
 the Ray executor is created.
 
 >>> from steer_envs.bench.runner import build_request, plan_trials
@@ -40,8 +40,9 @@ from typing import Any
 import numpy as np
 
 from steer_envs.bench.provenance import host, versions
-from steer_envs.bench.store import SCHEMA_VERSION, encode_record, utc_now
+from steer_envs.bench.records import SCHEMA_VERSION, encode_record, utc_now
 from steer_envs.bench.suite import Trial, TrialResult, resolve_function
+from steer_envs.core.extras import require
 from steer_envs.core.validation import describe
 
 EXECUTORS: tuple[str, ...] = ("local", "ray")
@@ -281,12 +282,8 @@ class ProcessPoolExecutor(Executor):
 
 
 def import_ray() -> Any:
-    """``import ray`` with an actionable message when it is missing."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError("the Ray executor needs the optional dependency ray: pip install 'steer-envs[ray]'") from exc
-    return ray
+    """``import ray``; without it an ``ImportError`` naming ``pip install "steer-envs[ray]"``."""
+    return require("ray", "ray", "the Ray executor")
 
 
 class RayExecutor(Executor):

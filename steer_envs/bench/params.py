@@ -36,13 +36,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 import types
 import typing
 from collections.abc import Collection, Mapping
 from typing import Any, ClassVar, Self
 
-__all__ = ["NoParams", "SuiteParams", "params_from_defaults"]
+__all__ = ["NoParams", "SuiteParams", "check_suite_params", "params_from_defaults"]
 
 
 class SuiteParams:
@@ -94,6 +95,17 @@ class SuiteParams:
         """A copy with ``changes`` applied, coerced and validated like :meth:`from_json`."""
         return type(self).from_json({**self.to_json(), **changes})
 
+    def kwargs(self, *, without: Collection[str] = ()) -> dict[str, Any]:
+        """The parameters as keyword arguments (typed values), but for those named in ``without``.
+
+        For a trial function whose protocol takes the suite's parameters by their names.
+
+        >>> from steer_envs.bench.suites.selftest import SelftestParams
+        >>> SelftestParams(samples=10).kwargs(without=("fail_seeds",))
+        {'samples': 10, 'sleep': 0.0}
+        """
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in without}  # type: ignore[arg-type]
+
     # ------------------------------------------------------------ validation helpers
     def require(self, name: str, ok: bool, expected: str) -> None:
         """``ValueError`` naming the suite and parameter ``name`` unless ``ok``; ``expected`` says what it must be."""
@@ -110,6 +122,11 @@ class SuiteParams:
         """Each parameter in ``names`` must be ``<= high`` (a bound on counts that would exhaust memory or time)."""
         for name in names:
             self.require(name, getattr(self, name) <= high, f"<= {high}")
+
+    def require_between(self, low: float, high: float, *names: str) -> None:
+        """Each parameter in ``names`` must be ``>= low`` and ``<= high`` (:meth:`require_at_least`, then at most)."""
+        self.require_at_least(low, *names)
+        self.require_at_most(high, *names)
 
     def require_in(self, name: str, choices: Collection[Any]) -> None:
         """Parameter ``name`` must be one of ``choices``."""
@@ -147,6 +164,30 @@ def params_from_defaults(suite: str, defaults: Mapping[str, Any]) -> SuiteParams
     )
     instance: SuiteParams = cls()
     return instance
+
+
+def check_suite_params(suite: str, params: SuiteParams | Mapping[str, Any]) -> SuiteParams:
+    """A suite's default parameters: a frozen :class:`SuiteParams` dataclass instance (a mapping of defaults is
+    converted by :func:`params_from_defaults`), its fields typed and its values JSON with finite numbers.
+
+    >>> check_suite_params("demo", {"episodes": 3})
+    Params(episodes=3)
+    """
+    if isinstance(params, Mapping):
+        params = params_from_defaults(suite, params)
+    params_type = type(params)
+    frozen = dataclasses.is_dataclass(params) and params_type.__dataclass_params__.frozen  # type: ignore[attr-defined]
+    if not (isinstance(params, SuiteParams) and frozen):
+        raise TypeError(
+            f"Suite {suite!r}: params must be an instance of a frozen dataclass deriving from SuiteParams "
+            f"(or a mapping of defaults), got {params_type.__name__}"
+        )
+    params_type.field_names()  # resolves the field types (TypeError on a name that shadows a method)
+    try:
+        json.dumps(params.to_json(), allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"Suite {suite!r}: default params must be JSON with finite numbers: {exc}") from None
+    return params
 
 
 # ------------------------------------------------------------------ coercion

@@ -1,4 +1,4 @@
-r"""PNG figures for ``steer-bench report --plots``, and the figure helper every suite's plots use.
+r"""PNG figures for ``steer-bench report --plots``, and checks of what a figure shows.
 
 One bar chart per (suite, metric): the mean over seeds per cell with the
 standard deviation as error bar, the thesis's reference value of each cell
@@ -6,111 +6,31 @@ drawn as a red tick across its bar, and the metric's goal as a dashed line.
 Suites may add their own figures through ``Suite.plot`` (e.g. throughput of
 single vs. vectorized envs, trajectories stored in a record's ``extra``).
 
-Every figure of the package is made by :func:`new_figure` (matplotlib's
-object API on the Agg canvas: no pyplot state, no display needed) and written
-by :func:`save_figure` (PNG, atomically, so a killed report leaves no torn file).
+Every figure of the package is made by :func:`steer_envs.utils.plots.new_figure`
+and written by :func:`steer_envs.utils.plots.save_figure`;
+:func:`figure_problems` lists what a reader of a figure would miss.
 
->>> import tempfile
->>> from pathlib import Path
+>>> from steer_envs.utils.plots import new_figure
 >>> fig = new_figure(3.0, 2.0)
 >>> _ = fig.add_subplot().plot([0, 1], [1, 0])
->>> with tempfile.TemporaryDirectory() as tmp:
-...     save_figure(fig, Path(tmp) / "line.png").read_bytes()[:4]
-b'\x89PNG'
+>>> figure_problems(fig)[:2]
+['no title', 'no legend']
 """
 
 from __future__ import annotations
 
-import io
 import math
 import os
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-from steer_envs.bench.report import Table, summarize
+import numpy as np
+
+from steer_envs.bench.report import Table, suite_table, summarize
 from steer_envs.bench.suite import Suite, get_suite
-from steer_envs.io import atomic_write_bytes
-
-#: matplotlib layout engines :func:`new_figure` accepts (``None``: place axes by hand)
-FigureLayout = Literal["constrained", "tight"] | None
-
-
-def new_figure(width: float = 7.0, height: float = 4.0, *, layout: FigureLayout = "constrained") -> Any:
-    """A matplotlib ``Figure`` (100 dpi) on an Agg canvas, safe in headless worker processes.
-
-    ``layout`` is matplotlib's layout engine: ``"constrained"`` (default),
-    ``"tight"`` (for grids of image panels) or ``None``.
-
-    >>> new_figure(4.0, 3.0).get_size_inches().tolist()
-    [4.0, 3.0]
-    """
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise ValueError(f"{name} must be a positive number of inches, got {value!r}")
-    if layout not in ("constrained", "tight", None):
-        raise ValueError(f"layout must be 'constrained', 'tight' or None, got {layout!r}")
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100, layout=layout)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def save_figure(fig: Any, path: str | os.PathLike[str]) -> Path:
-    """Render ``fig`` to PNG and write it atomically to ``path`` (parent folders created); returns the path.
-
-    >>> import tempfile
-    >>> with tempfile.TemporaryDirectory() as tmp:
-    ...     save_figure(new_figure(1.0, 1.0), Path(tmp) / "sub" / "empty.png").name
-    'empty.png'
-    """
-    if Path(path).suffix.lower() != ".png":
-        raise ValueError(f"path must end in .png, got {str(path)!r}")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    atomic_write_bytes(path, buf.getvalue())
-    return Path(path)
-
-
-def key_line(label: str, **style: Any) -> Any:
-    """A legend entry drawn as a line or marker (``Line2D`` keywords: ``color``, ``ls``, ``marker``, ...).
-
-    >>> key_line("sketch", color="magenta", lw=2).get_label()
-    'sketch'
-    """
-    from matplotlib.lines import Line2D
-
-    return Line2D([], [], label=label, **style)
-
-
-def key_patch(label: str, **style: Any) -> Any:
-    """A legend entry drawn as a filled box (``Patch`` keywords: ``facecolor``, ``edgecolor``, ...)."""
-    from matplotlib.patches import Patch
-
-    return Patch(label=label, **style)
-
-
-def figure_legend(fig: Any, handles: Sequence[Any], *, ncol: int | None = None, fontsize: float = 7) -> Any:
-    """One legend for a grid of panels, below them (outside every panel, so it covers no data).
-
-    ``handles``: artists with labels, e.g. from :func:`key_line` / :func:`key_patch`.
-    Needs the ``"constrained"`` layout of :func:`new_figure` (it makes room).
-    """
-    if not handles:
-        raise ValueError("handles must not be empty")
-    renderer = fig.canvas.get_renderer()
-    cols = ncol if ncol is not None else min(len(handles), 4)
-    while True:  # fewer columns until the legend fits the figure's width
-        legend = fig.legend(
-            handles=list(handles), loc="outside lower center", ncol=cols, fontsize=fontsize, frameon=False
-        )
-        if cols == 1 or legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
-            return legend
-        legend.remove()
-        cols -= 1
+from steer_envs.utils.plots import figure_legend, new_figure, save_figure
 
 
 def _numeric_ticks(labels: Sequence[Any]) -> bool:
@@ -179,6 +99,21 @@ def figure_problems(fig: Any) -> list[str]:
             if covered:
                 problems.append(f"panel {i}: the legend covers {len(covered)} bar(s)")
     return problems
+
+
+def recorded_figures(records: Iterable[Mapping[str, Any]]) -> dict[tuple[int, str], Any]:
+    """The figure data trials kept (``extra["figure"]``), by ``(seed, method)``, in record order.
+
+    >>> recorded_figures([{"seed": 1, "config": {"method": "a"}, "extra": {"figure": [1]}},
+    ...                   {"seed": 0, "config": {"method": "a"}, "extra": {}}])
+    {(1, 'a'): [1]}
+    """
+    figures: dict[tuple[int, str], Any] = {}
+    for rec in records:
+        data = (rec.get("extra") or {}).get("figure")
+        if data:
+            figures[(int(rec["seed"]), str(rec["config"]["method"]))] = data
+    return figures
 
 
 def safe_name(text: str) -> str:
@@ -291,6 +226,43 @@ def write_plots(
         suite = _lookup(table.suite)
         if suite is not None and suite.plot is not None:
             suite_records = [r for r in records if r["config"]["suite"] == table.suite]
-            paths = attempt(f"the figures of suite {table.suite!r}", suite.plot, suite, suite_records, str(out_dir))
+            paths = attempt(f"the figures of suite {table.suite!r}", suite.figures, suite_records, str(out_dir))
             written += [Path(p) for p in paths or ()]
     return written
+
+
+_QUADRANTS = (("AS", "tab:green"), ("AF", "tab:olive"), ("MS", "tab:cyan"), ("MF", "tab:gray"))
+
+
+def quadrant_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> str | None:
+    """``<suite>_quadrants.png`` of a skill-steering suite: stacked AS/AF/MS/MF bars per method, thesis TA / CS hollow.
+
+    ``None`` (nothing written) without a measured TA.
+    """
+    table = suite_table(suite, records)
+    rows = [r for r in table.rows if r.stats.get("TA") is not None] if table else []
+    if not rows:
+        return None
+    thesis = {(ref.method, ref.metric): ref.value for ref in suite.references}
+    fig = new_figure(1.2 * len(rows) + 2.5, 4.0)
+    ax = fig.add_subplot()
+    x = np.arange(len(rows))
+    bottom = np.zeros(len(rows))
+    for name, color in _QUADRANTS:
+        values = np.array([(r.stats[name].mean if r.stats.get(name) else 0.0) or 0.0 for r in rows])  # type: ignore[union-attr]
+        ax.bar(x, values, bottom=bottom, color=color, label=name, width=0.6)
+        bottom += values
+    for i, r in enumerate(rows):
+        ref_ta, ref_cs = thesis.get((r.method, "TA")), thesis.get((r.method, "CS"))
+        if ref_ta is not None and ref_cs is not None:
+            ax.scatter([i - 0.15], [ref_ta], facecolors="none", edgecolors="black", marker="o", s=45)
+            ax.scatter([i + 0.15], [ref_cs], facecolors="none", edgecolors="black", marker="D", s=40)
+    ax.scatter([], [], facecolors="none", edgecolors="black", marker="o", label="thesis TA")
+    ax.scatter([], [], facecolors="none", edgecolors="black", marker="D", label="thesis CS")
+    ax.set_xticks(x, [r.method or "" for r in rows], fontsize=8)
+    ax.set_ylim(0, 1.05)
+    ax.set_ylabel("share of interactions")
+    ax.set_title(f"{suite.name}: aligned / misaligned x success / failure", fontsize=10)
+    figure_legend(fig, ax.get_legend_handles_labels()[0], ncol=3)  # below the axes: the stacks reach 1.0
+    ax.grid(alpha=0.3, axis="y")
+    return str(save_figure(fig, Path(out_dir) / f"{suite.name}_quadrants.png"))

@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from steer_envs.bench.store import record_problem
+from steer_envs.bench.records import record_problem
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, get_suite
 
 FORMATS: tuple[str, ...] = ("md", "csv", "json")
@@ -142,7 +142,7 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
 
     Suites that are not registered in this process still get a table, with
     metric names taken from the records and no references. Each record must
-    pass :func:`~steer_envs.bench.store.record_problem` (``key`` not needed);
+    pass :func:`~steer_envs.bench.records.record_problem` (``key`` not needed);
     ``ValueError`` names the first one that does not.
 
     >>> rec = {"config": {"suite": "mine", "env": None, "method": "a", "params": {}}, "seed": 0, "metrics": {"x": 2.0}}
@@ -194,6 +194,15 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
             table.findings = _checked_findings(suite, table)
         tables.append(table)
     return tables
+
+
+def suite_table(suite: Suite, records: Iterable[Mapping[str, Any]]) -> Table | None:
+    """The summary table of ``suite`` in ``records`` (``None`` when none of them is its).
+
+    >>> suite_table(get_suite("selftest"), []) is None
+    True
+    """
+    return next((t for t in summarize(records) if t.suite == suite.name), None)
 
 
 def _checked_findings(suite: Suite, table: Table) -> list[Finding]:

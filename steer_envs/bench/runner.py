@@ -107,27 +107,7 @@ def build_request(
     """
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a Suite, got {describe(suite)}")
-    seed_tuple: tuple[int, ...] | None
-    if seeds is None:
-        seed_tuple = None
-    elif isinstance(seeds, (int, np.integer)) and not isinstance(seeds, (bool, np.bool_)):
-        count = integer(seeds, "seeds", low=1)
-        if count > MAX_PLANNED_TRIALS:
-            raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run, got {count} seeds; split the run")
-        seed_tuple = tuple(range(count))
-    elif isinstance(seeds, (str, bytes, Mapping)) or not isinstance(seeds, Iterable):
-        raise TypeError(f"seeds must be an int count or a sequence of ints, got {describe(seeds)}")
-    else:
-        seed_list: list[int] = []
-        for i, s in enumerate(seeds):
-            seed_list.append(integer(s, f"seeds[{i}]", low=0))
-            if len(seed_list) > MAX_PLANNED_TRIALS:
-                raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run; split the run")
-        if not seed_list:
-            raise ValueError("seeds must not be empty")
-        if len(set(seed_list)) != len(seed_list):
-            raise ValueError(f"seeds must be distinct, got {describe(seeds)}")
-        seed_tuple = tuple(seed_list)
+    seed_tuple = _seed_tuple(seeds)
     if trials is not None:
         trials = integer(trials, "trials", low=1)
     if params is None:
@@ -153,6 +133,29 @@ def build_request(
             "use fewer --seeds or split the run by --env / --method"
         )
     return request
+
+
+def _seed_tuple(seeds: int | Sequence[int] | None) -> tuple[int, ...] | None:
+    """The seeds of a request: a count ``N`` (``0..N-1``) or distinct non-negative ints; None: the suite's."""
+    if seeds is None:
+        return None
+    if isinstance(seeds, (int, np.integer)) and not isinstance(seeds, (bool, np.bool_)):
+        count = integer(seeds, "seeds", low=1)
+        if count > MAX_PLANNED_TRIALS:
+            raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run, got {count} seeds; split the run")
+        return tuple(range(count))
+    if isinstance(seeds, (str, bytes, Mapping)) or not isinstance(seeds, Iterable):
+        raise TypeError(f"seeds must be an int count or a sequence of ints, got {describe(seeds)}")
+    seed_list: list[int] = []
+    for i, s in enumerate(seeds):
+        seed_list.append(integer(s, f"seeds[{i}]", low=0))
+        if len(seed_list) > MAX_PLANNED_TRIALS:
+            raise ValueError(f"seeds: at most {MAX_PLANNED_TRIALS} trials per run; split the run")
+    if not seed_list:
+        raise ValueError("seeds must not be empty")
+    if len(set(seed_list)) != len(seed_list):
+        raise ValueError(f"seeds must be distinct, got {describe(seeds)}")
+    return tuple(seed_list)
 
 
 def plan_trials(suite: Suite, request: TrialRequest) -> TrialPlan:
@@ -225,7 +228,7 @@ def run_suite(
     raises (or whose record cannot be stored) is a failure in the summary and
     in ``failures.jsonl``; the run goes on. Bad requests raise ``TypeError`` /
     ``ValueError`` before anything is written; an unusable ``out_dir``
-    :class:`~steer_envs.bench.store.ResultsDirError`; an executor that cannot
+    :class:`~steer_envs.bench.records.ResultsDirError`; an executor that cannot
     start :class:`~steer_envs.bench.executors.ExecutorStartError`.
 
     When every planned trial is already recorded, no executor is started (no
@@ -242,6 +245,34 @@ def run_suite(
     >>> summary.ok, summary.records[0]["metrics"]["pi"]
     (True, 3.16)
     """
+    suite, out, progress, fresh = _check_run_args(suite, out_dir, progress, fresh, argv, executor)
+    request = build_request(suite, envs=envs, methods=methods, seeds=seeds, trials=trials, params=params)
+    plan = plan_trials(suite, request)
+    runner = make_executor(executor, workers, address) if isinstance(executor, str) else executor
+    summary = RunSummary(suite.name, out, planned=len(plan.trials), skipped=0, completed=0)
+    summary.notes.extend(plan.notes)
+    with ResultStore(out, suite.name, accepts_suite=suite.accepts_records_of, fresh=fresh) as store:
+        todo = _start(store, runner, plan, summary)
+        store.start_session(_session(argv, runner, request, summary, fresh))
+        for note in summary.notes:
+            _write(None, f"note: {note}")
+        if todo:
+            _run_trials(runner, todo, store, summary, progress)
+        else:  # all done: nothing to start (a Ray executor would start Ray in map)
+            runner.close()
+        summary.records = list(store.records)
+    return summary
+
+
+def _check_run_args(
+    suite: str | Suite,
+    out_dir: str | os.PathLike[str],
+    progress: bool | None,
+    fresh: bool,
+    argv: Sequence[str] | None,
+    executor: str | Executor,
+) -> tuple[Suite, Path, bool | None, bool]:
+    """:func:`run_suite`'s arguments checked: the suite (looked up by name), the output folder, the flags."""
     suite = get_suite(suite) if isinstance(suite, str) else suite
     if not isinstance(suite, Suite):
         raise TypeError(f"suite must be a name or a Suite, got {type(suite).__name__}")
@@ -252,76 +283,78 @@ def run_suite(
         raise TypeError(f"argv must be a list of strs or None, got {describe(argv)}")
     if not isinstance(executor, (str, Executor)):
         raise TypeError(f"executor must be a name {EXECUTORS} or an Executor, got {describe(executor)}")
-    request = build_request(suite, envs=envs, methods=methods, seeds=seeds, trials=trials, params=params)
-    plan = plan_trials(suite, request)
-    runner = make_executor(executor, workers, address) if isinstance(executor, str) else executor
-    summary = RunSummary(suite.name, out, planned=len(plan.trials), skipped=0, completed=0)
-    summary.notes.extend(plan.notes)
-    with ResultStore(out, suite.name, accepts_suite=suite.accepts_records_of, fresh=fresh) as store:
-        summary.notes.extend(store.notes)
-        summary.previous = store.previous
-        done = store.finished_keys
-        todo: list[Trial] = [t for t in plan.trials if t.key not in done]
-        summary.skipped = len(plan.trials) - len(todo)
-        if todo:
-            runner.start()  # an executor that cannot start fails here, before the session is recorded
-        store.start_session(
-            {
-                "argv": list(argv) if argv is not None else None,
-                "executor": runner.name,
-                "request": {
-                    "envs": list(request.envs),
-                    "methods": list(request.methods),
-                    "seeds": None if request.seeds is None else list(request.seeds),
-                    "trials": request.trials,
-                    "params": dict(request.params),
-                },
-                "planned": len(plan.trials),
-                "skipped": summary.skipped,
-                "fresh": fresh,
-                "notes": list(summary.notes),
-            }
-        )
-        for note in summary.notes:
-            _write(None, f"note: {note}")
-        if not todo:  # all done: nothing to start (a Ray executor would start Ray in map)
-            runner.close()
-            summary.records = list(store.records)
-            return summary
-        bar = progress_bar(
-            total=len(todo),
-            enabled=progress,
-            desc=suite.name,
-            unit="trial",
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
-        try:
-            with runner:
-                for outcome in runner.map(todo):
-                    outcome = _store_outcome(store, check_metrics(outcome))
-                    if outcome.ok:
-                        summary.completed += 1
-                    else:
-                        summary.failures.append(outcome)
-                        store.append_failure(
-                            {
-                                "key": outcome.trial.key,
-                                "config": outcome.trial.config,
-                                "seed": outcome.trial.seed,
-                                "error": outcome.error,
-                            }
-                        )
-                        first = (outcome.error or "").splitlines()[0] if outcome.error else "unknown error"
-                        _write(bar, f"FAILED {outcome.trial.label}: {first}")
-                    bar.update(1)
-                    bar.set_postfix_str(f"failed={len(summary.failures)}" if summary.failures else "")
-        except KeyboardInterrupt:
-            summary.interrupted = True
-        finally:
-            bar.close()
-        summary.records = list(store.records)
-    return summary
+    return suite, out, progress, fresh
+
+
+def _start(store: ResultStore, runner: Executor, plan: TrialPlan, summary: RunSummary) -> list[Trial]:
+    """The planned trials not yet in ``store`` (the others count as skipped); starts ``runner`` if any are left."""
+    summary.notes.extend(store.notes)
+    summary.previous = store.previous
+    done = store.finished_keys
+    todo: list[Trial] = [t for t in plan.trials if t.key not in done]
+    summary.skipped = len(plan.trials) - len(todo)
+    if todo:
+        runner.start()  # an executor that cannot start fails here, before the session is recorded
+    return todo
+
+
+def _session(
+    argv: Sequence[str] | None, runner: Executor, request: TrialRequest, summary: RunSummary, fresh: bool
+) -> dict[str, Any]:
+    """The ``sessions.jsonl`` entry of a run: its command, executor, request and plan."""
+    return {
+        "argv": list(argv) if argv is not None else None,
+        "executor": runner.name,
+        "request": {
+            "envs": list(request.envs),
+            "methods": list(request.methods),
+            "seeds": None if request.seeds is None else list(request.seeds),
+            "trials": request.trials,
+            "params": dict(request.params),
+        },
+        "planned": summary.planned,
+        "skipped": summary.skipped,
+        "fresh": fresh,
+        "notes": list(summary.notes),
+    }
+
+
+def _run_trials(
+    runner: Executor, todo: list[Trial], store: ResultStore, summary: RunSummary, progress: bool | None
+) -> None:
+    """Run ``todo`` and store each outcome as it finishes; a ``KeyboardInterrupt`` marks the summary interrupted."""
+    bar = progress_bar(
+        total=len(todo),
+        enabled=progress,
+        desc=summary.suite,
+        unit="trial",
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+    try:
+        with runner:
+            for outcome in runner.map(todo):
+                outcome = _store_outcome(store, check_metrics(outcome))
+                if outcome.ok:
+                    summary.completed += 1
+                else:
+                    summary.failures.append(outcome)
+                    store.append_failure(
+                        {
+                            "key": outcome.trial.key,
+                            "config": outcome.trial.config,
+                            "seed": outcome.trial.seed,
+                            "error": outcome.error,
+                        }
+                    )
+                    first = (outcome.error or "").splitlines()[0] if outcome.error else "unknown error"
+                    _write(bar, f"FAILED {outcome.trial.label}: {first}")
+                bar.update(1)
+                bar.set_postfix_str(f"failed={len(summary.failures)}" if summary.failures else "")
+    except KeyboardInterrupt:
+        summary.interrupted = True
+    finally:
+        bar.close()
 
 
 def _store_outcome(store: ResultStore, outcome: Outcome) -> Outcome:

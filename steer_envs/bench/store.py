@@ -54,15 +54,29 @@ from __future__ import annotations
 
 import base64
 import json
-import math
 import os
 import stat
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
+from steer_envs.bench.records import (
+    RESULTS_FILE,
+    SCHEMA_VERSION,
+    ReadReport,
+    ResultsDirError,
+    count_lines,
+    encode_record,
+    name_lines,
+    parse_json_line,
+    read_jsonl,
+    read_regular_file,
+    record_problem,
+    require_regular_file,
+    scan_jsonl,
+    utc_now,
+)
 from steer_envs.bench.suite import get_suite, trial_key
 from steer_envs.core.validation import describe
 from steer_envs.io import atomic_write_bytes, atomic_write_text, fsync_dir
@@ -75,21 +89,14 @@ __all__ = [
     "PREVIOUS_DIR",
     "RESULTS_FILE",
     "SUMMARY_FILE",
-    "BadLine",
-    "ReadReport",
     "ResultStore",
-    "ResultsDirError",
     "StoreLockedError",
     "atomic_write_text",
     "check_output_dir",
-    "encode_record",
     "load_results",
-    "read_jsonl",
-    "record_problem",
     "trial_key",
 ]
 
-RESULTS_FILE = "results.jsonl"
 FAILURES_FILE = "failures.jsonl"
 MANIFEST_FILE = "manifest.json"
 DISCARDED_FILE = "discarded.jsonl"
@@ -97,316 +104,20 @@ SUMMARY_FILE = "summary.md"
 LOCK_FILE = ".lock"
 PLOTS_DIR = "plots"
 PREVIOUS_DIR = "previous"
-SCHEMA_VERSION = 1
 #: files of a results directory that must be regular files when they exist
 _DIR_FILES = (RESULTS_FILE, FAILURES_FILE, MANIFEST_FILE, DISCARDED_FILE, SUMMARY_FILE, LOCK_FILE)
 #: what ``--fresh`` moves aside: everything steer-bench writes into a directory but the lock (the manifest last,
 #: so a move cut short leaves a directory that is still resumable, never JSON lines without a manifest)
 _FRESH_ITEMS = (RESULTS_FILE, FAILURES_FILE, DISCARDED_FILE, SUMMARY_FILE, PLOTS_DIR, MANIFEST_FILE)
-#: bad lines named one by one in a note (the rest are counted)
-_NOTE_LINES = 5
 
 
 class StoreLockedError(RuntimeError):
     """Another ``steer-bench run`` is writing to the same directory."""
 
 
-class ResultsDirError(ValueError):
-    """A results directory that cannot be used; the message names the path and what is wrong.
-
-    Raised for a path that is (or lies under) a regular file, a folder that
-    cannot be created or written, a ``manifest.json`` that is not a
-    steer-bench manifest (garbage, ``[]``, no ``suite``), a directory of
-    another suite, and a ``results.jsonl`` (or any other file of the layout)
-    that is a folder, a FIFO or a broken link.
-    """
-
-
-def utc_now() -> str:
-    """Current UTC time, ISO 8601 with seconds.
-
-    >>> utc_now().endswith("+00:00")
-    True
-    """
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def encode_record(record: Mapping[str, Any]) -> bytes:
-    r"""One JSON line (strict JSON: NaN/inf rejected; newlines inside strings are escaped).
-
-    >>> encode_record({"key": "k", "note": "a\nb"})
-    b'{"key":"k","note":"a\\nb"}\n'
-    """
-    if not isinstance(record, Mapping):
-        raise TypeError(f"record must be a mapping, got {type(record).__name__}")
-    try:
-        text = json.dumps(record, sort_keys=True, allow_nan=False, separators=(",", ":"))
-    except ValueError as exc:
-        raise ValueError(f"record is not strict JSON (NaN or inf?): {exc}") from None
-    except RecursionError:
-        raise ValueError("record is nested too deeply to be written as JSON") from None
-    return (text + "\n").encode("utf-8")
-
-
-def _finite_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def record_problem(
-    record: Any, *, accepts_suite: Callable[[str], bool] | None = None, require_key: bool = True
-) -> str | None:
-    """What makes ``record`` not a valid trial record, or ``None`` when it is one.
-
-    A record is a JSON object with ``config`` (``suite``: a non-empty string,
-    ``env`` and ``method``: a string or null, ``params``: an object), an int
-    ``seed``, ``metrics`` (names -> finite numbers or null), optionally an
-    ``extra`` object and ``schema`` 1, and (with ``require_key``) the ``key``
-    :func:`trial_key` gives for its config and seed. ``accepts_suite`` says
-    which ``config.suite`` values belong (default: any). Never raises.
-
-    >>> from steer_envs.bench.suite import Trial
-    >>> t = Trial("selftest", None, "mc", 3, {}, "math:sqrt")
-    >>> record_problem({"key": t.key, "config": t.config, "seed": 3, "metrics": {"pi": 3.1}}) is None
-    True
-    >>> record_problem({"key": t.key, "config": t.config, "seed": "3", "metrics": {}})
-    "'seed' must be an int, got str '3'"
-    >>> record_problem({"key": "x"})
-    "'config' is missing"
-    """
-    if not isinstance(record, Mapping):
-        return f"not a JSON object, got {type(record).__name__}"
-    if "schema" in record and (not isinstance(record["schema"], int) or record["schema"] != SCHEMA_VERSION):
-        return f"'schema' must be {SCHEMA_VERSION}, got {describe(record['schema'])}"
-    if "config" not in record:
-        return "'config' is missing"
-    config = record["config"]
-    if not isinstance(config, Mapping):
-        return f"'config' must be an object, got {describe(config)}"
-    for name in ("suite", "env", "method", "params"):
-        if name not in config:
-            return f"'config.{name}' is missing"
-    suite = config["suite"]
-    if not isinstance(suite, str) or not suite:
-        return f"'config.suite' must be a non-empty string, got {describe(suite)}"
-    for name in ("env", "method"):
-        if config[name] is not None and not isinstance(config[name], str):
-            return f"'config.{name}' must be a string or null, got {describe(config[name])}"
-    if not isinstance(config["params"], Mapping):
-        return f"'config.params' must be an object, got {describe(config['params'])}"
-    if accepts_suite is not None and not accepts_suite(suite):
-        return f"a record of suite {suite!r}, which does not belong in this directory"
-    seed = record.get("seed")
-    if not isinstance(seed, int) or isinstance(seed, bool):
-        return "'seed' is missing" if "seed" not in record else f"'seed' must be an int, got {describe(seed)}"
-    metrics = record.get("metrics")
-    if not isinstance(metrics, Mapping):
-        return (
-            "'metrics' is missing"
-            if "metrics" not in record
-            else f"'metrics' must be an object, got {describe(metrics)}"
-        )
-    for name, value in metrics.items():
-        if value is not None and not _finite_number(value):
-            return f"metric {name!r} must be a finite number or null, got {describe(value)}"
-    if "extra" in record and not isinstance(record["extra"], Mapping):
-        return f"'extra' must be an object, got {describe(record['extra'])}"
-    if require_key:
-        key = record.get("key")
-        if not isinstance(key, str):
-            return "'key' is missing" if "key" not in record else f"'key' must be a string, got {describe(key)}"
-        try:
-            expected = trial_key(config, seed)
-        except (TypeError, ValueError, RecursionError):  # pragma: no cover - parsed JSON always serialises
-            return "'config' cannot be hashed"
-        if key != expected:
-            return f"'key' {key!r} does not match its config and seed (expected {expected!r})"
-    return None
-
-
-# ------------------------------------------------------------------ reading
-BadKind = Literal["corrupt", "invalid", "duplicate"]
-
-
-@dataclass(frozen=True)
-class BadLine:
-    """A complete line that a reader skipped: ``corrupt`` (not JSON), ``invalid`` (no record) or ``duplicate``."""
-
-    line: int  # 1-based
-    kind: BadKind
-    reason: str
-    raw: bytes = field(repr=False)
-
-
-@dataclass
-class ReadReport:
-    """What :func:`read_jsonl` had to skip or fix."""
-
-    torn_tail: bytes = b""  # bytes after the last newline that are not a record (a writer killed mid-line)
-    bad_lines: list[BadLine] = field(default_factory=list)  # complete lines that were skipped
-    missing_newline: bool = False  # the last line was a valid record without its newline (it is kept)
-
-    @property
-    def corrupt_lines(self) -> list[int]:
-        """1-based numbers of the lines that are not a valid record (unparsable or invalid)."""
-        return [b.line for b in self.bad_lines if b.kind != "duplicate"]
-
-    @property
-    def duplicates(self) -> int:
-        """Records whose key was already seen (the first one is kept)."""
-        return sum(b.kind == "duplicate" for b in self.bad_lines)
-
-    @property
-    def clean(self) -> bool:
-        return not self.torn_tail and not self.bad_lines and not self.missing_newline
-
-    def describe(self, filename: str = RESULTS_FILE) -> list[str]:
-        """One line per kind of problem (the bad lines named up to five, then counted).
-
-        >>> ReadReport(torn_tail=b'{"ke', missing_newline=False).describe()
-        ['a torn last line of results.jsonl (4 bytes; a writer was killed mid-line)']
-        """
-        notes = []
-        if self.torn_tail:
-            notes.append(f"a torn last line of {filename} ({len(self.torn_tail)} bytes; a writer was killed mid-line)")
-        if self.bad_lines:
-            notes.append(f"{_count_lines(self.bad_lines)} of {filename} skipped: {_name_lines(self.bad_lines)}")
-        if self.missing_newline:
-            notes.append(f"the last record of {filename} had no newline (kept: the trial had finished)")
-        return notes
-
-
-def _count_lines(bad: list[BadLine]) -> str:
-    return f"{len(bad)} line" + ("" if len(bad) == 1 else "s")
-
-
-def _name_lines(bad: list[BadLine]) -> str:
-    named = "; ".join(f"line {b.line}: {b.reason}" for b in bad[:_NOTE_LINES])
-    return named + (f"; and {len(bad) - _NOTE_LINES} more" if len(bad) > _NOTE_LINES else "")
-
-
-class _NotStrict(ValueError):
-    pass
-
-
-def _no_constant(name: str) -> Any:
-    raise _NotStrict(name)
-
-
-def _parse_line(raw: bytes) -> tuple[Any, str | None]:
-    """``(value, None)`` for a line of strict JSON, ``(None, reason)`` otherwise."""
-    try:
-        return json.loads(raw, parse_constant=_no_constant), None
-    except UnicodeDecodeError:
-        return None, "not UTF-8 text"
-    except json.JSONDecodeError as exc:
-        return None, f"not JSON ({exc.msg} at column {exc.colno})"
-    except _NotStrict as exc:
-        return None, f"not strict JSON ({exc} is no JSON number)"
-    except RecursionError:
-        return None, "JSON nested too deeply"
-
-
-def _scan(
-    data: bytes, *, key: str | None, validate: Callable[[dict[str, Any]], str | None] | None
-) -> tuple[list[dict[str, Any]], list[bytes], ReadReport]:
-    """Records, the raw bytes of their lines (no newline) and the report for the content of a JSON-lines file."""
-    report = ReadReport()
-    records: list[dict[str, Any]] = []
-    kept: list[bytes] = []
-    seen: dict[str, int] = {}
-    lines = data.split(b"\n")
-    tail = lines.pop()  # after the last newline: b"" for a complete file
-    if tail and not tail.strip():
-        tail = b""
-    for lineno, raw in enumerate([*lines, tail], start=1):
-        last = lineno == len(lines) + 1
-        if not raw.strip():
-            continue
-        value, reason = _parse_line(raw)
-        kind: BadKind = "corrupt"
-        if reason is None:
-            kind = "invalid"
-            if not isinstance(value, dict):
-                reason = f"not a JSON object, got {type(value).__name__}"
-            elif key is not None and not isinstance(value.get(key), str):
-                reason = f"no string {key!r}"
-            elif validate is not None:
-                reason = validate(value)
-        if reason is None and key is not None and value[key] in seen:
-            kind, reason = "duplicate", f"duplicate of line {seen[value[key]]} (key {value[key]})"
-        if reason is not None:
-            if last and kind == "corrupt":
-                report.torn_tail = raw
-            else:
-                report.bad_lines.append(
-                    BadLine(lineno, kind, reason + (" (last line, no newline)" if last else ""), raw)
-                )
-            continue
-        if key is not None:
-            seen[value[key]] = lineno
-        if last:
-            report.missing_newline = True
-        records.append(value)
-        kept.append(raw)
-    return records, kept, report
-
-
-def read_jsonl(
-    path: str | os.PathLike[str],
-    *,
-    key: str | None = "key",
-    validate: Callable[[dict[str, Any]], str | None] | None = None,
-) -> tuple[list[dict[str, Any]], ReadReport]:
-    r"""Records of a JSON-lines file, tolerating a torn last line and bad lines.
-
-    A line is kept when it parses as a JSON object, carries a string ``key``
-    (when given) and passes ``validate`` (a function returning what is wrong,
-    or ``None``); with ``key``, later duplicates of a key are dropped. Skipped
-    lines are listed in the report. A last line without its newline is kept
-    when it is a valid record, else reported as the torn tail. A missing file
-    reads as empty; anything but a regular file raises :class:`ResultsDirError`.
-
-    >>> import tempfile
-    >>> with tempfile.TemporaryDirectory() as tmp:
-    ...     path = Path(tmp) / "r.jsonl"
-    ...     _ = path.write_bytes(b'{"key": "a"}\n{"key": "a"}\nnot json\n{"key": "b", "tor')
-    ...     records, report = read_jsonl(path)
-    >>> [r["key"] for r in records], report.duplicates, report.corrupt_lines, report.torn_tail
-    (['a'], 1, [3], b'{"key": "b", "tor')
-    """
-    path = Path(path)
-    if not os.path.lexists(path):
-        return [], ReadReport()
-    records, _, report = _scan(_read_regular(path), key=key, validate=validate)
-    return records, report
-
-
-def _read_regular(path: Path) -> bytes:
-    _require_regular(path)
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise ResultsDirError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-def _require_regular(path: Path) -> None:
-    """``ResultsDirError`` unless ``path`` is missing or a regular file (a link to one is fine)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        if os.path.islink(path):
-            raise ResultsDirError(f"{path} is a broken symbolic link") from None
-        return
-    except OSError as exc:
-        raise ResultsDirError(f"cannot use {path}: {exc.strerror or exc}") from None
-    if not stat.S_ISREG(mode):
-        kind = "a folder" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "not a regular file"
-        raise ResultsDirError(f"{path} is {kind}; a steer-bench directory holds a regular file there")
-
-
 def _read_manifest(path: Path) -> dict[str, Any]:
-    data = _read_regular(path)
-    value, reason = _parse_line(data)
+    data = read_regular_file(path)
+    value, reason = parse_json_line(data)
     if reason is not None:
         raise ResultsDirError(f"{path} is {reason}; is this a steer-bench --out directory?")
     if not isinstance(value, dict) or not isinstance(value.get("suite"), str) or not value["suite"]:
@@ -431,7 +142,7 @@ def check_output_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
 
     >>> check_output_dir("")
     Traceback (most recent call last):
-    steer_envs.bench.store.ResultsDirError: --out must not be empty (it would write into the current folder)
+    steer_envs.bench.records.ResultsDirError: --out must not be empty (it would write into the current folder)
     """
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"{what} must be a str or os.PathLike path, got {describe(path)}")
@@ -534,7 +245,7 @@ class ResultStore:
         except OSError as exc:
             raise ResultsDirError(f"--out {self.out_dir}: cannot create it ({exc.strerror or exc})") from None
         for name in _DIR_FILES:
-            _require_regular(self.out_dir / name)
+            require_regular_file(self.out_dir / name)
         self._lock()
         try:
             if self.fresh:
@@ -596,7 +307,9 @@ class ResultStore:
             return
         self._own_manifest(manifest)
         results = self.out_dir / RESULTS_FILE
-        count = len(_scan(_read_regular(results), key="key", validate=self.problem)[0]) if results.exists() else 0
+        count = (
+            len(scan_jsonl(read_regular_file(results), key="key", validate=self.problem)[0]) if results.exists() else 0
+        )
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
         parent = self.out_dir / PREVIOUS_DIR
         parent.mkdir(exist_ok=True)
@@ -633,8 +346,8 @@ class ResultStore:
         self._manifest = manifest
 
     def _repair_and_load(self) -> None:
-        data = _read_regular(self.results_path) if self.results_path.exists() else b""
-        self.records, kept, report = _scan(data, key="key", validate=self.problem)
+        data = read_regular_file(self.results_path) if self.results_path.exists() else b""
+        self.records, kept, report = scan_jsonl(data, key="key", validate=self.problem)
         self._keys = {r["key"] for r in self.records}
         if report.clean:
             return
@@ -649,7 +362,7 @@ class ResultStore:
             if report.bad_lines:
                 bad = report.bad_lines
                 self.notes.append(
-                    f"quarantined {_count_lines(bad)} of {RESULTS_FILE} in {DISCARDED_FILE}: {_name_lines(bad)}"
+                    f"quarantined {count_lines(bad)} of {RESULTS_FILE} in {DISCARDED_FILE}: {name_lines(bad)}"
                 )
             atomic_write_bytes(self.results_path, b"".join(raw + b"\n" for raw in kept))
         else:  # only the newline of a finished last record is missing

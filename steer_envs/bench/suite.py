@@ -20,7 +20,6 @@ comma-separated module names).
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import importlib
 import json
@@ -30,8 +29,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from steer_envs.bench.params import NoParams, SuiteParams, params_from_defaults
+from steer_envs.bench.params import NoParams, SuiteParams, check_suite_params
 from steer_envs.core.validation import describe
+from steer_envs.utils.imports import resolve_function
 
 #: modules whose import registers the built-in suites (later domains append theirs)
 BUILTIN_SUITE_MODULES: tuple[str, ...] = (
@@ -312,8 +312,9 @@ class Suite:
         references: the thesis's numbers the report prints beside the measured ones.
         quick: parameter overrides that make this suite part of the ``quick``
             tour (``None``: not part of it); ``quick_seeds`` seeds there.
-        plot: optional hook ``(suite, records, out_dir) -> written paths`` for
-            suite-specific figures (``steer-bench report --plots``).
+        plot: optional hook ``(suite, records, out_dir) -> written paths`` for suite-specific
+            figures (``steer-bench report --plots``, :meth:`figures`), or its ``"module:function"``
+            path, imported only when drawing (declaring a suite imports no plotting code).
         findings: optional hook ``report.Table -> [Finding]``: the thesis's
             qualitative claims (orderings, "within x of"), checked on the
             summary and listed under the table.
@@ -344,7 +345,7 @@ class Suite:
     references: tuple[Reference, ...] = ()
     quick: Mapping[str, Any] | None = None
     quick_seeds: int = 1
-    plot: PlotHook | None = None
+    plot: PlotHook | str | None = None
     findings: FindingsHook | None = None
     members: Callable[[], Iterable[str]] | None = None
 
@@ -359,7 +360,7 @@ class Suite:
                 raise ValueError(f"Suite {self.name!r}: reference for unknown metric {ref.metric!r}; metrics: {names}")
             if not math.isfinite(ref.value):
                 raise ValueError(f"Suite {self.name!r}: reference value for {ref.metric!r} must be finite")
-        self._check_params()
+        object.__setattr__(self, "params", check_suite_params(self.name, self.params))
         if self.trials_param is not None and self.trials_param not in self.param_names:
             raise ValueError(f"Suite {self.name!r}: trials_param {self.trials_param!r} is not one of its params")
         if self.default_seeds < 1 or self.quick_seeds < 1:
@@ -373,27 +374,8 @@ class Suite:
             raise ValueError(f"Suite {self.name!r} needs run_trial (or a generate that builds trials of other suites)")
         if self.run_trial is not None:
             function_path(self.run_trial)  # must be importable by workers
-
-    def _check_params(self) -> None:
-        params = self.params
-        if isinstance(params, Mapping):
-            params = params_from_defaults(self.name, params)
-            object.__setattr__(self, "params", params)
-        params_type = type(params)
-        if not (
-            isinstance(params, SuiteParams)
-            and dataclasses.is_dataclass(params)
-            and params_type.__dataclass_params__.frozen  # type: ignore[attr-defined]
-        ):
-            raise TypeError(
-                f"Suite {self.name!r}: params must be an instance of a frozen dataclass deriving from SuiteParams "
-                f"(or a mapping of defaults), got {params_type.__name__}"
-            )
-        params_type.field_names()  # resolves the field types (TypeError on a name that shadows a method)
-        try:
-            json.dumps(params.to_json(), allow_nan=False)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Suite {self.name!r}: default params must be JSON with finite numbers: {exc}") from None
+        if isinstance(self.plot, str) and self.plot.count(":") != 1:
+            raise ValueError(f"Suite {self.name!r}: plot must be a hook or a 'module:function' path, got {self.plot!r}")
 
     @property
     def defaults(self) -> SuiteParams:
@@ -412,6 +394,13 @@ class Suite:
         if self.run_trial is None:
             raise ValueError(f"suite {self.name!r} has no run_trial")
         return function_path(self.run_trial)
+
+    def figures(self, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
+        """The suite's own figures of ``records``, written to ``out_dir`` by :attr:`plot` (none without it)."""
+        if self.plot is None:
+            return []
+        hook = resolve_function(self.plot) if isinstance(self.plot, str) else self.plot
+        return list(hook(self, records, out_dir))
 
     def accepts_records_of(self, suite: str) -> bool:
         """Whether a record of ``suite`` belongs in a results directory of this suite.
@@ -524,21 +513,6 @@ def function_path(fn: Callable[..., Any]) -> str:
     if resolve_function(path) is not fn:
         raise ValueError(f"run_trial {path!r} does not resolve back to the same object; define it at module level")
     return path
-
-
-def resolve_function(path: str) -> Callable[..., Any]:
-    """Import ``"module:qualname"`` and return the object.
-
-    >>> resolve_function("math:sqrt")(9.0)
-    3.0
-    """
-    if not isinstance(path, str) or path.count(":") != 1:
-        raise ValueError(f"function path must be 'module:qualname', got {path!r}")
-    module_name, qualname = path.split(":")
-    obj: Any = importlib.import_module(module_name)
-    for part in qualname.split("."):
-        obj = getattr(obj, part)
-    return obj
 
 
 # ------------------------------------------------------------------ registry

@@ -1,8 +1,8 @@
 """The shared vocabulary of steer-envs: tasks, interactions, metrics, the env and policy contracts.
 
 Numpy-only on purpose, so ``import steer_envs`` stays fast. The differentiable
-alignment objectives need torch and live in :mod:`steer_envs.core.objectives`
-(import it explicitly).
+alignment objectives need torch and live with the ITPS samplers in
+:mod:`steer_envs.steering.objectives`.
 """
 
 from steer_envs.core.env import (
@@ -32,6 +32,7 @@ from steer_envs.core.interaction import (
     make_interaction,
     resample_path,
 )
+from steer_envs.core.lazy import lazy_exports
 from steer_envs.core.metrics import (
     MotionAlignment,
     aligned_success,
@@ -70,6 +71,7 @@ __all__ = [
     "VelocityPolicy",
     "aligned_success",
     "constraint_satisfaction",
+    "lazy_exports",
     "make_interaction",
     "motion_alignment",
     "perturbable_env",

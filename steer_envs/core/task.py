@@ -68,6 +68,61 @@ def _transition(pair: object) -> tuple[str, str]:
     return a, b
 
 
+def _sensor_modes(raw: Any, modes: tuple[str, ...], sensors: tuple[str, ...]) -> dict[SensorKey, str]:
+    """``TaskSpec.sensor_modes`` checked: keys as sets of known APs, values known modes (None: empty)."""
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, Mapping):
+        raise TypeError(f"TaskSpec: `sensor_modes` must be a mapping, got {describe(raw)}")
+    sensor_modes = {_as_sensor_key(k, "sensor_modes key"): v for k, v in dict(raw).items()}
+    for key, mode in sensor_modes.items():
+        if mode not in modes:
+            raise ValueError(f"TaskSpec: `sensor_modes` maps to unknown mode {mode!r}")
+        unknown = key - set(sensors)
+        if unknown:
+            raise ValueError(f"TaskSpec: `sensor_modes` uses unknown sensor APs {sorted(unknown)}")
+    return sensor_modes
+
+
+def _transitions(raw: Any, modes: tuple[str, ...]) -> frozenset[tuple[str, str]]:
+    """``TaskSpec.transitions`` checked to name known modes, without self-loops (None: none)."""
+    raw_transitions = () if raw is None else raw
+    if isinstance(raw_transitions, (str, bytes)) or not isinstance(raw_transitions, Iterable):
+        raise TypeError(f"TaskSpec: `transitions` must be a set of (from, to) pairs, got {describe(raw_transitions)}")
+    transitions = frozenset(_transition(t) for t in raw_transitions)
+    for a, b in transitions:
+        if a not in modes or b not in modes:
+            raise ValueError(f"TaskSpec: transition ({a!r}, {b!r}) names an unknown mode")
+    return frozenset((a, b) for a, b in transitions if a != b)
+
+
+def _goal(raw: Any, modes: tuple[str, ...]) -> tuple[str, ...]:
+    """``TaskSpec.goal`` checked: one name, names of known modes, or (empty/None) the last mode."""
+    if raw is None or (isinstance(raw, (tuple, list)) and not raw):
+        goal: tuple[str, ...] = (modes[-1],)
+    elif isinstance(raw, str):
+        goal = (raw,)
+    else:
+        goal = _names(raw, "goal")
+    for g in goal:
+        if g not in modes:
+            raise ValueError(f"TaskSpec: `goal` mode {g!r} is not one of {modes}")
+    return goal
+
+
+def _labels(raw: Any, modes: tuple[str, ...]) -> tuple[str, ...]:
+    """``TaskSpec.labels`` checked: one distinct label a mode, none the name of another mode (empty: the names)."""
+    labels = modes if raw is None or raw == () else _names(raw, "labels")
+    if len(labels) != len(modes):
+        raise ValueError(f"TaskSpec: `labels` must name each of the {len(modes)} modes, got {len(labels)} labels")
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"TaskSpec: `labels` has duplicates: {labels}")
+    for i, label in enumerate(labels):
+        if label in modes and modes.index(label) != i:
+            raise ValueError(f"TaskSpec: label {label!r} of mode {modes[i]!r} is the name of another mode")
+    return labels
+
+
 @dataclass(frozen=True)
 class TaskSpec:
     """Modes, sensor APs, the sensor -> mode labelling and allowed transitions.
@@ -141,54 +196,17 @@ class TaskSpec:
             raise ValueError(f"TaskSpec: `sensors` has duplicates: {sensors}")
         object.__setattr__(self, "modes", modes)
         object.__setattr__(self, "sensors", sensors)
-        if self.sensor_modes is None:
-            object.__setattr__(self, "sensor_modes", {})
-        if not isinstance(self.sensor_modes, Mapping):
-            raise TypeError(f"TaskSpec: `sensor_modes` must be a mapping, got {describe(self.sensor_modes)}")
-        sensor_modes = {_as_sensor_key(k, "sensor_modes key"): v for k, v in dict(self.sensor_modes).items()}
-        for key, mode in sensor_modes.items():
-            if mode not in modes:
-                raise ValueError(f"TaskSpec: `sensor_modes` maps to unknown mode {mode!r}")
-            unknown = key - set(sensors)
-            if unknown:
-                raise ValueError(f"TaskSpec: `sensor_modes` uses unknown sensor APs {sorted(unknown)}")
-        object.__setattr__(self, "sensor_modes", sensor_modes)
-        raw_transitions = () if self.transitions is None else self.transitions
-        if isinstance(raw_transitions, (str, bytes)) or not isinstance(raw_transitions, Iterable):
-            raise TypeError(
-                f"TaskSpec: `transitions` must be a set of (from, to) pairs, got {describe(raw_transitions)}"
-            )
-        transitions = frozenset(_transition(t) for t in raw_transitions)
-        for a, b in transitions:
-            if a not in modes or b not in modes:
-                raise ValueError(f"TaskSpec: transition ({a!r}, {b!r}) names an unknown mode")
-        object.__setattr__(self, "transitions", frozenset((a, b) for a, b in transitions if a != b))
+        object.__setattr__(self, "sensor_modes", _sensor_modes(self.sensor_modes, modes, sensors))
+        object.__setattr__(self, "transitions", _transitions(self.transitions, modes))
         initial = modes[0] if self.initial is None else self.initial
         if initial not in modes:
             raise ValueError(f"TaskSpec: `initial` must be one of {modes}, got {initial!r}")
         object.__setattr__(self, "initial", initial)
-        if self.goal is None or (isinstance(self.goal, (tuple, list)) and not self.goal):
-            goal: tuple[str, ...] = (modes[-1],)
-        elif isinstance(self.goal, str):
-            goal = (self.goal,)
-        else:
-            goal = _names(self.goal, "goal")
-        for g in goal:
-            if g not in modes:
-                raise ValueError(f"TaskSpec: `goal` mode {g!r} is not one of {modes}")
-        object.__setattr__(self, "goal", goal)
+        object.__setattr__(self, "goal", _goal(self.goal, modes))
         if self.ltl is not None and not isinstance(self.ltl, str):
             raise TypeError(f"TaskSpec: `ltl` must be LTL text (str) or None, got {describe(self.ltl)}")
         object.__setattr__(self, "ltl_variants", dict(self.ltl_variants))
-        labels = modes if self.labels is None or self.labels == () else _names(self.labels, "labels")
-        if len(labels) != len(modes):
-            raise ValueError(f"TaskSpec: `labels` must name each of the {len(modes)} modes, got {len(labels)} labels")
-        if len(set(labels)) != len(labels):
-            raise ValueError(f"TaskSpec: `labels` has duplicates: {labels}")
-        for i, label in enumerate(labels):
-            if label in modes and modes.index(label) != i:
-                raise ValueError(f"TaskSpec: label {label!r} of mode {modes[i]!r} is the name of another mode")
-        object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "labels", _labels(self.labels, modes))
 
     # ------------------------------------------------------------------ modes
     @property

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import numbers
 import reprlib
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -39,6 +39,7 @@ __all__ = [
     "one_of",
     "real_array",
     "real_scalar",
+    "sensor_reading",
 ]
 
 T = TypeVar("T")
@@ -258,6 +259,33 @@ def bool_array(value: Any, name: str, *, shape: Sequence[int] | None = None, own
     if shape is not None:
         _check_shape(raw, tuple(shape), where)
     return np.array(raw, dtype=bool, copy=True)
+
+
+def sensor_reading(info: Any, sensors: Sequence[str], *, owner: str) -> dict[str, bool]:
+    """``info["sensors"]`` checked as a reading of exactly the APs ``sensors``, each a real bool.
+
+    Sensor values must be ``True``/``False`` (Python or numpy bools): the string
+    ``"False"``, a NaN or a number is a ``TypeError``, not a silent ``True``; a
+    missing or extra AP is a ``ValueError``; no ``info["sensors"]`` is a ``KeyError``.
+
+    >>> sensor_reading({"sensors": {"r": False, "s": np.bool_(True)}}, ("r", "s"), owner="demo")
+    {'r': False, 's': True}
+    >>> sensor_reading({"sensors": {"r": "False", "s": True}}, ("r", "s"), owner="demo")
+    Traceback (most recent call last):
+    TypeError: demo: info['sensors']['r'] must be a bool, got str 'False'
+    """
+    if not isinstance(info, Mapping) or "sensors" not in info:
+        raise KeyError(f"{owner} needs info['sensors'] (AP -> bool) from the wrapped env")
+    raw = info["sensors"]
+    if not isinstance(raw, Mapping):
+        raise TypeError(f"{owner}: info['sensors'] must be a mapping AP -> bool, got {describe(raw)}")
+    missing = [ap for ap in sensors if ap not in raw]
+    extra = sorted(str(k) for k in raw if k not in sensors)
+    if missing or extra:
+        raise ValueError(
+            f"{owner}: info['sensors'] must hold exactly the APs {list(sensors)}; missing {missing}, unknown {extra}"
+        )
+    return {ap: boolean(raw[ap], f"info['sensors'][{ap!r}]", owner=owner) for ap in sensors}
 
 
 def frozen_array(arr: np.ndarray) -> np.ndarray:

@@ -16,21 +16,23 @@ and ``horizon=PLAN_HORIZON`` yields exactly one window per skill: the
 observation at the skill's start and its plan. The bench's shard module builds
 that file from the ``itps-blockstack-data`` shards::
 
-    python -m steer_envs.bench.suites.itps_blockstack.data --cache-dir DIR --episodes 200 --out plans.npz
+    python -m steer_envs.data.blockstack_shards --cache-dir DIR --episodes 200 --out plans.npz
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
 
+from steer_envs.control.blockstack import PLAN_DIM, PLAN_STRIDE  # the tracker's layout, one layer down
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.blockstack_skills import SkillRecord
+from steer_envs.data.skill_plans import Plan, plan_dataset, plannable_skills, sample_plan
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import NUM_CUBES
-from steer_envs.envs.robosuite.plan_execution import PLAN_DIM, PLAN_STRIDE  # the tracker's layout, one layer down
 
 __all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "TABLE_CENTRE", "move_scene", "skill_plan", "to_plan_dataset"]
 
@@ -42,25 +44,16 @@ CUBE_START = 5
 TABLE_CENTRE = (0.0, 0.0)
 
 
-def skill_plan(
-    record: SkillRecord, *, stride: int = PLAN_STRIDE, horizon: int = PLAN_HORIZON
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(obs, plan)`` of one skill: observations ``(horizon, 33)`` at the waypoints' start steps and the plan.
+def skill_plan(record: SkillRecord, *, stride: int = PLAN_STRIDE, horizon: int = PLAN_HORIZON) -> Plan | None:
+    """``(obs, plan)`` of one skill: observations ``(horizon, 33)``, waypoints ``[x, y, z, gripper]``.
 
-    ``obs[0]`` is the skill's first observation (what a plan is conditioned on).
-    ``None`` when the skill is empty or longer than ``stride * horizon`` steps.
+    See :func:`~steer_envs.data.skill_plans.sample_plan`; ``None`` when the skill is empty or too long.
     """
-    if not isinstance(record, SkillRecord):
-        raise TypeError(f"skill_plan: `record` must be a SkillRecord, got {type(record).__name__}")
-    stride = integer(stride, "stride", low=1, high=1000, owner="skill_plan")
-    horizon = integer(horizon, "horizon", low=1, high=10_000, owner="skill_plan")
-    steps = len(record)
-    if steps == 0 or steps > stride * horizon:
-        return None
-    ends = np.minimum(stride * np.arange(1, horizon + 1), steps)
-    plan = np.concatenate([record.eef[ends], record.gripper[ends, None]], axis=1).astype(np.float32)
-    obs = record.obs[np.minimum(stride * np.arange(horizon), steps)].astype(np.float32)
-    return obs, plan
+
+    def waypoints(ends: np.ndarray) -> np.ndarray:
+        return np.concatenate([record.eef[ends], record.gripper[ends, None]], axis=1)
+
+    return sample_plan(record, SkillRecord, stride, horizon, waypoints)
 
 
 def _cube_columns(order: np.ndarray) -> np.ndarray:
@@ -130,33 +123,16 @@ def to_plan_dataset(
     shift = real_scalar(shift, "shift", low=0.0, high=0.5, owner=owner)
     yaw = real_scalar(yaw, "yaw", low=0.0, high=float(np.pi), owner=owner)
     rng = np.random.default_rng(integer(seed, "seed", low=0, owner=owner))
-    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
-        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
+    plan = partial(skill_plan, stride=stride, horizon=horizon)
+    kept, too_long = plannable_skills(records, SkillRecord, plan, successful_only=successful_only, owner=owner)
     obs, plans, names, seeds = [], [], [], []
-    too_long = 0
-    for i, r in enumerate(records):
-        if not isinstance(r, SkillRecord):
-            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
-        if successful_only and not (r.success and not r.violation):
-            continue
-        made = skill_plan(r, stride=stride, horizon=horizon)
-        if made is None:
-            too_long += len(r) > 0
-            continue
+    for r, made in kept:
         for copy in range(permutations + 1):
-            if copy == 0:
-                obs.append(made[0])
-                plans.append(made[1])
-            else:
-                moved = made
-                if shift or yaw:
-                    moved = move_scene(*made, rng.uniform(-yaw, yaw), rng.uniform(-shift, shift, size=2))
-                obs.append(moved[0][:, _cube_columns(rng.permutation(NUM_CUBES))])
-                plans.append(moved[1])
+            moved = made if copy == 0 else _augmented(made, rng, shift, yaw)
+            obs.append(moved[0])
+            plans.append(moved[1])
             names.append(r.name)
             seeds.append(r.seed)
-    if not plans:
-        raise ValueError(f"{owner}: `records` holds no skill to keep (of {len(records)})")
     info = {
         **dict(meta or {}),
         "source": "blockstack_plans",
@@ -171,5 +147,11 @@ def to_plan_dataset(
         "episode_seeds": seeds,
         "dropped_too_long": int(too_long),
     }
-    starts = np.arange(len(plans), dtype=np.int64) * int(horizon)
-    return TrajectoryDataset(np.concatenate(obs), np.concatenate(plans), starts, meta=info)
+    return plan_dataset(obs, plans, horizon, info)
+
+
+def _augmented(made: Plan, rng: np.random.Generator, shift: float, yaw: float) -> Plan:
+    """A copy of a plan whose scene moved rigidly (when ``shift`` or ``yaw``) and lists the cubes in a random order."""
+    if shift or yaw:
+        made = move_scene(*made, rng.uniform(-yaw, yaw), rng.uniform(-shift, shift, size=2))
+    return made[0][:, _cube_columns(rng.permutation(NUM_CUBES))], made[1]

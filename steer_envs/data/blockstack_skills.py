@@ -23,7 +23,6 @@ the field. :func:`to_trajectory_dataset` turns the skills into the generic
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -32,12 +31,13 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.control.blockstack import Skill, free_table_spot, towers
 from steer_envs.core.validation import boolean, integer
-from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner, Skill, free_table_spot
+from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner
+from steer_envs.data.skill_records import SkillFileLayout, check_records, npz_output, replay_actions, run_skill
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv, unwrap_blockstack
-from steer_envs.envs.robosuite.plan_execution import towers
-from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
+from steer_envs.io import DatasetError
 
 __all__ = [
     "FORMAT_VERSION",
@@ -50,6 +50,7 @@ __all__ = [
     "make_env",
     "record_branches",
     "record_episode",
+    "record_skill",
     "save_skills",
     "to_trajectory_dataset",
 ]
@@ -141,44 +142,27 @@ def record_episode(env: Any, seed: int, n_skills: int) -> list[SkillRecord]:
     skills = BlockStackSkills(base)
     out: list[SkillRecord] = []
     for index in range(n_skills):
-        record, obs, info = _run_skill(base, skills, planner.next_skill(base), obs, info, seed, index)
+        record, obs, info = record_skill(base, skills, planner.next_skill(base), obs, info, seed, index)
         out.append(record)
     return out
 
 
-def _run_skill(
+def record_skill(
     base: BlockStackEnv, skills: BlockStackSkills, skill: Skill, obs: Any, info: dict[str, Any], seed: int, index: int
 ) -> tuple[SkillRecord, Any, dict[str, Any]]:
     """Run ``skill`` to its end from the current state; the record and the last observation and info."""
     skills.start(skill)
     target = _target(base, skill)
-    states = [np.asarray(obs, dtype=np.float32)]
-    eef, grip, modes = [base.state], [base._gripper], [int(info["mode"])]
-    actions: list[np.ndarray] = []
-    violation = False
-    while not skills.done:
-        action = skills.act()
-        obs, _, _, _, info = base.step(action)
-        actions.append(np.asarray(action, dtype=np.float32))
-        states.append(np.asarray(obs, dtype=np.float32))
-        eef.append(base.state)
-        grip.append(base._gripper)
-        modes.append(int(info["mode"]))
-        violation |= bool(info["constraint_violation"])
+    steps, obs, info = run_skill(base, skills, obs, info)
     record = SkillRecord(
         name=skill.name,
         cube=skill.cube,
         onto=ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto),
         target=np.asarray(target, dtype=np.float64),
         success=skills.succeeded(),
-        violation=violation,
         seed=seed,
         index=index,
-        obs=np.stack(states),
-        actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
-        eef=np.stack(eef).astype(np.float64),
-        gripper=np.asarray(grip, dtype=np.float32),
-        modes=np.asarray(modes, dtype=np.int16),
+        **steps.record_fields(),
     )
     return record, obs, info
 
@@ -231,7 +215,7 @@ def record_branches(env: Any, seed: int, n_skills: int, branches: int) -> list[S
     for index in range(n_skills):
         skill = planner.next_skill(base)
         others.append(alternative_skills(base, skill, rng)[:branches])
-        record, obs, info = _run_skill(base, skills, skill, obs, info, seed, index)
+        record, obs, info = record_skill(base, skills, skill, obs, info, seed, index)
         main.append(record)
     out = list(main)
     for k, alternatives in enumerate(others):
@@ -239,7 +223,7 @@ def record_branches(env: Any, seed: int, n_skills: int, branches: int) -> list[S
             obs, info, replayed = _replay(base, seed, main[:k])
             if not np.array_equal(np.asarray(obs, dtype=np.float32), main[k].obs[0]):
                 raise RuntimeError(f"{owner}: replaying seed {seed} did not reach skill {k}'s start state")
-            out.append(_run_skill(base, replayed, skill, obs, info, seed, k)[0])
+            out.append(record_skill(base, replayed, skill, obs, info, seed, k)[0])
     return out
 
 
@@ -249,32 +233,22 @@ def _replay(
     """Reset with ``seed`` and step the recorded actions of ``done``; the skills runner made at reset."""
     obs, info = base.reset(seed=seed)
     skills = BlockStackSkills(base)  # made at reset, as in the main episode (its home yaw)
-    for rec in done:
-        for action in rec.actions:
-            obs, _, _, _, info = base.step(action)
+    obs, info = replay_actions(base, done, obs, info)
     return obs, info, skills
 
 
 # ------------------------------------------------------------------------------ files
-_STEP_SPECS: dict[str, tuple[str, int]] = {
-    "obs": ("f", 2),
-    "eef": ("f", 2),
-    "gripper": ("f", 1),
-    "actions": ("f", 2),
-    "target": ("f", 2),
-}
-_SPECS: dict[str, tuple[str, int]] = {
-    **_STEP_SPECS,
-    "modes": ("iu", 1),
-    "offsets": ("iu", 1),
-    "skill": ("iu", 1),
-    "cube": ("iu", 1),
-    "onto": ("i", 1),
-    "success": ("b", 1),
-    "violation": ("b", 1),
-    "seed": ("iu", 1),
-    "index": ("iu", 1),
-}
+_LAYOUT = SkillFileLayout(
+    domain="BlockStack",
+    version=FORMAT_VERSION,
+    obs_dim=OBS_DIM,
+    states={"obs": np.float32, "eef": np.float64, "gripper": np.float32, "modes": np.int16},
+    specs={"target": ("f", 2), "cube": ("iu", 1), "onto": ("i", 1)},
+    per_skill=("target", "cube", "onto"),
+    widths={"target": 3},
+    vocabularies={"skills": SKILLS},
+    ids={"skill": SKILLS},
+)
 
 
 def _name_parts(name: str) -> tuple[int, int]:
@@ -295,44 +269,20 @@ def save_skills(
     ``meta`` (JSON-serializable) is stored beside the format version.
     """
     owner = "save_skills"
-    out = Path(path)
-    if out.suffix != ".npz":
-        raise ValueError(f"{owner}: `path` must end in .npz, got {str(out)!r}")
-    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
-        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
-    recs = list(records)
-    if not recs:
-        raise ValueError(f"{owner}: `records` must not be empty")
-    for i, r in enumerate(recs):
-        if not isinstance(r, SkillRecord):
-            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+    out = npz_output(path, owner)
+
+    def check(i: int, r: SkillRecord) -> None:
         if r.name not in SKILLS or _name_parts(r.name) != (r.cube, r.onto):
             raise ValueError(f"{owner}: `records[{i}]` has name {r.name!r}, cube {r.cube} and onto {r.onto}")
-        if len(r.obs) != len(r.actions) + 1:
-            raise ValueError(f"{owner}: `records[{i}]` has {len(r.obs)} states for {len(r.actions)} actions")
-    info = {**dict(meta or {}), "format_version": FORMAT_VERSION, "skills": list(SKILLS)}
-    try:
-        text = json.dumps(info, sort_keys=True)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"{owner}: `meta` must be JSON-serializable ({err})") from None
-    lengths = np.array([len(r.obs) for r in recs])
-    arrays = {
-        "obs": np.concatenate([r.obs for r in recs]).astype(np.float32),
-        "eef": np.concatenate([r.eef for r in recs]).astype(np.float64),
-        "gripper": np.concatenate([r.gripper for r in recs]).astype(np.float32),
-        "modes": np.concatenate([r.modes for r in recs]).astype(np.int16),
-        "actions": np.concatenate([r.actions for r in recs]).astype(np.float32).reshape(-1, 7),
-        "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+
+    recs = check_records(records, SkillRecord, owner, check)
+    arrays: dict[str, np.ndarray] = {
         "target": np.array([r.target for r in recs], dtype=np.float64).reshape(-1, 3),
         "skill": np.array([SKILLS.index(r.name) for r in recs], dtype=np.int16),
         "cube": np.array([r.cube for r in recs], dtype=np.int8),
         "onto": np.array([r.onto for r in recs], dtype=np.int8),
-        "success": np.array([r.success for r in recs], dtype=bool),
-        "violation": np.array([r.violation for r in recs], dtype=bool),
-        "seed": np.array([r.seed for r in recs], dtype=np.int64),
-        "index": np.array([r.index for r in recs], dtype=np.int32),
     }
-    return atomic_write_npz(out, {**arrays, "meta": np.array(text)})
+    return _LAYOUT.write(out, recs, arrays, meta)
 
 
 def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[str, Any]]:
@@ -342,62 +292,21 @@ def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[s
     missing or unreadable file, another format version, an array of the wrong
     dtype, axes or width, NaN/inf, or inconsistent offsets, skill ids, cubes or targets.
     """
-    src = Path(path)
-    arrays = read_npz(src)
-    meta = npz_json(src, arrays, "meta")
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise DatasetError(
-            f"{src}: field 'format_version' is {meta.get('format_version')!r}, expected {FORMAT_VERSION}"
-        )
-    if meta.get("skills") != list(SKILLS):
-        raise DatasetError(f"{src}: field 'skills' does not list this version's BlockStack skills")
-    require_arrays(src, arrays, _SPECS, finite=True)
-    a = arrays
-    n = len(a["skill"])
-    off = a["offsets"].astype(np.int64)
-    rows = len(a["obs"])
-    widths = {"obs": OBS_DIM, "eef": 3, "actions": 7, "target": 3}
-    for name, width in widths.items():
-        if a[name].shape[1] != width:
-            raise DatasetError(f"{src}: array {name!r} has width {a[name].shape[1]}, expected {width}")
-    if n == 0:
-        raise DatasetError(f"{src}: array 'skill' is empty")
-    if off.shape != (n + 1,) or off[0] != 0 or off[-1] != rows or np.any(np.diff(off) < 1):
-        raise DatasetError(f"{src}: array 'offsets' does not split the {rows} states into {n} skills")
-    for name in ("eef", "gripper", "modes"):
-        if len(a[name]) != rows:
-            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} rows, expected {rows} (one per state)")
-    if len(a["actions"]) != rows - n:
-        raise DatasetError(f"{src}: array 'actions' has {len(a['actions'])} rows, expected {rows - n}")
-    for name in ("target", "cube", "onto", "success", "violation", "seed", "index"):
-        if len(a[name]) != n:
-            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} entries, expected {n} (one per skill)")
-    if np.any((a["skill"] < 0) | (a["skill"] >= len(SKILLS))):
-        raise DatasetError(f"{src}: array 'skill' holds ids outside 0..{len(SKILLS) - 1}")
+    src, a, meta, off = _LAYOUT.read(path)
     names = [SKILLS[int(k)] for k in a["skill"]]
     for i, name in enumerate(names):
         if _name_parts(name) != (int(a["cube"][i]), int(a["onto"][i])):
             raise DatasetError(f"{src}: arrays 'cube'/'onto' of skill {i} do not match its name {name!r}")
-    out = []
-    for i, name in enumerate(names):
-        s, e = int(off[i]), int(off[i + 1])
-        out.append(
-            SkillRecord(
-                name=name,
-                cube=int(a["cube"][i]),
-                onto=int(a["onto"][i]),
-                target=np.array(a["target"][i], dtype=np.float64),
-                success=bool(a["success"][i]),
-                violation=bool(a["violation"][i]),
-                seed=int(a["seed"][i]),
-                index=int(a["index"][i]),
-                obs=a["obs"][s:e].astype(np.float32),
-                actions=a["actions"][s - i : e - i - 1].astype(np.float32),
-                eef=a["eef"][s:e].astype(np.float64),
-                gripper=a["gripper"][s:e].astype(np.float32),
-                modes=a["modes"][s:e].astype(np.int16),
-            )
+    out = [
+        SkillRecord(
+            name=name,
+            cube=int(a["cube"][i]),
+            onto=int(a["onto"][i]),
+            target=np.array(a["target"][i], dtype=np.float64),
+            **_LAYOUT.fields(a, off, i),
         )
+        for i, name in enumerate(names)
+    ]
     return out, meta
 
 

@@ -5,7 +5,8 @@ demonstrations plus *perturbed replays* labelled only by task success.
 Perturbations of inconsequential parts of a demo add state coverage; those
 that break an implicit constraint (skipping a mode) fail and reveal it.
 
-Three perturbation kinds, each a pure function of a reference path:
+Three perturbation kinds, each a pure function of a reference path
+(:mod:`steer_envs.data.perturbations`):
 
 * ``"segment"`` (thesis text): pick two points X, Y on the demo and a random
   Z in the state space; the segment XY is replaced by the straight lines XZ
@@ -43,19 +44,25 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import gymnasium as gym
 import numpy as np
 
 from steer_envs.core.progress import check_progress, progress_bar
-from steer_envs.core.validation import BoundExceeded, boolean, integer, real_array, real_scalar
-from steer_envs.envs.kinematic import Kinematic2DEnv, Kinematic2DVectorEnv
+from steer_envs.core.validation import BoundExceeded, boolean, integer, real_scalar
+from steer_envs.data.perturbations import (
+    PERTURBATION_KINDS,
+    PerturbationKind,
+    PerturbedReference,
+    check_path,
+    gripper_toggle,
+    kernel_perturbation,
+    segment_perturbation,
+)
+from steer_envs.envs.kinematic import Kinematic2DEnv
+from steer_envs.envs.kinematic_vector import Kinematic2DVectorEnv
 
-PerturbationKind = Literal["segment", "kernel", "gripper"]
-PERTURBATION_KINDS: tuple[str, ...] = ("segment", "kernel", "gripper")
-#: the kinds a :class:`PerturbedReference` may have (``"demo"``: the unperturbed demonstration).
-REFERENCE_KINDS: tuple[str, ...] = ("demo", *PERTURBATION_KINDS)
 #: how a reference is executed (see :class:`CounterfactualReplayer`).
 Execution = Literal["tracking", "jump"]
 EXECUTIONS: tuple[str, ...] = ("tracking", "jump")
@@ -64,174 +71,14 @@ WAYPOINT_TOLERANCE = 1e-4
 #: the most env steps one replay may take with a custom controller (whose reach is unknown) when
 #: ``max_steps`` is not given; with the default controller the bound is derived from the reference.
 DEFAULT_MAX_REPLAY_STEPS = 100_000
-#: the most waypoints one reference may hold (a guard against arrays that can never be replayed).
-MAX_WAYPOINTS = 1_000_000
 
 Controller = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-# ---------------------------------------------------------------- pure perturbations
-def _check_path(path: Any, name: str = "path") -> np.ndarray:
-    arr = real_array(path, name, ndim=2)
-    if len(arr) < 2 or arr.shape[1] < 1:
-        raise ValueError(f"{name} must have shape (T >= 2, d >= 1), got {arr.shape}")
-    return arr
-
-
-def _check_bounds(low: Any, high: Any, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    lo_in, hi_in = real_array(low, "low", finite=False), real_array(high, "high", finite=False)
-    try:
-        lo, hi = np.broadcast_to(lo_in, (dim,)), np.broadcast_to(hi_in, (dim,))
-    except ValueError:
-        raise ValueError(
-            f"low/high must be scalars or ({dim},) vectors, got shapes {lo_in.shape}, {hi_in.shape}"
-        ) from None
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)):
-        raise ValueError(f"low/high must be finite with low < high, got low={lo.tolist()}, high={hi.tolist()}")
-    return lo, hi
-
-
-def segment_perturbation(
-    path: np.ndarray, rng: np.random.Generator, low: np.ndarray, high: np.ndarray
-) -> tuple[np.ndarray, tuple[int, int], np.ndarray]:
-    """Thesis perturbation: replace the segment ``XY`` of ``path`` by ``XZ`` and ``ZY``.
-
-    X and Y are two distinct points of the path (so the first and last states
-    are kept), Z is uniform in the box ``[low, high]``. Returns the new
-    waypoints (straight lines between consecutive waypoints are implied), the
-    indices ``(x, y)`` and ``Z``.
-    """
-    path = _check_path(path)
-    lo, hi = _check_bounds(low, high, path.shape[1])
-    x, y = sorted(int(i) for i in rng.choice(len(path), size=2, replace=False))
-    z = rng.uniform(lo, hi)
-    waypoints = np.concatenate([path[: x + 1], z[None, :], path[y:]])
-    return waypoints, (x, y), z
-
-
-#: draws of :func:`kernel_perturbation`'s rejection sampling of its window before it gives up.
-_MAX_WINDOW_DRAWS = 1_000_000
-
-
-def kernel_perturbation(
-    path: np.ndarray,
-    rng: np.random.Generator,
-    low: np.ndarray,
-    high: np.ndarray,
-    *,
-    sharpness: float = 5.0,
-    min_window: int = 2,
-) -> tuple[np.ndarray, tuple[int, int], np.ndarray]:
-    """Public-code perturbation: pull a window ``[s, e]`` of ``path`` toward a random ``Z``.
-
-    Each point ``p_t`` with ``s <= t <= e`` moves by ``(Z - p_t) w_t`` with
-    ``w_t = exp(-sharpness (t - c)^2 / (s - c)^2)``, ``c = (s + e) / 2``. The
-    window never contains the first or last state, so both are kept.
-    Returns the new waypoints, ``(s, e)`` and ``Z``.
-    """
-    path = _check_path(path)
-    lo, hi = _check_bounds(low, high, path.shape[1])
-    real_scalar(sharpness, "sharpness", low=0.0, low_inclusive=False)
-    min_window = integer(min_window, "min_window", low=2)
-    inner = len(path) - 2  # indices 1 .. T-2
-    if inner <= min_window:
-        raise ValueError(f"path of length {len(path)} is too short for a window of >= {min_window} steps")
-    # rejection sampling of the window: each draw succeeds with probability >= 2 / (inner (inner - 1)) > 0
-    for _ in range(_MAX_WINDOW_DRAWS):
-        s, e = sorted(int(i) for i in rng.choice(inner, size=2, replace=False) + 1)
-        if e - s >= min_window:
-            break
-    else:
-        raise BoundExceeded(
-            f"kernel_perturbation: no window of >= {min_window} steps drawn within {_MAX_WINDOW_DRAWS} draws "
-            f"(path of length {len(path)})"
-        )
-    z = rng.uniform(lo, hi)
-    t = np.arange(s, e + 1, dtype=np.float64)
-    c = 0.5 * (s + e)
-    w = np.exp(-sharpness * (t - c) ** 2 / (s - c) ** 2)
-    out = path.copy()
-    out[s : e + 1] += (z[None, :] - out[s : e + 1]) * w[:, None]
-    return out, (s, e), z
-
-
-def gripper_toggle(
-    gripper: np.ndarray,
-    rng: np.random.Generator,
-    *,
-    min_steps: int = 5,
-    max_steps: int = 20,
-    force: float | None = None,
-) -> tuple[np.ndarray, tuple[int, int]]:
-    """Toggle (negate) or ``force`` the gripper command for ``min_steps..max_steps`` steps.
-
-    ``gripper`` is a ``(T,)`` command sequence with open/closed encoded as
-    ``-1``/``+1`` (robosuite). Returns the new sequence and the window
-    ``(start, end)`` (inclusive).
-    """
-    g = real_array(gripper, "gripper", ndim=1)
-    if len(g) < 2:
-        raise ValueError(f"gripper must have shape (T >= 2,), got {g.shape}")
-    min_steps, max_steps = integer(min_steps, "min_steps"), integer(max_steps, "max_steps")
-    if not 1 <= min_steps <= max_steps:
-        raise ValueError(f"need 1 <= min_steps <= max_steps, got {min_steps}, {max_steps}")
-    if force is not None:
-        force = real_scalar(force, "force")
-    length = int(min(len(g), rng.integers(min_steps, max_steps + 1)))
-    start = int(rng.integers(0, len(g) - length + 1))
-    out = g.copy()
-    out[start : start + length] = -out[start : start + length] if force is None else float(force)
-    return out, (start, start + length - 1)
-
-
 # ---------------------------------------------------------------------- records
 @dataclass(frozen=True)
-class PerturbedReference:
-    """A perturbed demo: the waypoints the replay controller follows.
-
-    Attributes:
-        waypoints: ``(W, d)`` states; the controller moves in straight lines between them.
-        kind: ``"demo"`` (unperturbed), ``"segment"``, ``"kernel"`` or ``"gripper"``.
-        source: index of the demonstration it came from.
-        window: ``(X, Y)`` / ``(s, e)`` / gripper window, indices into the source demo (``(-1, -1)`` for demos).
-        target: Z (``(d,)``), NaN for demos and gripper toggles.
-        gripper: optional ``(W,)`` gripper commands.
-    """
-
-    waypoints: np.ndarray
-    kind: str
-    source: int
-    window: tuple[int, int]
-    target: np.ndarray
-    gripper: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        owner = "PerturbedReference"
-        wps = real_array(self.waypoints, "waypoints", ndim=2, owner=owner)
-        if not (1 <= len(wps) <= MAX_WAYPOINTS and wps.shape[1] >= 1):
-            raise ValueError(
-                f"{owner}: waypoints must have shape (W, d) with 1 <= W <= {MAX_WAYPOINTS}, d >= 1, got {wps.shape}"
-            )
-        if not isinstance(self.kind, str) or self.kind not in REFERENCE_KINDS:
-            raise ValueError(f"{owner}: kind must be one of {list(REFERENCE_KINDS)}, got {self.kind!r}")
-        source = integer(self.source, "source", owner=owner)
-        if not isinstance(self.window, (tuple, list)) or len(self.window) != 2:
-            raise TypeError(f"{owner}: window must be a pair of ints, got {self.window!r}")
-        window = (integer(self.window[0], "window[0]", owner=owner), integer(self.window[1], "window[1]", owner=owner))
-        target = real_array(self.target, "target", shape=(wps.shape[1],), finite=False, owner=owner)
-        gripper = None
-        if self.gripper is not None:
-            gripper = real_array(self.gripper, "gripper", shape=(len(wps),), owner=owner)
-        object.__setattr__(self, "waypoints", wps)
-        object.__setattr__(self, "source", source)
-        object.__setattr__(self, "window", window)
-        object.__setattr__(self, "target", target)
-        object.__setattr__(self, "gripper", gripper)
-
-
-@dataclass(frozen=True)
 class Replay:
-    """What a replay of a :class:`PerturbedReference` did in the env.
+    """What a replay of a :class:`~steer_envs.data.perturbations.PerturbedReference` did in the env.
 
     Attributes:
         states: ``(T, d)`` visited states, the start included.
@@ -391,7 +238,7 @@ class CounterfactualReplayer:
             default: for the kinematic envs, a step of at most ``max_speed * dt``
             straight toward the waypoint.
         gripper: whether references carry a gripper command (none of the 2D envs do).
-        kernel_sharpness, kernel_min_window: parameters of :func:`kernel_perturbation`.
+        kernel_sharpness, kernel_min_window: parameters of :func:`~steer_envs.data.perturbations.kernel_perturbation`.
         max_steps: the most env steps one replay may take before :class:`~steer_envs.core.validation.BoundExceeded`
             is raised (an env step limit, when the env has one, usually ends it first as a truncated
             replay). ``None``: with the default controller, twice the steps the reference needs
@@ -429,6 +276,19 @@ class CounterfactualReplayer:
         self.max_steps = (
             None if max_steps is None else integer(max_steps, "max_steps", low=1, owner="CounterfactualReplayer")
         )
+        self._set_bounds(env)
+        if not isinstance(execution, str) or execution not in EXECUTIONS:
+            raise ValueError(f"execution must be 'tracking' or 'jump', got {execution!r}")
+        self.execution = execution
+        self._replay_env: gym.Env = self.env
+        self.controller: Controller
+        if execution == "jump":
+            self._set_jump(controller)
+        else:
+            self._set_tracking(controller)
+
+    def _set_bounds(self, env: gym.Env) -> None:
+        """``low`` / ``high`` (the observation box, where Z is drawn) and the workspace the state is clipped to."""
         space = env.observation_space
         if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1:
             raise TypeError("CounterfactualReplayer needs a flat Box observation space (the state)")
@@ -441,25 +301,28 @@ class CounterfactualReplayer:
         model = getattr(base, "model", None) if isinstance(base, Kinematic2DEnv) else None
         self.workspace_low = np.asarray(model.low if model is not None else self.low, dtype=np.float64)
         self.workspace_high = np.asarray(model.high if model is not None else self.high, dtype=np.float64)
-        if not isinstance(execution, str) or execution not in EXECUTIONS:
-            raise ValueError(f"execution must be 'tracking' or 'jump', got {execution!r}")
-        self.execution = execution
-        self._replay_env: gym.Env = self.env
-        if execution == "jump":
-            if not isinstance(base, Kinematic2DEnv):
-                raise TypeError(f"execution='jump' needs a 2D kinematic env, got {type(base).__name__}")
-            if controller is not None:
-                raise ValueError("execution='jump' uses its own controller (one waypoint per step)")
-            # the same task model (geometry, transition rules, success) with a step limit that spans
-            # the workspace: every waypoint is reached in one step, a transition between its modes
-            span = float(np.linalg.norm(self.high - self.low)) + 1.0
-            self._replay_env = Kinematic2DEnv(
-                base.model, dt=1.0, max_speed=span, terminate_on_violation=base.terminate_on_violation
-            )
-            self._reach, self._dt = span, 1.0
-            self._default_controller = True
-            self.controller: Controller = self._velocity_toward
-        elif controller is None:
+
+    def _set_jump(self, controller: Controller | None) -> None:
+        """``execution="jump"``: replay on a copy of the task model whose step reaches any waypoint."""
+        base = self.env.unwrapped
+        if not isinstance(base, Kinematic2DEnv):
+            raise TypeError(f"execution='jump' needs a 2D kinematic env, got {type(base).__name__}")
+        if controller is not None:
+            raise ValueError("execution='jump' uses its own controller (one waypoint per step)")
+        # the same task model (geometry, transition rules, success) with a step limit that spans
+        # the workspace: every waypoint is reached in one step, a transition between its modes
+        span = float(np.linalg.norm(self.high - self.low)) + 1.0
+        self._replay_env = Kinematic2DEnv(
+            base.model, dt=1.0, max_speed=span, terminate_on_violation=base.terminate_on_violation
+        )
+        self._reach, self._dt = span, 1.0
+        self._default_controller = True
+        self.controller = self._velocity_toward
+
+    def _set_tracking(self, controller: Controller | None) -> None:
+        """``execution="tracking"``: the env's own dynamics, with ``controller`` or the default one."""
+        base = self.env.unwrapped
+        if controller is None:
             if not (hasattr(base, "max_speed") and hasattr(base, "dt")):
                 raise TypeError(
                     f"no default tracking controller for {type(base).__name__}; "
@@ -494,7 +357,7 @@ class CounterfactualReplayer:
         gripper: np.ndarray | None = None,
     ) -> PerturbedReference:
         """A random perturbation of one demo's states ``(T, d)`` (kind drawn from the weights)."""
-        path = _check_path(demo, "demo")
+        path = check_path(demo, "demo")
         if path.shape[1] != len(self.low):
             raise ValueError(f"demo states must have dimension {len(self.low)}, got {path.shape[1]}")
         if not isinstance(rng, np.random.Generator):
@@ -524,7 +387,7 @@ class CounterfactualReplayer:
 
     def unperturbed(self, demo: np.ndarray, *, source: int = 0) -> PerturbedReference:
         """The demo itself as a reference (replaying it checks the demo succeeds)."""
-        path = _check_path(demo, "demo")
+        path = check_path(demo, "demo")
         return PerturbedReference(path, "demo", source, (-1, -1), np.full(path.shape[1], np.nan))
 
     # -------------------------------------------------------------- replays
@@ -673,7 +536,7 @@ class CounterfactualReplayer:
 
         ``progress``: ``True`` a bar, ``None`` a bar only when stderr is a terminal, ``False`` (default) none.
         """
-        paths = [_check_path(d, f"demos[{i}]") for i, d in enumerate(demos)]
+        paths = [check_path(d, f"demos[{i}]") for i, d in enumerate(demos)]
         if not paths:
             raise ValueError("demos must hold at least one demonstration")
         n = integer(n, "n", low=0, owner="CounterfactualReplayer.rollouts")
@@ -694,12 +557,6 @@ class CounterfactualReplayer:
 __all__ = [
     "DEFAULT_MAX_REPLAY_STEPS",
     "EXECUTIONS",
-    "PERTURBATION_KINDS",
-    "REFERENCE_KINDS",
     "CounterfactualReplayer",
-    "PerturbedReference",
     "Replay",
-    "gripper_toggle",
-    "kernel_perturbation",
-    "segment_perturbation",
 ]

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -256,51 +257,114 @@ def build_counterfactual_dataset(
     env = gym.make(env_id, terminate_on_violation=False, max_episode_steps=max_episode_steps, **make_kwargs)
     replayer = CounterfactualReplayer(env, kind, execution=cast(Execution, execution))
     try:
-        demo_replays = replayer.replay_batch([replayer.unperturbed(d, source=i) for i, d in enumerate(demos)])
-        failed = [i for i, r in enumerate(demo_replays) if not r.success]
-        if failed:
-            raise ValueError(f"demos {failed} do not succeed when replayed in {env_id}")
-        paths = [r.states for r in demo_replays]
-        rng = np.random.default_rng(seed)
-        succ: list[Replay] = []
-        fail: list[Replay] = []
-        drawn = raw_success = raw_total = 0
-        with progress_bar(total=n_success + n_failure, enabled=progress, desc=f"counterfactuals {env_id}") as bar:
-            while len(succ) < n_success or len(fail) < n_failure:
-                if drawn >= max_replays:
-                    raise RuntimeError(
-                        f"only {len(succ)} successes / {len(fail)} failures after {drawn} replays "
-                        f"(wanted {n_success} / {n_failure})"
-                    )
-                sources = rng.integers(0, len(paths), size=batch_size)
-                refs = [replayer.sample(paths[s], rng, source=int(s)) for s in sources]
-                drawn += len(refs)
-                before = len(succ) + len(fail)
-                for r in replayer.replay_batch(refs):
-                    if r.truncated:
-                        continue
-                    raw_total += 1
-                    raw_success += int(r.success)
-                    if r.success and len(succ) < n_success:
-                        succ.append(r)
-                    elif not r.success and len(fail) < n_failure:
-                        fail.append(r)
-                bar.update(len(succ) + len(fail) - before)
+        demo_replays = _replay_demos(replayer, demos, env_id)
+        draws = _Draws(n_success, n_failure, batch_size, max_replays)
+        draws.fill(replayer, [r.states for r in demo_replays], np.random.default_rng(seed), progress, env_id)
     finally:
         env.close()
     meta = {
         "env_id": env_id,
         "make_kwargs": {k: v for k, v in make_kwargs.items() if isinstance(v, (int, float, str, bool))},
-        "seed": int(seed),
-        "kind": replayer.kind_weights,
-        "execution": execution,
-        "n_demos": len(demo_replays),
-        "n_success": len(succ),
-        "n_failure": len(fail),
-        "replays_drawn": drawn,
-        "raw_success_rate": raw_success / max(raw_total, 1),
+        **draws.meta(int(seed), replayer.kind_weights, execution, len(demo_replays)),
     }
-    return CounterfactualDataset.from_replays([*demo_replays, *succ, *fail], meta)
+    return CounterfactualDataset.from_replays([*demo_replays, *draws.succ, *draws.fail], meta)
 
 
-__all__ = ["KINDS", "CounterfactualDataset", "build_counterfactual_dataset"]
+def _replay_demos(replayer: CounterfactualReplayer, demos: Sequence[np.ndarray], env_id: str) -> list[Replay]:
+    """The unperturbed replays of ``demos``; ``ValueError`` naming those that do not succeed."""
+    demo_replays = replayer.replay_batch([replayer.unperturbed(d, source=i) for i, d in enumerate(demos)])
+    failed = [i for i, r in enumerate(demo_replays) if not r.success]
+    if failed:
+        raise ValueError(f"demos {failed} do not succeed when replayed in {env_id}")
+    return demo_replays
+
+
+@dataclass
+class _Draws:
+    """Perturbed replays drawn until ``n_success`` successes and ``n_failure`` failures are kept."""
+
+    n_success: int
+    n_failure: int
+    batch_size: int
+    max_replays: int
+    succ: list[Replay] = field(default_factory=list)
+    fail: list[Replay] = field(default_factory=list)
+    drawn: int = 0
+    raw_success: int = 0
+    raw_total: int = 0
+
+    def fill(
+        self,
+        replayer: CounterfactualReplayer,
+        paths: list[np.ndarray],
+        rng: np.random.Generator,
+        progress: bool | None,
+        env_id: str,
+    ) -> None:
+        """Replay seeded batches of perturbed ``paths`` until both quotas are filled (``RuntimeError`` after
+        ``max_replays``); the surplus of the more frequent outcome is dropped in draw order."""
+        total = self.n_success + self.n_failure
+        with progress_bar(total=total, enabled=progress, desc=f"counterfactuals {env_id}") as bar:
+            while len(self.succ) < self.n_success or len(self.fail) < self.n_failure:
+                if self.drawn >= self.max_replays:
+                    raise RuntimeError(
+                        f"only {len(self.succ)} successes / {len(self.fail)} failures after {self.drawn} replays "
+                        f"(wanted {self.n_success} / {self.n_failure})"
+                    )
+                sources = rng.integers(0, len(paths), size=self.batch_size)
+                refs = [replayer.sample(paths[s], rng, source=int(s)) for s in sources]
+                self.drawn += len(refs)
+                before = len(self.succ) + len(self.fail)
+                for r in replayer.replay_batch(refs):
+                    self.keep(r)
+                bar.update(len(self.succ) + len(self.fail) - before)
+
+    def meta(self, seed: int, kind: Any, execution: str, n_demos: int) -> dict[str, Any]:
+        """The rest of a data set's metadata: the seed, perturbation kinds and execution, the counts of demos,
+        kept outcomes and replays drawn, and the raw success rate."""
+        return {
+            "seed": seed,
+            "kind": kind,
+            "execution": execution,
+            "n_demos": n_demos,
+            "n_success": len(self.succ),
+            "n_failure": len(self.fail),
+            "replays_drawn": self.drawn,
+            "raw_success_rate": self.raw_success / max(self.raw_total, 1),
+        }
+
+    def keep(self, r: Replay) -> None:
+        """Count a finished replay and keep it while its outcome's quota is open (truncated ones are dropped)."""
+        if r.truncated:
+            return
+        self.raw_total += 1
+        self.raw_success += int(r.success)
+        if r.success and len(self.succ) < self.n_success:
+            self.succ.append(r)
+        elif not r.success and len(self.fail) < self.n_failure:
+            self.fail.append(r)
+
+
+def cached_counterfactual_dataset(
+    path: str | os.PathLike[str] | None, env_id: str, demos: Sequence[np.ndarray], **build_kwargs: Any
+) -> CounterfactualDataset:
+    """:func:`build_counterfactual_dataset`, kept in ``path`` (``.npz``; None: no file).
+
+    An existing file is read instead of building; an unreadable one (a torn
+    copy, a disk error) is a miss: rebuilt and overwritten, with a
+    ``RuntimeWarning``. The caller chooses ``path`` so that it changes with
+    every setting that changes the data.
+    """
+    file = None if path is None else Path(path)
+    if file is not None and file.exists():
+        try:
+            return CounterfactualDataset.load(file)
+        except DatasetError as err:  # a corrupt cache entry is a miss: rebuild and overwrite it
+            warnings.warn(f"rebuilding the cached counterfactual data: {err}", RuntimeWarning, stacklevel=2)
+    data = build_counterfactual_dataset(env_id, demos, **build_kwargs)
+    if file is not None:
+        data.save(file)
+    return data
+
+
+__all__ = ["KINDS", "CounterfactualDataset", "build_counterfactual_dataset", "cached_counterfactual_dataset"]

@@ -78,9 +78,7 @@ def rollout_expert(
     obs, info = env.reset(seed=int(seed))
     expert.reset(obs, info)
     states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
-    limit = (
-        max_steps if max_steps is not None else (env.spec.max_episode_steps if env.spec else None) or DEFAULT_MAX_STEPS
-    )
+    limit = max_steps if max_steps is not None else _step_limit(env)
     success = bool(info["success"])
     steps, extra = 0, int(steps_after_success)  # steps before success, steps left after it
     while (not success and steps < limit) or (success and extra > 0):
@@ -99,9 +97,28 @@ def rollout_expert(
             success = bool(info["success"])
         if truncated or (terminated and not success):
             break
+    return _demonstration(env, int(seed), task, states, actions, modes, sensors, success)
+
+
+def _step_limit(env: gym.Env) -> int:
+    """The env's step limit, else :data:`DEFAULT_MAX_STEPS`."""
+    return (env.spec.max_episode_steps if env.spec else None) or DEFAULT_MAX_STEPS
+
+
+def _demonstration(
+    env: gym.Env,
+    seed: int,
+    task: TaskSpec,
+    states: list[np.ndarray],
+    actions: list[np.ndarray],
+    modes: list[int],
+    sensors: list[list[bool]],
+    success: bool,
+) -> Demonstration:
+    """The :class:`Demonstration` of a rollout's rows (no actions: it began in the goal)."""
     return Demonstration(
         env_id=env.spec.id if env.spec else type(env.unwrapped).__name__,
-        seed=int(seed),
+        seed=seed,
         states=np.asarray(states),
         actions=np.asarray(actions, dtype=np.float64).reshape(len(actions), -1)
         if actions

@@ -10,14 +10,14 @@ gripper command in force then (-1 open, +1 closed). A skill shorter than
 waits there); a longer one is not made into a plan (:func:`skill_plan` returns ``None``).
 
 Yaw convention (:func:`plan_yaw`): the expert's wrist yaw
-(:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.eef_yaw`: the
+(:func:`~steer_envs.control.kitchen.eef_yaw`: the
 fingers' opening axis about the vertical, 0 along world y), unwrapped along
 the skill so it is continuous (a half turn of the wrist shows as one), then
 shifted by the multiple of pi that puts the yaw at the skill's first gripper
 switch (the grasp or the release, where the yaw matters) into [-pi/2, pi/2).
 The fingers are symmetric, so the shift changes no grip; it makes plans of the
 same skill alike whichever of the two equivalent wrist yaws the arm started
-at. The tracker (:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.execute_kitchen_plan`)
+at. The tracker (:func:`~steer_envs.control.kitchen.execute_kitchen_plan`)
 undoes the shift against the wrist's yaw at the start.
 
 :func:`to_plan_dataset` turns skill records into a
@@ -27,20 +27,22 @@ and ``horizon=PLAN_HORIZON`` yields exactly one window per skill: the env's
 17-D observation at the skill's start and its plan. The bench's shard module
 builds that file from the ``itps-kitchen-data`` shards::
 
-    python -m steer_envs.bench.suites.itps_kitchen.data --cache-dir DIR --episodes 120 --out plans.npz
+    python -m steer_envs.data.kitchen_shards --cache-dir DIR --episodes 120 --out plans.npz
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import boolean, integer, real_array
+from steer_envs.control.kitchen import PLAN_DIM, PLAN_STRIDE  # the tracker's layout
+from steer_envs.core.validation import boolean, real_array
 from steer_envs.data.kitchen_skills import SkillRecord
+from steer_envs.data.skill_plans import Plan, plan_dataset, plannable_skills, sample_plan
 from steer_envs.data.trajectories import TrajectoryDataset
-from steer_envs.envs.robosuite.kitchen_plan_execution import PLAN_DIM, PLAN_STRIDE  # the tracker's layout
 
 __all__ = ["PLAN_DIM", "PLAN_HORIZON", "PLAN_STRIDE", "YAW_CONVENTION", "plan_yaw", "skill_plan", "to_plan_dataset"]
 
@@ -68,26 +70,18 @@ def plan_yaw(yaw: Any, gripper: Any) -> np.ndarray:
     return y - np.pi * np.floor((y[anchor] + np.pi / 2) / np.pi)
 
 
-def skill_plan(
-    record: SkillRecord, *, stride: int = PLAN_STRIDE, horizon: int = PLAN_HORIZON
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(obs, plan)`` of one skill: observations ``(horizon, 17)`` at the waypoints' start steps and the plan.
+def skill_plan(record: SkillRecord, *, stride: int = PLAN_STRIDE, horizon: int = PLAN_HORIZON) -> Plan | None:
+    """``(obs, plan)`` of one skill: observations ``(horizon, 17)``, waypoints ``[x, y, z, yaw, gripper]``.
 
-    ``obs[0]`` is the skill's first observation (what a plan is conditioned on).
-    ``None`` when the skill is empty or longer than ``stride * horizon`` steps.
+    See :func:`~steer_envs.data.skill_plans.sample_plan` and, for the yaw,
+    :func:`plan_yaw`; ``None`` when the skill is empty or too long.
     """
-    if not isinstance(record, SkillRecord):
-        raise TypeError(f"skill_plan: `record` must be a SkillRecord, got {type(record).__name__}")
-    stride = integer(stride, "stride", low=1, high=1000, owner="skill_plan")
-    horizon = integer(horizon, "horizon", low=1, high=10_000, owner="skill_plan")
-    steps = len(record)
-    if steps == 0 or steps > stride * horizon:
-        return None
-    yaw = plan_yaw(record.yaw, record.gripper)
-    ends = np.minimum(stride * np.arange(1, horizon + 1), steps)
-    plan = np.concatenate([record.eef[ends], yaw[ends, None], record.gripper[ends, None]], axis=1)
-    obs = record.obs[np.minimum(stride * np.arange(horizon), steps)]
-    return obs.astype(np.float32), plan.astype(np.float32)
+
+    def waypoints(ends: np.ndarray) -> np.ndarray:
+        yaw = plan_yaw(record.yaw, record.gripper)
+        return np.concatenate([record.eef[ends], yaw[ends, None], record.gripper[ends, None]], axis=1)
+
+    return sample_plan(record, SkillRecord, stride, horizon, waypoints)
 
 
 def to_plan_dataset(
@@ -107,26 +101,8 @@ def to_plan_dataset(
     """
     owner = "to_plan_dataset"
     successful_only = boolean(successful_only, "successful_only", owner=owner)
-    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
-        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
-    obs, plans, names, tasks, seeds = [], [], [], [], []
-    too_long = 0
-    for i, r in enumerate(records):
-        if not isinstance(r, SkillRecord):
-            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
-        if successful_only and not (r.success and not r.violation):
-            continue
-        made = skill_plan(r, stride=stride, horizon=horizon)
-        if made is None:
-            too_long += len(r) > 0
-            continue
-        obs.append(made[0])
-        plans.append(made[1])
-        names.append(r.name)
-        tasks.append(r.task)
-        seeds.append(r.seed)
-    if not plans:
-        raise ValueError(f"{owner}: `records` holds no skill to keep (of {len(records)})")
+    plan = partial(skill_plan, stride=stride, horizon=horizon)
+    kept, too_long = plannable_skills(records, SkillRecord, plan, successful_only=successful_only, owner=owner)
     info = {
         **dict(meta or {}),
         "source": "kitchen_plans",
@@ -134,10 +110,9 @@ def to_plan_dataset(
         "plan_stride": int(stride),
         "plan_horizon": int(horizon),
         "yaw_convention": YAW_CONVENTION,
-        "skills": names,
-        "skill_tasks": tasks,
-        "episode_seeds": seeds,
+        "skills": [r.name for r, _ in kept],
+        "skill_tasks": [r.task for r, _ in kept],
+        "episode_seeds": [r.seed for r, _ in kept],
         "dropped_too_long": int(too_long),
     }
-    starts = np.arange(len(plans), dtype=np.int64) * int(horizon)
-    return TrajectoryDataset(np.concatenate(obs), np.concatenate(plans), starts, meta=info)
+    return plan_dataset([obs for _, (obs, _) in kept], [plan for _, (_, plan) in kept], horizon, info)

@@ -12,7 +12,7 @@ ran. The same seed records the same skills. Each skill becomes a
 :class:`SkillRecord`: its name in :data:`~steer_envs.envs.robosuite.kitchen.SKILLS`,
 the task, the outcome, and per-step arrays (states include the skill's first one):
 observations, actions, eef position, wrist yaw
-(:func:`~steer_envs.envs.robosuite.kitchen_plan_execution.eef_yaw`, the
+(:func:`~steer_envs.control.kitchen.eef_yaw`, the
 expert's), gripper command and mode.
 
 The episode steps the *unwrapped* env, so success termination (the last
@@ -20,7 +20,7 @@ skill's end) and the TimeLimit never cut a skill short. Skill ``k``'s start is
 reached again by resetting with the seed and replaying the recorded actions
 of the skills before it (:func:`replay_to_start`; MuJoCo is deterministic).
 
-*Perturbed starts* (``record_episode(..., perturbed_starts=True)``, issue #18):
+*Perturbed starts* (``record_episode(..., perturbed_starts=True)``):
 before each skill the end effector is pushed (``env.perturb``, as the
 itps-kitchen suite's OP correction pushes it) partway toward that skill's
 target (:func:`push_toward_skill`), and the expert runs the skill from the
@@ -36,7 +36,6 @@ every array and raises :class:`~steer_envs.io.DatasetError` naming the file and 
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -45,8 +44,10 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.control.kitchen import KitchenScene, eef_yaw
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
+from steer_envs.data.skill_records import SkillFileLayout, check_records, npz_output, replay_actions, run_skill
 from steer_envs.envs.robosuite.kitchen import (
     KITCHEN_TASKS,
     SKILLS,
@@ -56,8 +57,6 @@ from steer_envs.envs.robosuite.kitchen import (
     skill_centre,
     unwrap_kitchen,
 )
-from steer_envs.envs.robosuite.kitchen_plan_execution import KitchenScene, eef_yaw
-from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 __all__ = [
     "DATA_TASKS",
@@ -224,33 +223,14 @@ def _run_skill(
     """Run ``skill`` to its end from the current state; the record and the last observation and info."""
     skills.start(skill)
     handle = base.handle_pos
-    states = [np.asarray(obs, dtype=np.float32)]
-    eef, yaw, grip, modes = [base.state], [eef_yaw(base)], [base._gripper], [int(info["mode"])]
-    actions: list[np.ndarray] = []
-    violation = False
-    while not skills.done:
-        action = skills.act()  # stepped also when it ends the skill (as KitchenExpert does)
-        obs, _, _, _, info = base.step(action)
-        actions.append(np.asarray(action, dtype=np.float32))
-        states.append(np.asarray(obs, dtype=np.float32))
-        eef.append(base.state)
-        yaw.append(eef_yaw(base))
-        grip.append(base._gripper)
-        modes.append(int(info["mode"]))
-        violation |= bool(info["constraint_violation"])
+    steps, obs, info = run_skill(base, skills, obs, info, {"yaw": lambda: eef_yaw(base)})
     record = SkillRecord(
         name=skill,
         task=base.kitchen_task,
         success=skills.succeeded(),
-        violation=violation,
         seed=seed,
         index=index,
-        obs=np.stack(states),
-        actions=np.stack(actions) if actions else np.zeros((0, 7), np.float32),
-        eef=np.stack(eef).astype(np.float64),
-        yaw=np.asarray(yaw, dtype=np.float64),
-        gripper=np.asarray(grip, dtype=np.float32),
-        modes=np.asarray(modes, dtype=np.int16),
+        **steps.record_fields(),
         handle=np.asarray(handle, dtype=np.float64),
         hinge=base.hinge_pos,
     )
@@ -277,32 +257,24 @@ def replay_to_start(env: Any, records: Sequence[SkillRecord], index: int) -> tup
     if base.kitchen_task != records[0].task:
         raise ValueError(f"{owner}: `env` has task {base.kitchen_task!r}, the records {records[0].task!r}")
     obs, info = base.reset(seed=records[0].seed)
-    for rec in records[:index]:
-        for action in rec.actions:
-            obs, _, _, _, info = base.step(action)
+    obs, info = replay_actions(base, records[:index], obs, info)
     if not np.array_equal(np.asarray(obs, dtype=np.float32), records[index].obs[0]):
         raise RuntimeError(f"{owner}: replaying seed {records[0].seed} did not reach skill {index}'s start state")
     return obs, info
 
 
 # ------------------------------------------------------------------------------ files
-_SPECS: dict[str, tuple[str, int]] = {
-    "obs": ("f", 2),
-    "eef": ("f", 2),
-    "yaw": ("f", 1),
-    "gripper": ("f", 1),
-    "actions": ("f", 2),
-    "handle": ("f", 2),
-    "hinge": ("f", 2),
-    "modes": ("iu", 1),
-    "offsets": ("iu", 1),
-    "skill": ("iu", 1),
-    "task": ("iu", 1),
-    "success": ("b", 1),
-    "violation": ("b", 1),
-    "seed": ("iu", 1),
-    "index": ("iu", 1),
-}
+_LAYOUT = SkillFileLayout(
+    domain="Kitchen",
+    version=FORMAT_VERSION,
+    obs_dim=OBS_DIM,
+    states={"obs": np.float32, "eef": np.float64, "yaw": np.float64, "gripper": np.float32, "modes": np.int16},
+    specs={"yaw": ("f", 1), "handle": ("f", 2), "hinge": ("f", 2), "task": ("iu", 1)},
+    per_skill=("handle", "hinge", "task"),
+    widths={"handle": 3, "hinge": 3},
+    vocabularies={"skills": SKILLS, "tasks": KITCHEN_TASKS, "modes": MODES},
+    ids={"skill": SKILLS, "task": KITCHEN_TASKS, "modes": MODES},
+)
 
 
 def save_skills(
@@ -315,51 +287,20 @@ def save_skills(
     ``meta`` (JSON-serializable) is stored beside the format version.
     """
     owner = "save_skills"
-    out = Path(path)
-    if out.suffix != ".npz":
-        raise ValueError(f"{owner}: `path` must end in .npz, got {str(out)!r}")
-    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
-        raise TypeError(f"{owner}: `records` must be a sequence of SkillRecord, got {type(records).__name__}")
-    recs = list(records)
-    if not recs:
-        raise ValueError(f"{owner}: `records` must not be empty")
-    for i, r in enumerate(recs):
-        if not isinstance(r, SkillRecord):
-            raise TypeError(f"{owner}: `records[{i}]` must be a SkillRecord, got {type(r).__name__}")
+    out = npz_output(path, owner)
+
+    def check(i: int, r: SkillRecord) -> None:
         if r.name not in SKILLS or r.task not in KITCHEN_TASKS:
             raise ValueError(f"{owner}: `records[{i}]` has skill {r.name!r} and task {r.task!r}")
-        if len(r.obs) != len(r.actions) + 1:
-            raise ValueError(f"{owner}: `records[{i}]` has {len(r.obs)} states for {len(r.actions)} actions")
-    info = {
-        **dict(meta or {}),
-        "format_version": FORMAT_VERSION,
-        "skills": list(SKILLS),
-        "tasks": list(KITCHEN_TASKS),
-        "modes": list(MODES),
-    }
-    try:
-        text = json.dumps(info, sort_keys=True)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"{owner}: `meta` must be JSON-serializable ({err})") from None
-    lengths = np.array([len(r.obs) for r in recs])
-    arrays = {
-        "obs": np.concatenate([r.obs for r in recs]).astype(np.float32),
-        "eef": np.concatenate([r.eef for r in recs]).astype(np.float64),
-        "yaw": np.concatenate([r.yaw for r in recs]).astype(np.float64),
-        "gripper": np.concatenate([r.gripper for r in recs]).astype(np.float32),
-        "modes": np.concatenate([r.modes for r in recs]).astype(np.int16),
-        "actions": np.concatenate([r.actions for r in recs]).astype(np.float32).reshape(-1, 7),
-        "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+
+    recs = check_records(records, SkillRecord, owner, check)
+    arrays: dict[str, np.ndarray] = {
         "handle": np.array([r.handle for r in recs], dtype=np.float64).reshape(-1, 3),
         "hinge": np.array([r.hinge for r in recs], dtype=np.float64).reshape(-1, 3),
         "skill": np.array([SKILLS.index(r.name) for r in recs], dtype=np.int16),
         "task": np.array([KITCHEN_TASKS.index(r.task) for r in recs], dtype=np.int16),
-        "success": np.array([r.success for r in recs], dtype=bool),
-        "violation": np.array([r.violation for r in recs], dtype=bool),
-        "seed": np.array([r.seed for r in recs], dtype=np.int64),
-        "index": np.array([r.index for r in recs], dtype=np.int32),
     }
-    return atomic_write_npz(out, {**arrays, "meta": np.array(text)})
+    return _LAYOUT.write(out, recs, arrays, meta)
 
 
 def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[str, Any]]:
@@ -369,59 +310,15 @@ def load_skills(path: str | os.PathLike[str]) -> tuple[list[SkillRecord], dict[s
     missing or unreadable file, another format version or vocabulary, an array
     of the wrong dtype, axes or width, NaN/inf, or inconsistent offsets, skill, task or mode ids.
     """
-    src = Path(path)
-    arrays = read_npz(src)
-    meta = npz_json(src, arrays, "meta")
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise DatasetError(
-            f"{src}: field 'format_version' is {meta.get('format_version')!r}, expected {FORMAT_VERSION}"
+    _, a, meta, off = _LAYOUT.read(path)
+    out = [
+        SkillRecord(
+            name=SKILLS[int(a["skill"][i])],
+            task=KITCHEN_TASKS[int(a["task"][i])],
+            **_LAYOUT.fields(a, off, i),
+            handle=np.array(a["handle"][i], dtype=np.float64),
+            hinge=np.array(a["hinge"][i], dtype=np.float64),
         )
-    for key, values in (("skills", SKILLS), ("tasks", KITCHEN_TASKS), ("modes", MODES)):
-        if meta.get(key) != list(values):
-            raise DatasetError(f"{src}: field {key!r} does not list this version's Kitchen {key}")
-    require_arrays(src, arrays, _SPECS, finite=True)
-    a = arrays
-    n = len(a["skill"])
-    off = a["offsets"].astype(np.int64)
-    rows = len(a["obs"])
-    widths = {"obs": OBS_DIM, "eef": 3, "actions": 7, "handle": 3, "hinge": 3}
-    for name, width in widths.items():
-        if a[name].shape[1] != width:
-            raise DatasetError(f"{src}: array {name!r} has width {a[name].shape[1]}, expected {width}")
-    if n == 0:
-        raise DatasetError(f"{src}: array 'skill' is empty")
-    if off.shape != (n + 1,) or off[0] != 0 or off[-1] != rows or np.any(np.diff(off) < 1):
-        raise DatasetError(f"{src}: array 'offsets' does not split the {rows} states into {n} skills")
-    for name in ("eef", "yaw", "gripper", "modes"):
-        if len(a[name]) != rows:
-            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} rows, expected {rows} (one per state)")
-    if len(a["actions"]) != rows - n:
-        raise DatasetError(f"{src}: array 'actions' has {len(a['actions'])} rows, expected {rows - n}")
-    for name in ("handle", "hinge", "task", "success", "violation", "seed", "index"):
-        if len(a[name]) != n:
-            raise DatasetError(f"{src}: array {name!r} has {len(a[name])} entries, expected {n} (one per skill)")
-    for name, vocab in (("skill", SKILLS), ("task", KITCHEN_TASKS), ("modes", MODES)):
-        if np.any((a[name] < 0) | (a[name] >= len(vocab))):
-            raise DatasetError(f"{src}: array {name!r} holds ids outside 0..{len(vocab) - 1}")
-    out = []
-    for i in range(n):
-        s, e = int(off[i]), int(off[i + 1])
-        out.append(
-            SkillRecord(
-                name=SKILLS[int(a["skill"][i])],
-                task=KITCHEN_TASKS[int(a["task"][i])],
-                success=bool(a["success"][i]),
-                violation=bool(a["violation"][i]),
-                seed=int(a["seed"][i]),
-                index=int(a["index"][i]),
-                obs=a["obs"][s:e].astype(np.float32),
-                actions=a["actions"][s - i : e - i - 1].astype(np.float32),
-                eef=a["eef"][s:e].astype(np.float64),
-                yaw=a["yaw"][s:e].astype(np.float64),
-                gripper=a["gripper"][s:e].astype(np.float32),
-                modes=a["modes"][s:e].astype(np.int16),
-                handle=np.array(a["handle"][i], dtype=np.float64),
-                hinge=np.array(a["hinge"][i], dtype=np.float64),
-            )
-        )
+        for i in range(len(off) - 1)
+    ]
     return out, meta

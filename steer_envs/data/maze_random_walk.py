@@ -42,148 +42,37 @@ dataset (one episode per goal, the env's reward; ``docs/minari.md``).
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import math
 import os
-import re
-import shlex
-import shutil
 import sys
 import time
-import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from steer_envs.control.waypoint import WaypointController
 from steer_envs.core.progress import check_progress, progress_bar
-from steer_envs.core.validation import integer, one_of, real_scalar
+from steer_envs.core.validation import integer, one_of
+from steer_envs.data.minari_export import (
+    check_minari_id,
+    minari_load_command,
+    minari_root,
+    require_minari,
+    store_minari_dataset,
+)
 from steer_envs.data.trajectories import TrajectoryDataset
-from steer_envs.envs.maze2d import TIMESTEP, MazeGrid, MazePhysics, maze_map
-from steer_envs.io import DatasetError, atomic_directory, atomic_write_npz, npz_json, read_npz, require_arrays
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
+from steer_envs.envs.maze_physics import TIMESTEP, MazePhysics
+from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 FORMAT = "steer_envs.maze2d_random_walk/1"
 #: the most raw steps one walk may have (the ITPS data uses 1M; D4RL's largest maze2d set 4M)
 MAX_STEPS = 10**8
 #: D4RL maze2d timeouts (raw steps per goal) by maze.
 MAX_LEG_STEPS = {"umaze": 300, "medium": 600, "large": 800}
-#: grid moves in Q-iteration's action order (ties go to the first): stay, -row, +row, -col, +col.
-_MOVES = np.array([[0, 0], [-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
-
-
-def q_iteration(walls: np.ndarray, target: tuple[int, int], iters: int = 50, gamma: float = 0.99) -> np.ndarray:
-    """Q-values ``(rows, cols, 5)`` of the grid world with reward 1 for entering ``target``.
-
-    Moves into walls or off the grid stay in place. With ``iters`` sweeps a
-    cell farther than ``iters`` moves from the target keeps Q = 0 (D4RL).
-    """
-    walls = np.asarray(walls, dtype=bool)
-    rows, cols = walls.shape
-    tr, tc = target
-    if not (0 <= tr < rows and 0 <= tc < cols) or walls[tr, tc]:
-        raise ValueError(f"target {target} must be a free cell of the {walls.shape} grid")
-    cells = np.stack(np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"), axis=-1)  # (R, C, 2)
-    dest = cells[:, :, None, :] + _MOVES  # (R, C, 5, 2)
-    inside = (dest[..., 0] >= 0) & (dest[..., 0] < rows) & (dest[..., 1] >= 0) & (dest[..., 1] < cols)
-    dest = np.where(inside[..., None], dest, cells[:, :, None, :])
-    blocked = walls[dest[..., 0], dest[..., 1]]
-    dest = np.where(blocked[..., None], cells[:, :, None, :], dest)
-    reward = ((dest[..., 0] == tr) & (dest[..., 1] == tc)).astype(np.float64)
-    q = np.zeros((rows, cols, len(_MOVES)))
-    for _ in range(int(iters)):
-        v = q.max(axis=-1)
-        q = reward + gamma * v[dest[..., 0], dest[..., 1]]
-    return q
-
-
-def cell_path(
-    grid: MazeGrid, start: tuple[int, int], target: tuple[int, int], iters: int = 50
-) -> list[tuple[int, int]]:
-    """Greedy cell path ``start -> target`` (excluding ``start``) from :func:`q_iteration`."""
-    if start == target:
-        return [target]
-    q = q_iteration(grid.walls, target, iters=iters)
-    path, cell = [], start
-    for _ in range(grid.walls.size):
-        move = _MOVES[int(np.argmax(q[cell]))]
-        nxt = (cell[0] + int(move[0]), cell[1] + int(move[1]))
-        if nxt == cell:
-            raise ValueError(f"no path from {start} to {target} within {iters} Q-iterations")
-        path.append(nxt)
-        cell = nxt
-        if cell == target:
-            return path
-    raise ValueError(f"no path from {start} to {target}")
-
-
-class WaypointController:
-    """D4RL's maze2d waypoint controller, returning the waypoint the PD law tracks.
-
-    Args:
-        grid: the maze.
-        rng: randomness of the waypoint jitter.
-        jitter: waypoints (except the goal cell) are ``cell - U(0, jitter)`` per coordinate.
-        solve_thresh: distance at which a waypoint (or the goal) counts as reached.
-        vel_thresh: bound on the displacement between two calls for reaching
-            (D4RL: 0.1 per 0.01 s step; scale it with the call period).
-    """
-
-    def __init__(
-        self,
-        grid: MazeGrid,
-        rng: np.random.Generator | None = None,
-        *,
-        jitter: float = 0.2,
-        solve_thresh: float = 0.1,
-        vel_thresh: float = 0.1,
-    ) -> None:
-        owner = "WaypointController"
-        if not isinstance(grid, MazeGrid):
-            raise TypeError(f"{owner}: grid must be a MazeGrid, got {type(grid).__name__}")
-        if rng is not None and not isinstance(rng, np.random.Generator):
-            raise TypeError(f"{owner}: rng must be a numpy Generator or None, got {type(rng).__name__}")
-        self.grid = grid
-        self.rng = rng if rng is not None else np.random.default_rng()
-        self.jitter = real_scalar(jitter, "jitter", low=0.0, owner=owner)
-        self.solve_thresh = real_scalar(solve_thresh, "solve_thresh", low=0.0, owner=owner)
-        self.vel_thresh = real_scalar(vel_thresh, "vel_thresh", low=0.0, owner=owner)
-        self.target: tuple[int, int] | None = None
-        self.waypoints: list[tuple[float, float]] = []
-        self.index = 0
-        self._prev = (0.0, 0.0)
-
-    def plan(self, pos: np.ndarray, goal_xy: np.ndarray) -> None:
-        """Waypoints from the cell of ``pos`` to the cell of ``goal_xy``."""
-        start = tuple(int(v) for v in self.grid.xy_to_cell(pos))
-        target = tuple(int(v) for v in self.grid.xy_to_cell(goal_xy))
-        if self.grid.walls[target]:
-            raise ValueError(f"goal {np.asarray(goal_xy).tolist()} lies in a wall cell")
-        waypoints = []
-        for cell in cell_path(self.grid, start, target):  # type: ignore[arg-type]
-            wp = np.array(cell, dtype=np.float64)
-            if cell != target:
-                wp = wp - self.rng.uniform(size=2) * self.jitter
-            waypoints.append((float(wp[0]), float(wp[1])))
-        self.target = target  # type: ignore[assignment]
-        self.waypoints = waypoints
-        self.index = 0
-        self._prev = (float(pos[0]), float(pos[1]))
-
-    def update(self, x: float, y: float) -> tuple[tuple[float, float], bool]:
-        """The waypoint to track from ``(x, y)`` and whether the goal is solved (D4RL ``get_action``)."""
-        if self.target is None:
-            raise RuntimeError("WaypointController.update called before plan()")
-        tx, ty = self.target
-        moved = math.hypot(self._prev[0] - x, self._prev[1] - y)
-        solved = math.hypot(x - tx, y - ty) < self.solve_thresh and moved < self.vel_thresh
-        wp = (float(tx), float(ty)) if solved else self.waypoints[self.index]
-        if not solved and math.hypot(x - wp[0], y - wp[1]) < self.solve_thresh and moved < self.vel_thresh:
-            self.index = min(self.index + 1, len(self.waypoints) - 1)
-        self._prev = (x, y)
-        return wp, solved
 
 
 @dataclass
@@ -293,6 +182,53 @@ def generate_random_walk(
     controller.plan(start, goal)
 
     n = int(steps) // int(subsample)
+    obs, wps, goals, contact, leg_starts = _walk(
+        physics, controller, random_goal, goal, n, subsample, leg_limit, progress
+    )
+    meta = _walk_meta(maze, seed, n * subsample, subsample, leg_limit)
+    return RandomWalkDataset(
+        observations=obs[:n].astype(np.float32),
+        actions=obs[1:, :2].astype(np.float32),
+        waypoints=wps.astype(np.float32),
+        goals=goals.astype(np.float32),
+        wall_contact=contact,
+        episode_starts=np.zeros(1, dtype=np.int64),
+        leg_starts=np.unique(np.asarray(leg_starts, dtype=np.int64)),
+        meta=meta,
+    )
+
+
+def _walk_meta(maze: str, seed: int, raw_steps: int, subsample: int, leg_limit: int) -> dict[str, Any]:
+    """The meta dict of a walk: the format, its settings and the controller's constants."""
+    return {
+        "format": FORMAT,
+        "maze": maze,
+        "seed": int(seed),
+        "raw_steps": int(raw_steps),
+        "subsample": int(subsample),
+        "raw_dt": TIMESTEP,
+        "dt": TIMESTEP * int(subsample),
+        "max_leg_steps": leg_limit,
+        "controller": {"q_iterations": 50, "gamma": 0.99, "jitter": 0.2, "solve_thresh": 0.1, "pd": [10.0, 1.0]},
+        "coordinates": "cell units, x = row, y = column",
+    }
+
+
+def _walk(
+    physics: MazePhysics,
+    controller: WaypointController,
+    random_goal: Callable[[], np.ndarray],
+    goal: np.ndarray,
+    n: int,
+    subsample: int,
+    leg_limit: int,
+    progress: bool | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """Step the walk ``n * subsample`` raw steps from the physics' state toward ``goal`` (planned already).
+
+    Returns the kept states ``(n + 1, 4)`` (the last one after the final step),
+    waypoints and goals ``(n, 2)``, wall contacts ``(n,)`` and the samples where a new leg starts.
+    """
     obs = np.empty((n + 1, 4))
     wps = np.empty((n, 2))
     goals = np.empty((n, 2))
@@ -331,28 +267,7 @@ def generate_random_walk(
         obs[n] = (qpos[0], qpos[1], qvel[0], qvel[1])
     finally:
         bar.close()
-    meta = {
-        "format": FORMAT,
-        "maze": maze,
-        "seed": int(seed),
-        "raw_steps": n * int(subsample),
-        "subsample": int(subsample),
-        "raw_dt": TIMESTEP,
-        "dt": TIMESTEP * int(subsample),
-        "max_leg_steps": leg_limit,
-        "controller": {"q_iterations": 50, "gamma": 0.99, "jitter": 0.2, "solve_thresh": 0.1, "pd": [10.0, 1.0]},
-        "coordinates": "cell units, x = row, y = column",
-    }
-    return RandomWalkDataset(
-        observations=obs[:n].astype(np.float32),
-        actions=obs[1:, :2].astype(np.float32),
-        waypoints=wps.astype(np.float32),
-        goals=goals.astype(np.float32),
-        wall_contact=contact,
-        episode_starts=np.zeros(1, dtype=np.int64),
-        leg_starts=np.unique(np.asarray(leg_starts, dtype=np.int64)),
-        meta=meta,
-    )
+    return obs, wps, goals, contact, leg_starts
 
 
 def _mj_step() -> Any:
@@ -428,12 +343,6 @@ def load_transitions(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
 
 
 # -------------------------------------------------------------------- Minari
-def minari_root() -> Path:
-    """The folder Minari keeps local datasets in: ``MINARI_DATASETS_PATH``, else ``~/.minari/datasets`` (absolute)."""
-    root = os.environ.get("MINARI_DATASETS_PATH")
-    return Path(os.path.abspath(os.path.expanduser(root))) if root else Path.home() / ".minari" / "datasets"
-
-
 @dataclass(frozen=True)
 class GoalEpisode:
     """One goal-reaching episode of a walk: samples ``start`` to ``stop - 1`` (and the next observation).
@@ -500,30 +409,6 @@ def goal_episodes(dataset: RandomWalkDataset) -> list[GoalEpisode]:
     return episodes
 
 
-def _torn_minari_export(folder: Path) -> bool:
-    """Whether ``folder`` is what a killed export of an earlier version left: our dataset, with no episodes."""
-    meta_file = folder / "data" / "metadata.json"
-    try:
-        meta = json.loads(meta_file.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return not any(folder.rglob("*.hdf5"))  # not even metadata: nothing of value
-    if not isinstance(meta, dict):
-        return False
-    authors = meta.get("author")
-    authors = [authors] if isinstance(authors, str) else authors if isinstance(authors, list) else []
-    ours = not authors or any(str(a).startswith("steer-envs") for a in authors)
-    return ours and not meta.get("total_episodes")
-
-
-def _check_minari_id(dataset_id: Any) -> str:
-    if not isinstance(dataset_id, str) or not dataset_id or dataset_id != dataset_id.strip("/"):
-        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
-    parts = dataset_id.split("/")
-    if any(part in ("", ".", "..") for part in parts) or not re.fullmatch(r"[A-Za-z0-9_.\-/]+", dataset_id):
-        raise ValueError(f"dataset_id must be a Minari id such as 'steer/maze2d-large-v0', got {dataset_id!r}")
-    return dataset_id
-
-
 def to_minari(
     dataset: RandomWalkDataset,
     dataset_id: str,
@@ -533,12 +418,11 @@ def to_minari(
 ) -> Any:
     """Store ``dataset`` as a local Minari dataset, one episode per goal (:func:`goal_episodes`); returns it.
 
-    Needs a Minari storage backend (``pip install "minari[hdf5]"``). The
-    dataset goes to ``<root>/<dataset_id>``; ``root`` (a relative path is
-    taken from the working directory) defaults to Minari's own data path
-    (:func:`minari_root`: ``MINARI_DATASETS_PATH``, else
-    ``~/.minari/datasets``), where ``minari.load_dataset(dataset_id)`` finds
-    it; for another ``root``, load with ``MINARI_DATASETS_PATH=<root>``.
+    Needs the ``minari`` extra (``pip install "steer-envs[minari]"``: Minari and its hdf5 backend). The
+    dataset goes to ``<root>/<dataset_id>`` (``root`` defaults to Minari's data path,
+    :func:`~steer_envs.data.minari_export.minari_root`), written atomically by
+    :func:`~steer_envs.data.minari_export.store_minari_dataset` (which says where it
+    is found, and what happens to an existing dataset of that id).
 
     Episodes follow the env's rules: rewards are the env's sparse reward
     (:func:`goal_rewards`), an episode terminates on the step that reaches its
@@ -546,18 +430,10 @@ def to_minari(
     ``(x, y, vx, vy)`` (the env made with ``observe_velocity=True``), actions
     the next xy, step infos ``waypoint`` and ``goal``; ``env_id`` defaults to
     the maze's id.
-
-    The dataset is built in a temp folder next to its final place and renamed
-    there when complete (:func:`steer_envs.io.atomic_directory`), so a killed
-    export leaves no dataset (and its leftovers are removed by the next
-    export into the same folder); an existing complete dataset of that id is
-    refused (``FileExistsError``), a torn one left by a killed export of an
-    earlier version (no episodes) is replaced. ``MINARI_DATASETS_PATH`` is
-    the same after the call as before.
     """
     if not isinstance(dataset, RandomWalkDataset):
         raise TypeError(f"dataset must be a RandomWalkDataset, got {type(dataset).__name__}")
-    dataset_id = _check_minari_id(dataset_id)
+    dataset_id = check_minari_id(dataset_id)
     if env_id is not None and (not isinstance(env_id, str) or not env_id):
         raise ValueError(f"env_id must be a registered env id or None, got {env_id!r}")
     if root is not None and (not isinstance(root, (str, os.PathLike)) or not str(root).strip()):
@@ -565,93 +441,36 @@ def to_minari(
     episodes = goal_episodes(dataset)
     if not episodes:
         raise ValueError(f"dataset has no complete step to export ({len(dataset)} samples)")
-    if importlib.util.find_spec("h5py") is None and importlib.util.find_spec("pyarrow") is None:
-        raise ImportError('to_minari needs a Minari storage backend: pip install "minari[hdf5]"')
-    import gymnasium as gym
-    import minari
-    from minari.data_collector import EpisodeBuffer
-    from minari.dataset.minari_storage import MinariStorage
-    from minari.namespace import create_namespace, list_local_namespaces
-
+    require_minari("to_minari")
     if env_id is None:
         names = {"umaze": "Umaze", "medium": "Medium", "large": "Large"}
         env_id = f"steer_envs/Maze2D-{names[dataset.meta.get('maze', 'large')]}-v0"
-    # absolute from here on: Minari joins its data path with the id itself, and a relative path taken
-    # once from the working directory and once from the temp folder was the doubled path of #21
-    base = minari_root() if root is None else Path(os.path.abspath(os.path.expanduser(os.fspath(root))))
-    final = base.joinpath(*dataset_id.split("/"))
-    overwrite = False
-    if final.exists():
-        if not (final.is_dir() and _torn_minari_export(final)):
-            raise FileExistsError(
-                f"a Minari dataset {dataset_id!r} already exists at {final}; use another id or version"
-            )
-        overwrite = True
-    namespace = dataset_id.rsplit("/", 1)[0] if "/" in dataset_id else None
-    buffers = []
-    for k, ep in enumerate(episodes):
-        sl = slice(ep.start, ep.stop)
-        n = len(ep)
-        buffers.append(
-            EpisodeBuffer(
-                id=k,
-                observations=list(dataset.observations[ep.start : ep.stop + 1]),
-                actions=list(dataset.actions[sl]),
-                rewards=list(ep.rewards),
-                terminations=list((np.arange(n) == n - 1) & ep.terminated),
-                truncations=list((np.arange(n) == n - 1) & (not ep.terminated)),
-                infos={"waypoint": dataset.waypoints[sl], "goal": dataset.goals[sl]},
-            )
-        )
     reached = sum(ep.terminated for ep in episodes)
-    description = (
-        f"steer-envs maze2d random walk cut into {len(episodes)} goal episodes ({reached} reach their goal; "
-        f"reward: the env's sparse goal-cell reward): {json.dumps(dataset.meta)}"
+    return store_minari_dataset(
+        dataset_id,
+        [_minari_episode(dataset, ep) for ep in episodes],
+        env_id=env_id,
+        env_kwargs={"observe_velocity": True},
+        root=root,
+        algorithm_name="D4RL maze2d waypoint controller (random walk)",
+        author="steer-envs (steer_envs.data.maze_random_walk)",
+        description=f"steer-envs maze2d random walk cut into {len(episodes)} goal episodes ({reached} reach their "
+        f"goal; reward: the env's sparse goal-cell reward): {json.dumps(dataset.meta)}",
     )
-    env = gym.make(env_id, observe_velocity=True)
-    previous = os.environ.get("MINARI_DATASETS_PATH")
-    try:
-        if namespace is not None:
-            os.environ["MINARI_DATASETS_PATH"] = str(base)
-            if namespace not in list_local_namespaces():
-                create_namespace(namespace)
-        with atomic_directory(final, overwrite=overwrite) as build:
-            scratch = build.absolute() / "_minari"
-            os.environ["MINARI_DATASETS_PATH"] = str(scratch)
-            with warnings.catch_warnings():  # Minari recommends author/e-mail/permalink metadata; none applies here
-                warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
-                created = minari.create_dataset_from_buffers(
-                    dataset_id=dataset_id,
-                    buffer=buffers,
-                    env=env,
-                    algorithm_name="D4RL maze2d waypoint controller (random walk)",
-                    author="steer-envs (steer_envs.data.maze_random_walk)",
-                    description=description,
-                )
-                del created  # its storage points into the temp folder
-            scratch.joinpath(*dataset_id.split("/"), "data").rename(build / "data")
-            shutil.rmtree(scratch)
-    finally:
-        if previous is None:
-            os.environ.pop("MINARI_DATASETS_PATH", None)
-        else:
-            os.environ["MINARI_DATASETS_PATH"] = previous
-        env.close()
-    return minari.MinariDataset(MinariStorage.read(final / "data"))
 
 
-def minari_load_command(dataset_id: str, root: str | os.PathLike[str] | None = None) -> str:
-    """A shell line that loads the dataset ``dataset_id`` stored under ``root`` (default: Minari's data path).
-
-    >>> print(minari_load_command("steer/walk-v0", "/data/minari"))
-    MINARI_DATASETS_PATH=/data/minari python -c "import minari; print(minari.load_dataset('steer/walk-v0'))"
-    """
-    dataset_id = _check_minari_id(dataset_id)
-    code = f"import minari; print(minari.load_dataset({dataset_id!r}))"
-    line = f'python -c "{code}"'
-    if root is None:
-        return line
-    return f"MINARI_DATASETS_PATH={shlex.quote(os.path.abspath(os.path.expanduser(os.fspath(root))))} {line}"
+def _minari_episode(dataset: RandomWalkDataset, ep: GoalEpisode) -> dict[str, Any]:
+    """The Minari episode (``EpisodeBuffer`` fields) of one goal episode of ``dataset``."""
+    sl = slice(ep.start, ep.stop)
+    last = np.arange(len(ep)) == len(ep) - 1
+    return {
+        "observations": list(dataset.observations[ep.start : ep.stop + 1]),
+        "actions": list(dataset.actions[sl]),
+        "rewards": list(ep.rewards),
+        "terminations": list(last & ep.terminated),
+        "truncations": list(last & (not ep.terminated)),
+        "infos": {"waypoint": dataset.waypoints[sl], "goal": dataset.goals[sl]},
+    }
 
 
 # ----------------------------------------------------------------------- CLI
@@ -663,11 +482,7 @@ def _fail(message: str) -> int:
     return 2
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m steer_envs.data.maze_random_walk``: generate and save a random-walk dataset.
-
-    Exit 0 done, 2 a usage error or an output that cannot be written (one line on stderr).
-    """
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=_PROG,
         description="Generate the D4RL maze2d random walk (ITPS training data) as an .npz dataset.",
@@ -696,8 +511,11 @@ def main(argv: list[str] | None = None) -> int:
         help="folder to store the Minari dataset in instead (load it with MINARI_DATASETS_PATH=<folder>; the "
         "line to do so is printed)",
     )
-    args = parser.parse_args(argv)
+    return parser
 
+
+def _output_file(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """The ``.npz`` the CLI writes (``--out``, or the default name in that folder); exit 2 on a usage error."""
     if not args.out.strip():
         parser.error("--out must not be empty")
     out = Path(args.out)
@@ -712,9 +530,39 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--minari-root needs --minari-id")
     if args.minari_id is not None:
         try:
-            _check_minari_id(args.minari_id)
+            check_minari_id(args.minari_id)
         except ValueError as err:
             parser.error(f"--minari-id: {err}")
+    return out
+
+
+def _export_minari(ds: RandomWalkDataset, dataset_id: str, minari_root_arg: str | None) -> int:
+    """The CLI's ``--minari-id``: store ``ds`` with :func:`to_minari` and print where it went and how to load it."""
+    root = None if minari_root_arg is None else Path(os.path.abspath(minari_root_arg))
+    try:
+        data = to_minari(ds, dataset_id, root=root)
+    except (ImportError, OSError, ValueError, TypeError) as err:
+        return _fail(f"Minari dataset {dataset_id!r}: {err}")
+    where = root if root is not None else minari_root()
+    reached = sum(ep.terminated for ep in goal_episodes(ds))
+    print(
+        f"wrote Minari dataset {dataset_id!r} to {where.joinpath(*dataset_id.split('/'))}: "
+        f"{data.total_episodes} episodes ({reached} reach their goal), {data.total_steps} steps"
+    )
+    # name the folder whenever it is not where a plain minari.load_dataset looks
+    default = root is None and "MINARI_DATASETS_PATH" not in os.environ
+    print(f"load it with: {minari_load_command(dataset_id, None if default else where)}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m steer_envs.data.maze_random_walk``: generate and save a random-walk dataset.
+
+    Exit 0 done, 2 a usage error or an output that cannot be written (one line on stderr).
+    """
+    parser = _parser()
+    args = parser.parse_args(argv)
+    out = _output_file(parser, args)
     tic = time.perf_counter()
     try:
         ds = generate_random_walk(args.maze, args.steps, args.seed, subsample=args.subsample, progress=args.progress)
@@ -732,20 +580,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"speed: {raw / elapsed:,.0f} raw steps/s ({elapsed:.1f} s)")
     print(f"waypoints in wall cells: {in_wall:.4%}; samples touching a wall: {float(ds.wall_contact.mean()):.4%}")
     if args.minari_id:
-        root = None if args.minari_root is None else Path(os.path.abspath(args.minari_root))
-        try:
-            data = to_minari(ds, args.minari_id, root=root)
-        except (ImportError, OSError, ValueError, TypeError) as err:
-            return _fail(f"Minari dataset {args.minari_id!r}: {err}")
-        where = root if root is not None else minari_root()
-        reached = sum(ep.terminated for ep in goal_episodes(ds))
-        print(
-            f"wrote Minari dataset {args.minari_id!r} to {where.joinpath(*args.minari_id.split('/'))}: "
-            f"{data.total_episodes} episodes ({reached} reach their goal), {data.total_steps} steps"
-        )
-        # name the folder whenever it is not where a plain minari.load_dataset looks
-        default = root is None and "MINARI_DATASETS_PATH" not in os.environ
-        print(f"load it with: {minari_load_command(args.minari_id, None if default else where)}")
+        return _export_minari(ds, args.minari_id, args.minari_root)
     return 0
 
 

@@ -15,7 +15,7 @@ the public GLiDE robosuite facts):
 
 * ``"kernel"`` (2 of 3): a window of >= 20 steps of the reference path is
   pulled toward a target within +-0.1 m of the path (the Gaussian kernel of
-  :func:`~steer_envs.data.counterfactual.kernel_perturbation`); the last 14
+  :func:`~steer_envs.data.perturbations.kernel_perturbation`); the last 14
   steps are never perturbed.
 * ``"gripper"`` (1 of 3): the gripper is forced open for 5-20 steps.
 

@@ -9,7 +9,7 @@ demonstration's final segment, its final state).
 
 Where the labels come from is the caller's choice: the env's sensors or the
 recorded modes of a demonstration (TLI, LTL-DS), or a learned classifier
-(GLiDE: :func:`~steer_envs.baselines.glide.classifier.label_demonstrations`).
+(GLiDE: :func:`~steer_envs.baselines.glide.modes.label_demonstrations`).
 Per-step labels may be mode indices or names, boolean sensor rows
 ``(T, num_aps)``, or ``{ap: bool}`` dicts; with a :class:`TaskSpec` sensor
 readings are mapped to the task's mode names (``task.mode_of``), otherwise

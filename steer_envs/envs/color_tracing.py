@@ -51,11 +51,9 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage = the index of the last tile visited (yellow 0 ... red 5),
-    sub-goal = the next tile (distance to its rectangle).
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage = the index of the last tile
+    visited (yellow 0 ... red 5), sub-goal = the next tile (distance to its rectangle).
 
 Termination
     On success (red reached). Violations are reported, never terminal; truncation at 1000 steps
@@ -69,11 +67,13 @@ from __future__ import annotations
 
 import itertools
 from types import MappingProxyType
+from typing import Unpack
 
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, RectRegionsModel, TaskReading
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import Canvas
 
 WORKSPACE_HALF_WIDTH = 8.0
@@ -225,7 +225,7 @@ def reentry_target(pos: np.ndarray, tile: int | np.ndarray) -> np.ndarray:
     return np.where(clear(p, goal)[:, None], goal, np.where(clear(p, over)[:, None], over, away))
 
 
-class ColorTracingModel(KinematicTaskModel):
+class ColorTracingModel(RectRegionsModel):
     """Batched task physics of ColorTracing; see the module docstring.
 
     Task memory (2 slots): ``[last tile visited (index into TILES), red reached]``.
@@ -244,12 +244,7 @@ class ColorTracingModel(KinematicTaskModel):
     def __init__(self, automaton: str | None = None) -> None:
         self.automaton = automaton
         self.task = color_task(automaton)
-        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
-        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
-        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
-        self._rect_stack = np.stack([self.rects[n] for n in TILES])
-        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
-        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
+        self.set_geometry(WORKSPACE_HALF_WIDTH, RECTS, TILES, START_BOX)
         #: mode index of the D mode entered from each tile (red: never left, the memory freezes)
         self._exit = np.array([MODES.index(EXIT_MODE.get(t, "dark4")) for t in TILES], dtype=np.int64)
         valid = np.eye(len(MODES), dtype=bool)
@@ -260,9 +255,6 @@ class ColorTracingModel(KinematicTaskModel):
 
     def regions(self, pos: np.ndarray) -> np.ndarray:
         return _tile_at(np.asarray(pos, dtype=np.float64).reshape(-1, 2))
-
-    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
 
     def reset_memory(self, pos: np.ndarray) -> np.ndarray:
         reg = self.regions(pos)
@@ -311,9 +303,8 @@ class ColorTracingEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
-        reward_type, observe_sensors, normalize_actions: the RL options of every 2D env.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
         automaton: the replanning automaton whose re-entries are valid (``"a"``, ``"b"``, ``"c"``;
             ``None``: any of them).
 
@@ -328,28 +319,12 @@ class ColorTracingEnv(Kinematic2DEnv):
     """
 
     def __init__(
-        self,
-        dt: float = 0.01,
-        max_speed: float = 10.0,
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
-        automaton: str | None = None,
+        self, dt: float = 0.01, max_speed: float = 10.0, automaton: str | None = None, **options: Unpack[EnvOptions]
     ) -> None:
         if automaton is not None and not isinstance(automaton, str):
             raise TypeError(f"ColorTracingEnv: automaton must be None or a str, got {type(automaton).__name__}")
         super().__init__(
-            ColorTracingModel(automaton),
-            dt=dt,
-            max_speed=max_speed,
-            terminate_on_violation=False,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
+            ColorTracingModel(automaton), dt=dt, max_speed=max_speed, terminate_on_violation=False, **options
         )
         self.model: ColorTracingModel
 

@@ -25,11 +25,9 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 20.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage 1 at success, else 0, sub-goal = the attractor (``phi =
-    -1`` once the agent has left the mode: success is then out of reach).
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage is 1 at success, else 0, sub-goal
+    = the attractor (``phi = -1`` once the agent has left the mode: success is then out of reach).
 
 Termination
     On success (within 0.4 of the attractor, never having left the mode) and, with the default
@@ -41,7 +39,7 @@ Registered ids
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 from shapely.geometry import MultiPoint, Polygon
@@ -49,7 +47,8 @@ from shapely.geometry.polygon import orient
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, TaskReading, ViolationLatchModel
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -125,7 +124,7 @@ def check_layout_seed(layout_seed: Any, owner: str | None = None) -> int:
     return integer(layout_seed, "layout_seed", low=0, owner=owner)
 
 
-class ConvexModeModel(KinematicTaskModel):
+class ConvexModeModel(ViolationLatchModel):
     """Batched task physics of ConvexMode (one convex mode, one attractor).
 
     Public geometry (all float64, fixed by ``layout_seed``):
@@ -226,15 +225,9 @@ class ConvexModeModel(KinematicTaskModel):
         )
 
     # ---------------------------------------------------------------- task
-    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        violation = self.inside(prev_pos) & ~self.inside(pos)
-        new_memory = memory.copy()
-        new_memory[:, 0] |= violation
-        return new_memory, violation
-
-    def teleport(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
-        """A push is not the policy leaving the mode: the memory is kept as it was."""
-        return memory.copy()
+    def violates(self, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Leaving the mode (a push out of it is not the policy's move: :meth:`teleport` keeps the memory)."""
+        return self.inside(prev_pos) & ~self.inside(pos)
 
     def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
         inside = self.inside(pos)
@@ -282,8 +275,8 @@ class ConvexModeEnv(Kinematic2DEnv):
             real in ``[0, MAX_START_NOISE]``.
         terminate_on_violation: end the episode when the agent leaves the mode.
         dt, max_speed: integration step and speed limit (thesis: 0.01, 20).
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
     >>> import gymnasium as gym
     >>> import numpy as np
     >>> import steer_envs
@@ -301,22 +294,14 @@ class ConvexModeEnv(Kinematic2DEnv):
         terminate_on_violation: bool = True,
         dt: float = 0.01,
         max_speed: float = 20.0,
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
+        **options: Unpack[EnvOptions],
     ) -> None:
         super().__init__(
             ConvexModeModel(layout_seed=layout_seed, start_noise=start_noise),
             dt=dt,
             max_speed=max_speed,
             terminate_on_violation=terminate_on_violation,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
+            **options,
         )
         self.model: ConvexModeModel
 

@@ -82,12 +82,10 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage = 2 x foods in the pot + 1 while holding a food still to
-    deliver, sub-goal = the pot's entry from the held food's corridor while that food is not yet in the
-    pot, else the nearest loading point of a food not yet in the pot.
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage = 2 x foods in the pot + 1 while
+    holding a food still to deliver, sub-goal = the pot's entry from the held food's corridor while that food is not yet
+    in the pot, else the nearest loading point of a food not yet in the pot.
 
 Termination
     On success (both foods in the pot). Spills are reported, never terminal; truncation at 2000 steps
@@ -100,12 +98,14 @@ Registered ids
 from __future__ import annotations
 
 from types import MappingProxyType
+from typing import Unpack
 
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import one_of
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, RectRegionsModel, TaskReading
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -200,7 +200,7 @@ def _cooking_task() -> TaskSpec:
 COOKING_TASK = _cooking_task()
 
 
-class CookingModel(KinematicTaskModel):
+class CookingModel(RectRegionsModel):
     """Batched task physics of Cooking; see the module docstring.
 
     Public geometry (float64 arrays):
@@ -219,13 +219,8 @@ class CookingModel(KinematicTaskModel):
 
     def __init__(self) -> None:
         self.task = COOKING_TASK
-        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
-        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
-        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
+        self.set_geometry(WORKSPACE_HALF_WIDTH, RECTS, REGION_NAMES[1:], START_BOX)
         self.attractors = {k: np.asarray(v, dtype=np.float64) for k, v in TRANSITION_ATTRACTORS.items()}
-        self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])  # in label order
-        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
-        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
 
     # ------------------------------------------------------------ geometry
     def in_rect(self, name: str, pos: np.ndarray) -> np.ndarray:
@@ -234,16 +229,6 @@ class CookingModel(KinematicTaskModel):
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 2)
         x0, y0, x1, y1 = self.rects[name]
         return (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
-
-    def regions(self, pos: np.ndarray) -> np.ndarray:
-        p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
-        r = self._rect_stack
-        inside = (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
-        # labels grow in drawing order, so "the later region wins" is a max over the matches
-        return np.max(inside * np.arange(1, len(r) + 1), axis=1, initial=WHITE).astype(np.int64)
-
-    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
 
     # ---------------------------------------------------------------- task
     def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -316,8 +301,8 @@ class CookingEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
 
     Spills are reported, never terminal (``terminate_on_violation=False``).
     >>> import gymnasium as gym
@@ -328,27 +313,8 @@ class CookingEnv(Kinematic2DEnv):
     ('w0', ('hc', 'hb', 'p', 'ch', 'br'))
     """
 
-    def __init__(
-        self,
-        dt: float = 0.01,
-        max_speed: float = 10.0,
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
-    ) -> None:
-        super().__init__(
-            CookingModel(),
-            dt=dt,
-            max_speed=max_speed,
-            terminate_on_violation=False,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
-        )
+    def __init__(self, dt: float = 0.01, max_speed: float = 10.0, **options: Unpack[EnvOptions]) -> None:
+        super().__init__(CookingModel(), dt=dt, max_speed=max_speed, terminate_on_violation=False, **options)
         self.model: CookingModel
 
 

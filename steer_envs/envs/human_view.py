@@ -2,7 +2,8 @@
 
 pygame is an optional extra (``pip install "steer-envs[human]"``) and is
 imported only when a :class:`HumanView` is made; without it,
-:class:`gymnasium.error.DependencyNotInstalled` names the extra. The window
+:class:`~steer_envs.core.extras.MissingExtraError` (an ``ImportError`` and
+Gymnasium's ``DependencyNotInstalled``) names the extra. The window
 follows Gymnasium's classic-control envs: it opens on the first frame, each
 frame pumps pygame's events and waits for the clock (``fps`` frames per
 second), and :meth:`HumanView.close` quits pygame.
@@ -15,24 +16,18 @@ from types import ModuleType
 from typing import Any
 
 import numpy as np
-from gymnasium.error import DependencyNotInstalled
 
+from steer_envs.core.extras import install_command, require
 from steer_envs.core.validation import real_scalar
 
 #: how users get pygame
-INSTALL_HINT = 'pip install "steer-envs[human]"'
+INSTALL_HINT = install_command("human")
 
 
 def import_pygame() -> ModuleType:
-    """The ``pygame`` module, or :class:`~gymnasium.error.DependencyNotInstalled` with the install hint."""
+    """The ``pygame`` module, or :class:`~steer_envs.core.extras.MissingExtraError` with the install hint."""
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # no banner on stdout (logs stay clean)
-    try:
-        import pygame
-    except ImportError as exc:  # also ``sys.modules["pygame"] = None``
-        raise DependencyNotInstalled(
-            f'render_mode="human" needs pygame, which is not installed: run `{INSTALL_HINT}`'
-        ) from exc
-    return pygame
+    return require("pygame", "human", 'render_mode="human"')
 
 
 class HumanView:

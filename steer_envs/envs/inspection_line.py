@@ -38,11 +38,9 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage = the mode (reach_entry 0, inspect 1, released 2), sub-goal
-    = the entry's centre ``(-4.5, 0)``, then ``(4.5, 0)`` just inside the release station.
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage = the mode (reach_entry 0, inspect
+    1, released 2), sub-goal = the entry's centre ``(-4.5, 0)``, then ``(4.5, 0)`` just inside the release station.
 
 Termination
     On success (released after the inspection). Violations are reported, never terminal; truncation at
@@ -55,11 +53,13 @@ Registered ids
 from __future__ import annotations
 
 from types import MappingProxyType
+from typing import Unpack
 
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, RectRegionsModel, TaskReading
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 WORKSPACE_HALF_WIDTH = 8.0
@@ -95,7 +95,7 @@ INSPECTION_TASK = TaskSpec(
 )
 
 
-class InspectionLineModel(KinematicTaskModel):
+class InspectionLineModel(RectRegionsModel):
     """Batched task physics of InspectionLine; see the module docstring.
 
     Public geometry: ``rects`` (region name -> ``(x0, y0, x1, y1)``), ``start_low`` / ``start_high``.
@@ -108,21 +108,7 @@ class InspectionLineModel(KinematicTaskModel):
 
     def __init__(self) -> None:
         self.task = INSPECTION_TASK
-        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
-        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
-        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
-        self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])
-        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
-        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
-
-    def regions(self, pos: np.ndarray) -> np.ndarray:
-        p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
-        r = self._rect_stack
-        inside = (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
-        return np.max(inside * np.arange(1, len(r) + 1), axis=1, initial=WHITE).astype(np.int64)
-
-    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
+        self.set_geometry(WORKSPACE_HALF_WIDTH, RECTS, REGION_NAMES[1:], START_BOX)
 
     def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         prev_reg, reg = self.regions(prev_pos), self.regions(pos)
@@ -165,8 +151,8 @@ class InspectionLineEnv(Kinematic2DEnv):
 
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
 
     >>> import gymnasium as gym
     >>> import steer_envs
@@ -178,27 +164,8 @@ class InspectionLineEnv(Kinematic2DEnv):
     'inspect'
     """
 
-    def __init__(
-        self,
-        dt: float = 0.01,
-        max_speed: float = 10.0,
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
-    ) -> None:
-        super().__init__(
-            InspectionLineModel(),
-            dt=dt,
-            max_speed=max_speed,
-            terminate_on_violation=False,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
-        )
+    def __init__(self, dt: float = 0.01, max_speed: float = 10.0, **options: Unpack[EnvOptions]) -> None:
+        super().__init__(InspectionLineModel(), dt=dt, max_speed=max_speed, terminate_on_violation=False, **options)
         self.model: InspectionLineModel
 
 

@@ -3,8 +3,8 @@
 A domain is written once as a :class:`KinematicTaskModel`: *batched*, pure-numpy
 task physics over ``N`` agents (geometry, task memory, sensors, success,
 violations). :class:`Kinematic2DEnv` runs it with ``N = 1`` behind the
-Gymnasium ``Env`` API; :class:`Kinematic2DVectorEnv` runs ``N = num_envs`` in
-one numpy call per step (``gymnasium.make_vec(..., vectorization_mode=
+Gymnasium ``Env`` API; :class:`~steer_envs.envs.kinematic_vector.Kinematic2DVectorEnv`
+runs ``N = num_envs`` in one numpy call per step (``gymnasium.make_vec(..., vectorization_mode=
 "vector_entry_point")``), which is what makes large rollouts cheap.
 
 Dynamics (thesis ch. 3/4): single integrator ``x' = x + dt * u`` with the speed
@@ -16,36 +16,47 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, TypedDict
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import bool_array, boolean, describe, integer, one_of, real_array, real_scalar
+from steer_envs.core.validation import boolean, describe, integer, real_scalar
+from steer_envs.envs.checks import (
+    RewardType,
+    check_action,
+    check_options,
+    check_render_mode,
+    check_reward_type,
+    check_seed,
+    check_xy,
+)
 from steer_envs.envs.human_view import HumanView
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: accepted ``render_size`` (pixels per side): a region map above this size costs hundreds of MB to draw.
 RENDER_SIZE_RANGE = (8, 1024)
-#: largest ``num_envs`` of a vector env (its state arrays are allocated up front).
-MAX_NUM_ENVS = 1_000_000
 #: largest accepted step length (s) and speed limit: beyond them a step leaves every workspace and the
 #: action space's float32 bounds overflow
 MAX_DT = 1e3
 MAX_SPEED = 1e6
-#: accepted ``reward_type`` values (Gymnasium-Robotics' names): ``"sparse"`` (the default) or ``"dense"``.
-REWARD_TYPES: tuple[str, ...] = ("sparse", "dense")
-RewardType = Literal["sparse", "dense"]
 #: dense reward: the reward of one mode advanced (the potential's unit, see :meth:`KinematicTaskModel.potential`).
 #: Large enough that moving toward a sub-goal earns a per-step reward
 #: SAC's default entropy bonus does not drown (PolygonNav: ~0.4 a step at full speed).
 DENSE_REWARD_SCALE = 100.0
+
+
+class EnvOptions(TypedDict, total=False):
+    """The keyword options every 2D kinematic env passes on to :class:`Kinematic2DEnv` (its ``Args``)."""
+
+    render_mode: str | None
+    render_size: int
+    reward_type: RewardType
+    observe_sensors: bool
+    normalize_actions: bool
 
 
 @dataclass
@@ -138,7 +149,78 @@ class KinematicTaskModel(ABC):
         """Extra drawing on top of the region map (attractors, outlines)."""
 
 
-class _PotentialMemo:
+class ViolationLatchModel(KinematicTaskModel):
+    """A :class:`KinematicTaskModel` whose one memory slot latches whether the agent ever moved invalidly.
+
+    Subclasses say which moves are invalid (:meth:`violates`); a push (:meth:`teleport`) is not
+    the agent's move, so it keeps the memory as it was.
+    """
+
+    memory_size = 1
+
+    @abstractmethod
+    def violates(self, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Whether each move ``prev_pos -> pos`` is invalid, ``(N,)`` bool."""
+
+    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        violation = self.violates(prev_pos, pos)
+        new_memory = memory.copy()
+        new_memory[:, 0] |= violation
+        return new_memory, violation
+
+    def teleport(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """A push is not a move made by the agent: the memory is kept as it was."""
+        return memory.copy()
+
+
+class RectRegionsModel(KinematicTaskModel):
+    """A :class:`KinematicTaskModel` on a square workspace whose regions are closed rectangles.
+
+    :meth:`set_geometry` sets ``low`` / ``high``, ``rects`` (name -> ``(x0, y0, x1, y1)``)
+    and the uniform start box ``start_low`` / ``start_high``; region ``i + 1`` is
+    the ``i``-th rectangle of ``order`` (the later one wins where they overlap),
+    0 lies outside all of them.
+    """
+
+    rects: dict[str, np.ndarray]
+    start_low: np.ndarray
+    start_high: np.ndarray
+
+    def set_geometry(
+        self,
+        half_width: float,
+        rects: Mapping[str, Sequence[float]],
+        order: Sequence[str],
+        start_box: tuple[Sequence[float], Sequence[float]],
+    ) -> None:
+        """The workspace ``[-half_width, half_width]^2``, the rectangles (labelled in ``order``), the start box."""
+        self.low = np.full(2, -half_width)
+        self.high = np.full(2, half_width)
+        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in rects.items()}
+        self._rect_stack = np.stack([self.rects[n] for n in order])
+        self.start_low = np.asarray(start_box[0], dtype=np.float64)
+        self.start_high = np.asarray(start_box[1], dtype=np.float64)
+
+    def in_rects(self, pos: np.ndarray) -> np.ndarray:
+        """Whether each point lies in each labelled rectangle: ``(N, 2) -> (N, R)`` bool."""
+        p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
+        r = self._rect_stack
+        return (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
+
+    @staticmethod
+    def last_label(inside: np.ndarray) -> np.ndarray:
+        """The label ``i + 1`` of the last region ``i`` holding each point (``(N, R)`` bool), 0 for none."""
+        # labels grow in drawing order, so "the later region wins" is a max over the matches
+        return np.max(inside * np.arange(1, inside.shape[1] + 1), axis=1, initial=0).astype(np.int64)
+
+    def regions(self, pos: np.ndarray) -> np.ndarray:
+        return self.last_label(self.in_rects(pos))
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
+
+
+class PotentialMemo:
     """``model.potential(memory, pos)``, reusing the last value for the same state.
 
     A dense step asks for the potential before and after it, and its "before"
@@ -239,7 +321,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         self._memory = np.zeros((1, model.memory_size), dtype=np.int64)
         self._trail: list[np.ndarray] = []
         self._background: np.ndarray | None = None
-        self._potential = _PotentialMemo(model)
+        self._potential = PotentialMemo(model)
 
     # ----------------------------------------------------------------- state
     @property
@@ -288,9 +370,9 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         """
         owner = f"{type(self).__name__}.reset"
         super().reset(seed=check_seed(seed, owner))
-        options = check_options(options, _KINEMATIC_OPTIONS, owner)
+        options = check_options(options, RESET_OPTIONS, owner)
         if options.get("state") is not None:
-            self._pos = _check_xy(options["state"], "options['state']", owner)[None, :]
+            self._pos = check_xy(options["state"], "options['state']", owner)[None, :]
             self._pos = np.clip(self._pos, self.model.low, self.model.high)
         else:
             self._pos = self.model.sample_start(self.np_random, 1).astype(np.float64)
@@ -302,7 +384,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Move by ``dt * action``; the action (2 finite reals) is clipped to speed ``max_speed``."""
-        velocity = self.velocity_of(_check_action(action, self.action_space, f"{type(self).__name__}.step"))
+        velocity = self.velocity_of(check_action(action, self.action_space, f"{type(self).__name__}.step"))
         prev, prev_memory = self._pos, self._memory
         self._pos = np.clip(prev + self.dt * velocity[None, :], self.model.low, self.model.high)
         self._memory, violation = self.model.advance(self._memory, prev, self._pos)
@@ -329,7 +411,7 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         owner = f"{type(self).__name__}.perturb"
         if (delta is None) == (to is None):
             raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target state)")
-        target = self._pos[0] + _check_xy(delta, "delta", owner) if to is None else _check_xy(to, "to", owner)
+        target = self._pos[0] + check_xy(delta, "delta", owner) if to is None else check_xy(to, "to", owner)
         prev = self._pos
         self._pos = np.clip(target, self.model.low, self.model.high)[None, :]
         self._memory = self.model.teleport(self._memory, prev, self._pos)
@@ -355,7 +437,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
     def draw_frame(self, pos: np.ndarray, trail: Sequence[np.ndarray]) -> np.ndarray:
         """One ``rgb_array`` frame: the region map, the path ``trail`` and the agent at ``pos`` (uint8 HxWx3).
 
-        :meth:`render` draws this env's state with it, :meth:`Kinematic2DVectorEnv.render` each agent's.
+        :meth:`render` draws this env's state with it,
+        :meth:`~steer_envs.envs.kinematic_vector.Kinematic2DVectorEnv.render` each agent's.
         """
         canvas = Canvas(self.model.low, self.model.high, self.render_size, self.render_size)
         if self._background is None:
@@ -369,230 +452,8 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         return canvas.image
 
 
-class Kinematic2DVectorEnv(VectorEnv):
-    """``num_envs`` agents of one domain stepped together in numpy.
-
-    A drop-in for the sync vector env of the same id (``gymnasium.make_vec(...,
-    vectorization_mode="sync")``), only faster: the same dynamics, rewards,
-    termination and ``NEXT_STEP`` autoreset (Gymnasium's default), and the same
-    ``infos`` key for key, as Gymnasium's ``VectorEnv._add_info`` batches the single
-    env's info: ``mode`` (int64), ``mode_name`` (object array of str), ``sensors``
-    (a dict AP -> ``(num_envs,)`` bool array, with its ``_AP`` masks), ``success``,
-    ``is_success``, ``constraint_violation`` and ``perturbed`` (bool), each key with
-    its all-True ``_key`` mask. Each agent draws its starts from its own random
-    generator: ``reset(seed=s)`` seeds agent ``i`` with ``s + i`` (or takes a list
-    of ``num_envs`` seeds), so agent ``i`` starts where a single env reset with
-    ``seed=s + i`` starts and, given the same actions, follows the same path
-    (autoresets included). ``render()`` returns a tuple of one frame per agent
-    (each what the single env would draw), as the sync vector env does;
-    ``render_mode="human"`` (one window) is single-env only and refused with a ``ValueError``.
-
-    Unlike the sync vector env, ``reset(options={"state": xy})`` takes one start
-    per agent, ``xy`` of shape ``(num_envs, 2)``; :meth:`perturb` pushes a subset.
-
-    >>> import gymnasium as gym
-    >>> import numpy as np
-    >>> import steer_envs
-    >>> venv = gym.make_vec("steer_envs/PolygonNav-3Mode-v0", num_envs=4, vectorization_mode="vector_entry_point")
-    >>> obs, infos = venv.reset(seed=0)
-    >>> obs, rewards, terminated, truncated, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
-    >>> obs.shape, infos["mode"].shape, sorted(infos["sensors"]), infos["mode_name"][0]
-    ((4, 2), (4,), ['_in_p1', '_in_p2', 'in_p1', 'in_p2'], 'free')
-    """
-
-    metadata: dict[str, Any] = {  # noqa: RUF012 - VectorEnv's type
-        "render_modes": ["rgb_array"],
-        "render_fps": 30,
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
-    }
-
-    def __init__(self, env: Kinematic2DEnv, num_envs: int, max_episode_steps: int | None = None) -> None:
-        owner = type(self).__name__
-        if not isinstance(env, Kinematic2DEnv):
-            raise TypeError(f"{owner}: env must be a Kinematic2DEnv, got {describe(env)}")
-        self.env = env
-        self.model = env.model
-        self.num_envs = integer(num_envs, "num_envs", low=1, high=MAX_NUM_ENVS, owner=owner)
-        self.max_episode_steps = (
-            None if max_episode_steps is None else integer(max_episode_steps, "max_episode_steps", low=1, owner=owner)
-        )
-        self.single_observation_space = env.observation_space
-        self.single_action_space = env.action_space
-        self.observation_space = batch_space(env.observation_space, self.num_envs)
-        self.action_space = batch_space(env.action_space, self.num_envs)
-        if env.render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"{owner}: render_mode={env.render_mode!r} is single-env only; use 'rgb_array' or None")
-        self.render_mode = env.render_mode
-        n = self.num_envs
-        self._pos = np.zeros((n, 2))
-        self._memory = np.zeros((n, self.model.memory_size), dtype=np.int64)
-        self._elapsed = np.zeros(n, dtype=np.int64)
-        self._needs_reset = np.zeros(n, dtype=bool)
-        self._mode_names = np.array(self.model.task.modes, dtype=object)
-        self._potential = _PotentialMemo(self.model)
-        # agent i's generator (a single env's ``np_random``), made when first needed from its pending seed
-        self._rngs: list[np.random.Generator | None] = [None] * n
-        self._pending_seeds: list[int | None] = [None] * n
-        self._trails: list[list[np.ndarray]] = [[] for _ in range(n)] if self.render_mode is not None else []
-
-    def _rng(self, i: int) -> np.random.Generator:
-        """Agent ``i``'s generator, seeded like a single env's ``np_random`` (its pending seed, else at random)."""
-        rng = self._rngs[i]
-        if rng is None:
-            rng, _ = seeding.np_random(self._pending_seeds[i])
-            self._rngs[i] = rng
-        return rng
-
-    def _starts(self, agents: np.ndarray) -> np.ndarray:
-        """Fresh starts ``(len(agents), 2)``, each drawn as a single env's ``reset`` draws it (one per generator)."""
-        return np.concatenate(
-            [self.model.sample_start(self._rng(int(i)), 1) for i in agents], axis=0, dtype=np.float64
-        ).reshape(-1, 2)
-
-    def _obs(self) -> np.ndarray:
-        sensors = self.model.read(self._memory, self._pos).sensors if self.env.observe_sensors else None
-        return observe(self._pos, sensors)
-
-    def _infos(self, violation: np.ndarray, perturbed: np.ndarray | None = None) -> dict[str, Any]:
-        """The single env's info of every agent, batched as ``VectorEnv._add_info`` does (``_key`` masks)."""
-        n = self.num_envs
-        aps = self.model.task.sensors
-        reading = self.model.read(self._memory, self._pos)
-        mode = reading.mode.astype(np.int64)
-        success = reading.success.astype(bool)
-        # one allocation for every ``_key`` mask and one for the sensor columns (rows: separate arrays to the user)
-        masks = np.ones((len(aps) + 7, n), dtype=bool)
-        columns = np.ascontiguousarray(np.asarray(reading.sensors, dtype=bool).T)
-        sensors: dict[str, np.ndarray] = {}
-        for j, ap in enumerate(aps):
-            sensors[ap], sensors[f"_{ap}"] = columns[j], masks[7 + j]
-        values: dict[str, Any] = {
-            "mode": mode,
-            "mode_name": self._mode_names[mode],
-            "sensors": sensors,
-            "success": success,
-            "is_success": success.copy(),  # stable-baselines3's name, as in the single env
-            "constraint_violation": np.array(violation, dtype=bool),
-            "perturbed": np.zeros(n, dtype=bool) if perturbed is None else perturbed.copy(),
-        }
-        infos: dict[str, Any] = {}
-        for j, (key, value) in enumerate(values.items()):
-            infos[key], infos[f"_{key}"] = value, masks[j]
-        return infos
-
-    def reset(
-        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start all episodes, agent ``i`` as a single env reset with ``seed + i`` (see the class docstring).
-
-        ``seed``: None (each agent's generator goes on), an int >= 0, or a list of ``num_envs``
-        seeds (None or int >= 0), as the sync vector env takes them. ``options={"state": xy}`` with
-        ``xy`` of shape ``(num_envs, 2)`` sets the starts (clipped onto the workspace).
-        """
-        owner = f"{type(self).__name__}.reset"
-        seeds = check_vector_seed(seed, self.num_envs, owner)
-        options = check_options(options, _KINEMATIC_OPTIONS, owner)
-        states = None
-        if options.get("state") is not None:
-            states = real_array(options["state"], "options['state']", shape=(self.num_envs, 2), owner=owner)
-        if seed is not None and not isinstance(seed, list | tuple):  # the vector env's own ``np_random``
-            super().reset(seed=seeds[0])
-        for i, s in enumerate(seeds):
-            if s is not None:
-                self._rngs[i], self._pending_seeds[i] = None, s
-        if states is not None:
-            self._pos = np.clip(states, self.model.low, self.model.high)
-        else:
-            self._pos = self._starts(np.arange(self.num_envs))
-        self._memory = self.model.reset_memory(self._pos)
-        self._elapsed[:] = 0
-        self._needs_reset[:] = False
-        if self.render_mode is not None:
-            self._trails = [[p.copy()] for p in self._pos]
-        return self._obs(), self._infos(np.zeros(self.num_envs, dtype=bool))
-
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every agent; ``actions`` is ``(num_envs, 2)`` finite reals (the single env's rules, per row)."""
-        actions = real_array(actions, "actions", shape=(self.num_envs, 2), owner=f"{type(self).__name__}.step")
-        velocity = self.env.velocity_of(actions)
-        prev = self._pos
-        dense = self.env.reward_type == "dense"
-        before = self._potential(self._memory, prev) if dense else np.zeros(self.num_envs)
-        moved = np.clip(prev + self.env.dt * velocity, self.model.low, self.model.high)
-        memory, violation = self.model.advance(self._memory, prev, moved)
-        # agents whose episode ended last step are reset instead of moved (their own generator draws the start)
-        resetting = self._needs_reset
-        if resetting.any():
-            agents = np.flatnonzero(resetting)
-            fresh = self._starts(agents)
-            moved[resetting] = fresh
-            memory[resetting] = self.model.reset_memory(fresh)
-            violation = violation & ~resetting
-        self._pos, self._memory = moved, memory
-        self._elapsed = np.where(resetting, 0, self._elapsed + 1)
-        infos = self._infos(violation)
-        after = self._potential(self._memory, self._pos) if dense else before
-        rewards = self.env.rewards(infos["success"], violation, before, after)
-        terminated = infos["success"] | (self.env.terminate_on_violation & violation)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        if self.max_episode_steps is not None:
-            truncated = self._elapsed >= self.max_episode_steps
-        terminated &= ~resetting
-        truncated &= ~resetting
-        rewards = np.where(resetting, 0.0, rewards)
-        self._needs_reset = terminated | truncated
-        if self.render_mode is not None:
-            for i in range(self.num_envs):
-                if resetting[i]:
-                    self._trails[i] = [self._pos[i].copy()]
-                else:
-                    self._trails[i].append(self._pos[i].copy())
-        return self._obs(), rewards, terminated, truncated, infos
-
-    def perturb(self, to: np.ndarray, mask: np.ndarray) -> dict[str, Any]:
-        """Move the agents selected by ``mask`` (``(num_envs,)`` bool) to ``to[mask]``: a push from outside.
-
-        The batched counterpart of :meth:`Kinematic2DEnv.perturb` (``to=``): the
-        task memory follows ``model.teleport`` and no violation is reported.
-        ``mask`` must hold real bools (not 0/1); ``to`` is ``(num_envs, 2)``
-        reals, finite in the selected rows. Returns the new ``infos`` (``perturbed`` is ``mask``).
-        """
-        owner = f"{type(self).__name__}.perturb"
-        mask = bool_array(mask, "mask", shape=(self.num_envs,), owner=owner)
-        target = real_array(to, "to", shape=(self.num_envs, 2), finite=False, owner=owner)
-        if not np.all(np.isfinite(target[mask])):
-            raise ValueError(f"{owner}: to must be finite in the rows selected by mask (no NaN or inf)")
-        prev = self._pos.copy()
-        self._pos = np.where(mask[:, None], np.clip(target, self.model.low, self.model.high), self._pos)
-        self._memory = np.where(mask[:, None], self.model.teleport(self._memory, prev, self._pos), self._memory)
-        if self.render_mode is not None:
-            for i in np.flatnonzero(mask):
-                self._trails[i].append(self._pos[i].copy())
-        return self._infos(np.zeros(self.num_envs, dtype=bool), perturbed=mask)
-
-    def render(self) -> tuple[Any, ...] | None:
-        """One frame per agent (a tuple, as the sync vector env returns); Nones without ``render_mode``."""
-        if self.render_mode != "rgb_array":
-            return (None,) * self.num_envs
-        return tuple(self.env.draw_frame(self._pos[i], self._trails[i]) for i in range(self.num_envs))
-
-
-def check_vector_seed(seed: Any, num_envs: int, owner: str) -> list[int | None]:
-    """A vector ``reset`` seed as one seed per agent: None (all None), an int ``s`` >= 0
-    (``s, s + 1, ...``) or a list of ``num_envs`` seeds, each None or an int >= 0 (the sync vector env's rules).
-    """
-    if seed is None:
-        return [None] * num_envs
-    if isinstance(seed, list | tuple):
-        if len(seed) != num_envs:
-            raise ValueError(f"{owner}: seed as a list must hold num_envs={num_envs} seeds, got {len(seed)}")
-        return [check_seed(s, owner) for s in seed]
-    first = check_seed(seed, owner)
-    assert first is not None
-    return [first + i for i in range(num_envs)]
-
-
-_KINEMATIC_OPTIONS = frozenset({"state"})
+#: the ``reset`` options of the kinematic envs
+RESET_OPTIONS = frozenset({"state"})
 
 
 def observe(pos: np.ndarray, sensors: np.ndarray | None) -> np.ndarray:
@@ -621,50 +482,6 @@ def sensor_columns(sensors: Mapping[str, Any], aps: Sequence[str]) -> np.ndarray
     return np.stack([np.atleast_1d(np.asarray(sensors[ap], dtype=bool)) for ap in aps], axis=1)
 
 
-def check_reward_type(reward_type: Any, owner: str) -> RewardType:
-    """``reward_type``: ``"sparse"`` or ``"dense"`` (:data:`REWARD_TYPES`); anything else is a ``ValueError``."""
-    if not isinstance(reward_type, str):
-        raise TypeError(f"{owner}: reward_type must be one of {list(REWARD_TYPES)}, got {describe(reward_type)}")
-    one_of(reward_type, "reward_type", REWARD_TYPES, owner=owner)
-    return "dense" if reward_type == "dense" else "sparse"
-
-
-def check_seed(seed: Any, owner: str) -> int | None:
-    """A ``reset`` seed: None or an int >= 0 (numpy ints too), as a Python int."""
-    return None if seed is None else integer(seed, "seed", low=0, owner=owner)
-
-
-def check_options(options: Any, keys: frozenset[str], owner: str) -> dict[str, Any]:
-    """``reset`` options: None or a dict with only the known ``keys``; unknown keys are an error, not ignored."""
-    if options is None:
-        return {}
-    if not isinstance(options, dict):
-        raise TypeError(f"{owner}: options must be a dict or None, got {describe(options)}")
-    unknown = set(options) - keys
-    if unknown:
-        raise ValueError(f"{owner}: unknown reset options {sorted(map(str, unknown))}; expected some of {sorted(keys)}")
-    return dict(options)
-
-
-def check_render_mode(render_mode: Any, modes: list[str], owner: str) -> str | None:
-    """``render_mode``: None or one of ``modes``."""
-    if render_mode is None:
-        return None
-    if not isinstance(render_mode, str):
-        raise TypeError(f"{owner}: render_mode must be one of {modes} or None, got {describe(render_mode)}")
-    return one_of(render_mode, "render_mode", modes, owner=owner)
-
-
-def _check_xy(value: Any, name: str, owner: str | None = None) -> np.ndarray:
-    """A state or displacement: 2 finite real numbers (see :func:`steer_envs.core.validation.real_array`)."""
-    return real_array(value, name, shape=(2,), owner=owner)
-
-
-def _check_action(action: Any, space: spaces.Space[Any], owner: str | None = None) -> np.ndarray:
-    """An action: finite real numbers of the action space's shape (not yet clipped)."""
-    return real_array(action, "action", shape=space.shape, owner=owner)
-
-
 def _clip_speed(velocity: np.ndarray, max_speed: float) -> np.ndarray:
     """Scale each row of ``velocity`` down to norm ``max_speed`` where it is faster (direction kept)."""
     v = np.atleast_2d(velocity)
@@ -677,16 +494,3 @@ def _clip_speed(velocity: np.ndarray, max_speed: float) -> np.ndarray:
         u = v[huge] / np.max(np.abs(v[huge]), axis=-1, keepdims=True)
         out[huge] = u / np.linalg.norm(u, axis=-1, keepdims=True) * max_speed
     return out if velocity.ndim == 2 else out[0]
-
-
-def vector_factory(env_cls: type[Kinematic2DEnv]) -> Any:
-    """A ``vector_entry_point`` for ``gymnasium.make_vec`` that batches ``env_cls``."""
-
-    def make_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> Kinematic2DVectorEnv:
-        mode = kwargs.get("render_mode")
-        if isinstance(mode, str) and mode not in Kinematic2DVectorEnv.metadata["render_modes"]:  # before a window
-            raise ValueError(f"make_vector_env: render_mode={mode!r} is single-env only; use 'rgb_array' or None")
-        return Kinematic2DVectorEnv(env_cls(**kwargs), num_envs, max_episode_steps)
-
-    make_vector_env.__doc__ = f"Batched {env_cls.__name__}: ``num_envs`` agents stepped in one numpy call."
-    return make_vector_env

@@ -76,43 +76,30 @@ Registered ids
 
 from __future__ import annotations
 
-import contextlib
-import io
-from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
-from steer_envs.envs.human_view import HumanView
-from steer_envs.envs.kinematic import (
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_scalar
+from steer_envs.envs.checks import (
     RewardType,
-    _check_action,
-    _check_xy,
+    check_action,
     check_options,
     check_render_mode,
     check_reward_type,
     check_seed,
+    check_xy,
 )
+from steer_envs.envs.human_view import HumanView
+from steer_envs.envs.maze_grid import AGENT_RADIUS, MAZE_NAMES, MazeGrid, check_points, maze_map
+from steer_envs.envs.maze_physics import GEAR, TIMESTEP, MazePhysics
 from steer_envs.envs.render import Canvas
 
-#: D4RL maze2d physics.
-TIMESTEP = 0.01
-AGENT_RADIUS = 0.1
-#: PD law ``u = clip(KP (wp - pos) - KD vel, -U_MAX, U_MAX)``, force = GEAR * u.
-KP, KD, U_MAX, GEAR = 10.0, 1.0, 1.0, 100.0
-
-MAZE_NAMES: tuple[str, ...] = ("umaze", "medium", "large")
-#: cells of a map: 1 is a wall; 0 and gymnasium-robotics' markers "r" (reset), "g" (goal), "c" (both) are free.
-WALL_CELL, FREE_CELLS = 1, (0, "r", "g", "c")
-#: largest accepted map side in cells (the MJCF holds one box per wall cell).
-MAX_MAZE_SIDE = 100
 #: accepted ``frame_skip`` (physics steps per env step) and ``cell_px`` (rendered pixels per cell).
 FRAME_SKIP_RANGE = (1, 1000)
 CELL_PX_RANGE = (4, 256)
@@ -123,298 +110,13 @@ _GRID_RGB = (225, 225, 232)
 _GOAL_RGB = (170, 230, 170)
 
 
-def maze_map(name: str) -> list[list[int | str]]:
-    """The gymnasium-robotics map of ``name`` (``"umaze"``, ``"medium"`` or ``"large"``)."""
-    # imported lazily (the package registers ~100 envs); its import prints an unrelated Adroit-hand notice
-    # to stderr, which is silenced here
-    with contextlib.redirect_stderr(io.StringIO()):
-        from gymnasium_robotics.envs.maze import maps
-
-    table = {"umaze": maps.U_MAZE, "medium": maps.MEDIUM_MAZE, "large": maps.LARGE_MAZE}
-    if not isinstance(name, str) or name not in table:
-        raise ValueError(f"maze must be one of {MAZE_NAMES} or a 2D map of 0/1 cells, got {describe(name)}")
-    return [list(row) for row in table[name]]
-
-
-class MazeGrid:
-    """Wall grid and the ITPS geometry helpers (pure numpy, no simulator).
-
-    ``walls[r, c]`` is True for wall cells. Points outside the grid are
-    clipped onto it before lookup, so everything beyond the border counts as
-    the border's cells (walls in every shipped map).
-
-    A layout is a non-empty rectangular sequence of rows (at most
-    :data:`MAX_MAZE_SIDE` cells a side) whose cells are the int ``1`` (a wall)
-    or ``0`` / ``"r"`` / ``"g"`` / ``"c"`` (free; gymnasium-robotics' reset,
-    goal and combined markers). Anything else (the string ``"1"``, ``True``,
-    ``1.0``, ``2``) is refused, naming the cell, instead of being read as free.
-    """
-
-    def __init__(self, layout: Sequence[Sequence[int | str]]) -> None:
-        if isinstance(layout, (str, bytes)) or layout is None:
-            raise TypeError(f"maze layout must be a sequence of rows of cells, got {describe(layout)}")
-        try:
-            rows = [list(r) for r in layout]
-        except TypeError:
-            raise TypeError(f"maze layout must be a sequence of rows of cells, got {describe(layout)}") from None
-        if not rows or not rows[0] or any(len(r) != len(rows[0]) for r in rows):
-            raise ValueError("maze layout must be a non-empty rectangular list of rows")
-        if len(rows) > MAX_MAZE_SIDE or len(rows[0]) > MAX_MAZE_SIDE:
-            raise ValueError(
-                f"maze layout may be at most {MAX_MAZE_SIDE} x {MAX_MAZE_SIDE} cells, got {len(rows)} x {len(rows[0])}"
-            )
-        walls = np.array([[_is_wall_cell(cell, i, j) for j, cell in enumerate(r)] for i, r in enumerate(rows)])
-        if walls.all():
-            raise ValueError("maze layout has no free cell")
-        self.walls: np.ndarray = walls
-        self.walls.setflags(write=False)
-        self.shape: tuple[int, int] = (walls.shape[0], walls.shape[1])
-        self.free_cells: np.ndarray = np.argwhere(~walls).astype(np.int64)  # (K, 2), row-major order
-        self.free_cells.setflags(write=False)
-
-    @property
-    def extent(self) -> float:
-        """Length that normalizes distances: the maze height in cells (ITPS divides by it)."""
-        return float(self.shape[0])
-
-    @property
-    def low(self) -> np.ndarray:
-        """Lowest cell centre, ``(0, 0)``."""
-        return np.zeros(2)
-
-    @property
-    def high(self) -> np.ndarray:
-        """Highest cell centre, ``(rows - 1, cols - 1)``."""
-        return np.array([self.shape[0] - 1, self.shape[1] - 1], dtype=np.float64)
-
-    def cell_to_xy(self, cells: np.ndarray) -> np.ndarray:
-        """Centres ``(..., 2)`` float of integer cells ``(..., 2)`` (row, col)."""
-        return _points(cells, "cells")
-
-    def xy_to_cell(self, xy: np.ndarray) -> np.ndarray:
-        """The cell ``(..., 2)`` int64 holding each point: clip to the grid, round to nearest (half up)."""
-        arr = _points(xy, "xy")
-        return np.floor(np.clip(arr, self.low, self.high) + 0.5).astype(np.int64)
-
-    def is_wall(self, xy: np.ndarray) -> np.ndarray:
-        """Whether each point ``(..., 2)`` lies in a wall cell (the ITPS rule), bool ``(...)``."""
-        cells = self.xy_to_cell(xy)
-        return self.walls[cells[..., 0], cells[..., 1]]
-
-    def plan_collides(self, plans: np.ndarray) -> np.ndarray:
-        """ITPS collision check: a plan ``(..., H, 2)`` collides if any waypoint is in a wall; bool ``(...)``."""
-        arr = _points(plans, "plans")
-        if arr.ndim < 2:
-            raise ValueError(f"plans must have shape (..., H, 2), got {arr.shape}")
-        return self.is_wall(arr).any(axis=-1)
-
-    def clearance(self, xy: np.ndarray) -> np.ndarray:
-        """Distance ``(...)`` from each point to the nearest wall box (0 inside a wall)."""
-        arr = _points(xy, "xy")
-        centers = np.argwhere(self.walls).astype(np.float64)  # (W, 2)
-        if len(centers) == 0:
-            return np.full(arr.shape[:-1], np.inf)
-        gap = np.maximum(np.abs(arr[..., None, :] - centers) - 0.5, 0.0)
-        return np.sqrt((gap**2).sum(-1)).min(-1)
-
-    def project_free(self, xy: np.ndarray, radius: float = AGENT_RADIUS) -> np.ndarray:
-        """A position near ``xy`` (2,) where a disc of ``radius`` touches no wall (``xy`` itself if it is one).
-
-        Used to place the agent after a push or a teleport: a point in a wall
-        cell goes to the closest point of the nearest free cell, then it is
-        pushed off the walls of that cell's 8-neighbourhood. ``radius`` is a real in ``[0, 0.5)``.
-        """
-        radius = real_scalar(radius, "radius", low=0.0, high=0.5, high_inclusive=False, owner="MazeGrid.project_free")
-        p = np.clip(_check_xy(xy, "xy", "MazeGrid.project_free"), self.low - 0.5, self.high + 0.5)
-        r, c = self.xy_to_cell(p)
-        if self.walls[r, c]:
-            lo = self.free_cells - 0.5
-            nearest = np.clip(p, lo, self.free_cells + 0.5)
-            k = int(np.argmin(((nearest - p) ** 2).sum(-1)))
-            r, c = self.free_cells[k]
-            p = np.clip(nearest[k], self.free_cells[k] - 0.5 + 1e-9, self.free_cells[k] + 0.5 - 1e-9)
-        for axis, step in ((0, -1), (0, 1), (1, -1), (1, 1)):
-            nb = [r, c]
-            nb[axis] += step
-            if self._wall_at(*nb):
-                bound = (r, c)[axis] + step * (0.5 - radius)
-                p[axis] = max(p[axis], bound) if step < 0 else min(p[axis], bound)
-        for dr in (-1, 1):
-            for dc in (-1, 1):
-                if self._wall_at(r + dr, c + dc):
-                    corner = np.array([r + 0.5 * dr, c + 0.5 * dc])
-                    away = p - corner
-                    dist = float(np.hypot(*away))
-                    inside_quadrant = away[0] * dr <= 0 and away[1] * dc <= 0
-                    if inside_quadrant and dist < radius:
-                        direction = away / dist if dist > 1e-12 else -np.array([dr, dc]) / np.sqrt(2.0)
-                        p = corner + radius * direction
-        return p
-
-    def _wall_at(self, r: int, c: int) -> bool:
-        if not (0 <= r < self.shape[0] and 0 <= c < self.shape[1]):
-            return True
-        return bool(self.walls[r, c])
-
-    def _paths_to(self, goal: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-        """Breadth-first search from free cell ``goal``: steps ``(R, C)`` (-1 where unreachable) and each
-        cell's next cell ``(R, C, 2)`` on a shortest path to ``goal`` (cached per goal)."""
-        cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = self.__dict__.setdefault("_path_cache", {})
-        if goal in cache:
-            return cache[goal]
-        steps = np.full(self.shape, -1, dtype=np.int64)
-        nxt = np.zeros((*self.shape, 2), dtype=np.int64)
-        steps[goal] = 0
-        nxt[goal] = goal
-        queue = deque([goal])
-        while queue:
-            r, c = queue.popleft()
-            for nr, nc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-                if not self._wall_at(nr, nc) and steps[nr, nc] < 0:
-                    steps[nr, nc] = steps[r, c] + 1
-                    nxt[nr, nc] = (r, c)
-                    queue.append((nr, nc))
-        cache[goal] = (steps, nxt)
-        return steps, nxt
-
-    def path_distance(self, xy: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """Distance ``(N,)`` from points ``xy`` to points ``goal`` (both ``(N, 2)``) along the maze.
-
-        In the goal's cell the straight-line distance; otherwise ``s - 1 + |xy - next|``
-        with ``s`` the number of cell steps of a shortest path of free cells to the
-        goal's cell and ``next`` the centre of the first cell on it (or the goal
-        itself when ``s = 1``). Unreachable pairs (a point in a wall cell) get the
-        straight-line distance plus the number of cells.
-        """
-        p = _points(xy, "xy").reshape(-1, 2)
-        g = _points(goal, "goal").reshape(-1, 2)
-        if p.shape != g.shape:
-            raise ValueError(f"xy and goal must have the same shape, got {p.shape} and {g.shape}")
-        straight = np.linalg.norm(p - g, axis=1)
-        out = straight + float(self.walls.size)
-        cells, goal_cells = self.xy_to_cell(p), self.xy_to_cell(g)
-        for key in {tuple(c) for c in goal_cells.tolist()}:
-            if self.walls[key]:
-                continue
-            steps, nxt = self._paths_to((int(key[0]), int(key[1])))
-            rows = np.flatnonzero((goal_cells == key).all(axis=1))
-            r, c = cells[rows, 0], cells[rows, 1]
-            s = steps[r, c]
-            target = np.where((s <= 1)[:, None], g[rows], nxt[r, c].astype(np.float64))
-            via = np.maximum(s - 1, 0) + np.linalg.norm(p[rows] - target, axis=1)
-            out[rows] = np.where(s >= 0, via, out[rows])
-        return out
-
-
-def maze_mjcf(grid: MazeGrid, name: str = "maze2d") -> str:
-    """MJCF of the D4RL point mass in ``grid`` (walls as boxes, PD actuators on ``ctrl = waypoint``).
-
-    The affine actuator ``force = 1000 ctrl - 1000 qpos - 100 qvel`` clamped
-    to +-100 is exactly ``100 * clip(10 (wp - pos) - vel, -1, 1)``.
-    """
-    gain, kv = GEAR * KP, GEAR * KD
-    walls = "\n".join(
-        f'    <geom name="wall_{r}_{c}" type="box" pos="{r} {c} 0" size="0.5 0.5 0.2" rgba=".7 .5 .3 1"/>'
-        for r, c in np.argwhere(grid.walls)
-    )
-    actuators = "\n".join(
-        f'    <general name="pd_{axis}" joint="{axis}" gainprm="{gain}" biastype="affine" '
-        f'biasprm="0 {-gain} {-kv}" forcelimited="true" forcerange="{-GEAR * U_MAX} {GEAR * U_MAX}"/>'
-        for axis in ("x", "y")
-    )
-    return f"""<mujoco model="{name}">
-  <compiler inertiafromgeom="true" angle="radian"/>
-  <option timestep="{TIMESTEP}" gravity="0 0 0" iterations="20" integrator="Euler"/>
-  <default>
-    <joint damping="1" limited="false"/>
-    <geom friction=".5 .1 .1" density="1000" margin="0.002" condim="1" contype="2" conaffinity="1"/>
-  </default>
-  <worldbody>
-    <body name="agent" pos="0 0 0">
-      <geom name="agent" type="sphere" size="{AGENT_RADIUS}" contype="1" conaffinity="1" rgba="0.2 0.3 0.9 1"/>
-      <joint name="x" type="slide" axis="1 0 0"/>
-      <joint name="y" type="slide" axis="0 1 0"/>
-    </body>
-{walls}
-  </worldbody>
-  <actuator>
-{actuators}
-  </actuator>
-</mujoco>
-"""
-
-
-def _is_wall_cell(cell: Any, row: int, col: int) -> bool:
-    """Whether a map cell is a wall: the int 1 is; 0 and the markers "r", "g", "c" are not; else an error."""
-    if isinstance(cell, str):
-        if cell in FREE_CELLS:
-            return False
-        raise ValueError(
-            f"maze layout cell ({row}, {col}) must be 1 (wall), 0, 'r', 'g' or 'c' (free), got {describe(cell)}"
-        )
-    if isinstance(cell, (int, np.integer)) and not isinstance(cell, (bool, np.bool_)):
-        if cell in (0, 1):
-            return bool(cell == WALL_CELL)
-        raise ValueError(f"maze layout cell ({row}, {col}) must be 1 (wall) or 0 (free), got {describe(cell)}")
-    raise TypeError(
-        f"maze layout cell ({row}, {col}) must be the int 1 (wall), 0 or a marker 'r', 'g', 'c' (free), "
-        f"got {describe(cell)}"
-    )
-
-
-class MazePhysics:
-    """The MuJoCo model and data of one maze; steps the PD-tracked point mass."""
-
-    def __init__(self, grid: MazeGrid, name: str = "maze2d") -> None:
-        self.grid = grid
-        self.model = mujoco.MjModel.from_xml_string(maze_mjcf(grid, name))
-        self.data = mujoco.MjData(self.model)
-        self.agent_geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, "agent")
-
-    @property
-    def pos(self) -> np.ndarray:
-        return self.data.qpos[:2].copy()
-
-    @property
-    def vel(self) -> np.ndarray:
-        return self.data.qvel[:2].copy()
-
-    def set_state(self, pos: np.ndarray, vel: np.ndarray | None = None) -> None:
-        """Place the agent (velocity zero unless given) and recompute derived quantities."""
-        mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:2] = pos
-        self.data.qvel[:2] = 0.0 if vel is None else vel
-        mujoco.mj_forward(self.model, self.data)
-
-    def in_contact(self) -> bool:
-        """Whether the agent geom has a MuJoCo contact with a wall geom now."""
-        n = self.data.ncon
-        if n == 0:
-            return False
-        geoms = self.data.contact.geom[:n]
-        return bool(np.any(geoms == self.agent_geom))
-
-    def step(self, waypoint: np.ndarray, n: int = 1) -> bool:
-        """``n`` physics steps tracking ``waypoint``; True if the agent touched a wall in any of them."""
-        self.data.ctrl[:2] = waypoint
-        touched = False
-        for _ in range(n):
-            mujoco.mj_step(self.model, self.data)
-            touched = touched or self.in_contact()
-        return touched
-
-    def control(self) -> np.ndarray:
-        """The normalized control ``u`` (in [-1, 1]) applied in the last step."""
-        return self.data.actuator_force[:2] / GEAR
-
-
 class Maze2DEnv(gym.Env[Any, np.ndarray]):
     """MuJoCo point mass in a D4RL maze; the action is the next absolute xy waypoint.
 
     Args:
         maze: ``"umaze"``, ``"medium"``, ``"large"`` (gymnasium-robotics maps) or
             a custom map (rows of the int 1 = wall, 0 / "r" / "g" / "c" = free;
-            see :class:`MazeGrid`).
+            see :class:`~steer_envs.envs.maze_grid.MazeGrid`).
         frame_skip: physics steps (0.01 s each) per env step, an int in
             :data:`FRAME_SKIP_RANGE`; 4 = the ITPS data rate.
         observe_velocity: observation is ``(x, y, vx, vy)`` instead of ``(x, y)`` (a bool).
@@ -536,17 +238,16 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         self.grid = MazeGrid(layout)
         self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
         self.dt = TIMESTEP * self.frame_skip
-        self.task = TaskSpec(
-            name=f"maze2d-{self.maze_name}",
-            modes=("navigate",),
-            sensors=("at_goal", "in_wall_contact"),
-            sensor_modes={
-                frozenset(): "navigate",
-                frozenset({"at_goal"}): "navigate",
-                frozenset({"in_wall_contact"}): "navigate",
-                frozenset({"at_goal", "in_wall_contact"}): "navigate",
-            },
-        )
+        self.task = _maze_task(self.maze_name)
+        self.observation_space: spaces.Space[Any] = self._make_observation_space()
+        self.action_space = self._make_action_space()
+        self.goal_cell: tuple[int, int] | None = None
+        self._contact = False
+        self._trail: list[np.ndarray] = []
+        self._background: np.ndarray | None = None
+
+    def _make_observation_space(self) -> spaces.Space[Any]:
+        """The flat Box of the observed parts, or the goal-conditioned Dict around it."""
         rows, cols = self.grid.shape
         pos_lo, pos_hi = np.array([-0.5, -0.5]), np.array([rows - 0.5, cols - 0.5])
         if self.observe_velocity:
@@ -562,24 +263,16 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             lo = np.concatenate([lo, pos_lo.astype(np.float32)])
             hi = np.concatenate([hi, pos_hi.astype(np.float32)])
         inner = spaces.Box(lo, hi, dtype=np.float32)
-        self.observation_space: spaces.Space[Any]
-        if self.goal_conditioned:
-            goal_space = spaces.Box(pos_lo.astype(np.float32), pos_hi.astype(np.float32), dtype=np.float32)
-            self.observation_space = spaces.Dict(
-                {"observation": inner, "achieved_goal": goal_space, "desired_goal": goal_space}
-            )
-        else:
-            self.observation_space = inner
+        if not self.goal_conditioned:
+            return inner
+        goal_space = spaces.Box(pos_lo.astype(np.float32), pos_hi.astype(np.float32), dtype=np.float32)
+        return spaces.Dict({"observation": inner, "achieved_goal": goal_space, "desired_goal": goal_space})
+
+    def _make_action_space(self) -> spaces.Box:
+        """``[-1, 1]^2`` (normalised or relative actions), else the waypoint box of the grid."""
         if self.normalize_actions or self.relative_actions:
-            self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        else:
-            self.action_space = spaces.Box(
-                self.grid.low.astype(np.float32), self.grid.high.astype(np.float32), dtype=np.float32
-            )
-        self.goal_cell: tuple[int, int] | None = None
-        self._contact = False
-        self._trail: list[np.ndarray] = []
-        self._background: np.ndarray | None = None
+            return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        return spaces.Box(self.grid.low.astype(np.float32), self.grid.high.astype(np.float32), dtype=np.float32)
 
     # -------------------------------------------------------------- geometry
     @property
@@ -643,8 +336,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         ``info`` is not used. Sparse: 1 where both lie in the same cell, else 0.
         Dense: ``-MazeGrid.path_distance / extent``.
         """
-        achieved = _points(achieved_goal, "achieved_goal")
-        desired = _points(desired_goal, "desired_goal")
+        achieved = check_points(achieved_goal, "achieved_goal")
+        desired = check_points(desired_goal, "desired_goal")
         if achieved.shape != desired.shape:
             raise ValueError(
                 f"goal_reward: achieved_goal and desired_goal must have the same shape, "
@@ -701,7 +394,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         options = check_options(options, self._OPTION_KEYS, owner)
         rng = self.np_random
         if options.get("state") is not None:
-            start = _check_xy(options["state"], "options['state']", owner)
+            start = check_xy(options["state"], "options['state']", owner)
             if bool(self.grid.is_wall(start)):
                 raise ValueError(f"options['state'] {start.tolist()} lies in a wall cell")
             start = self.grid.project_free(start)
@@ -733,7 +426,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         With ``normalize_actions`` the action is in ``[-1, 1]^2`` (clipped into it) and mapped onto the grid;
         with ``relative_actions`` it is the offset from the agent in ``[-1, 1]^2`` cells (clipped into it).
         """
-        action = _check_action(action, self.action_space, f"{type(self).__name__}.step")
+        action = check_action(action, self.action_space, f"{type(self).__name__}.step")
         if self.relative_actions:
             action = self.state + np.clip(action, -1.0, 1.0)
         elif self.normalize_actions:
@@ -765,7 +458,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         owner = f"{type(self).__name__}.perturb"
         if (delta is None) == (to is None):
             raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target state)")
-        target = self.state + _check_xy(delta, "delta", owner) if to is None else _check_xy(to, "to", owner)
+        target = self.state + check_xy(delta, "delta", owner) if to is None else check_xy(to, "to", owner)
         self.physics.set_state(self.grid.project_free(target))
         self._trail.append(self.state)
         return self._info(False, perturbed=True)
@@ -837,7 +530,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         """
         canvas = self._scene()
         if plans is not None:
-            arr = _points(plans, "plans")
+            arr = check_points(plans, "plans")
             if arr.ndim == 2:
                 arr = arr[None]
             if arr.ndim != 3:
@@ -846,7 +539,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
             for plan, hit in zip(arr, collides, strict=True):
                 canvas.polyline(self._display(plan), (240, 140, 30) if hit else (20, 160, 160), thickness=1)
         if sketch is not None:
-            pts = _points(sketch, "sketch")
+            pts = check_points(sketch, "sketch")
             if pts.ndim != 2 or len(pts) == 0:
                 raise ValueError(f"sketch must have shape (G, 2) with G >= 1, got {pts.shape}")
             canvas.polyline(self._display(pts), (200, 30, 200), thickness=3)
@@ -861,12 +554,19 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         return np.array([v / self.cell_px - 0.5, u / self.cell_px - 0.5])
 
 
-def _points(value: Any, name: str) -> np.ndarray:
-    """Finite real points of shape ``(..., 2)`` (see :func:`steer_envs.core.validation.real_array`)."""
-    arr = real_array(value, name)
-    if arr.ndim == 0 or arr.shape[-1] != 2:
-        raise ValueError(f"{name} must have shape (..., 2), got {arr.shape}")
-    return arr
+def _maze_task(maze_name: str) -> TaskSpec:
+    """The one-mode task of a maze: ``navigate``, whatever the sensors read."""
+    return TaskSpec(
+        name=f"maze2d-{maze_name}",
+        modes=("navigate",),
+        sensors=("at_goal", "in_wall_contact"),
+        sensor_modes={
+            frozenset(): "navigate",
+            frozenset({"at_goal"}): "navigate",
+            frozenset({"in_wall_contact"}): "navigate",
+            frozenset({"at_goal", "in_wall_contact"}): "navigate",
+        },
+    )
 
 
 class Maze2DGoalEnv(Maze2DEnv):

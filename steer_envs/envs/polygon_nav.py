@@ -35,13 +35,11 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 0.1.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage = the mode (free 0, polygon j = j), sub-goal = polygon 1's
-    centroid from free space (its distance measured along the shortest path around the later polygons,
-    :mod:`~steer_envs.envs.geodesic`), then a point 0.2 past the middle of the edge shared with the next polygon
-    (``phi = -1`` after an invalid transition).
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage = the mode (free 0, polygon j =
+    j), sub-goal = polygon 1's centroid from free space (its distance measured along the shortest path around the later
+    polygons, :mod:`~steer_envs.envs.geodesic`), then a point 0.2 past the middle of the edge shared with the next
+    polygon (``phi = -1`` after an invalid transition).
 
 Termination
     On success (in the last polygon with no invalid transition) and, with the default
@@ -55,6 +53,7 @@ Registered ids
 from __future__ import annotations
 
 import functools
+from typing import Unpack
 
 import numpy as np
 from shapely.geometry import MultiPoint, Polygon, box
@@ -65,7 +64,8 @@ from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.convex_mode import check_layout_seed, convex_halfspaces, in_halfspaces
 from steer_envs.envs.geodesic import GeodesicDistance
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, TaskReading, ViolationLatchModel
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import Canvas
 
 WORKSPACE_HALF_WIDTH = 8.0
@@ -144,7 +144,7 @@ def _attach(prev: np.ndarray, new: np.ndarray) -> np.ndarray:
     return out
 
 
-class PolygonNavModel(KinematicTaskModel):
+class PolygonNavModel(ViolationLatchModel):
     """Batched task physics of PolygonNav (a chain of ``num_modes - 1`` polygons).
 
     Public geometry (fixed by ``layout_seed``; polygon ``j`` of the task is index
@@ -289,15 +289,9 @@ class PolygonNavModel(KinematicTaskModel):
         )
 
     # ---------------------------------------------------------------- task
-    def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        violation = ~self.allowed[self.mode_of(prev_pos), self.mode_of(pos)]
-        new_memory = memory.copy()
-        new_memory[:, 0] |= violation
-        return new_memory, violation
-
-    def teleport(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
-        """A push is not a transition made by the agent: the memory is kept as it was."""
-        return memory.copy()
+    def violates(self, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """A mode change the task does not allow (a push is not the agent's transition: the memory is kept)."""
+        return ~self.allowed[self.mode_of(prev_pos), self.mode_of(pos)]
 
     def read(self, memory: np.ndarray, pos: np.ndarray) -> TaskReading:
         mode = self.mode_of(pos)
@@ -345,8 +339,8 @@ class PolygonNavEnv(Kinematic2DEnv):
         terminate_on_violation: end the episode on an invalid transition (GLiDE: yes), a bool.
         workspace_margin, min_gap: layout validity margins (see the module docstring), reals in
             ``[0, 2)`` and ``(0, 4)``.
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
     >>> import gymnasium as gym
     >>> import steer_envs
     >>> env = gym.make("steer_envs/PolygonNav-4Mode-v0", layout_seed=0)
@@ -362,22 +356,14 @@ class PolygonNavEnv(Kinematic2DEnv):
         terminate_on_violation: bool = True,
         workspace_margin: float = 0.5,
         min_gap: float = 0.5,
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
+        **options: Unpack[EnvOptions],
     ) -> None:
         super().__init__(
             PolygonNavModel(num_modes, layout_seed, workspace_margin=workspace_margin, min_gap=min_gap),
             dt=1.0,
             max_speed=0.1,
             terminate_on_violation=terminate_on_violation,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
+            **options,
         )
         self.model: PolygonNavModel
 

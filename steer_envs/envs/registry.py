@@ -30,9 +30,14 @@ class EnvEntry:
             or None; imported only when an expert is made.
         variant_of: for a variant id (``...Dense-v0``, ``Maze2D-...Goal-v0``), the name of the entry it
             varies (same env class and expert, other ``kwargs``); None for a base id.
+        extra: the ``setup.cfg`` extra the env needs (``"arm"``: robosuite), or None when the bare
+            ``pip install steer-envs`` makes it; making it without the extra raises an ``ImportError``
+            naming ``pip install "steer-envs[<extra>]"``.
 
     >>> entry("ConvexMode-v0").expert
     'steer_envs.data.experts.convex_mode:ConvexModeExpert'
+    >>> entry("Lift-v0").extra, entry("Maze2D-Large-v0").extra
+    ('arm', None)
     """
 
     name: str
@@ -43,6 +48,7 @@ class EnvEntry:
     kinematic: bool = False
     expert: str | None = None
     variant_of: str | None = None
+    extra: str | None = None
 
     def __post_init__(self) -> None:
         for label, value in (("entry_point", self.entry_point), ("expert", self.expert)):
@@ -125,6 +131,7 @@ BASE_ENTRIES: tuple[EnvEntry, ...] = (
             max_episode_steps=steps,
             kwargs={"task": task},
             expert=f"steer_envs.data.experts.robosuite:{expert}",
+            extra="arm",
         )
         for name, task, steps, expert in (
             ("Lift-v0", "lift", 200, "LiftExpert"),
@@ -137,18 +144,21 @@ BASE_ENTRIES: tuple[EnvEntry, ...] = (
         "steer_envs.envs.robosuite.blockstack:BlockStackEnv",
         max_episode_steps=2000,
         expert="steer_envs.data.experts.blockstack:BlockStackExpert",
+        extra="arm",
     ),
     EnvEntry(
         "ArmScoop-v0",
         "steer_envs.envs.robosuite.arm_scoop:ArmScoopEnv",
         max_episode_steps=600,
         expert="steer_envs.data.experts.arm_scoop:ArmScoopExpert",
+        extra="arm",
     ),
     EnvEntry(
         "Kitchen-v0",
         "steer_envs.envs.robosuite.kitchen:KitchenEnv",
         max_episode_steps=1500,
         expert="steer_envs.data.experts.kitchen:KitchenExpert",
+        extra="arm",
     ),
 )
 
@@ -173,7 +183,7 @@ def _variants() -> tuple[EnvEntry, ...]:
         elif e.entry_point.startswith("steer_envs.envs.maze2d:"):
             # the RL variants observe the velocity, as PointMaze does: without it the state is not Markov.
             # The dense ones act at half the ITPS rate, at which SAC learns Maze2D-Large within 100k steps; the
-            # sparse goal ids keep it, at which HER learns Umaze fastest (results.md, issue #21)
+            # sparse goal ids keep it, at which HER learns Umaze fastest (docs/results.md, sb3)
             assert e.max_episode_steps is not None
             limit = e.max_episode_steps * _MAZE_ITPS_FRAME_SKIP // MAZE_DENSE_FRAME_SKIP
             dense = replace(e, max_episode_steps=limit)

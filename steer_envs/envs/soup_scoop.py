@@ -68,12 +68,10 @@ Action
     ``normalize_actions=True``: ``[-1, 1]^2``, scaled by 10.
 
 Rewards
-    ``reward_type="sparse"`` (default): +1 on success, -1 on a constraint violation, else 0.
-    ``"dense"``: the sparse reward plus ``100 * (phi(s') - phi(s))`` (a violation costs the modes it loses), ``phi(s) =
-    stage(s) - min(distance(s) / diagonal, 1)`` (``DENSE_REWARD_SCALE``,
-    ``KinematicTaskModel.potential``): stage = the mode (reach 0, scoop 1, transport 2, done 3),
-    sub-goal = the mode's segment attractor (yellow's, green's), but the centre ``(4, -6)`` of the scoop zone
-    (pink over yellow) for scoop: pink's attractor lies at the zone's edge, where scoops spill on the way up.
+    ``reward_type="sparse"`` (default) or ``"dense"``, as in every 2D env
+    (:class:`~steer_envs.envs.kinematic.Kinematic2DEnv`); the dense potential's stage = the mode (reach 0, scoop 1,
+    transport 2, done 3), sub-goal = the mode's segment attractor (yellow's, green's), but the centre ``(4, -6)`` of the
+    scoop zone (pink over yellow) for scoop: pink's attractor lies at the zone's edge, where scoops spill on the way up.
 
 Termination
     On success (soup delivered to the target). Spills are reported, never terminal; truncation at 1000
@@ -86,13 +84,14 @@ Registered ids
 from __future__ import annotations
 
 from types import MappingProxyType
-from typing import Literal
+from typing import Literal, Unpack
 
 import numpy as np
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import describe, one_of
-from steer_envs.envs.kinematic import Kinematic2DEnv, KinematicTaskModel, RewardType, TaskReading, vector_factory
+from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, RectRegionsModel, TaskReading
+from steer_envs.envs.kinematic_vector import vector_factory
 from steer_envs.envs.render import REGION_PALETTE, Canvas
 
 #: half-width of the square workspace ``[-8, 8]^2``.
@@ -144,7 +143,7 @@ MODE_A, MODE_B, MODE_C, MODE_D = range(4)
 SensorConvention = Literal["public", "thesis"]
 
 
-class SoupScoopModel(KinematicTaskModel):
+class SoupScoopModel(RectRegionsModel):
     """Batched task physics of SoupScoop; see the module docstring.
 
     Public geometry (float64 arrays):
@@ -172,9 +171,8 @@ class SoupScoopModel(KinematicTaskModel):
             )
         self.sensor_convention = one_of(sensor_convention, "sensor_convention", ("public", "thesis"), owner="SoupScoop")
         self.task = SOUP_TASK
-        self.low = np.full(2, -WORKSPACE_HALF_WIDTH)
-        self.high = np.full(2, WORKSPACE_HALF_WIDTH)
-        self.rects = {k: np.asarray(v, dtype=np.float64) for k, v in RECTS.items()}
+        # rectangles in label order (yellow, pink, green) for the one-pass labelling in `regions`
+        self.set_geometry(WORKSPACE_HALF_WIDTH, RECTS, REGION_NAMES[1:], START_BOX)
         self.region_attractors = {k: np.asarray(v, dtype=np.float64) for k, v in REGION_ATTRACTORS.items()}
         self.attractor_radius = ATTRACTOR_RADIUS
         self.attractors = {
@@ -187,11 +185,7 @@ class SoupScoopModel(KinematicTaskModel):
         # dense-reward sub-goals in mode order a..d (see `progress`)
         scoop = np.asarray(SCOOP_SUBGOAL, dtype=np.float64)
         self.dense_subgoals = np.stack([self.attractors["a"], scoop, self.attractors["c"], self.attractors["d"]])
-        # stacked in label order (yellow, pink, green) for the one-pass labelling in `regions`
-        self._rect_stack = np.stack([self.rects[n] for n in REGION_NAMES[1:]])
         self._att_stack = np.stack([self.region_attractors[n] for n in REGION_NAMES[1:]])
-        self.start_low = np.asarray(START_BOX[0], dtype=np.float64)
-        self.start_high = np.asarray(START_BOX[1], dtype=np.float64)
 
     # ------------------------------------------------------------ geometry
     def in_region(self, name: str, pos: np.ndarray) -> np.ndarray:
@@ -209,14 +203,8 @@ class SoupScoopModel(KinematicTaskModel):
 
     def regions(self, pos: np.ndarray) -> np.ndarray:
         p = np.asarray(pos, dtype=np.float64).reshape(-1, 1, 2)
-        r = self._rect_stack
-        in_rect = (p[..., 0] >= r[:, 0]) & (p[..., 1] >= r[:, 1]) & (p[..., 0] <= r[:, 2]) & (p[..., 1] <= r[:, 3])
         near = np.sum((p - self._att_stack) ** 2, axis=-1) <= self.attractor_radius**2
-        # labels grow in drawing order, so "the later region wins" is a max over the matches
-        return np.max((in_rect | near) * np.arange(1, len(r) + 1), axis=1, initial=WHITE).astype(np.int64)
-
-    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.start_low, self.start_high, size=(n, 2))
+        return self.last_label(self.in_rects(pos) | near)
 
     # ---------------------------------------------------------------- task
     def advance(self, memory: np.ndarray, prev_pos: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -264,8 +252,8 @@ class SoupScoopEnv(Kinematic2DEnv):
     Args:
         dt, max_speed: integration step and speed limit (0.01, 10).
         sensor_convention: ``"public"`` (d = s & t, default) or ``"thesis"`` (d = t).
-        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (a pygame window; the ``human`` extra).
-        render_size: side of the rendered square image in pixels.
+        render_mode, render_size, reward_type, observe_sensors, normalize_actions: the options of every 2D env
+            (:class:`~steer_envs.envs.kinematic.EnvOptions`, see :class:`~steer_envs.envs.kinematic.Kinematic2DEnv`).
 
     Spills are reported, never terminal (``terminate_on_violation=False``).
     >>> import gymnasium as gym
@@ -284,22 +272,14 @@ class SoupScoopEnv(Kinematic2DEnv):
         dt: float = 0.01,
         max_speed: float = 10.0,
         sensor_convention: SensorConvention = "public",
-        render_mode: str | None = None,
-        render_size: int = 256,
-        reward_type: RewardType = "sparse",
-        observe_sensors: bool = False,
-        normalize_actions: bool = False,
+        **options: Unpack[EnvOptions],
     ) -> None:
         super().__init__(
             SoupScoopModel(sensor_convention=sensor_convention),
             dt=dt,
             max_speed=max_speed,
             terminate_on_violation=False,
-            render_mode=render_mode,
-            render_size=render_size,
-            reward_type=reward_type,
-            observe_sensors=observe_sensors,
-            normalize_actions=normalize_actions,
+            **options,
         )
         self.model: SoupScoopModel
 

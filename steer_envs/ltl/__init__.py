@@ -40,10 +40,12 @@ from steer_envs.ltl.semantics import LassoWord, evaluate, evaluate_positions
 from steer_envs.ltl.simplify import nnf, simplify
 from steer_envs.ltl.spot_backend import spot_available, translate_spot
 from steer_envs.ltl.syntax import (
+    BINARY_OPERATORS,
     FALSE,
     MAX_FORMULA_DEPTH,
     MAX_FORMULA_TEXT,
     TRUE,
+    UNARY_OPERATORS,
     And,
     Atom,
     Const,
@@ -65,11 +67,13 @@ from steer_envs.ltl.syntax import (
 
 __all__ = [
     "BACKENDS",
+    "BINARY_OPERATORS",
     "FALSE",
     "MAX_FORMULA_DEPTH",
     "MAX_FORMULA_TEXT",
     "MAX_PARSE_DEPTH",
     "TRUE",
+    "UNARY_OPERATORS",
     "And",
     "Atom",
     "Automaton",

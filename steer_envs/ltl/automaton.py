@@ -18,7 +18,7 @@ acceptance set (Tarjan's algorithm).
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -29,7 +29,7 @@ from steer_envs.ltl.guards import MAX_APS, GuardLetter, full_mask, guard_to_str,
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["MAX_STATES", "Automaton", "Edge"]
+__all__ = ["MAX_STATES", "Automaton", "Edge", "backward_closure"]
 
 #: most states an automaton may have (HOA input declares its count; each state costs memory up front)
 MAX_STATES = 10_000_000
@@ -231,14 +231,7 @@ class Automaton:
         pred: dict[int, set[int]] = {q: set() for q in range(self.num_states)}
         for e in self.edges:
             pred[e.dst].add(e.src)
-        live = set(good)
-        stack = list(good)
-        while stack:
-            q = stack.pop()
-            for p in pred[q]:
-                if p not in live:
-                    live.add(p)
-                    stack.append(p)
+        live = backward_closure(good, pred)
         keep = sorted(q for q in reach if q in live)
         if self.initial not in keep:
             keep = [self.initial, *keep]
@@ -380,6 +373,23 @@ class Automaton:
 
 
 # ------------------------------------------------------------------ helpers
+def backward_closure(targets: Iterable[int], pred: Mapping[int, Iterable[int]]) -> set[int]:
+    """The states that can reach one of ``targets`` (themselves included), given each state's predecessors.
+
+    >>> sorted(backward_closure({2}, {0: [], 1: [0], 2: [1]}))
+    [0, 1, 2]
+    """
+    live = set(targets)
+    stack = list(live)
+    while stack:
+        q = stack.pop()
+        for p in pred[q]:
+            if p not in live:
+                live.add(p)
+                stack.append(p)
+    return live
+
+
 def _lowest_bit(x: int) -> int:
     return (x & -x).bit_length() - 1
 

@@ -245,6 +245,17 @@ def translate_native(
     reduce = boolean(reduce, "reduce", owner="translate")
     if max_terms is not None:
         max_terms = integer(max_terms, "max_terms", low=1, owner="translate")
+    aps = _translation_aps(f, aps)
+    check_text_length(nnf(f), "translate", error=TranslationTooLarge)
+    start = simplify(f) if simplify_formula else nnf(f)
+    aut = _tableau(start, aps, max_terms, name=str(f))
+    if reduce:
+        aut = aut.trim().reduce()
+    return aut
+
+
+def _translation_aps(f: Formula, aps: Sequence[str] | None) -> tuple[str, ...]:
+    """The AP order of the guards: ``aps`` checked to cover ``f`` (default: ``f``'s APs, sorted)."""
     atoms = f.atoms()
     if aps is None:
         aps = tuple(sorted(atoms))
@@ -255,8 +266,11 @@ def translate_native(
             raise ValueError(f"translate: `aps` must include every AP of the formula; missing {missing}")
     if len(aps) > MAX_APS:
         raise ValueError(f"translate: at most {MAX_APS} APs are supported, got {len(aps)}")
-    check_text_length(nnf(f), "translate", error=TranslationTooLarge)
-    start = simplify(f) if simplify_formula else nnf(f)
+    return aps
+
+
+def _tableau(start: Formula, aps: tuple[str, ...], max_terms: int | None, name: str) -> Automaton:
+    """The unreduced automaton: breadth-first expansion of ``start`` (an NNF formula), one state per term."""
     evs = _eventualities(start)
     acc_index = {e: i for i, e in enumerate(evs)}
     all_marks = frozenset(range(len(evs)))
@@ -276,18 +290,15 @@ def translate_native(
                 queue.append(nxt)
             acc = all_marks - frozenset(acc_index[p] for p in promises)
             edges.append(Edge(src, states[nxt], guard, acc))
-    aut = Automaton(
+    return Automaton(
         aps=aps,
         num_states=len(order),
         initial=0,
         edges=tuple(edges),
         num_sets=len(evs),
         state_names=tuple(str(s) for s in order),
-        name=str(f),
+        name=name,
     )
-    if reduce:
-        aut = aut.trim().reduce()
-    return aut
 
 
 def check_aps(aps: Any, who: str) -> tuple[str, ...]:

@@ -17,20 +17,9 @@ from functools import cached_property
 from typing import Any
 
 from steer_envs.core.validation import describe
+from steer_envs.ltl import syntax as s
 from steer_envs.ltl.parser import LTLParseError, parse
-from steer_envs.ltl.syntax import (
-    TRUE,
-    And,
-    Finally,
-    Formula,
-    FormulaTooDeep,
-    Globally,
-    Implies,
-    Next,
-    Not,
-    Or,
-    check_depth,
-)
+from steer_envs.ltl.syntax import Formula, FormulaTooDeep, check_depth
 
 __all__ = ["PARTS", "GR1Spec", "SafetyPart"]
 
@@ -47,13 +36,13 @@ class SafetyPart:
 
 
 def _conjuncts(f: Formula) -> tuple[Formula, ...]:
-    if f is TRUE:
+    if f is s.TRUE:
         return ()
-    return f.args if isinstance(f, And) else (f,)
+    return f.args if isinstance(f, s.And) else (f,)
 
 
 def _has_next(f: Formula) -> bool:
-    return any(isinstance(g, Next) for g in f.subformulas())
+    return any(isinstance(g, s.Next) for g in f.subformulas())
 
 
 def _names(value: Any, what: str) -> tuple[str, ...]:
@@ -166,14 +155,14 @@ class GR1Spec:
         invariants: list[Formula] = []
         transitions: list[Formula] = []
         for conj in _conjuncts(f):
-            if not isinstance(conj, Globally):
+            if not isinstance(conj, s.Globally):
                 raise ValueError(
                     f"GR1Spec.{name} must be a conjunction of G(...) formulas (GR(1) safety); "
                     f"{str(conj)!r} is not under G"
                 )
             for item in _conjuncts(conj.arg):
                 for g in item.subformulas():
-                    if isinstance(g, Next):
+                    if isinstance(g, s.Next):
                         if not g.arg.is_boolean:
                             raise ValueError(
                                 f"GR1Spec.{name}: X may only apply to propositional formulas (GR(1) safety), "
@@ -192,7 +181,7 @@ class GR1Spec:
         f = self.part(name)
         goals: list[Formula] = []
         for conj in _conjuncts(f):
-            if isinstance(conj, Globally) and isinstance(conj.arg, Finally) and conj.arg.arg.is_boolean:
+            if isinstance(conj, s.Globally) and isinstance(conj.arg, s.Finally) and conj.arg.arg.is_boolean:
                 goals.append(conj.arg.arg)
             else:
                 raise ValueError(
@@ -205,16 +194,16 @@ class GR1Spec:
     @property
     def environment(self) -> Formula:
         """``phi_e = phi_e_i & phi_e_t & phi_e_g``."""
-        return And(self.part("env_init"), self.part("env_safety"), self.part("env_liveness"))
+        return s.And(self.part("env_init"), self.part("env_safety"), self.part("env_liveness"))
 
     @property
     def system(self) -> Formula:
         """``phi_s = phi_s_i & phi_s_t & phi_s_g``."""
-        return And(self.part("sys_init"), self.part("sys_safety"), self.part("sys_liveness"))
+        return s.And(self.part("sys_init"), self.part("sys_safety"), self.part("sys_liveness"))
 
     def formula(self) -> Formula:
         """The GR(1) formula ``phi_e -> phi_s``."""
-        return Implies(self.environment, self.system)
+        return s.Implies(self.environment, self.system)
 
     def translation_formula(self) -> Formula:
         """``!phi_e | (phi_e & phi_s)``: the same language as :meth:`formula`, easier to translate.
@@ -226,7 +215,7 @@ class GR1Spec:
         prune the guards at once.
         """
         env = self.environment
-        return Or(Not(env), And(env, self.system))
+        return s.Or(s.Not(env), s.And(env, self.system))
 
     def atoms(self) -> frozenset[str]:
         """Every AP the spec mentions."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from steer_envs.io import atomic_write_text
 from steer_envs.ltl.automaton import MAX_STATES, Automaton, Edge
@@ -274,17 +274,20 @@ def _closing(toks: list[_Tok], start: int, closer: str, what: str) -> int:
     return at
 
 
-def from_hoa(text: str) -> Automaton:
-    """Parse one HOA v1 automaton (see the module doc for the supported subset)."""
-    if not isinstance(text, str):
-        raise TypeError(f"from_hoa: `text` must be a str, got {type(text).__name__}")
-    toks = _lex(text)
-    if not toks or toks[0].text != "HOA:":
-        raise ValueError("from_hoa: input does not start with 'HOA:'")
-    try:
-        body_at = next(i for i, t in enumerate(toks) if t.text == "--BODY--")
-    except StopIteration:
-        raise ValueError("from_hoa: missing --BODY--") from None
+@dataclass
+class _Header:
+    """What the HOA header lines declare."""
+
+    num_states: int | None = None
+    starts: list[int] = field(default_factory=list)
+    aps: tuple[str, ...] = ()
+    sets: list[int] | None = field(default_factory=list)
+    name: str = ""
+    aliases: dict[str, list[_Tok]] = field(default_factory=dict)
+
+
+def _header_lines(toks: list[_Tok], body_at: int) -> list[tuple[str, list[_Tok]]]:
+    """The ``(key, arguments)`` of every header line before ``--BODY--``."""
     headers: list[tuple[str, list[_Tok]]] = []
     for tok in toks[:body_at]:
         if tok.kind == "header":
@@ -293,97 +296,130 @@ def from_hoa(text: str) -> Automaton:
             raise ValueError(f"from_hoa: unexpected {tok.text!r} before the first header")
         else:
             headers[-1][1].append(tok)
-    num_states: int | None = None
-    starts: list[int] = []
-    aps: tuple[str, ...] = ()
-    sets: list[int] | None = []
-    name = ""
-    aliases: dict[str, list[_Tok]] = {}
+    return headers
+
+
+def _read_aps(args: list[_Tok]) -> tuple[str, ...]:
+    """The names of an ``AP:`` header."""
+    count = _int(_at(args, 0), "AP: count")
+    if count > MAX_APS:
+        raise ValueError(f"from_hoa: AP: declares {count} APs; at most {MAX_APS} are supported")
+    if any(t.kind != "string" for t in args[1:]):
+        raise ValueError("from_hoa: AP: names must be double-quoted strings")
+    aps = tuple(_unquote(t.text) for t in args[1:])
+    if len(aps) != count:
+        raise ValueError(f"from_hoa: AP: declares {count} APs but lists {len(aps)}")
+    return aps
+
+
+def _read_header(headers: list[tuple[str, list[_Tok]]]) -> _Header:
+    """Interpret the header lines that matter for a generalized Büchi automaton."""
+    head = _Header()
     for key, args in headers:
         if key == "States":
-            num_states = _int(_at(args, 0), "States:")
-            if num_states > MAX_STATES:
-                raise ValueError(f"from_hoa: States: {num_states} exceeds MAX_STATES={MAX_STATES}")
+            head.num_states = _int(_at(args, 0), "States:")
+            if head.num_states > MAX_STATES:
+                raise ValueError(f"from_hoa: States: {head.num_states} exceeds MAX_STATES={MAX_STATES}")
         elif key == "Start":
             if any(t.text == "&" for t in args):
                 raise ValueError("from_hoa: alternating automata (conjunctive Start) are not supported")
-            starts.append(_int(_at(args, 0), "Start:"))
+            head.starts.append(_int(_at(args, 0), "Start:"))
         elif key == "AP":
-            count = _int(_at(args, 0), "AP: count")
-            if count > MAX_APS:
-                raise ValueError(f"from_hoa: AP: declares {count} APs; at most {MAX_APS} are supported")
-            if any(t.kind != "string" for t in args[1:]):
-                raise ValueError("from_hoa: AP: names must be double-quoted strings")
-            aps = tuple(_unquote(t.text) for t in args[1:])
-            if len(aps) != count:
-                raise ValueError(f"from_hoa: AP: declares {count} APs but lists {len(aps)}")
+            head.aps = _read_aps(args)
         elif key == "Acceptance":
-            sets = _parse_acceptance(args)
+            head.sets = _parse_acceptance(args)
         elif key == "name":
-            name = _unquote(args[0].text) if args and args[0].kind == "string" else ""
+            head.name = _unquote(args[0].text) if args and args[0].kind == "string" else ""
         elif key == "Alias":
             if not args or not args[0].text.startswith("@"):
                 raise ValueError("from_hoa: Alias: needs an @name and a label")
-            aliases[args[0].text] = args[1:]
-    if not starts:
+            head.aliases[args[0].text] = args[1:]
+    if not head.starts:
         raise ValueError("from_hoa: no Start: state")
-    n = len(aps)
-    remap = {} if sets is None else {s: i for i, s in enumerate(sets)}
-    num_sets = 1 if sets is None else len(sets)
+    return head
 
-    def marks(tok_list: list[_Tok]) -> frozenset[int]:
-        return frozenset(remap[int(t.text)] for t in tok_list if t.kind == "int" and int(t.text) in remap)
 
-    body = toks[body_at + 1 :]
-    edges: list[Edge] = []
-    names: dict[int, str] = {}
-    state: int | None = None
-    state_marks: frozenset[int] = frozenset()
-    state_based = False
-    i = 0
-    while i < len(body):
-        tok = body[i]
-        if tok.text in ("--END--", "--ABORT--"):
-            if tok.text == "--ABORT--":
-                raise ValueError("from_hoa: the producer aborted the automaton (--ABORT--)")
-            break
-        if tok.text == "State:":
+class _BodyReader:
+    """Reads the states and labelled edges between ``--BODY--`` and ``--END--``."""
+
+    def __init__(self, body: list[_Tok], head: _Header) -> None:
+        self.body, self.head = body, head
+        self.remap = {} if head.sets is None else {s: i for i, s in enumerate(head.sets)}
+        self.edges: list[Edge] = []
+        self.names: dict[int, str] = {}
+        self.state: int | None = None
+        self.state_marks: frozenset[int] = frozenset()
+        self.state_based = False
+
+    def marks(self, tok_list: list[_Tok]) -> frozenset[int]:
+        """The acceptance sets named in ``{...}``, renumbered to ``0..num_sets-1``."""
+        return frozenset(self.remap[int(t.text)] for t in tok_list if t.kind == "int" and int(t.text) in self.remap)
+
+    def read(self) -> None:
+        """Read the whole body into ``edges``, ``names`` and ``state_based``."""
+        body = self.body
+        i = 0
+        while i < len(body):
+            tok = body[i]
+            if tok.text in ("--END--", "--ABORT--"):
+                if tok.text == "--ABORT--":
+                    raise ValueError("from_hoa: the producer aborted the automaton (--ABORT--)")
+                break
+            if tok.text == "State:":
+                i = self._state(i + 1)
+                continue
+            if self.state is None:
+                raise ValueError(f"from_hoa: edge before any State: ({tok.text!r})")
+            if tok.text != "[":
+                raise ValueError("from_hoa: implicit (unlabelled) edges are not supported")
+            i = self._edge(i, self.state)
+
+    def _state(self, i: int) -> int:
+        """Read a ``State:`` line from just after the keyword; the index after it."""
+        body = self.body
+        nxt = _at(body, i)
+        if nxt is not None and nxt.text == "[":
+            raise ValueError("from_hoa: state labels are not supported (use edge labels)")
+        self.state = _int(nxt, "State:")
+        i += 1
+        if i < len(body) and body[i].kind == "string":
+            self.names[self.state] = _unquote(body[i].text)
             i += 1
-            nxt = _at(body, i)
-            if nxt is not None and nxt.text == "[":
-                raise ValueError("from_hoa: state labels are not supported (use edge labels)")
-            state = _int(nxt, "State:")
-            i += 1
-            if i < len(body) and body[i].kind == "string":
-                names[state] = _unquote(body[i].text)
-                i += 1
-            state_marks = frozenset()
-            if i < len(body) and body[i].text == "{":
-                j = _closing(body, i, "}", "state marks")
-                state_marks = marks(body[i + 1 : j])
-                state_based = True
-                i = j + 1
-            continue
-        if state is None:
-            raise ValueError(f"from_hoa: edge before any State: ({tok.text!r})")
-        if tok.text != "[":
-            raise ValueError("from_hoa: implicit (unlabelled) edges are not supported")
+        self.state_marks = frozenset()
+        if i < len(body) and body[i].text == "{":
+            j = _closing(body, i, "}", "state marks")
+            self.state_marks = self.marks(body[i + 1 : j])
+            self.state_based = True
+            i = j + 1
+        return i
+
+    def _edge(self, i: int, state: int) -> int:
+        """Read one ``[label] dst {marks}`` edge starting at ``[``; the index after it."""
+        body = self.body
         close = _closing(body, i, "]", "edge label")
-        guard = _LabelParser(body[i + 1 : close], n, aliases).parse()
+        guard = _LabelParser(body[i + 1 : close], len(self.head.aps), self.head.aliases).parse()
         i = close + 1
         dst = _int(_at(body, i), "an edge's destination state")
         i += 1
         if i < len(body) and body[i].text == "&":
             raise ValueError("from_hoa: alternating automata (conjunctive destinations) are not supported")
-        acc = state_marks
+        acc = self.state_marks
         if i < len(body) and body[i].text == "{":
             k = _closing(body, i, "}", "edge marks")
-            acc = acc | marks(body[i + 1 : k])
+            acc = acc | self.marks(body[i + 1 : k])
             i = k + 1
         if guard:
-            edges.append(Edge(state, dst, guard, acc))
+            self.edges.append(Edge(state, dst, guard, acc))
+        return i
+
+
+def _assemble(head: _Header, reader: _BodyReader) -> Automaton:
+    """The :class:`Automaton`; several start states get one fresh initial state copying their edges."""
+    starts, edges, names = head.starts, reader.edges, reader.names
     total = (
-        num_states if num_states is not None else 1 + max([*starts, *(e.dst for e in edges), *(e.src for e in edges)])
+        head.num_states
+        if head.num_states is not None
+        else 1 + max([*starts, *(e.dst for e in edges), *(e.src for e in edges)])
     )
     if total > MAX_STATES:
         raise ValueError(f"from_hoa: the automaton names state {total - 1}; at most MAX_STATES={MAX_STATES} states")
@@ -398,12 +434,29 @@ def from_hoa(text: str) -> Automaton:
     else:
         initial = starts[0]
     return Automaton(
-        aps=aps,
+        aps=head.aps,
         num_states=total,
         initial=initial,
         edges=tuple(edges),
-        num_sets=num_sets,
-        state_based=state_based,
+        num_sets=1 if head.sets is None else len(head.sets),
+        state_based=reader.state_based,
         state_names=state_names,
-        name=name,
+        name=head.name,
     )
+
+
+def from_hoa(text: str) -> Automaton:
+    """Parse one HOA v1 automaton (see the module doc for the supported subset)."""
+    if not isinstance(text, str):
+        raise TypeError(f"from_hoa: `text` must be a str, got {type(text).__name__}")
+    toks = _lex(text)
+    if not toks or toks[0].text != "HOA:":
+        raise ValueError("from_hoa: input does not start with 'HOA:'")
+    try:
+        body_at = next(i for i, t in enumerate(toks) if t.text == "--BODY--")
+    except StopIteration:
+        raise ValueError("from_hoa: missing --BODY--") from None
+    head = _read_header(_header_lines(toks, body_at))
+    reader = _BodyReader(toks[body_at + 1 :], head)
+    reader.read()
+    return _assemble(head, reader)

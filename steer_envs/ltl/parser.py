@@ -30,25 +30,8 @@ from __future__ import annotations
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
-from steer_envs.ltl.syntax import (
-    FALSE,
-    TRUE,
-    And,
-    Atom,
-    Equiv,
-    Finally,
-    Formula,
-    Globally,
-    Implies,
-    Next,
-    Not,
-    Or,
-    Release,
-    StrongRelease,
-    Until,
-    WeakUntil,
-    Xor,
-)
+from steer_envs.ltl import syntax as s
+from steer_envs.ltl.syntax import Formula
 
 __all__ = ["MAX_PARSE_DEPTH", "LTLParseError", "parse"]
 
@@ -124,77 +107,78 @@ _WORD_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ012
 _BINOPS = {"U": "U", "R": "R", "V": "R", "W": "W", "M": "M"}
 
 
+#: token kinds after which the scanner expects a binary operator, not an operand
+_ENDS_OPERAND = frozenset({"ap", "const", "rparen"})
+
+
 def _tokenize(text: str) -> list[_Token]:
     tokens: list[_Token] = []
     i, n = 0, len(text)
     expect_operand = True  # Spot's INITIAL vs not_prop scanner condition
     while i < n:
-        ch = text[i]
-        col = i + 1
-        if ch.isspace():
+        if text[i].isspace():
             i += 1
             continue
-        if ch == '"':
-            j = i + 1
-            chars: list[str] = []
-            while j < n and text[j] != '"':
-                if text[j] == "\\" and j + 1 < n:
-                    j += 1
-                chars.append(text[j])
-                j += 1
-            if j >= n:
-                raise LTLParseError(text, col, "a closing '\"' for the quoted atomic proposition", "end of input")
-            if not chars:
-                raise LTLParseError(text, col, "a non-empty quoted atomic proposition", '""')
-            tokens.append(_Token("ap", "".join(chars), col))
-            i = j + 1
-            expect_operand = False
-            continue
-        for sym, kind, value in _SYMBOLS:
-            if text.startswith(sym, i):
-                tokens.append(_Token(kind, value, col))
-                i += len(sym)
-                expect_operand = kind != "rparen"
-                break
-        else:
-            if ch in _WORD_CHARS:
-                if ch in "FGX" and not (i + 1 < n and text[i + 1].isdigit()):
-                    tokens.append(_Token("unary", ch, col))
-                    i += 1
-                    expect_operand = True
-                    continue
-                if not expect_operand and ch in _BINOPS:
-                    tokens.append(_Token("binop", _BINOPS[ch], col))
-                    i += 1
-                    expect_operand = True
-                    continue
-                j = i
-                while j < n and text[j] in _WORD_CHARS:
-                    j += 1
-                word = text[i:j]
-                i = j
-                if word == "xor":
-                    tokens.append(_Token("xor", "xor", col))
-                    expect_operand = True
-                elif word in _BINOPS:
-                    tokens.append(_Token("binop", _BINOPS[word], col))
-                    expect_operand = True
-                elif word.lower() in ("true", "false") or word in ("1", "0"):
-                    tokens.append(_Token("const", "true" if word.lower() in ("true", "1") else "false", col))
-                    expect_operand = False
-                elif word[0].isdigit():
-                    raise LTLParseError(
-                        text, col, 'an atomic proposition not starting with a digit (quote it: "...")', repr(word)
-                    )
-                else:
-                    tokens.append(_Token("ap", word, col))
-                    expect_operand = False
-                continue
-            if ch in "{}[]*;:":
-                raise LTLParseError(text, col, "an LTL operator (PSL/SERE syntax is not supported)", repr(ch))
-            raise LTLParseError(text, col, _OPERAND if expect_operand else "a binary operator", repr(ch))
+        tok, i = _next_token(text, i, expect_operand)
+        tokens.append(tok)
+        expect_operand = tok.kind not in _ENDS_OPERAND
     tokens.append(_Token("end", "", n + 1))
     return tokens
+
+
+def _next_token(text: str, i: int, expect_operand: bool) -> tuple[_Token, int]:
+    """The token starting at ``text[i]`` (not a space) and the index after it."""
+    ch = text[i]
+    col = i + 1
+    if ch == '"':
+        return _quoted(text, i)
+    for sym, kind, value in _SYMBOLS:
+        if text.startswith(sym, i):
+            return _Token(kind, value, col), i + len(sym)
+    if ch in _WORD_CHARS:
+        return _word(text, i, expect_operand)
+    if ch in "{}[]*;:":
+        raise LTLParseError(text, col, "an LTL operator (PSL/SERE syntax is not supported)", repr(ch))
+    raise LTLParseError(text, col, _OPERAND if expect_operand else "a binary operator", repr(ch))
+
+
+def _quoted(text: str, i: int) -> tuple[_Token, int]:
+    """A double-quoted atomic proposition starting at ``text[i] == '"'`` (backslash escapes)."""
+    n, col = len(text), i + 1
+    j = i + 1
+    chars: list[str] = []
+    while j < n and text[j] != '"':
+        if text[j] == "\\" and j + 1 < n:
+            j += 1
+        chars.append(text[j])
+        j += 1
+    if j >= n:
+        raise LTLParseError(text, col, "a closing '\"' for the quoted atomic proposition", "end of input")
+    if not chars:
+        raise LTLParseError(text, col, "a non-empty quoted atomic proposition", '""')
+    return _Token("ap", "".join(chars), col), j + 1
+
+
+def _word(text: str, i: int, expect_operand: bool) -> tuple[_Token, int]:
+    """A unary ``F G X``, a binary letter operator, ``xor``, a constant or an atomic proposition."""
+    n, col, ch = len(text), i + 1, text[i]
+    if ch in "FGX" and not (i + 1 < n and text[i + 1].isdigit()):
+        return _Token("unary", ch, col), i + 1
+    if not expect_operand and ch in _BINOPS:
+        return _Token("binop", _BINOPS[ch], col), i + 1
+    j = i
+    while j < n and text[j] in _WORD_CHARS:
+        j += 1
+    word = text[i:j]
+    if word == "xor":
+        return _Token("xor", "xor", col), j
+    if word in _BINOPS:
+        return _Token("binop", _BINOPS[word], col), j
+    if word.lower() in ("true", "false") or word in ("1", "0"):
+        return _Token("const", "true" if word.lower() in ("true", "1") else "false", col), j
+    if word[0].isdigit():
+        raise LTLParseError(text, col, 'an atomic proposition not starting with a digit (quote it: "...")', repr(word))
+    return _Token("ap", word, col), j
 
 
 #: the parser's explicit stack holds at most this many open grammar rules (about 7 per open
@@ -254,7 +238,7 @@ class _Parser:
         if tok.kind in ("implies", "equiv"):
             self.pos += 1
             right = yield self.implication
-            return Implies(left, right) if tok.kind == "implies" else Equiv(left, right)
+            return s.Implies(left, right) if tok.kind == "implies" else s.Equiv(left, right)
         return left
 
     def disjunction(self) -> _Rule:
@@ -262,13 +246,13 @@ class _Parser:
         while self.tok.kind == "or":
             self.pos += 1
             args.append((yield self.exclusive))
-        return Or(*args)
+        return s.Or(*args)
 
     def exclusive(self) -> _Rule:
         left = yield self.conjunction
         while self.tok.kind == "xor":
             self.pos += 1
-            left = Xor(left, (yield self.conjunction))
+            left = s.Xor(left, (yield self.conjunction))
         return left
 
     def conjunction(self) -> _Rule:
@@ -276,7 +260,7 @@ class _Parser:
         while self.tok.kind == "and":
             self.pos += 1
             args.append((yield self.temporal))
-        return And(*args)
+        return s.And(*args)
 
     def temporal(self) -> _Rule:
         left = yield self.unary
@@ -284,7 +268,7 @@ class _Parser:
         if tok.kind == "binop":
             self.pos += 1
             right = yield self.temporal
-            cls = {"U": Until, "R": Release, "W": WeakUntil, "M": StrongRelease}[tok.value]
+            cls = {"U": s.Until, "R": s.Release, "W": s.WeakUntil, "M": s.StrongRelease}[tok.value]
             return cls(left, right)
         return left
 
@@ -292,24 +276,24 @@ class _Parser:
         tok = self.tok
         if tok.kind == "not":
             self.pos += 1
-            return Not((yield self.unary))
+            return s.Not((yield self.unary))
         if tok.kind == "unary":
             self.pos += 1
-            cls = {"X": Next, "F": Finally, "G": Globally}[tok.value]
+            cls = {"X": s.Next, "F": s.Finally, "G": s.Globally}[tok.value]
             return cls((yield self.unary))
         if tok.kind == "ap":  # the common leaves, without a rule of their own
             self.pos += 1
-            return Atom(tok.value)
+            return s.Atom(tok.value)
         return (yield self.primary)
 
     def primary(self) -> _Rule:
         tok = self.tok
         if tok.kind == "ap":
             self.pos += 1
-            return Atom(tok.value)
+            return s.Atom(tok.value)
         if tok.kind == "const":
             self.pos += 1
-            return TRUE if tok.value == "true" else FALSE
+            return s.TRUE if tok.value == "true" else s.FALSE
         if tok.kind == "lparen":
             self.pos += 1
             if self.tok.kind == "rparen":

@@ -43,8 +43,8 @@ import numpy as np
 
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import boolean, describe
-from steer_envs.ltl.automaton import Automaton, Edge
-from steer_envs.ltl.gr1 import GR1Spec
+from steer_envs.ltl.automaton import Automaton, Edge, backward_closure
+from steer_envs.ltl.gr1 import GR1Spec, SafetyPart
 from steer_envs.ltl.guards import MAX_APS, formula_mask
 from steer_envs.ltl.syntax import FALSE, TRUE, And, Atom, Const, Formula, Next
 
@@ -136,46 +136,64 @@ class TaskAutomaton:
         return v
 
     def _build(self) -> None:
-        spec, task = self.spec, self.task
-        ns = len(self.sensors)
-        env_safety, sys_safety = spec.safety("env_safety"), spec.safety("sys_safety")
-        env_inv = self._mask(And(*env_safety.invariants))
-        sys_inv = self._mask(And(*sys_safety.invariants))
-        use_labels = set(self.modes) == set(task.modes) and bool(task.sensor_modes)
-
-        def candidates(mask: int) -> list[Node]:
-            out = []
-            for mi, mode in enumerate(self.modes):
-                for alpha in range(1 << ns):
-                    v = alpha | (1 << (ns + mi))
-                    if not (mask >> v) & 1:
-                        continue
-                    reading = frozenset(ap for j, ap in enumerate(self.sensors) if (alpha >> j) & 1)
-                    if use_labels and task.sensor_modes.get(reading, mode) != mode:
-                        continue
-                    out.append(Node(mode, reading))
-            return out
-
-        nodes = candidates(env_inv & sys_inv)
-        if not nodes:
-            if not candidates(env_inv):
-                raise UnrealizableSpecError(
-                    f"env_safety is contradictory: no sensor reading with one mode of {self.modes} satisfies its "
-                    f"invariants {[str(f) for f in env_safety.invariants]}"
-                )
-            if not candidates(sys_inv):
-                raise UnrealizableSpecError(
-                    f"sys_safety is contradictory: no mode of {self.modes} satisfies its invariants "
-                    f"{[str(f) for f in sys_safety.invariants]}"
-                )
-            raise UnrealizableSpecError(
-                "env_safety and sys_safety contradict each other: no (sensor reading, mode) satisfies both invariants"
-            )
+        env_safety, sys_safety = self.spec.safety("env_safety"), self.spec.safety("sys_safety")
+        nodes = self._safe_nodes(env_safety, sys_safety)
         self.nodes: tuple[Node, ...] = tuple(nodes)
         self.index: dict[Node, int] = {node: i for i, node in enumerate(nodes)}
         vals = [self._valuation(node) for node in nodes]
+        self._build_edges(And(*env_safety.transitions, *sys_safety.transitions), vals)
+        self._build_initial(vals)
+        self._build_goals(vals)
+        self._vals = vals
+        self._cycles = self._covering_cycles()
+        for i in self.initial:
+            if self.plan_nodes(i) is None:
+                goal_text = " & ".join(f"G F {g}" for g in self.goal_formulas) or "true"
+                raise UnrealizableSpecError(
+                    f"unrealizable: from the initial state {self.nodes[i]} no mode sequence allowed by sys_safety "
+                    f"(and env_safety) satisfies sys_liveness {goal_text!r}"
+                )
 
-        transition = And(*env_safety.transitions, *sys_safety.transitions)
+    def _candidates(self, mask: int) -> list[Node]:
+        """The (mode, sensor reading) nodes whose valuation ``mask`` allows (and the task's labels, if used)."""
+        task, ns = self.task, len(self.sensors)
+        use_labels = set(self.modes) == set(task.modes) and bool(task.sensor_modes)
+        out = []
+        for mi, mode in enumerate(self.modes):
+            for alpha in range(1 << ns):
+                v = alpha | (1 << (ns + mi))
+                if not (mask >> v) & 1:
+                    continue
+                reading = frozenset(ap for j, ap in enumerate(self.sensors) if (alpha >> j) & 1)
+                if use_labels and task.sensor_modes.get(reading, mode) != mode:
+                    continue
+                out.append(Node(mode, reading))
+        return out
+
+    def _safe_nodes(self, env_safety: SafetyPart, sys_safety: SafetyPart) -> list[Node]:
+        """The nodes meeting both safety invariants; an error naming the contradictory part if none."""
+        env_inv = self._mask(And(*env_safety.invariants))
+        sys_inv = self._mask(And(*sys_safety.invariants))
+        nodes = self._candidates(env_inv & sys_inv)
+        if nodes:
+            return nodes
+        if not self._candidates(env_inv):
+            raise UnrealizableSpecError(
+                f"env_safety is contradictory: no sensor reading with one mode of {self.modes} satisfies its "
+                f"invariants {[str(f) for f in env_safety.invariants]}"
+            )
+        if not self._candidates(sys_inv):
+            raise UnrealizableSpecError(
+                f"sys_safety is contradictory: no mode of {self.modes} satisfies its invariants "
+                f"{[str(f) for f in sys_safety.invariants]}"
+            )
+        raise UnrealizableSpecError(
+            "env_safety and sys_safety contradict each other: no (sensor reading, mode) satisfies both invariants"
+        )
+
+    def _build_edges(self, transition: Formula, vals: list[int]) -> None:
+        """``edges``, ``succ`` and ``plan_succ`` (plans never lead into a recovery mode)."""
+        nodes = self.nodes
         edges: set[tuple[int, int]] = set()
         for i, node in enumerate(nodes):
             allowed = self._mask(_substitute_current(transition, node.sensors | {node.mode}))
@@ -187,7 +205,7 @@ class TaskAutomaton:
             tuple(sorted(j for (a, j) in edges if a == i)) for i in range(len(nodes))
         )
         # plans never lead into a recovery mode (entered only by perturbation)
-        recovery = set(spec.recovery_modes)
+        recovery = set(self.spec.recovery_modes)
         unknown = recovery - set(self.modes)
         if unknown:
             raise ValueError(f"GR1Spec.recovery_modes {sorted(unknown)} are not modes of the task {self.modes}")
@@ -195,6 +213,9 @@ class TaskAutomaton:
             tuple(j for j in self.succ[i] if j == i or nodes[j].mode not in recovery) for i in range(len(nodes))
         )
 
+    def _build_initial(self, vals: list[int]) -> None:
+        """``initial``: the nodes meeting ``env_init`` and ``sys_init``."""
+        spec = self.spec
         env_init = self._mask(spec.initial_condition("env_init"))
         sys_init = self._mask(spec.initial_condition("sys_init"))
         init_env = [i for i, v in enumerate(vals) if (env_init >> v) & 1]
@@ -208,7 +229,10 @@ class TaskAutomaton:
                 f"sys_init {spec.sys_init!r} contradicts env_init {spec.env_init!r} under the safety invariants: "
                 f"no initial mode"
             )
-        self.goal_formulas: tuple[Formula, ...] = spec.liveness("sys_liveness")
+
+    def _build_goals(self, vals: list[int]) -> None:
+        """``goal_formulas`` and ``goals`` (the nodes meeting each ``G F`` goal)."""
+        self.goal_formulas: tuple[Formula, ...] = self.spec.liveness("sys_liveness")
         self.goals: tuple[frozenset[int], ...] = tuple(
             frozenset(i for i, v in enumerate(vals) if (self._mask(g) >> v) & 1) for g in self.goal_formulas
         )
@@ -217,15 +241,6 @@ class TaskAutomaton:
                 raise UnrealizableSpecError(
                     f"sys_liveness goal 'G F {g}' is unsatisfiable: no mode of {self.modes} meets it under the "
                     f"safety invariants"
-                )
-        self._vals = vals
-        self._cycles = self._covering_cycles()
-        for i in self.initial:
-            if self.plan_nodes(i) is None:
-                goal_text = " & ".join(f"G F {g}" for g in self.goal_formulas) or "true"
-                raise UnrealizableSpecError(
-                    f"unrealizable: from the initial state {self.nodes[i]} no mode sequence allowed by sys_safety "
-                    f"(and env_safety) satisfies sys_liveness {goal_text!r}"
                 )
 
     # --------------------------------------------------------------- lassos
@@ -270,15 +285,7 @@ class TaskAutomaton:
         for a, succ in enumerate(self.plan_succ):
             for b in succ:
                 pred[b].append(a)
-        live = set(self._cycles)
-        stack = list(live)
-        while stack:
-            q = stack.pop()
-            for p in pred[q]:
-                if p not in live:
-                    live.add(p)
-                    stack.append(p)
-        return frozenset(live)
+        return frozenset(backward_closure(self._cycles, pred))
 
     def plan_nodes(self, start: int) -> list[int] | None:
         """Shortest lasso from node ``start`` as node indices: prefix, then the cycle closed (or None)."""

@@ -20,25 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from steer_envs.core.validation import BoundExceeded, boolean, describe
+from steer_envs.ltl import syntax as s
 from steer_envs.ltl.parser import parse
-from steer_envs.ltl.syntax import (
-    And,
-    Atom,
-    Const,
-    Equiv,
-    Finally,
-    Formula,
-    Globally,
-    Implies,
-    Next,
-    Not,
-    Or,
-    Release,
-    StrongRelease,
-    Until,
-    WeakUntil,
-    Xor,
-)
+from steer_envs.ltl.syntax import Formula
 
 __all__ = ["LassoWord", "Letter", "evaluate", "evaluate_positions"]
 
@@ -118,60 +102,77 @@ def evaluate_positions(formula: str | Formula, word: LassoWord) -> tuple[bool, .
     if not isinstance(word, LassoWord):
         raise TypeError(f"word must be a LassoWord, got {type(word).__name__}")
     letters = word.letters()
-    n = len(letters)
-    succ = [word.successor(i) for i in range(n)]
+    succ = [word.successor(i) for i in range(len(letters))]
     values: dict[Formula, list[bool]] = {}
-
-    def fixpoint(init: bool, step: Callable[..., bool]) -> list[bool]:
-        val = [init] * n
-        for _ in range(n + 1):  # monotone: every sweep but the last flips a value for good, so <= n + 1 sweeps
-            changed = False
-            for i in range(n - 1, -1, -1):
-                new = step(i, val[succ[i]])
-                if new != val[i]:
-                    val[i] = new
-                    changed = True
-            if not changed:
-                return val
-        raise BoundExceeded(f"evaluate: no fixpoint after len(word) + 1 = {n + 1} sweeps")  # pragma: no cover
-
     for g in f.subformulas():
-        a = values[g.args[0]] if g.args else []
-        b = values[g.args[1]] if len(g.args) > 1 else []
-        if isinstance(g, Const):
-            val = [g.value] * n
-        elif isinstance(g, Atom):
-            val = [g.name in letters[i] for i in range(n)]
-        elif isinstance(g, Not):
-            val = [not x for x in a]
-        elif isinstance(g, And):
-            val = [all(values[c][i] for c in g.args) for i in range(n)]
-        elif isinstance(g, Or):
-            val = [any(values[c][i] for c in g.args) for i in range(n)]
-        elif isinstance(g, Implies):
-            val = [(not x) or y for x, y in zip(a, b, strict=True)]
-        elif isinstance(g, Equiv):
-            val = [x == y for x, y in zip(a, b, strict=True)]
-        elif isinstance(g, Xor):
-            val = [x != y for x, y in zip(a, b, strict=True)]
-        elif isinstance(g, Next):
-            val = [a[succ[i]] for i in range(n)]
-        elif isinstance(g, Finally):
-            val = fixpoint(False, lambda i, nxt, a=a: a[i] or nxt)
-        elif isinstance(g, Globally):
-            val = fixpoint(True, lambda i, nxt, a=a: a[i] and nxt)
-        elif isinstance(g, Until):
-            val = fixpoint(False, lambda i, nxt, a=a, b=b: b[i] or (a[i] and nxt))
-        elif isinstance(g, WeakUntil):
-            val = fixpoint(True, lambda i, nxt, a=a, b=b: b[i] or (a[i] and nxt))
-        elif isinstance(g, Release):
-            val = fixpoint(True, lambda i, nxt, a=a, b=b: b[i] and (a[i] or nxt))
-        elif isinstance(g, StrongRelease):
-            val = fixpoint(False, lambda i, nxt, a=a, b=b: b[i] and (a[i] or nxt))
-        else:  # pragma: no cover - closed hierarchy
-            raise TypeError(f"unknown formula node {type(g).__name__}")
-        values[g] = val
+        values[g] = _node_values(g, values, letters, succ)
     return tuple(values[f])
+
+
+_TEMPORAL = (s.Finally, s.Globally, s.Until, s.WeakUntil, s.Release, s.StrongRelease)
+
+
+def _node_values(
+    g: Formula, values: Mapping[Formula, list[bool]], letters: Sequence[frozenset[str]], succ: Sequence[int]
+) -> list[bool]:
+    """Truth values of ``g`` at every position, given those of its subformulas in ``values``."""
+    n = len(letters)
+    a = values[g.args[0]] if g.args else []
+    b = values[g.args[1]] if len(g.args) > 1 else []
+    if isinstance(g, _TEMPORAL):
+        return _temporal_values(g, a, b, succ)
+    if isinstance(g, s.Const):
+        return [g.value] * n
+    if isinstance(g, s.Atom):
+        return [g.name in letters[i] for i in range(n)]
+    if isinstance(g, s.Not):
+        return [not x for x in a]
+    if isinstance(g, s.And):
+        return [all(values[c][i] for c in g.args) for i in range(n)]
+    if isinstance(g, s.Or):
+        return [any(values[c][i] for c in g.args) for i in range(n)]
+    if isinstance(g, s.Implies):
+        return [(not x) or y for x, y in zip(a, b, strict=True)]
+    if isinstance(g, s.Equiv):
+        return [x == y for x, y in zip(a, b, strict=True)]
+    if isinstance(g, s.Xor):
+        return [x != y for x, y in zip(a, b, strict=True)]
+    if isinstance(g, s.Next):
+        return [a[succ[i]] for i in range(n)]
+    raise TypeError(f"unknown formula node {type(g).__name__}")  # pragma: no cover - closed hierarchy
+
+
+def _temporal_values(g: Formula, a: list[bool], b: list[bool], succ: Sequence[int]) -> list[bool]:
+    """Truth values of a fixpoint operator (``F G U W R M``) over its operands' values ``a`` and ``b``."""
+    if isinstance(g, s.Finally):
+        return _fixpoint(succ, False, lambda i, nxt: a[i] or nxt)
+    if isinstance(g, s.Globally):
+        return _fixpoint(succ, True, lambda i, nxt: a[i] and nxt)
+    if isinstance(g, s.Until):
+        return _fixpoint(succ, False, lambda i, nxt: b[i] or (a[i] and nxt))
+    if isinstance(g, s.WeakUntil):
+        return _fixpoint(succ, True, lambda i, nxt: b[i] or (a[i] and nxt))
+    if isinstance(g, s.Release):
+        return _fixpoint(succ, True, lambda i, nxt: b[i] and (a[i] or nxt))
+    if isinstance(g, s.StrongRelease):
+        return _fixpoint(succ, False, lambda i, nxt: b[i] and (a[i] or nxt))
+    raise TypeError(f"unknown formula node {type(g).__name__}")  # pragma: no cover - closed hierarchy
+
+
+def _fixpoint(succ: Sequence[int], init: bool, step: Callable[[int, bool], bool]) -> list[bool]:
+    """The fixpoint of ``val[i] = step(i, val[succ[i]])`` reached by backward sweeps from ``init``."""
+    n = len(succ)
+    val = [init] * n
+    for _ in range(n + 1):  # monotone: every sweep but the last flips a value for good, so <= n + 1 sweeps
+        changed = False
+        for i in range(n - 1, -1, -1):
+            new = step(i, val[succ[i]])
+            if new != val[i]:
+                val[i] = new
+                changed = True
+        if not changed:
+            return val
+    raise BoundExceeded(f"evaluate: no fixpoint after len(word) + 1 = {n + 1} sweeps")  # pragma: no cover
 
 
 def evaluate(

@@ -19,29 +19,9 @@ from collections.abc import Callable
 from functools import lru_cache
 
 from steer_envs.core.validation import BoundExceeded
+from steer_envs.ltl import syntax as s
 from steer_envs.ltl.parser import parse
-from steer_envs.ltl.syntax import (
-    FALSE,
-    TRUE,
-    And,
-    Atom,
-    Const,
-    Equiv,
-    Finally,
-    Formula,
-    Globally,
-    Implies,
-    Next,
-    Not,
-    Or,
-    Release,
-    StrongRelease,
-    Until,
-    WeakUntil,
-    Xor,
-    check_depth,
-    check_text_length,
-)
+from steer_envs.ltl.syntax import Formula, check_depth, check_text_length
 
 __all__ = ["clear_caches", "conjunction", "disjunction", "nnf", "simplify"]
 
@@ -63,39 +43,39 @@ def nnf(formula: str | Formula) -> Formula:
 
 @lru_cache(maxsize=65536)
 def _nnf(f: Formula, neg: bool) -> Formula:
-    if isinstance(f, Const):
-        return Const(f.value != neg)
-    if isinstance(f, Atom):
-        return Not(f) if neg else f
-    if isinstance(f, Not):
+    if isinstance(f, s.Const):
+        return s.Const(f.value != neg)
+    if isinstance(f, s.Atom):
+        return s.Not(f) if neg else f
+    if isinstance(f, s.Not):
         return _nnf(f.arg, not neg)
-    if isinstance(f, And):
+    if isinstance(f, s.And):
         parts = [_nnf(a, neg) for a in f.args]
-        return Or(*parts) if neg else And(*parts)
-    if isinstance(f, Or):
+        return s.Or(*parts) if neg else s.And(*parts)
+    if isinstance(f, s.Or):
         parts = [_nnf(a, neg) for a in f.args]
-        return And(*parts) if neg else Or(*parts)
+        return s.And(*parts) if neg else s.Or(*parts)
     # the derived operators recurse straight into their operands (one stack frame per level)
-    if isinstance(f, Implies):  # a -> b == !a | b; !(a -> b) == a & !b
+    if isinstance(f, s.Implies):  # a -> b == !a | b; !(a -> b) == a & !b
         left, right = _nnf(f.left, not neg), _nnf(f.right, neg)
-        return And(left, right) if neg else Or(left, right)
-    if isinstance(f, Equiv | Xor):  # a <-> b == (a & b) | (!a & !b); a xor b == !(a <-> b)
+        return s.And(left, right) if neg else s.Or(left, right)
+    if isinstance(f, s.Equiv | s.Xor):  # a <-> b == (a & b) | (!a & !b); a xor b == !(a <-> b)
         a, b = f.left, f.right
-        if neg != isinstance(f, Xor):  # a xor b
-            return Or(And(_nnf(a, False), _nnf(b, True)), And(_nnf(a, True), _nnf(b, False)))
-        return Or(And(_nnf(a, False), _nnf(b, False)), And(_nnf(a, True), _nnf(b, True)))
-    if isinstance(f, Next):
-        return Next(_nnf(f.arg, neg))
-    if isinstance(f, Finally):
-        return Globally(_nnf(f.arg, True)) if neg else Finally(_nnf(f.arg, False))
-    if isinstance(f, Globally):
-        return Finally(_nnf(f.arg, True)) if neg else Globally(_nnf(f.arg, False))
-    if isinstance(f, Until | Release | WeakUntil | StrongRelease):
-        dual: dict[type[Formula], type[Until | Release | WeakUntil | StrongRelease]] = {
-            Until: Release,
-            Release: Until,
-            WeakUntil: StrongRelease,
-            StrongRelease: WeakUntil,
+        if neg != isinstance(f, s.Xor):  # a xor b
+            return s.Or(s.And(_nnf(a, False), _nnf(b, True)), s.And(_nnf(a, True), _nnf(b, False)))
+        return s.Or(s.And(_nnf(a, False), _nnf(b, False)), s.And(_nnf(a, True), _nnf(b, True)))
+    if isinstance(f, s.Next):
+        return s.Next(_nnf(f.arg, neg))
+    if isinstance(f, s.Finally):
+        return s.Globally(_nnf(f.arg, True)) if neg else s.Finally(_nnf(f.arg, False))
+    if isinstance(f, s.Globally):
+        return s.Finally(_nnf(f.arg, True)) if neg else s.Globally(_nnf(f.arg, False))
+    if isinstance(f, s.Until | s.Release | s.WeakUntil | s.StrongRelease):
+        dual: dict[type[Formula], type[s.Until | s.Release | s.WeakUntil | s.StrongRelease]] = {
+            s.Until: s.Release,
+            s.Release: s.Until,
+            s.WeakUntil: s.StrongRelease,
+            s.StrongRelease: s.WeakUntil,
         }
         a, b = f.args
         cls = dual[type(f)] if neg else type(f)
@@ -111,9 +91,9 @@ def clear_caches() -> None:
 
 # ----------------------------------------------------------- smart builders
 def _negated_literal(f: Formula) -> Formula | None:
-    if isinstance(f, Atom):
-        return Not(f)
-    if isinstance(f, Not) and isinstance(f.arg, Atom):
+    if isinstance(f, s.Atom):
+        return s.Not(f)
+    if isinstance(f, s.Not) and isinstance(f.arg, s.Atom):
         return f.arg
     return None
 
@@ -124,15 +104,15 @@ def conjunction(*args: Formula) -> Formula:
     Only structural rules: it never rewrites an operand, so the translator can
     use it to canonicalise automaton states without renaming eventualities.
     """
-    return _junction(args, And, TRUE, FALSE)
+    return _junction(args, s.And, s.TRUE, s.FALSE)
 
 
 def disjunction(*args: Formula) -> Formula:
     """``a | b | ...`` flattened, deduplicated, sorted; ``true`` on ``p | !p``."""
-    return _junction(args, Or, FALSE, TRUE)
+    return _junction(args, s.Or, s.FALSE, s.TRUE)
 
 
-def _junction(args: tuple[Formula, ...], cls: type, unit: Const, zero: Const) -> Formula:
+def _junction(args: tuple[Formula, ...], cls: type, unit: s.Const, zero: s.Const) -> Formula:
     items: set[Formula] = set()
     stack = list(args)
     while stack:
@@ -185,33 +165,29 @@ MAX_SIMPLIFY_ROUNDS = 1_000
 
 @lru_cache(maxsize=65536)
 def _simp(f: Formula) -> Formula:
-    if not f.args or isinstance(f, Not):  # constants, atoms and (NNF) literals
+    if not f.args or isinstance(f, s.Not):  # constants, atoms and (NNF) literals
         return f
     args = [_simp(a) for a in f.args]
-    if isinstance(f, And):
+    if isinstance(f, s.And):
         return _mk_and(args)
-    if isinstance(f, Or):
+    if isinstance(f, s.Or):
         return _mk_or(args)
-    if isinstance(f, Next):
+    if isinstance(f, s.Next):
         return _mk_next(args[0])
-    if isinstance(f, Finally):
+    if isinstance(f, s.Finally):
         return _mk_finally(args[0])
-    if isinstance(f, Globally):
+    if isinstance(f, s.Globally):
         return _mk_globally(args[0])
     a, b = args
-    if isinstance(f, Until):
-        return _mk_until(a, b)
-    if isinstance(f, Release):
-        return _mk_release(a, b)
-    if isinstance(f, WeakUntil):
-        return _mk_weak_until(a, b)
-    if isinstance(f, StrongRelease):
-        return _mk_strong_release(a, b)
+    if isinstance(f, s.Until | s.Release):
+        return _mk_until_or_release(a, b, type(f))
+    if isinstance(f, s.WeakUntil | s.StrongRelease):
+        return _mk_weak_until_or_strong_release(a, b, type(f))
     raise TypeError(f"simplify: unexpected non-NNF node {type(f).__name__}")  # pragma: no cover
 
 
 def _merge(
-    items: list[Formula], cls: type[Globally | Finally | Next], combine: Callable[..., Formula]
+    items: list[Formula], cls: type[s.Globally | s.Finally | s.Next], combine: Callable[..., Formula]
 ) -> list[Formula]:
     """Merge all operands of type ``cls`` (e.g. every ``G x``) into ``cls(combine(xs))``."""
     group = [a for a in items if type(a) is cls]
@@ -222,28 +198,32 @@ def _merge(
 
 
 def _mk_and(args: list[Formula]) -> Formula:
-    f = conjunction(*args)
-    if not isinstance(f, And):
-        return f
-    items = list(f.args)
-    items = _merge(items, Globally, _mk_and_flat)
-    items = _merge(items, Next, _mk_and_flat)
-    # absorption: a & (a | b) = a
-    present = set(items)
-    items = [a for a in items if not (isinstance(a, Or) and any(x in present for x in a.args))]
-    return conjunction(*items)
+    return _mk_junction(args, s.And, conjunction, s.Globally, _mk_and_flat, s.Or)
 
 
 def _mk_or(args: list[Formula]) -> Formula:
-    f = disjunction(*args)
-    if not isinstance(f, Or):
+    return _mk_junction(args, s.Or, disjunction, s.Finally, _mk_or_flat, s.And)
+
+
+def _mk_junction(
+    args: list[Formula],
+    cls: type[s.And | s.Or],
+    build: Callable[..., Formula],
+    temporal: type[s.Globally | s.Finally],
+    flat: Callable[..., Formula],
+    dual: type[s.And | s.Or],
+) -> Formula:
+    """``build(*args)`` (a ``cls``) simplified: its ``temporal`` and ``X`` operands merged (``G a & G b = G (a & b)``,
+    ``F a | F b = F (a | b)``) and the ``dual`` operands it absorbs dropped (``a & (a | b) = a``)."""
+    f = build(*args)
+    if not isinstance(f, cls):
         return f
     items = list(f.args)
-    items = _merge(items, Finally, _mk_or_flat)
-    items = _merge(items, Next, _mk_or_flat)
+    items = _merge(items, temporal, flat)
+    items = _merge(items, s.Next, flat)
     present = set(items)
-    items = [a for a in items if not (isinstance(a, And) and any(x in present for x in a.args))]
-    return disjunction(*items)
+    items = [a for a in items if not (isinstance(a, dual) and any(x in present for x in a.args))]
+    return build(*items)
 
 
 def _mk_and_flat(*args: Formula) -> Formula:
@@ -255,74 +235,58 @@ def _mk_or_flat(*args: Formula) -> Formula:
 
 
 def _mk_next(a: Formula) -> Formula:
-    if isinstance(a, Const):
+    if isinstance(a, s.Const):
         return a
-    return Next(a)
+    return s.Next(a)
 
 
 def _is_gf(a: Formula) -> bool:
-    return isinstance(a, Globally) and isinstance(a.arg, Finally)
+    return isinstance(a, s.Globally) and isinstance(a.arg, s.Finally)
 
 
 def _is_fg(a: Formula) -> bool:
-    return isinstance(a, Finally) and isinstance(a.arg, Globally)
+    return isinstance(a, s.Finally) and isinstance(a.arg, s.Globally)
 
 
 def _mk_finally(a: Formula) -> Formula:
-    if isinstance(a, Const) or isinstance(a, Finally) or _is_gf(a):
+    if isinstance(a, s.Const) or isinstance(a, s.Finally) or _is_gf(a):
         return a  # F true, F false, F F x = F x, F G F x = G F x
-    if isinstance(a, Until):
+    if isinstance(a, s.Until):
         return _mk_finally(a.right)  # F(x U y) = F y
-    if isinstance(a, StrongRelease):
+    if isinstance(a, s.StrongRelease):
         return _mk_finally(_mk_and([a.left, a.right]))  # F(x M y) = F(x & y)
-    return Finally(a)
+    return s.Finally(a)
 
 
 def _mk_globally(a: Formula) -> Formula:
-    if isinstance(a, Const) or isinstance(a, Globally) or _is_fg(a):
+    if isinstance(a, s.Const) or isinstance(a, s.Globally) or _is_fg(a):
         return a  # G G x = G x, G F G x = F G x
-    if isinstance(a, Release):
+    if isinstance(a, s.Release):
         return _mk_globally(a.right)  # G(x R y) = G y
-    if isinstance(a, WeakUntil):
+    if isinstance(a, s.WeakUntil):
         return _mk_globally(_mk_or([a.left, a.right]))  # G(x W y) = G(x | y)
-    return Globally(a)
+    return s.Globally(a)
 
 
-def _mk_until(a: Formula, b: Formula) -> Formula:
-    if isinstance(b, Const) or a is FALSE or a is b:
-        return b  # x U true, x U false, false U y, y U y
-    if a is TRUE:
-        return _mk_finally(b)
-    if isinstance(b, Until) and b.left is a:
-        return b  # x U (x U y) = x U y
-    return Until(a, b)
+def _mk_until_or_release(a: Formula, b: Formula, cls: type[s.Until | s.Release]) -> Formula:
+    """``a U b`` or its dual ``a R b`` simplified (the comments give the ``U`` rule, then the ``R`` one)."""
+    zero, one, unary = (s.FALSE, s.TRUE, _mk_finally) if cls is s.Until else (s.TRUE, s.FALSE, _mk_globally)
+    if isinstance(b, s.Const) or a is zero or a is b:
+        return b  # x U true, x U false, false U y, y U y; x R true, x R false, true R y, y R y
+    if a is one:
+        return unary(b)  # true U y = F y; false R y = G y
+    if isinstance(b, cls) and b.left is a:
+        return b  # x U (x U y) = x U y; x R (x R y) = x R y
+    return cls(a, b)
 
 
-def _mk_release(a: Formula, b: Formula) -> Formula:
-    if isinstance(b, Const) or a is TRUE or a is b:
-        return b  # x R true, x R false, true R y, y R y
-    if a is FALSE:
-        return _mk_globally(b)
-    if isinstance(b, Release) and b.left is a:
-        return b  # x R (x R y) = x R y
-    return Release(a, b)
-
-
-def _mk_weak_until(a: Formula, b: Formula) -> Formula:
-    if b is TRUE or a is TRUE:
-        return TRUE
-    if a is FALSE or a is b:
-        return b
-    if b is FALSE:
-        return _mk_globally(a)
-    return WeakUntil(a, b)
-
-
-def _mk_strong_release(a: Formula, b: Formula) -> Formula:
-    if b is FALSE or a is FALSE:
-        return FALSE
-    if a is TRUE or a is b:
-        return b
-    if b is TRUE:
-        return _mk_finally(a)
-    return StrongRelease(a, b)
+def _mk_weak_until_or_strong_release(a: Formula, b: Formula, cls: type[s.WeakUntil | s.StrongRelease]) -> Formula:
+    """``a W b`` or its dual ``a M b`` simplified (the comments give the ``W`` rule, then the ``M`` one)."""
+    top, bottom, unary = (s.TRUE, s.FALSE, _mk_globally) if cls is s.WeakUntil else (s.FALSE, s.TRUE, _mk_finally)
+    if b is top or a is top:
+        return top  # x W true, true W y; x M false, false M y
+    if a is bottom or a is b:
+        return b  # false W y, y W y; true M y, y M y
+    if b is bottom:
+        return unary(a)  # x W false = G x; x M true = F x
+    return cls(a, b)

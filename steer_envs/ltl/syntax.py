@@ -28,10 +28,12 @@ from collections.abc import Iterator
 from typing import Any, ClassVar, Self
 
 __all__ = [
+    "BINARY_OPERATORS",
     "FALSE",
     "MAX_FORMULA_DEPTH",
     "MAX_FORMULA_TEXT",
     "TRUE",
+    "UNARY_OPERATORS",
     "And",
     "Atom",
     "Const",
@@ -488,6 +490,11 @@ class Or(_NAry):
     symbol = "|"
     precedence = 2
     _unit = False
+
+
+#: every unary operator class, and every operator class that takes two operands (``And`` / ``Or`` take any number)
+UNARY_OPERATORS: tuple[type[Formula], ...] = (Not, Next, Finally, Globally)
+BINARY_OPERATORS: tuple[type[Formula], ...] = (And, Or, Implies, Equiv, Xor, Until, Release, WeakUntil, StrongRelease)
 
 
 # ------------------------------------------------------------------ printing

@@ -4,6 +4,7 @@
 :mod:`steer_envs.ui.server`) needs the ``ui`` extra (FastAPI, uvicorn).
 """
 
-from steer_envs.ui.session import PixelMap, Session, SessionError, SteerOutcome, SteerSettings, StepOutcome
+from steer_envs.ui.session import Session, SteerOutcome, SteerSettings, StepOutcome
+from steer_envs.ui.views import PixelMap, SessionError
 
 __all__ = ["PixelMap", "Session", "SessionError", "SteerOutcome", "SteerSettings", "StepOutcome"]

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.core.extras import install_command
 from steer_envs.core.validation import BoundExceeded
 from steer_envs.ui.server import UIConfig, create_app
 
@@ -201,7 +202,7 @@ def open_page(url: str, *, width: int = 1280, height: int = 900) -> Page:
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
     except ImportError as exc:
-        raise BrowserUnavailable(f"selenium is needed for the browser ({exc}); pip install selenium") from exc
+        raise BrowserUnavailable(f"the browser needs selenium ({exc}): {install_command('dev')}") from exc
     options = webdriver.ChromeOptions()
     options.binary_location = browser
     for flag in (

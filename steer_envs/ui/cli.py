@@ -16,6 +16,7 @@ import webbrowser
 from collections.abc import Sequence
 
 from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
+from steer_envs.core.extras import MissingExtraError, require
 from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -59,13 +60,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.workers < 1 or args.threads < 1 or args.seed < 0:
         parser.error("--workers and --threads must be >= 1 and --seed >= 0")
     try:
-        import uvicorn
-
-        from steer_envs.ui.server import UIConfig, create_app
-    except ImportError as exc:  # the web extra is missing
-        print(f"steer-ui needs the 'ui' extra: pip install 'steer-envs[ui]' ({exc})", file=sys.stderr)
+        for module in ("fastapi", "uvicorn", "websockets"):
+            require(module, "ui", "steer-ui")
+    except MissingExtraError as exc:
+        print(exc, file=sys.stderr)
         return 2
     import torch
+    import uvicorn
+
+    from steer_envs.ui.server import UIConfig, create_app
 
     torch.set_num_threads(args.threads)
     if args.host not in LOCAL_HOSTS:

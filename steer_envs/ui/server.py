@@ -30,9 +30,10 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from steer_envs.core.validation import integer, one_of
+from steer_envs.steering import SAMPLERS
 from steer_envs.ui.messages import Message, MessageError, parse_message
-from steer_envs.ui.session import DOMAINS, MAX_BATCH, Session, SessionError, SteerOutcome, shared_policy
-from steer_envs.wrappers.samplers import SAMPLERS
+from steer_envs.ui.session import DOMAINS, MAX_BATCH, Session, SteerOutcome, shared_policy
+from steer_envs.ui.views import SessionError
 
 __all__ = ["MAX_PENDING", "UIConfig", "create_app"]
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import copy
 import io
-import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -33,8 +32,7 @@ from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
 from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
-from steer_envs.utils.threads import limit_threads
-from steer_envs.wrappers.samplers import (
+from steer_envs.steering import (
     MAX_MCMC_STEPS,
     SAMPLERS,
     OutputPerturbation,
@@ -42,23 +40,20 @@ from steer_envs.wrappers.samplers import (
     interaction_dims,
     make_sampler,
     place_observation,
+    policy_observation,
 )
-from steer_envs.wrappers.steering import policy_observation
+from steer_envs.ui.views import CameraView, PixelMap, SessionError, resample_by_arclength
+from steer_envs.utils.threads import limit_threads
 
 __all__ = [
     "DEFAULT_ENV",
     "DOMAINS",
     "MAX_BATCH",
-    "MAX_INPUT_POINTS",
-    "CameraView",
     "Domain",
-    "PixelMap",
     "Session",
-    "SessionError",
     "SteerOutcome",
     "SteerSettings",
     "StepOutcome",
-    "resample_by_arclength",
     "shared_policy",
 ]
 
@@ -66,16 +61,10 @@ __all__ = [
 DEFAULT_ENV = "steer_envs/Maze2D-Large-v0"
 #: the most plans one call may sample in the UI (a batch is drawn on the page)
 MAX_BATCH = 256
-#: the most mouse points one sketch may have before resampling
-MAX_INPUT_POINTS = 4096
 #: the sketch the samplers get: this many points, evenly spaced along the drawn path
 SKETCH_POINTS = 64
 #: guide ratios beyond this only saturate the plans (ITPS uses 20-60)
 MAX_GUIDE_RATIO = 10_000.0
-
-
-class SessionError(ValueError):
-    """A request the session cannot serve (bad interaction, wrong state); the message says why."""
 
 
 # ----------------------------------------------------------------- settings
@@ -90,7 +79,7 @@ class SteerSettings:
         mcmc_steps: SS's iterations per noise level (default 4).
         execute: waypoints of the chosen plan one :meth:`Session.execute` runs (``None``: all).
         use_clipped_model_output: GD's / SS's DDIM step re-derives the noise from the clipped plan
-            estimate (:class:`~steer_envs.wrappers.samplers.GuidedDiffusion`); a domain default, not a knob.
+            estimate (:class:`~steer_envs.steering.GuidedDiffusion`); a domain default, not a knob.
     """
 
     sampler: str = "SS"
@@ -139,107 +128,6 @@ class SteerSettings:
         }
 
 
-# ------------------------------------------------------------------- pixels
-@dataclass(frozen=True)
-class PixelMap:
-    """An affine map between image pixels ``(u = column, v = row)`` and world ``(x, y)`` of a 2D view.
-
-    Built by probing the env's ``pixel_to_xy`` at three pixels and checked at a
-    fourth, so any env whose view is an axis-aligned or rotated scaling works.
-    """
-
-    width: int
-    height: int
-    matrix: np.ndarray  # (2, 2): world = matrix @ [u, v] + offset
-    offset: np.ndarray
-
-    @classmethod
-    def from_env(cls, base: Any, width: int, height: int) -> PixelMap:
-        """Probe ``base.pixel_to_xy``; ``SessionError`` when the env has none or it is not affine."""
-        to_xy = getattr(base, "pixel_to_xy", None)
-        if not callable(to_xy):
-            raise SessionError(
-                f"{type(base).__name__} has no pixel_to_xy(u, v): steer-ui needs a 2D view it can map clicks into"
-            )
-        origin = np.asarray(to_xy(0.0, 0.0), dtype=np.float64)
-        du = np.asarray(to_xy(1.0, 0.0), dtype=np.float64) - origin
-        dv = np.asarray(to_xy(0.0, 1.0), dtype=np.float64) - origin
-        matrix = np.stack([du, dv], axis=1)
-        probe = np.asarray(to_xy(float(width), float(height)), dtype=np.float64)
-        if matrix.shape != (2, 2) or abs(np.linalg.det(matrix)) < 1e-12:
-            raise SessionError(f"{type(base).__name__}.pixel_to_xy is not an invertible 2D map")
-        if not np.allclose(matrix @ np.array([width, height]) + origin, probe, atol=1e-6):
-            raise SessionError(f"{type(base).__name__}.pixel_to_xy is not affine; steer-ui maps 2D views only")
-        return cls(int(width), int(height), matrix, origin)
-
-    def to_world(self, pixels: Any) -> np.ndarray:
-        """``(..., 2)`` pixels -> world points."""
-        return np.asarray(pixels, dtype=np.float64) @ self.matrix.T + self.offset
-
-    def to_pixels(self, points: Any) -> np.ndarray:
-        """``(..., 2)`` world points -> pixels (fractional)."""
-        return (np.asarray(points, dtype=np.float64) - self.offset) @ np.linalg.inv(self.matrix).T
-
-    def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
-        """``pixels`` as a finite ``(N, 2)`` array inside the image; ``ValueError`` naming ``name`` otherwise."""
-        return _check_pixels(pixels, name, self.width, self.height)
-
-
-class CameraView:
-    """Pixels of a camera frame <-> world points through the depth buffer (a robosuite env's camera).
-
-    :meth:`to_world` lifts pixels onto the first surface they see (one depth
-    render per call); :meth:`to_pixels` projects world points (plans, sketches).
-    """
-
-    def __init__(self, base: Any) -> None:
-        for name in ("render_rgbd", "camera_matrix", "render_size"):
-            if not hasattr(base, name):
-                raise SessionError(f"{type(base).__name__} has no {name}: CameraView needs a robosuite camera env")
-        self.base = base
-        self.width = self.height = int(base.render_size)
-
-    def to_world(self, pixels: Any) -> np.ndarray:
-        """``(N, 2)`` pixels -> ``(N, 3)`` world points on the surfaces they see."""
-        from steer_envs.envs.robosuite import camera as cam
-
-        arr = np.atleast_2d(np.asarray(pixels, dtype=np.float64))
-        depth = self.base.render_rgbd()[1]
-        matrix = self.base.camera_matrix()
-        out = []
-        for u, v in arr:
-            row, col = cam.nearest_pixel(min(u, self.width - 1e-6), min(v, self.height - 1e-6), self.width)
-            out.append(cam.pixel_to_world(u, v, float(depth[row, col]), matrix))
-        return np.asarray(out)
-
-    def to_pixels(self, points: Any) -> np.ndarray:
-        """``(..., 3)`` world points -> ``(..., 2)`` pixels (not clipped to the frame)."""
-        from steer_envs.envs.robosuite import camera as cam
-
-        arr = np.asarray(points, dtype=np.float64)
-        flat = cam.world_to_pixel(arr.reshape(-1, 3), self.base.camera_matrix())
-        return np.asarray(flat, dtype=np.float64).reshape(-1, 3)[:, :2].reshape(*arr.shape[:-1], 2)
-
-    def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
-        """As :meth:`PixelMap.check_pixels`."""
-        return _check_pixels(pixels, name, self.width, self.height)
-
-
-def _check_pixels(pixels: Any, name: str, width: int, height: int) -> np.ndarray:
-    arr = real_array(pixels, name, owner="steer-ui")
-    if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
-        raise SessionError(f"`{name}` must be a list of [u, v] pixel pairs, got shape {arr.shape}")
-    if len(arr) > MAX_INPUT_POINTS:
-        raise SessionError(f"`{name}` may hold at most {MAX_INPUT_POINTS} points, got {len(arr)}")
-    inside = (arr[:, 0] >= 0) & (arr[:, 0] <= width) & (arr[:, 1] >= 0) & (arr[:, 1] <= height)
-    if not inside.all():
-        bad = arr[~inside][0]
-        raise SessionError(
-            f"`{name}` must lie inside the {width}x{height} image, got a point at ({bad[0]:g}, {bad[1]:g})"
-        )
-    return arr
-
-
 @dataclass(frozen=True)
 class Domain:
     """What steer-ui opens: an env, the policies that plan in it, default settings, its view and executor.
@@ -276,60 +164,22 @@ DOMAINS: dict[str, Domain] = {
 }
 
 
-def resample_by_arclength(points: Any, n: int) -> np.ndarray:
-    """``n`` points evenly spaced along the polyline ``points`` ``(G, d)`` (a mouse path drawn at any speed).
-
-    Repeated points are dropped first; a path of zero length gives ``SessionError``
-    (a click is a point, not a sketch).
-
-    >>> resample_by_arclength([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [1.0, 3.0]], 3).tolist()
-    [[0.0, 0.0], [1.0, 1.0], [1.0, 3.0]]
-    """
-    pts = real_array(points, "points", owner="resample_by_arclength")
-    n = integer(n, "`n`", low=2)
-    if pts.ndim != 2 or len(pts) == 0:
-        raise SessionError(f"`points` must have shape (G, d), got {pts.shape}")
-    keep = np.concatenate([[True], np.any(np.diff(pts, axis=0) != 0.0, axis=1)])
-    pts = pts[keep]
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    total = float(seg.sum())
-    if len(pts) < 2 or total <= 0.0:
-        raise SessionError("a sketch needs a path of non-zero length (for a single click, use a point)")
-    at = np.concatenate([[0.0], np.cumsum(seg)])
-    want = np.linspace(0.0, total, n)
-    return np.stack([np.interp(want, at, pts[:, k]) for k in range(pts.shape[1])], axis=1)
-
-
 # ----------------------------------------------------------------- policies
-_POLICIES: dict[tuple[str, str, str], TrajectoryPolicy] = {}
-_POLICIES_LOCK = threading.Lock()
-
-
 def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "fastest") -> TrajectoryPolicy:
     """A shipped policy (or ``checkpoint``), loaded once per process and shared.
 
     ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large) or ``"blockstack"`` (the BlockStack skill DP).
     ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"fastest"``:
     OpenVINO where installed, else ONNX Runtime or a trace); ACT ignores it.
+    The cache is :func:`steer_envs.baselines.pretrained.shared_policy`'s.
     """
     from steer_envs.baselines.diffusion.acceleration import resolve_acceleration
-    from steer_envs.baselines.pretrained import load_blockstack, load_checkpoint, load_pretrained
+    from steer_envs.baselines.pretrained import shared_policy as load_shared
 
     kind = one_of(kind, "policy", ("dp", "act", "blockstack"), owner="steer-ui")
-    accelerate = resolve_acceleration(accelerate, owner="steer-ui")
-    key = (kind, str(checkpoint or ""), accelerate)
-    with _POLICIES_LOCK:
-        policy = _POLICIES.get(key)
-        if policy is None:
-            if kind == "blockstack":
-                policy = load_blockstack(checkpoint=checkpoint)
-            else:
-                policy = load_checkpoint(kind, checkpoint) if checkpoint else load_pretrained(kind)
-            speed_up = getattr(policy, "accelerate", None)
-            if callable(speed_up):
-                speed_up(accelerate)
-            _POLICIES[key] = policy
-        return policy
+    mode = "none" if kind == "act" else resolve_acceleration(accelerate, owner="steer-ui")
+    policy: TrajectoryPolicy = load_shared(kind, checkpoint or "", mode, owner="steer-ui")
+    return policy
 
 
 class _NetworkClock:
@@ -407,6 +257,33 @@ class StepOutcome:
 
 
 # ------------------------------------------------------------------ session
+def _session_policy(policy: str | TrajectoryPolicy, checkpoint: str | None, accelerate: str) -> TrajectoryPolicy:
+    """The policy a :class:`Session` steers: a kind's shared policy (:func:`shared_policy`) or ``policy`` itself."""
+    if isinstance(policy, str):
+        return shared_policy(policy, checkpoint, accelerate)
+    if isinstance(policy, TrajectoryPolicy):
+        if checkpoint is not None:
+            raise TypeError("Session: `checkpoint` goes with a policy kind, not a policy object")
+        return policy
+    raise TypeError(f"Session: `policy` must be a policy kind or a TrajectoryPolicy, got {describe(policy)}")
+
+
+def _session_env(
+    domain: Domain, env: str | gym.Env[Any, Any] | None, env_kwargs: Mapping[str, Any] | None
+) -> gym.Env[Any, Any]:
+    """The env a :class:`Session` steers in: ``env`` (the domain's by default) made from its id, or ``env`` itself."""
+    env = domain.env_id if env is None else env
+    if isinstance(env, str):
+        kwargs = dict(domain.env_kwargs if env_kwargs is None and env == domain.env_id else {})
+        kwargs.update(env_kwargs or {})
+        return gym.make(env, render_mode="rgb_array", **kwargs)
+    if isinstance(env, gym.Env):
+        if env_kwargs:
+            raise TypeError("Session: `env_kwargs` goes with an env id, not an env object")
+        return env
+    raise TypeError(f"Session: `env` must be an env id or a gymnasium.Env, got {describe(env)}")
+
+
 class Session:
     """An env, a frozen policy and steering settings: steer, look at the plans, execute, nudge.
 
@@ -441,32 +318,14 @@ class Session:
     ) -> None:
         self.domain = DOMAINS[one_of(domain, "domain", tuple(DOMAINS), owner="Session")]
         self.threads = None if threads is None else integer(threads, "`threads`", low=1)
-        policy = self.domain.policies[0] if policy is None else policy
-        if isinstance(policy, str):
-            shared = shared_policy(policy, checkpoint, accelerate)
-        elif isinstance(policy, TrajectoryPolicy):
-            if checkpoint is not None:
-                raise TypeError("Session: `checkpoint` goes with a policy kind, not a policy object")
-            shared = policy
-        else:
-            raise TypeError(f"Session: `policy` must be a policy kind or a TrajectoryPolicy, got {describe(policy)}")
+        shared = _session_policy(self.domain.policies[0] if policy is None else policy, checkpoint, accelerate)
         if settings is not None and not isinstance(settings, SteerSettings):
             raise TypeError(f"Session: `settings` must be SteerSettings or None, got {describe(settings)}")
         self.settings = (settings or self.domain.settings).checked()
         self._clock = _NetworkClock()
         self.policy = _session_view(shared, self._clock)
         self.dims = interaction_dims(self.policy)
-        env = self.domain.env_id if env is None else env
-        if isinstance(env, str):
-            kwargs = dict(self.domain.env_kwargs if env_kwargs is None and env == self.domain.env_id else {})
-            kwargs.update(env_kwargs or {})
-            self.env: gym.Env[Any, Any] = gym.make(env, render_mode="rgb_array", **kwargs)
-        elif isinstance(env, gym.Env):
-            if env_kwargs:
-                raise TypeError("Session: `env_kwargs` goes with an env id, not an env object")
-            self.env = env
-        else:
-            raise TypeError(f"Session: `env` must be an env id or a gymnasium.Env, got {describe(env)}")
+        self.env = _session_env(self.domain, env, env_kwargs)
         box = self.env.action_space
         if self.domain.execute == "waypoints" and (
             not isinstance(box, gym.spaces.Box) or box.shape != (int(self.policy.action_dim),)
@@ -480,7 +339,7 @@ class Session:
         kinds = getattr(base, "interaction_kinds", ("point", "sketch", "nudge"))
         self.kinds: tuple[str, ...] = tuple(k for k in kinds if k in ("point", "sketch", "nudge"))
         self._sampler = self.settings.make_sampler()
-        self._sampler._check_policy(self.policy)
+        self._sampler.check_policy(self.policy)
         self._history: list[Any] = []
         self._rng = np.random.default_rng(0)
         self._last: SteerOutcome | None = None
@@ -526,7 +385,7 @@ class Session:
             )
         settings = replace(self.settings, **knobs).checked()
         sampler = settings.make_sampler()
-        sampler._check_policy(self.policy)  # BI/GD/SS need a diffusion policy: refuse here, not at the next call
+        sampler.check_policy(self.policy)  # BI/GD/SS need a diffusion policy: refuse here, not at the next call
         self.settings, self._sampler = settings, sampler
         return settings
 
@@ -536,7 +395,7 @@ class Session:
             self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
         obs, info = self.env.reset(seed=self._seed)
         if self.domain.execute == "skill":
-            from steer_envs.envs.robosuite.plan_execution import yaw_of
+            from steer_envs.control.blockstack import yaw_of
 
             base: Any = self.env.unwrapped
             self._home_yaw = yaw_of(base.robosuite_obs["robot0_eef_quat"])
@@ -641,7 +500,7 @@ class Session:
 
     def _execute_skill(self, plan: np.ndarray) -> StepOutcome:
         """A whole pick / place skill plan, run open-loop on the arm (BlockStack)."""
-        from steer_envs.envs.robosuite.plan_execution import execute_plan
+        from steer_envs.control.blockstack import execute_plan
 
         base: Any = self.env.unwrapped
         result = execute_plan(base, plan, home_yaw=self._home_yaw)

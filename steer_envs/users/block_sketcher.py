@@ -7,7 +7,7 @@ does that reproducibly:
 
 * :meth:`~TowerSketchUser.intended_skill`: the next skill toward the goal
   tower, by the rule of the expert's ``GoalTowerPlanner``
-  (:func:`~steer_envs.envs.robosuite.plan_execution.goal_tower_skill`;
+  (:func:`~steer_envs.control.blockstack.goal_tower_skill`;
   recovery included: a wrong cube held goes to a free table spot, a wrong cube
   on the partial tower is picked off);
 * :meth:`~TowerSketchUser.sketch`: the eef path of a skill (for a place, the
@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.control.blockstack import Skill, goal_tower_skill
 from steer_envs.core.interaction import Sketch
 from steer_envs.core.validation import boolean, integer, one_of, real_array, real_scalar
 from steer_envs.envs.robosuite.blockstack import (
@@ -39,7 +40,6 @@ from steer_envs.envs.robosuite.blockstack import (
     check_goal_order,
     unwrap_blockstack,
 )
-from steer_envs.envs.robosuite.plan_execution import Skill, goal_tower_skill
 
 __all__ = ["CARRY_CLEARANCE", "MIN_CARRY_Z", "RETREAT", "BlockSketch", "TowerSketchUser"]
 

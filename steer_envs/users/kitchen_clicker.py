@@ -36,18 +36,9 @@ import numpy as np
 
 from steer_envs.core.interaction import Point
 from steer_envs.core.validation import integer
-from steer_envs.envs.robosuite.kitchen import (
-    CAVITY_HIGH,
-    CAVITY_LOW,
-    SINK_FLOOR_Z,
-    SINK_SIZE,
-    SKILLS,
-    KitchenEnv,
-    legal_skills,
-    skill_centre,
-    unwrap_kitchen,
-)
+from steer_envs.envs.robosuite.kitchen import SKILLS, KitchenEnv, legal_skills, skill_centre, unwrap_kitchen
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT, BOWL_RADIUS
+from steer_envs.envs.robosuite.kitchen_scene import CAVITY_HIGH, CAVITY_LOW, SINK_FLOOR_Z, SINK_SIZE
 
 __all__ = ["SINK_FLOOR_Z", "VISIBLE_TOL", "KitchenClick", "KitchenClickUser", "skill_centre"]
 

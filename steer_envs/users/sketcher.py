@@ -29,7 +29,7 @@ from shapely.geometry import LineString
 
 from steer_envs.core.interaction import Sketch
 from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
-from steer_envs.envs.maze2d import MazeGrid, maze_map
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 
 __all__ = ["SketchUser", "UserSketch"]
 
@@ -79,7 +79,7 @@ class SketchUser:
     """Draws random sketches from the agent's position (seeded; see the module docstring).
 
     Args:
-        maze: a :class:`~steer_envs.envs.maze2d.MazeGrid`, a maze name or a Maze2D env.
+        maze: a :class:`~steer_envs.envs.maze_grid.MazeGrid`, a maze name or a Maze2D env.
         through_wall: probability that a sketch ignores the walls.
         min_length / max_length: sketch length range in cells (path length for
             ``"follow"``, straight distance for ``"through"``).

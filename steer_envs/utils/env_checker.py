@@ -30,20 +30,7 @@ from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from gymnasium.utils.env_checker import data_equivalence
 
-from steer_envs.core.env import (
-    CONSTRAINT_VIOLATION,
-    INFO_KEYS,
-    INTERACTION_KINDS,
-    IS_SUCCESS,
-    MODE,
-    MODE_NAME,
-    PERTURBED,
-    SENSORS,
-    SUCCESS,
-    SteerEnv,
-    env_name,
-    steer_env,
-)
+from steer_envs.core import env as contract
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import integer
 
@@ -92,11 +79,11 @@ class SteerEnvCheckError(AssertionError):
 class _Checker:
     def __init__(self, env: gym.Env[Any, Any], seed: int, steps: int) -> None:
         self.env = env
-        self.name = env_name(env)
+        self.name = contract.env_name(env)
         self.seed = seed
         self.steps = steps
         try:
-            self.base: SteerEnv = steer_env(env, who="check_steer_env")
+            self.base: contract.SteerEnv = contract.steer_env(env, who="check_steer_env")
         except TypeError as err:
             raise SteerEnvCheckError(self.name, "members", str(err)) from None
         self.task: TaskSpec = self.base.task
@@ -118,7 +105,7 @@ class _Checker:
         kinds = self.base.interaction_kinds
         if not isinstance(kinds, tuple) or not kinds:
             raise self.fail("interaction_kinds", f"got {kinds!r}")
-        unknown = [k for k in kinds if k not in INTERACTION_KINDS]
+        unknown = [k for k in kinds if k not in contract.INTERACTION_KINDS]
         if unknown or len(set(kinds)) != len(kinds):
             raise self.fail("interaction_kinds", f"got {kinds!r}")
 
@@ -132,18 +119,19 @@ class _Checker:
     def info(self, info: Any, where: str, *, perturbed: bool = False) -> None:
         if not isinstance(info, Mapping):
             raise self.fail("info_keys", f"the {where} info is a {type(info).__name__}, not a dict")
-        missing = [k for k in INFO_KEYS if k not in info]
+        missing = [k for k in contract.INFO_KEYS if k not in info]
         if missing:
             raise self.fail("info_keys", f"the {where} info lacks {missing} (it has {sorted(info)})")
         task = self.task
-        mode = info[MODE]
+        mode = info[contract.MODE]
         if isinstance(mode, bool) or not isinstance(mode, int) or not 0 <= mode < task.num_modes:
             raise self.fail("mode", f"{where}: info['mode'] = {mode!r} ({type(mode).__name__}), {task.num_modes} modes")
-        if info[MODE_NAME] != task.modes[mode]:
+        if info[contract.MODE_NAME] != task.modes[mode]:
             raise self.fail(
-                "mode", f"{where}: info['mode_name'] = {info[MODE_NAME]!r}, mode {mode} is {task.modes[mode]!r}"
+                "mode",
+                f"{where}: info['mode_name'] = {info[contract.MODE_NAME]!r}, mode {mode} is {task.modes[mode]!r}",
             )
-        sensors = info[SENSORS]
+        sensors = info[contract.SENSORS]
         if not isinstance(sensors, Mapping) or set(sensors) != set(task.sensors):
             keys = sorted(sensors) if isinstance(sensors, Mapping) else type(sensors).__name__
             raise self.fail("sensors", f"{where}: info['sensors'] has {keys}, task.sensors is {list(task.sensors)}")
@@ -155,27 +143,28 @@ class _Checker:
                 labelled = task.mode_of(sensors)
             except ValueError as err:
                 raise self.fail("sensor_labelling", f"{where}: {err}") from None
-            if labelled != info[MODE_NAME]:
+            if labelled != info[contract.MODE_NAME]:
                 raise self.fail(
                     "sensor_labelling",
-                    f"{where}: sensors {dict(sensors)} label {labelled!r}, mode is {info[MODE_NAME]!r}",
+                    f"{where}: sensors {dict(sensors)} label {labelled!r}, mode is {info[contract.MODE_NAME]!r}",
                 )
-        for key in (SUCCESS, CONSTRAINT_VIOLATION):
+        for key in (contract.SUCCESS, contract.CONSTRAINT_VIOLATION):
             if not isinstance(info[key], bool):
                 raise self.fail("flags", f"{where}: info[{key!r}] = {info[key]!r} ({type(info[key]).__name__})")
-        if not isinstance(info[IS_SUCCESS], bool) or info[IS_SUCCESS] != info[SUCCESS]:
+        if not isinstance(info[contract.IS_SUCCESS], bool) or info[contract.IS_SUCCESS] != info[contract.SUCCESS]:
             raise self.fail(
                 "is_success",
-                f"{where}: info['is_success'] = {info[IS_SUCCESS]!r} ({type(info[IS_SUCCESS]).__name__}), "
-                f"info['success'] = {info[SUCCESS]!r}",
+                f"{where}: info['is_success'] = {info[contract.IS_SUCCESS]!r} "
+                f"({type(info[contract.IS_SUCCESS]).__name__}), "
+                f"info['success'] = {info[contract.SUCCESS]!r}",
             )
         if perturbed:
-            if info.get(PERTURBED) is not True:
-                raise self.fail("perturb", f"perturb returned info['perturbed'] = {info.get(PERTURBED)!r}")
-            if info[CONSTRAINT_VIOLATION]:
+            if info.get(contract.PERTURBED) is not True:
+                raise self.fail("perturb", f"perturb returned info['perturbed'] = {info.get(contract.PERTURBED)!r}")
+            if info[contract.CONSTRAINT_VIOLATION]:
                 raise self.fail("perturb", "perturb reported a constraint violation (a push is not the policy's)")
-        elif PERTURBED in info and info[PERTURBED] is not False:
-            raise self.fail("flags", f"{where}: info['perturbed'] = {info[PERTURBED]!r} outside perturb")
+        elif contract.PERTURBED in info and info[contract.PERTURBED] is not False:
+            raise self.fail("flags", f"{where}: info['perturbed'] = {info[contract.PERTURBED]!r} outside perturb")
 
     # ------------------------------------------------------------- determinism
     def rollout(self, seed: int) -> tuple[list[Any], list[tuple[float, bool, bool, int]]]:
@@ -188,7 +177,7 @@ class _Checker:
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             self.info(info, f"step {t}")
             observations.append(copy.deepcopy(obs))
-            outcomes.append((float(reward), bool(terminated), bool(truncated), info[MODE]))
+            outcomes.append((float(reward), bool(terminated), bool(truncated), info[contract.MODE]))
             if terminated or truncated:
                 obs, info = env.reset()
                 self.info(info, f"reset after step {t}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from samples import maze_walk_fixture
 
 from steer_envs.baselines.act import ACTConfig, ACTModel, ACTPolicy
 from steer_envs.baselines.common.torch_policy import write_checkpoint
@@ -13,8 +14,7 @@ from steer_envs.baselines.factory import get_preset, make_policy
 from steer_envs.baselines.pretrained import CHECKPOINTS, checkpoint_path, load_pretrained
 from steer_envs.baselines.training import train_policy
 from steer_envs.core import DiffusionPolicyLike, TrajectoryPolicy
-from steer_envs.data.maze_random_walk import generate_random_walk
-from steer_envs.envs.maze2d import MazeGrid, maze_map
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 
 ARCH = {
     "chunk_size": 16,
@@ -31,9 +31,7 @@ MOMENTS = {"mean": (4.0, 5.0), "std": (2.0, 3.0)}
 STATS = {"observation": MOMENTS, "action": MOMENTS}
 
 
-@pytest.fixture(scope="module")
-def walk():
-    return generate_random_walk("large", 20_000, seed=4, progress=False).to_trajectories()
+walk = maze_walk_fixture(seed=4)
 
 
 def _tiny(seed: int = 0, **changes) -> ACTPolicy:
@@ -190,7 +188,7 @@ def test_bad_input_raises() -> None:
         policy.sample([1.0, 1.0], 2, generator=0)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="plans"):
         policy.loss(torch.zeros(2, 1, 2), torch.zeros(2, 15, 2))
-    with pytest.raises(ValueError, match="kind"):
+    with pytest.raises(ValueError, match="name must be one of"):
         load_pretrained("bc")
 
 

@@ -23,7 +23,7 @@ from steer_envs.baselines.common import CheckpointError, read_checkpoint
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.factory import load_policy
 from steer_envs.baselines.glide.classifier import ModeClassifier
-from steer_envs.baselines.pretrained import checkpoint_path, load_checkpoint
+from steer_envs.baselines.pretrained import checkpoint_path, load_pretrained
 from steer_envs.baselines.training import check_record
 from steer_envs.data.trajectories import TrajectoryDataset
 
@@ -176,11 +176,11 @@ def test_malformed_headers(tmp_path: Path, edit: Callable[[dict[str, Any]], None
 
 def test_factory_and_pretrained_loaders(tmp_path: Path) -> None:
     path = _act().save(tmp_path / "act.safetensors")
-    assert isinstance(load_checkpoint("act", path), ACTPolicy)
+    assert isinstance(load_pretrained("act", checkpoint=path), ACTPolicy)
     with pytest.raises(CheckpointError, match="holds a 'act' policy, expected 'dp'"):
-        load_checkpoint("dp", path)
-    with pytest.raises(ValueError, match="kind must be one of"):
-        load_checkpoint("xx", path)
+        load_pretrained("dp", checkpoint=path)
+    with pytest.raises(ValueError, match="name must be one of"):
+        load_pretrained("xx", checkpoint=path)
     with pytest.raises(TypeError, match="device"):
         load_policy(path, device=3)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="device"):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from samples import maze_walk_fixture
 
 from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.common import TrainSettings
@@ -14,8 +15,7 @@ from steer_envs.baselines.factory import get_preset, make_policy
 from steer_envs.baselines.pretrained import checkpoint_record, load_pretrained
 from steer_envs.baselines.training import train_policy
 from steer_envs.core import DiffusionPolicyLike, NoiseSchedulerLike, TrajectoryPolicy
-from steer_envs.data.maze_random_walk import generate_random_walk
-from steer_envs.envs.maze2d import MazeGrid, maze_map
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 
 #: a tiny network
 ARCH = {
@@ -32,9 +32,7 @@ BOX = {"min": (0.5, 0.5), "max": (7.5, 10.5)}
 STATS = {"observation": BOX, "action": BOX}
 
 
-@pytest.fixture(scope="module")
-def walk():
-    return generate_random_walk("large", 20_000, seed=3, progress=False).to_trajectories()
+walk = maze_walk_fixture(seed=3)
 
 
 def _tiny(seed: int = 0, **changes) -> DiffusionPolicy:
@@ -365,7 +363,7 @@ def test_shipped_checkpoint_is_multimodal_and_data_like() -> None:
 def _steered_plans(policy: DiffusionPolicy, n: int, start: tuple[float, float]) -> dict[str, np.ndarray]:
     """RS, GD and SS plans (the samplers with and without guidance) for one sketch and seed."""
     from steer_envs.core.interaction import Sketch
-    from steer_envs.wrappers.samplers import make_sampler
+    from steer_envs.steering import make_sampler
 
     sketch = Sketch(np.linspace(start, np.add(start, (2.0, 3.0)), 12))
     return {

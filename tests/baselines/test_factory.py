@@ -24,7 +24,7 @@ from steer_envs.baselines.factory import (
     register_policy,
     register_preset,
 )
-from steer_envs.baselines.pretrained import checkpoint_path, load_checkpoint, load_pretrained
+from steer_envs.baselines.pretrained import checkpoint_path, load_pretrained
 from steer_envs.data.trajectories import TrajectoryDataset
 
 DP_TINY = {"horizon": 8, "down_dims": (8, 16), "step_embed_dim": 16, "obs_embed_dim": 8, "kernel_size": 3}
@@ -92,13 +92,14 @@ def test_load_policy_reads_any_registered_kind(tmp_path: Path) -> None:
     act_cfg = ACTConfig(chunk_size=4, d_model=8, n_heads=1, dim_feedforward=8)
     act = make_policy(act_cfg, dataset=data).save(tmp_path / "act.safetensors")
     assert isinstance(load_policy(dp), DiffusionPolicy) and isinstance(load_policy(act), ACTPolicy)
-    assert isinstance(load_checkpoint("act", act), ACTPolicy)
+    assert isinstance(load_pretrained("act", checkpoint=act), ACTPolicy)
+    assert isinstance(load_pretrained(act), ACTPolicy)  # a path loads whatever it holds
     with pytest.raises(ValueError, match="holds a 'act' policy, expected 'dp'"):
-        load_checkpoint("dp", act)
+        load_pretrained("dp", checkpoint=act)
     with pytest.raises(ValueError, match="no checkpoint file"):
         load_policy(tmp_path / "absent.safetensors")
-    with pytest.raises(ValueError, match="kind must be one of"):
-        load_checkpoint("bc", dp)
+    with pytest.raises(ValueError, match="name must be one of"):
+        load_pretrained("bc", checkpoint=dp)
 
 
 def test_shipped_checkpoints_load_through_the_factory() -> None:

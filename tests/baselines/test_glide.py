@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import torch
 
-from steer_envs.baselines.glide.classifier import (
+from steer_envs.baselines.glide import (
     ForwardModel,
     GlideLossWeights,
     GlideTrainConfig,
+    KMeansSegmentation,
     ModeClassifier,
     glide_losses,
     mode_iou,
@@ -20,7 +21,6 @@ from steer_envs.baselines.glide.classifier import (
     train_mode_classifier,
     workspace_grid,
 )
-from steer_envs.baselines.glide.kmeans import KMeansSegmentation
 from steer_envs.core.task import TaskSpec
 
 #: 3-mode chain a -> b -> c with back edges: only a -> c is infeasible.

@@ -1,4 +1,4 @@
-"""GLiDE mode-based policies, the evaluation protocol and the boundary plots."""
+"""GLiDE mode-based policies on PolygonNav, their evaluation, and the grounding scores."""
 
 from __future__ import annotations
 
@@ -9,22 +9,24 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401
-from steer_envs.baselines.glide.classifier import label_demonstrations
-from steer_envs.baselines.glide.mode_policies import (
+from steer_envs.baselines.glide import (
+    GlideBC,
     GlideBCConfig,
     GlideBCPolicy,
     GlidePlanningPolicy,
-    mode_entry_points,
-    train_bc,
-)
-from steer_envs.baselines.glide.planners import LearnedModeMap, PlannerConfig, potential_field, rrt
-from steer_envs.bench.suites.glide.plots import plot_groundings
-from steer_envs.bench.suites.glide.protocol import (
     GlideSetup,
+    LearnedModeMap,
     PerturbationSchedule,
-    demonstrations,
-    evaluate_policy,
-    grounding_trial,
+    PlannerConfig,
+    evaluate_polygon_policy,
+    grounding_scores,
+    label_demonstrations,
+    learn_grounding,
+    mode_entry_points,
+    polygon_demonstrations,
+    potential_field,
+    rrt,
+    train_bc,
 )
 
 ENV_ID = "steer_envs/PolygonNav-4Mode-v0"
@@ -45,7 +47,7 @@ def setting() -> tuple[object, list]:
     env = gym.make(ENV_ID, layout_seed=0)
     model = env.unwrapped.model
     env.close()
-    return model, demonstrations(ENV_ID, 0, 5, 0)
+    return model, polygon_demonstrations(ENV_ID, 0, 5, 0)
 
 
 def test_bc_fits_a_velocity_field() -> None:
@@ -131,9 +133,9 @@ def test_planning_on_the_true_modes_solves_the_task_and_resists_pushes(setting: 
     policy = GlidePlanningPolicy(
         _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
     )
-    clean = evaluate_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=False, seed=1)
+    clean = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=False, seed=1)
     assert clean["success_rate"] >= 0.95 and clean["violation_rate"] == 0.0
-    pushed = evaluate_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=True, seed=1)
+    pushed = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=40, perturbed=True, seed=1)
     assert pushed["perturbed_episodes"] > 10
     assert pushed["perturbations"] <= 3 * 40
     assert pushed["violation_rate"] == 0.0  # pushes are not the agent's transitions; the planner makes none
@@ -147,7 +149,7 @@ def test_the_thesis_rrt_planner_is_still_available(setting: tuple) -> None:
     policy = GlidePlanningPolicy(
         _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, config=config
     )
-    clean = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
+    clean = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
     assert clean["success_rate"] >= 0.9
     assert policy.stats["costmap"] == 0 and policy.stats["rrt"] > 0
 
@@ -177,7 +179,7 @@ def test_planning_walks_into_the_final_mode_past_a_learned_boundary_that_is_shor
         clf, [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
     )
     assert model.mode_of(policy.goal[None])[0] == 3  # the demos' mean end lies in the last (convex) polygon
-    res = evaluate_policy(policy, ENV_ID, 0, n_rollouts=30, perturbed=False, seed=2)
+    res = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=30, perturbed=False, seed=2)
     assert res["success_rate"] >= 0.95, res
 
 
@@ -220,7 +222,7 @@ def test_glide_bc_runs_one_policy_per_mode(setting: tuple) -> None:
         seed=0,
         config=GlideBCConfig(steps=200),
     )
-    assert sum(p is not None for p in policy.policies) >= 3
+    assert isinstance(policy, GlideBC) and sum(p is not None for p in policy.policies) >= 3
     assert np.all(np.isfinite(policy.attractors[:3]))
     v = policy.act(np.random.default_rng(0).uniform(-8, 8, (30, 2)))
     assert v.shape == (30, 2) and np.all(np.linalg.norm(v, axis=1) <= 0.1 + 1e-9)
@@ -231,33 +233,18 @@ def test_perturbation_schedule_validates() -> None:
         PerturbationSchedule(probability=2.0)
 
 
-def test_grounding_trial_reports_overlap_for_cheap_variants(tmp_path: object) -> None:
-    setup = GlideSetup(n_demos=4)
-    km = grounding_trial("steer_envs/PolygonNav-3Mode-v0", 0, "kmeans", 0, setup=setup)
-    assert km["variant"] == "kmeans" and 0 <= km["overlap"] <= 1 and len(km["iou"]) == 3
-    assert km["overlap"] < km["all_free_overlap"]  # the thesis's point: clustering is not grounding
+def test_grounding_scores_for_cheap_variants() -> None:
+    env_id = "steer_envs/PolygonNav-3Mode-v0"
+    km = learn_grounding(env_id, 0, "kmeans", 0, setup=GlideSetup(n_demos=4))
+    scores, labels = grounding_scores(env_id, 0, km.predictor, resolution=50)
+    assert 0 <= scores["overlap"] <= 1 and len(scores["iou"]) == 3 and labels.shape == (50 * 50,)
+    assert scores["overlap"] < scores["all_free_overlap"]  # the thesis's point: clustering is not grounding
     with pytest.raises(ValueError, match="variant"):
-        grounding_trial("steer_envs/PolygonNav-3Mode-v0", 0, "oracle", 0)
+        learn_grounding(env_id, 0, "oracle", 0)
     with pytest.raises(ValueError, match="env_id"):
-        grounding_trial("steer_envs/PolygonNav-9Mode-v0", 0, "kmeans", 0)
-
-
-def test_plot_writes_a_png_atomically(setting: tuple, tmp_path: object) -> None:
-    model, demos = setting
-    path = plot_groundings(
-        model,
-        {"oracle": _Oracle(model)},
-        tmp_path / "modes.png",  # type: ignore[operator]
-        resolution=40,
-        trajectories=[d.states for d in demos],
-        title="PolygonNav-4Mode",
-    )
-    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert [p.name for p in path.parent.iterdir()] == ["modes.png"]
-    with pytest.raises(ValueError, match=r"\.png"):
-        plot_groundings(model, {}, tmp_path / "modes.jpg")  # type: ignore[operator]
-    with pytest.raises(TypeError, match="predict"):
-        plot_groundings(model, {"x": object()}, tmp_path / "m.png")  # type: ignore[operator,dict-item]
+        learn_grounding("steer_envs/PolygonNav-9Mode-v0", 0, "kmeans", 0)
+    with pytest.raises(ValueError, match="env_id"):
+        grounding_scores("steer_envs/PolygonNav-9Mode-v0", 0, km.predictor)
 
 
 def test_demos_into_the_goal_change_the_data_cache_key() -> None:
@@ -269,12 +256,12 @@ def test_demos_into_the_goal_change_the_data_cache_key() -> None:
     assert setup.demo_goal_steps > 0
     assert setup.key(fields=GlideSetup.DATA_FIELDS) != short.key(fields=GlideSetup.DATA_FIELDS)
     assert setup.key(fields=GlideSetup.CLASSIFIER_FIELDS) != short.key(fields=GlideSetup.CLASSIFIER_FIELDS)
-    plain = demonstrations(ENV_ID, 0, 2, 0)
-    longer = demonstrations(ENV_ID, 0, 2, 0, goal_steps=setup.demo_goal_steps)
+    plain = polygon_demonstrations(ENV_ID, 0, 2, 0)
+    longer = polygon_demonstrations(ENV_ID, 0, 2, 0, goal_steps=setup.demo_goal_steps)
     for p, q in zip(plain, longer, strict=True):
         assert len(q) > len(p) and np.all(q.modes[len(p) - 1 :] == 3)
     with pytest.raises(ValueError, match="goal_steps"):
-        demonstrations(ENV_ID, 0, 2, 0, goal_steps=-1)
+        polygon_demonstrations(ENV_ID, 0, 2, 0, goal_steps=-1)
 
 
 class _DiscWorld:
@@ -337,12 +324,12 @@ def test_evaluation_episode_length_is_configurable(setting: tuple) -> None:
     policy = GlidePlanningPolicy(
         _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
     )
-    short = evaluate_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=5)
+    short = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=5)
     assert short["success_rate"] == 0.0 and short["timeout_rate"] == 1.0 and short["mean_steps"] == 5.0
-    full = evaluate_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=1000)
+    full = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=10, perturbed=False, seed=1, max_steps=1000)
     assert full["timeout_rate"] == 0.0 and full["success_rate"] + full["violation_rate"] == 1.0
     with pytest.raises(ValueError, match="max_steps"):
-        evaluate_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, max_steps=0)
+        evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, max_steps=0)
 
 
 def test_episodes_can_start_inside_the_first_polygon(setting: tuple) -> None:
@@ -351,13 +338,13 @@ def test_episodes_can_start_inside_the_first_polygon(setting: tuple) -> None:
     policy = GlidePlanningPolicy(
         _Oracle(model), [d.states for d in demos], 4, low=model.low, high=model.high, max_speed=0.1, seed=0
     )
-    free = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
-    inside = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1, start="first_mode")
+    free = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1)
+    inside = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=False, seed=1, start="first_mode")
     assert inside["success_rate"] >= 0.95 and inside["mean_steps"] < free["mean_steps"]
-    pushed = evaluate_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=True, seed=1, start="first_mode")
+    pushed = evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=20, perturbed=True, seed=1, start="first_mode")
     assert pushed["perturbed_episodes"] > 0 and pushed["violation_rate"] == 0.0
     with pytest.raises(ValueError, match="start"):
-        evaluate_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, start="goal")
+        evaluate_polygon_policy(policy, ENV_ID, 0, n_rollouts=2, perturbed=False, seed=1, start="goal")
 
 
 def test_planner_settings_that_can_never_work_are_refused() -> None:

@@ -3,12 +3,34 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from steer_envs.baselines.glide.classifier import GlideTrainConfig
-from steer_envs.bench.suites.glide.protocol import ENV_IDS, GlideSetup, grounding_trial, policy_trial
+from steer_envs.baselines.glide import (
+    POLYGON_ENV_IDS,
+    GlideSetup,
+    GlideTrainConfig,
+    evaluate_polygon_policy,
+    grounding_scores,
+    learn_grounding,
+    make_polygon_policy,
+)
+
+
+def grounding_trial(env_id: str, layout: int, variant: str, seed: int, **kwargs: Any) -> dict[str, Any]:
+    """The scores of one variant's grounding on the grid, with its training info."""
+    grounding = learn_grounding(env_id, layout, variant, seed, **kwargs)
+    scores, _ = grounding_scores(env_id, layout, grounding.predictor)
+    return {**scores, **grounding.info}
+
+
+def success_rate(env_id: str, method: str, perturbed: bool, seed: int, **kwargs: Any) -> float:
+    """One method's success rate over 1000 episodes of 1000 steps on layout 0."""
+    policy, _ = make_polygon_policy(method, env_id, 0, seed, **kwargs)
+    res = evaluate_polygon_policy(policy, env_id, 0, n_rollouts=1000, perturbed=perturbed, seed=seed, max_steps=1000)
+    return float(res["success_rate"])
 
 
 def test_small_run_learns_the_polygon_chain_better_than_the_baselines(tmp_path: object) -> None:
@@ -36,7 +58,7 @@ def test_small_run_learns_the_polygon_chain_better_than_the_baselines(tmp_path: 
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", POLYGON_ENV_IDS)
 def test_full_loss_overlap_reaches_095_and_ablations_are_worse(env_id: str, tmp_path: object) -> None:
     """Issue 6 'done when': mean overlap over 5 layouts >= 0.95; every ablation measurably worse.
 
@@ -60,22 +82,15 @@ def test_full_loss_overlap_reaches_095_and_ablations_are_worse(env_id: str, tmp_
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", POLYGON_ENV_IDS)
 def test_glide_planning_beats_bc_under_perturbations(env_id: str, tmp_path: object) -> None:
     """Issue 6 'done when' as glide-polygon checks it: GLiDE+Planning >= 0.98 with and without perturbations
     (mean over 3 training seeds, 1000-step episodes), above BC perturbed."""
     setup = GlideSetup()
     plan = {
-        p: np.mean(
-            [
-                policy_trial(env_id, 0, "glide_planning", p, 1000, s, setup=setup, cache_dir=tmp_path, max_steps=1000)[
-                    "success_rate"
-                ]
-                for s in range(3)
-            ]
-        )
+        p: np.mean([success_rate(env_id, "glide_planning", p, s, setup=setup, cache_dir=tmp_path) for s in range(3)])
         for p in (False, True)
     }
-    bc = policy_trial(env_id, 0, "bc", True, 1000, 0, setup=setup, max_steps=1000)
+    bc = success_rate(env_id, "bc", True, 0, setup=setup)
     assert plan[False] >= 0.98 and plan[True] >= 0.98, plan
-    assert plan[True] > bc["success_rate"]
+    assert plan[True] > bc

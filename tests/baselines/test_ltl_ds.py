@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401 - registers the envs
+from steer_envs.baselines.lpv_ds.cuts import Cut, CutSet
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS
-from steer_envs.baselines.lpv_ds.ltl_ds import LTLDSPolicy, ModeDynamics, fit_mode_dynamics, hold_beyond_cuts
+from steer_envs.baselines.lpv_ds.ltl_ds import LTLDSPolicy, ModeDynamics, fit_mode_dynamics
+from steer_envs.baselines.lpv_ds.modulation import hold_beyond_cuts
 from steer_envs.data.demos import collect_demonstrations
 from steer_envs.data.segmentation import segment_demonstrations
 from steer_envs.envs.soup_scoop import GREEN, PINK, YELLOW
 from steer_envs.ltl.specs import for_env
-from steer_envs.wrappers.ds_modulation import Cut, CutSet
 
 ENV_ID = "steer_envs/SoupScoop-v0"
 

@@ -7,14 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from steer_envs.bench.suites.tli.robustness import (
-    THESIS_SCOOP,
-    WORKSPACE_SIZE,
-    drawn_scoop_demos,
-    perturbation_schedule,
-    scoop_trial,
-)
+from steer_envs.bench.suites.tli.robustness import THESIS_SCOOP, WORKSPACE_SIZE, scoop_trial
 from steer_envs.core.validation import BoundExceeded
+from steer_envs.data.pushes import perturbation_schedule
+from steer_envs.data.tli_demos import drawn_scoop_demos
 from steer_envs.envs.soup_scoop import SoupScoopModel
 
 
@@ -108,19 +104,21 @@ class _Nowhere:
 
 
 def test_rejection_loops_give_up_with_a_named_bound(monkeypatch: pytest.MonkeyPatch) -> None:
-    from steer_envs.bench.suites.tli import protocol
+    from steer_envs.baselines.lpv_ds import single_mode
+    from steer_envs.data import tli_demos
 
-    monkeypatch.setattr(protocol, "MAX_DRAWS", 50)
+    monkeypatch.setattr(single_mode, "MAX_DRAWS", 50)
+    monkeypatch.setattr(tli_demos, "MAX_DRAWS", 50)
     with pytest.raises(BoundExceeded, match="MAX_DRAWS=50"):
-        protocol.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 4, np.random.default_rng(0))
-    assert protocol.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 0, np.random.default_rng(0)).shape == (0, 2)
-    monkeypatch.setattr(protocol, "_make_env", lambda seed: _FakeEnv())
+        single_mode.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 4, np.random.default_rng(0))
+    assert single_mode.sample_starts(_Nowhere(), np.zeros((3, 2)), 1.0, 0, np.random.default_rng(0)).shape == (0, 2)
+    monkeypatch.setattr(tli_demos, "_make_env", lambda seed: _FakeEnv())
     with pytest.raises(BoundExceeded, match="control points inside the mode within MAX_DRAWS=50"):
-        protocol.convex_mode_demos(0, 1)  # "drawn" demos: control points by rejection
+        tli_demos.convex_mode_demos(0, 1)  # "drawn" demos: control points by rejection
     with pytest.raises(ValueError, match="max_cuts"):
-        protocol.cut_loop(lambda x: -x, _Nowhere(), np.zeros((1, 2)), max_cuts=-1)
+        single_mode.cut_loop(lambda x: -x, _Nowhere(), np.zeros((1, 2)), max_cuts=-1)
     with pytest.raises(TypeError, match="n_steps"):
-        protocol.rollout(lambda x: -x, _Nowhere(), np.zeros((1, 2)), n_steps=10.5)  # type: ignore[arg-type]
+        single_mode.rollout(lambda x: -x, _Nowhere(), np.zeros((1, 2)), n_steps=10.5)  # type: ignore[arg-type]
 
 
 class _FakeEnv:

@@ -1,15 +1,25 @@
-"""Helpers of the steer-bench tests: run ``python -m steer_envs.bench`` in a subprocess, find its processes."""
+"""Helpers of the steer-bench tests: run ``python -m steer_envs.bench`` in a subprocess, find its processes;
+a suite's trial; check saved figures."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
+
+import pytest
 
 HERE = Path(__file__).resolve().parent
+
+#: skips a test when the robosuite extra is not installed
+needs_robosuite = pytest.mark.skipif(
+    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
+)
 
 
 def bench_env() -> dict[str, str]:
@@ -92,3 +102,20 @@ def kill_all(pids: set[int]) -> None:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+def suite_trial(suite_name: str, method: str | None, seed: int, **overrides: Any) -> Any:
+    """The trial of registered suite ``suite_name`` on its first env, with ``overrides`` of its parameters."""
+    from steer_envs.bench.suite import get_suite
+
+    suite = get_suite(suite_name)
+    return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
+
+
+def check_figures(figures: list[Any], count: int) -> None:
+    """``count`` figures were saved, and none misses a title, a legend or axis labels (``figure_problems``)."""
+    from steer_envs.bench.plots import figure_problems
+
+    assert len(figures) == count
+    for fig in figures:
+        assert figure_problems(fig) == [], fig._suptitle.get_text() if fig._suptitle else fig.axes[0].get_title()

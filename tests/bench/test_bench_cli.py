@@ -15,7 +15,8 @@ import pytest
 from bench_helpers import bench_env, run_cli
 
 from steer_envs.bench.cli import main
-from steer_envs.bench.store import RESULTS_FILE, read_jsonl
+from steer_envs.bench.records import read_jsonl
+from steer_envs.bench.store import RESULTS_FILE
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -65,7 +66,7 @@ def test_usage_errors_from_argparse_exit_2(capsys):
 def test_ray_missing_exits_2(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "ray", None)
     assert main(["run", "selftest", "--executor", "ray", "--out", str(tmp_path), "--no-progress"]) == 2
-    assert "pip install 'steer-envs[ray]'" in capsys.readouterr().err
+    assert 'pip install "steer-envs[ray]"' in capsys.readouterr().err
 
 
 def test_run_prints_table_then_report_formats_and_plots(tmp_path, capsys):

@@ -175,7 +175,7 @@ def test_ray_cluster_that_does_not_answer_fails_fast(tmp_path, capsys):
 
 def test_ray_missing(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)
-    assert_usage_error(_run(tmp_path / "o", "--executor", "ray"), capsys, "pip install 'steer-envs[ray]'")
+    assert_usage_error(_run(tmp_path / "o", "--executor", "ray"), capsys, 'pip install "steer-envs[ray]"')
 
 
 @pytest.mark.parametrize(

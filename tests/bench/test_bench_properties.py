@@ -18,16 +18,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from steer_envs.bench.cli import main
+from steer_envs.bench.records import encode_record, record_problem
 from steer_envs.bench.report import render, summarize
 from steer_envs.bench.runner import build_request
-from steer_envs.bench.store import (
-    DISCARDED_FILE,
-    RESULTS_FILE,
-    ResultStore,
-    encode_record,
-    load_results,
-    record_problem,
-)
+from steer_envs.bench.store import DISCARDED_FILE, RESULTS_FILE, ResultStore, load_results
 from steer_envs.bench.suite import Trial, get_suite
 from steer_envs.bench.suites.selftest import SelftestParams
 

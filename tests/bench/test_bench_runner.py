@@ -16,8 +16,9 @@ from steer_envs.bench.executors import (
     execute_trial,
     make_executor,
 )
+from steer_envs.bench.records import read_jsonl
 from steer_envs.bench.runner import run_suite
-from steer_envs.bench.store import FAILURES_FILE, read_jsonl
+from steer_envs.bench.store import FAILURES_FILE
 from steer_envs.bench.suite import Trial
 
 
@@ -112,7 +113,7 @@ def test_make_executor_choices_and_validation():
 
 def test_missing_ray_gives_an_actionable_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # makes `import ray` raise ImportError
-    with pytest.raises(ImportError, match=r"pip install 'steer-envs\[ray\]'"):
+    with pytest.raises(ImportError, match=r'pip install "steer-envs\[ray\]"'):
         make_executor("ray", 1)
 
 

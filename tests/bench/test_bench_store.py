@@ -8,19 +8,16 @@ import stat
 
 import pytest
 
+from steer_envs.bench.records import ResultsDirError, encode_record, read_jsonl, record_problem
 from steer_envs.bench.store import (
     DISCARDED_FILE,
     MANIFEST_FILE,
     RESULTS_FILE,
-    ResultsDirError,
     ResultStore,
     StoreLockedError,
     atomic_write_text,
     check_output_dir,
-    encode_record,
     load_results,
-    read_jsonl,
-    record_problem,
 )
 from steer_envs.bench.suite import Trial
 

@@ -1,4 +1,4 @@
-"""Every figure the suites and examples write has a title, a legend and labelled numeric axes (#21).
+"""Every figure the suites and examples write has a title, a legend and labelled numeric axes.
 
 Each plot function runs on small synthetic records; every figure it saves is
 caught at ``Figure.savefig`` and checked with
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,33 +18,15 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from matplotlib.figure import Figure
 
-from steer_envs.bench.plots import figure_problems, metric_bar_chart, new_figure, write_plots
+from bench_helpers import check_figures
+
+from steer_envs.bench.plots import figure_problems, metric_bar_chart, write_plots
 from steer_envs.bench.report import summarize
 from steer_envs.bench.suite import get_suite
+from steer_envs.utils.plots import new_figure
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture
-def saved(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[Any]]:
-    """The figures saved while the test runs (``save_figure`` and ``fig.savefig`` both end in ``Figure.savefig``)."""
-    figures: list[Any] = []
-    original = Figure.savefig
-
-    def capture(self: Any, *args: Any, **kwargs: Any) -> Any:
-        figures.append(self)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", capture)
-    yield figures
-
-
-def _check(figures: list[Any], count: int) -> None:
-    assert len(figures) == count
-    for fig in figures:
-        assert figure_problems(fig) == [], fig._suptitle.get_text() if fig._suptitle else fig.axes[0].get_title()
 
 
 def _record(suite: str, method: str | None, seed: int, metrics: dict[str, Any], **extra: Any) -> dict[str, Any]:
@@ -85,9 +66,9 @@ def test_metric_bar_charts_label_every_bar_and_keep_the_legend_off_the_bars(save
         for s in range(2)
     ]
     (table,) = summarize(records)
-    metric_bar_chart(table, "violation", tmp_path / "violation.png")  # the issue's "empty bars"
+    metric_bar_chart(table, "violation", tmp_path / "violation.png")  # an all-zero metric still shows
     metric_bar_chart(table, "success", tmp_path / "success.png")  # bars up to the goal line: no legend on top
-    _check(saved, 2)
+    check_figures(saved, 2)
     (violation,) = saved[0].axes
     assert "0" in [t.get_text() for t in violation.texts]  # the value is written on the empty bar
 
@@ -98,8 +79,8 @@ def test_smoke_throughput_figure(saved: list[Any], tmp_path: Path) -> None:
         for name, vec in (("ConvexMode-v0", 50_000.0), ("Maze2D-Umaze-v0", None))
         for s in range(2)
     ]
-    assert len(get_suite("smoke").plot(get_suite("smoke"), records, str(tmp_path))) == 1  # type: ignore[misc]
-    _check(saved, 1)
+    assert len(get_suite("smoke").figures(records, str(tmp_path))) == 1
+    check_figures(saved, 1)
 
 
 def test_write_plots_every_figure_of_a_report(saved: list[Any], tmp_path: Path) -> None:
@@ -107,7 +88,7 @@ def test_write_plots_every_figure_of_a_report(saved: list[Any], tmp_path: Path) 
         _record("selftest", m, 0, {"pi": v, "abs_error": abs(v - np.pi)}) for m, v in (("mc", 3.1), ("qmc", 3.14))
     ]
     assert len(write_plots(records, tmp_path)) == 2
-    _check(saved, 2)
+    check_figures(saved, 2)
 
 
 def test_itps_figures(saved: list[Any], tmp_path: Path) -> None:
@@ -128,7 +109,7 @@ def test_itps_figures(saved: list[Any], tmp_path: Path) -> None:
         metrics = {"avg_l2": 0.2, "min_l2": 0.1, "collision": 0.05}
         records.append(_record("itps-maze2d", method, 0, metrics, env="steer_envs/Maze2D-Large-v0", **extra))
     assert len(plot_itps(get_suite("itps-maze2d"), records, str(tmp_path))) == 2
-    _check(saved, 2)
+    check_figures(saved, 2)
 
 
 def test_itps_scaling_figure(saved: list[Any], tmp_path: Path) -> None:
@@ -139,7 +120,7 @@ def test_itps_scaling_figure(saved: list[Any], tmp_path: Path) -> None:
         for m, c in {"w16@0.5M": 0.6, "w16@1M": 0.4}.items()
     ]
     assert len(_plot(get_suite("itps-maze2d-scaling"), records, str(tmp_path))) == 1
-    _check(saved, 1)
+    check_figures(saved, 1)
 
 
 def test_itps_blockstack_figures(saved: list[Any], tmp_path: Path) -> None:
@@ -163,7 +144,7 @@ def test_itps_blockstack_figures(saved: list[Any], tmp_path: Path) -> None:
         metrics = {"TA": 0.5, "CS": 0.5, "AS": 0.4, "AF": 0.1, "MS": 0.3, "MF": 0.2}
         records.append(_record("itps-blockstack", method, 0, metrics, plans=[item]))
     assert len(plot_blockstack(get_suite("itps-blockstack"), records, str(tmp_path))) == 2
-    _check(saved, 2)
+    check_figures(saved, 2)
 
 
 def _cut() -> dict[str, Any]:
@@ -200,7 +181,7 @@ def test_tli_figures(saved: list[Any], tmp_path: Path) -> None:
     }
     scoop = [_record("tli-scoop", m, 0, {}, figure=scoop_panel) for m in ("ltl-ds", "ltl-ds+mod")]
     assert len(plot_scoop(get_suite("tli-scoop"), scoop, str(tmp_path))) == 1
-    _check(saved, 2)
+    check_figures(saved, 2)
 
 
 def test_tli_task_figures(saved: list[Any], tmp_path: Path) -> None:
@@ -223,7 +204,7 @@ def test_tli_task_figures(saved: list[Any], tmp_path: Path) -> None:
         for m in ("vanilla-ds", "ltl-ds")
     ]
     assert len(plot_inspection(get_suite("tli-inspection"), inspection, str(tmp_path))) == 1
-    _check(saved, 2)
+    check_figures(saved, 2)
 
 
 def test_glide_mode_maps_keep_red_for_failures(saved: list[Any], tmp_path: Path) -> None:
@@ -231,7 +212,7 @@ def test_glide_mode_maps_keep_red_for_failures(saved: list[Any], tmp_path: Path)
     from matplotlib.colors import to_rgb
 
     import steer_envs  # noqa: F401
-    from steer_envs.baselines.glide.classifier import workspace_grid
+    from steer_envs.baselines.glide import workspace_grid
     from steer_envs.bench.suites.glide.plots import FAILURE_COLOR, MODE_COLORS, ModeMapRow, plot_mode_maps
 
     env = gym.make("steer_envs/PolygonNav-4Mode-v0", layout_seed=0)
@@ -241,7 +222,7 @@ def test_glide_mode_maps_keep_red_for_failures(saved: list[Any], tmp_path: Path)
     paths = [np.linspace(model.low, model.high, 5), np.linspace(model.high, model.low, 5)]
     row = ModeMapRow(model, {"learned": learned}, "layout 0", paths, [True, False])
     plot_mode_maps([row], tmp_path / "modes.png", resolution=40, mode_names=modes)
-    _check(saved, 1)
+    check_figures(saved, 1)
     labels = [t.get_text() for t in saved[0].legends[0].get_texts()]
     assert labels[:4] == [f"mode {m}: {name}" for m, name in enumerate(modes)] and "rollout, failure" in labels
     red = np.array(to_rgb(FAILURE_COLOR))
@@ -255,7 +236,7 @@ def test_glide_robosuite_mode_strips(saved: list[Any], tmp_path: Path) -> None:
 
     demo = {"pred": [0, 0, 1, 1, 2], "true": [0, 1, 1, 2, 2]}
     save_mode_strips({"full": [demo, demo]}, "lift", "Lift", tmp_path / "strips.png")
-    _check(saved, 1)
+    check_figures(saved, 1)
 
 
 # ------------------------------------------------------------------ example figures

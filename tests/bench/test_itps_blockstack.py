@@ -56,7 +56,7 @@ def test_params_refuse_bad_values() -> None:
 
 
 def test_an_unknown_method_is_refused() -> None:
-    from steer_envs.bench.suites.itps_blockstack.protocol import make_method_sampler
+    from steer_envs.steering.blockstack import make_method_sampler
 
     with pytest.raises(ValueError, match="unknown method 'DP-XX'"):
         make_method_sampler("DP-XX")
@@ -83,17 +83,16 @@ def test_a_missing_policy_skips_the_suite_with_a_note(tmp_path: Path) -> None:
 @needs_robosuite
 @pytest.mark.skipif(not CHECKPOINT.is_file(), reason="the BlockStack checkpoint is not built")
 def test_one_trial_scores_its_interactions() -> None:
-    from steer_envs.baselines.pretrained import load_blockstack
-    from steer_envs.bench.suites.itps_blockstack.protocol import tower_trial
+    from steer_envs.baselines.pretrained import load_pretrained
+    from steer_envs.steering.blockstack import tower_trial
 
-    res = tower_trial(0, load_blockstack(), "DP-PR", batch=4, max_interactions=2, keep_plans=True)
-    m = res.metrics
-    assert m["interactions"] == 2 and len(res.extra["interactions"]) == 2
+    m, extra = tower_trial(0, load_pretrained("blockstack"), "DP-PR", batch=4, max_interactions=2, keep_plans=True)
+    assert m["interactions"] == 2 and len(extra["interactions"]) == 2
     quadrants = sum(m[k] for k in ("AS", "AF", "MS", "MF"))  # type: ignore[misc]
     assert quadrants == pytest.approx(1.0)
     assert m["TA"] == pytest.approx(m["AS"] + m["AF"]) and m["CS"] == pytest.approx(m["AS"] + m["MS"])  # type: ignore[operator]
     assert m["TA_skill"] <= m["TA"] and m["AS_skill"] <= m["AS"]  # type: ignore[operator]
-    assert all(r["aligned"] or not r["skill_aligned"] for r in res.extra["interactions"])  # a skill heads somewhere
-    kept = res.extra["plans"][0]
+    assert all(r["aligned"] or not r["skill_aligned"] for r in extra["interactions"])  # a skill heads somewhere
+    kept = extra["plans"][0]
     assert np.asarray(kept["plans"]).shape == (4, 32, 4) and len(kept["sketch"]) == 32
-    assert sorted(res.extra["order"]) == [0, 1, 2, 3]
+    assert sorted(extra["order"]) == [0, 1, 2, 3]

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from bench_helpers import needs_robosuite
 
 from steer_envs.bench.suites.itps_blockstack.suite import DATA_SUITE, ENV_ID, DataParams
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
-needs_robosuite = pytest.mark.skipif(
-    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
-)
 
 
 def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -38,7 +35,7 @@ def test_suite_is_registered() -> None:
 def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path) -> None:
     from steer_envs.bench.executors import execute_trial
     from steer_envs.bench.suite import get_suite
-    from steer_envs.bench.suites.itps_blockstack.data import skills_dataset
+    from steer_envs.data.blockstack_shards import skills_dataset
     from steer_envs.data.blockstack_skills import load_skills
 
     suite = get_suite(DATA_SUITE)
@@ -58,7 +55,7 @@ def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path) -> None
 
 
 def test_branched_shards_have_their_own_names_and_unbranched_ones_keep_theirs() -> None:
-    from steer_envs.bench.suites.itps_blockstack.data import ShardSettings
+    from steer_envs.data.blockstack_shards import ShardSettings
 
     assert ShardSettings(3, 12).file_name() == ShardSettings(3, 12, 0).file_name()
     assert ShardSettings(3, 12).digest == "8ddf641272"  # the name shards had before branches existed

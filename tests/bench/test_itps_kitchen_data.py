@@ -6,20 +6,17 @@ recorded for the module; the process's shard env is closed at the end.
 
 from __future__ import annotations
 
-import importlib.util
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bench_helpers import needs_robosuite
 
 from steer_envs.bench.suites.itps_kitchen.suite import DATA_SUITE, ENV_ID, TASKS, DataParams
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning")
-needs_robosuite = pytest.mark.skipif(
-    importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"
-)
 
 
 def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -55,7 +52,7 @@ def test_suite_is_registered_and_seeds_alternate_tasks() -> None:
 
 
 def test_shard_settings_name_and_check_their_fields() -> None:
-    from steer_envs.bench.suites.itps_kitchen.data import ShardSettings, ensure_shard
+    from steer_envs.data.kitchen_shards import ShardSettings, ensure_shard
 
     a, b = ShardSettings(3, "sink"), ShardSettings(3, "microwave")
     assert a.file_name().startswith("kitchen-sink-ep00003-") and a.digest == b.digest
@@ -72,7 +69,7 @@ def test_shard_settings_name_and_check_their_fields() -> None:
 
 @pytest.fixture(scope="module")
 def envs() -> Iterator[None]:
-    from steer_envs.bench.suites.itps_kitchen.data import close_envs
+    from steer_envs.data.kitchen_shards import close_envs
 
     yield
     close_envs()
@@ -82,7 +79,7 @@ def envs() -> Iterator[None]:
 def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path, envs: Any) -> None:
     from steer_envs.bench.executors import execute_trial
     from steer_envs.bench.suite import get_suite
-    from steer_envs.bench.suites.itps_kitchen.data import env_for, main, skills_dataset
+    from steer_envs.data.kitchen_shards import env_for, main, skills_dataset
     from steer_envs.data.kitchen_skills import load_skills, record_episode
     from steer_envs.data.trajectories import load_trajectories
 
@@ -115,7 +112,7 @@ def test_trial_builds_a_shard_once_and_merging_reuses_it(tmp_path: Path, envs: A
 
 
 def test_skills_dataset_refuses_bad_input(tmp_path: Path) -> None:
-    from steer_envs.bench.suites.itps_kitchen.data import env_for, skills_dataset
+    from steer_envs.data.kitchen_shards import env_for, skills_dataset
 
     with pytest.raises(ValueError, match="n_episodes"):
         skills_dataset(tmp_path, 0)
@@ -134,7 +131,7 @@ def test_every_task_records_each_task_from_the_same_scene(tmp_path: Path, monkey
 
     from steer_envs.bench.executors import execute_trial
     from steer_envs.bench.suite import get_suite
-    from steer_envs.bench.suites.itps_kitchen import data
+    from steer_envs.data import kitchen_shards as data
 
     params = DataParams(every_task=True)
     assert params.tasks_of(3) == ("microwave", "sink") and params.task_of(3) == "microwave"
@@ -157,7 +154,7 @@ def test_every_task_records_each_task_from_the_same_scene(tmp_path: Path, monkey
     assert result.record["metrics"]["skills"] == 2.0 and result.record["metrics"]["goal"] == 1.0
     assert result.record["extra"]["tasks"] == ["microwave", "sink"] and len(result.record["extra"]["shards"]) == 2
     calls.clear()
-    monkeypatch.setattr(data, "_read", lambda path: None)
+    monkeypatch.setattr(data, "record_shard", lambda settings: fake_shard(tmp_path, settings)[0])
     monkeypatch.setattr(data.ks, "save_skills", lambda path, records, meta: None)
     records, merged = data.skills_dataset(tmp_path, 2, every_task=True)
     assert calls == [(0, "microwave"), (0, "sink"), (1, "microwave"), (1, "sink")] and len(records) == 4
@@ -179,13 +176,13 @@ class _Sized:
         return self._steps
 
 
-# ------------------------------------------------------------------ perturbed starts (issue #18)
+# ------------------------------------------------------------------ perturbed starts
 #: the plain shards' digest (max_skills 8) before perturbed_starts existed: the shipped recipe's shards keep it.
 PLAIN_DIGEST = "abfe7fb01d"
 
 
 def test_perturbed_starts_is_a_separate_shard_and_leaves_plain_names_alone() -> None:
-    from steer_envs.bench.suites.itps_kitchen.data import ShardSettings, shard_settings
+    from steer_envs.data.kitchen_shards import ShardSettings, shard_settings
 
     plain, pushed = ShardSettings(3, "sink"), ShardSettings(3, "sink", perturbed_starts=True)
     assert plain.digest == PLAIN_DIGEST and plain.file_name() == f"kitchen-sink-ep00003-{PLAIN_DIGEST}.npz"
@@ -209,7 +206,7 @@ def test_perturbed_starts_builds_the_pushed_shard_beside_the_plain_one(
 
     from steer_envs.bench.executors import execute_trial
     from steer_envs.bench.suite import get_suite
-    from steer_envs.bench.suites.itps_kitchen import data
+    from steer_envs.data import kitchen_shards as data
 
     calls: list[tuple[int, str, bool]] = []
 
@@ -227,7 +224,7 @@ def test_perturbed_starts_builds_the_pushed_shard_beside_the_plain_one(
     assert record["metrics"]["skills"] == 2.0
     assert [Path(p).stem.split("-")[3] for p in record["extra"]["shards"]] == [PLAIN_DIGEST, "push"]
     calls.clear()
-    monkeypatch.setattr(data, "_read", lambda path: None)
+    monkeypatch.setattr(data, "record_shard", lambda settings: fake_shard(tmp_path, settings)[0])
     saved: list[dict[str, Any]] = []
     monkeypatch.setattr(data.ks, "save_skills", lambda path, records, meta: saved.append(meta))
     records, merged = data.skills_dataset(tmp_path, 2, ("sink",), perturbed_starts=True)
@@ -243,7 +240,7 @@ def test_perturbed_starts_builds_the_pushed_shard_beside_the_plain_one(
 
 @needs_robosuite
 def test_a_perturbed_start_is_pushed_toward_the_skill_and_the_expert_goes_on_from_there(envs: Any) -> None:
-    from steer_envs.bench.suites.itps_kitchen.data import env_for
+    from steer_envs.data.kitchen_shards import env_for
     from steer_envs.data.kitchen_skills import PUSH_DISTANCE, PUSH_JITTER, push_toward_skill, record_episode
 
     env = env_for("sink")

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from matplotlib.figure import Figure
+from bench_helpers import check_figures
 
 from steer_envs.bench.suites.itps_kitchen.suite import ENV_ID, SUITE_NAME, TABLE_2_3, SteerParams
 
@@ -78,19 +78,10 @@ def test_a_missing_policy_skips_the_suite_with_a_note(tmp_path: Path) -> None:
     assert result.planned == 0 and any("not available" in n for n in result.notes)
 
 
-def test_figures_are_written_and_readable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from steer_envs.bench.plots import figure_problems
+def test_figures_are_written_and_readable(tmp_path: Path, saved: list[Any]) -> None:
     from steer_envs.bench.suite import get_suite
     from steer_envs.bench.suites.itps_kitchen.plots import plot_kitchen, plot_sweep
 
-    figures: list[Any] = []
-    original = Figure.savefig
-
-    def capture(self: Any, *args: Any, **kwargs: Any) -> Any:
-        figures.append(self)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", capture)
     image = np.full((32, 32, 3), 200, dtype=np.uint8)
     frame = {"shape": [32, 32, 3], "rgb": base64.b64encode(image.tobytes()).decode("ascii")}
     step = {
@@ -112,9 +103,7 @@ def test_figures_are_written_and_readable(tmp_path: Path, monkeypatch: pytest.Mo
     assert sorted(Path(w).name for w in written) == ["itps-kitchen_quadrants.png", "itps-kitchen_rollout.png"]
     sweep = {"ratios": [1.0, 5.0, 100.0], "share": {"DP-GD": [0.1, 0.2, 0.1], "DP-SS": [0.1, 0.4, 0.8]}, "batch": 4}
     assert plot_sweep(sweep, tmp_path / "sweep.png").stat().st_size > 5_000
-    assert len(figures) == 3
-    for fig in figures:
-        assert figure_problems(fig) == []
+    check_figures(saved, 3)
 
 
 def test_the_sweep_command_refuses_bad_usage(tmp_path: Path) -> None:

@@ -193,14 +193,14 @@ def test_a_checkpoint_file_replaces_the_shipped_policy(suite: Any, tmp_path: Pat
 
 def test_dp_accelerate_reaches_the_policy_with_the_same_plans(suite: Any, tmp_path: Path) -> None:
     """--param dp_accelerate=trace: the DP's denoiser is traced; plans and metrics as in eager mode."""
-    from steer_envs.bench.suites.itps.protocol import load_policy
+    from steer_envs.baselines.pretrained import shared_policy
 
     path = _tiny_dp_checkpoint(tmp_path)
     base = {**FAST, "dp_checkpoint": str(path)}
     records = {}
     for mode in ("none", "trace"):
         params = {**base, "dp_accelerate": mode}
-        assert load_policy(LOADER, "dp", str(path), mode).acceleration == mode
+        assert shared_policy("dp", str(path), mode, loader=LOADER).acceleration == mode
         plan = plan_trials(suite, build_request(suite, methods=["DP-SS"], seeds=1, params=params))
         outcome = execute_trial(plan.trials[0])
         assert outcome.ok, outcome.error
@@ -246,7 +246,7 @@ def test_findings_check_table_2_1_claims() -> None:
 
     thesis = {m: suites_itps.TABLE_2_1[m] for m in suites_itps.METHODS if m.startswith("DP")}
     assert verdicts(thesis) == [True, True, True, True]
-    measured = {  # itps-maze2d, 2026-11-29 (README): BI collides less than SS; SS 0.025 above RS
+    measured = {  # an itps-maze2d run where BI collides less than SS and SS sits 0.025 above RS
         "DP-RS": (0.247, 0.234, 0.295),
         "DP-PR": (0.095, 0.234, 0.295),
         "DP-OP": (0.128, 0.282, 0.375),

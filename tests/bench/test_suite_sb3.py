@@ -9,11 +9,10 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from matplotlib.figure import Figure
+from bench_helpers import check_figures
 
 from steer_envs.baselines.sb3 import GOAL_ENVS
 from steer_envs.bench.executors import execute_trial
-from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
 from steer_envs.bench.runner import build_request, plan_trials
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
@@ -55,7 +54,7 @@ def test_declaration_and_plan() -> None:
         plan_trials(suite, build_request(suite, envs=["SoupScoopDense-v0"], methods=["sac-her"]))
 
 
-def test_tiny_trials_resume_findings_and_figure(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_tiny_trials_resume_findings_and_figure(tmp_path: Path, saved: list[Any]) -> None:
     fast = {"eval_episodes": 2, "cache_dir": str(tmp_path / "cache")}
     sac = execute_trial(_trial("PolygonNav-3ModeDense", "sac", timesteps=200, eval_every=100, **fast))
     assert sac.ok, sac.error
@@ -77,18 +76,10 @@ def test_tiny_trials_resume_findings_and_figure(tmp_path: Path, monkeypatch: pyt
     (table,) = summarize([sac.record, her.record])
     sac_holds, her_holds = (f.holds for f in table.findings)
     assert sac_holds is None and her_holds in (None, True)  # cut short of the budgets: no failure verdict
-    figures: list[Any] = []
-    original = Figure.savefig
-
-    def capture(self: Any, *args: Any, **kwargs: Any) -> Any:
-        figures.append(self)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", capture)
     records = [sac.record, her.record, maze.record]
     paths = plot_learning_curves(get_suite("sb3"), records, str(tmp_path), methods=("sac", "sac-her"), target=80.0)
     assert [Path(p).name for p in paths] == ["sb3_learning_curves.png"] and Path(paths[0]).is_file()
-    assert len(figures) == 1 and figure_problems(figures[0]) == []
+    check_figures(saved, 1)
 
 
 def _record(env: str, method: str, success: float, timesteps: float) -> dict[str, Any]:

@@ -3,50 +3,29 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from functools import partial
 from typing import Any
 
 import numpy as np
 import pytest
+from bench_helpers import suite_trial
 
+from steer_envs.baselines.lpv_ds.cuts import FailureRecord, resolve_cuts
+from steer_envs.baselines.lpv_ds.episodes import sampled_exits
+from steer_envs.baselines.lpv_ds.ltl_ds import repeated_failures
+from steer_envs.baselines.lpv_ds.task_policies import ARM_CUT_MARGIN, arm_scoop_policy
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
-from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
+from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
 from steer_envs.bench.suites.tli_arm_scoop.plots import _wrong_exit, plot_arm_scoop
-from steer_envs.bench.suites.tli_arm_scoop.protocol import (
-    CUT_MARGIN,
-    PUSH_MODES,
-    PUSH_SCALE,
-    push_plan,
-    repeated_failures,
-    sampled_exits,
-    scoop_policy,
-    scoop_trial,
-)
-from steer_envs.wrappers.ds_modulation import FailureRecord, resolve_cuts
+from steer_envs.bench.suites.tli_arm_scoop.protocol import scoop_trial
+from steer_envs.data.pushes import ARM_PUSH_MODES, ARM_PUSH_SCALE, push_plan
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def _trial(method: str, seed: int, **overrides: Any) -> Trial:
-    suite = get_suite("tli-arm-scoop")
-    return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
-
-
-@pytest.fixture
-def saved(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[Any]]:
-    from matplotlib.figure import Figure
-
-    figures: list[Any] = []
-    original = Figure.savefig
-
-    def capture(self: Any, *args: Any, **kwargs: Any) -> Any:
-        figures.append(self)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", capture)
-    yield figures
+_trial = partial(suite_trial, "tli-arm-scoop")
 
 
 def test_suite_is_registered_with_the_thesis_reference() -> None:
@@ -78,13 +57,13 @@ def test_trials_end_to_end_with_findings_and_figure(tmp_path, saved: list[Any]) 
 
 def test_cuts_from_invariance_failures_bound_the_scoop_dynamics() -> None:
     """Cuts through two failures of the nominal scoop DS: fewer sampled flows leave the mode (the modulation works)."""
-    policy = scoop_policy(0, modulation=True)
+    policy = arm_scoop_policy(0, modulation=True)
     nominal, traces = sampled_exits(policy, 0, modulated=False, keep=400)
     assert nominal > 0.05  # the learned DS does leave the soup wrongly from some pushed states
     wrong = [np.asarray(t) for t in traces if _wrong_exit(np.asarray(t[-1]))]
     assert abs(len(wrong) - nominal * len(traces)) <= 3  # the traces are rounded to 0.1 mm
     records = [FailureRecord(t[-2], t[-1], t[0]) for t in wrong[:2]]  # last in-mode state, failure, entry
-    policy.cut_sets["b"].set_cuts(resolve_cuts(records, policy.dynamics["b"].attractor, CUT_MARGIN))
+    policy.cut_sets["b"].set_cuts(resolve_cuts(records, policy.dynamics["b"].attractor, ARM_CUT_MARGIN))
     modulated, kept = sampled_exits(policy, 0, modulated=True, keep=3)
     assert modulated < nominal and len(kept) == 3 and len(kept[0][0]) == 3
     assert sampled_exits(policy, 0, modulated=False)[0] == nominal  # the cuts act only through the modulation
@@ -100,9 +79,9 @@ def test_cuts_from_invariance_failures_bound_the_scoop_dynamics() -> None:
 
 def test_push_plan_scoops_then_carries() -> None:
     plan = push_plan(np.random.default_rng(0), 4, 5)
-    assert [mode for mode, _, _ in plan[:2]] == list(PUSH_MODES) and all(m in "abc" for m, _, _ in plan)
+    assert [mode for mode, _, _ in plan[:2]] == list(ARM_PUSH_MODES) and all(m in "abc" for m, _, _ in plan)
     for _, dwell, delta in plan:
-        assert 1 <= dwell <= 5 and 0.5 - 1e-9 <= np.linalg.norm(delta / PUSH_SCALE) <= 1 + 1e-9
+        assert 1 <= dwell <= 5 and 0.5 - 1e-9 <= np.linalg.norm(delta / ARM_PUSH_SCALE) <= 1 + 1e-9
     assert push_plan(np.random.default_rng(0), 0, 5) == []
 
 

@@ -3,47 +3,27 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from functools import partial
 from typing import Any
 
 import numpy as np
 import pytest
+from bench_helpers import suite_trial
 
+from steer_envs.baselines.lpv_ds.task_policies import ReentryFlow, color_policy, fit_tile_dynamics
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
-from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
+from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
 from steer_envs.bench.suites.tli_color_tracing.plots import plot_color_tracing
-from steer_envs.bench.suites.tli_color_tracing.protocol import (
-    ReentryFlow,
-    color_policy,
-    color_trial,
-    fit_tile_dynamics,
-    push_schedule,
-)
+from steer_envs.bench.suites.tli_color_tracing.protocol import color_trial
+from steer_envs.data.pushes import tile_push_schedule
 from steer_envs.envs.color_tracing import REENTRY, TILES
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def _trial(method: str, seed: int, **overrides: Any) -> Trial:
-    suite = get_suite("tli-color-tracing")
-    return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
-
-
-@pytest.fixture
-def saved(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[Any]]:
-    from matplotlib.figure import Figure
-
-    figures: list[Any] = []
-    original = Figure.savefig
-
-    def capture(self: Any, *args: Any, **kwargs: Any) -> Any:
-        figures.append(self)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", capture)
-    yield figures
+_trial = partial(suite_trial, "tli-color-tracing")
 
 
 def test_suite_is_registered_with_quick_settings() -> None:
@@ -102,8 +82,8 @@ def test_bad_input_names_the_argument() -> None:
         ReentryFlow("purple")
     with pytest.raises(ValueError, match="n_episodes"):
         get_suite("tli-color-tracing").resolve_params({"n_episodes": 0})
-    schedule = push_schedule(np.random.default_rng(0), 5, 3)
+    schedule = tile_push_schedule(np.random.default_rng(0), 5, 3)
     assert {t for t, _ in schedule} == set(TILES[:-1]) and all(1 <= d <= 3 for _, d in schedule)
-    assert len(push_schedule(np.random.default_rng(0), 7, 3)) == 7
+    assert len(tile_push_schedule(np.random.default_rng(0), 7, 3)) == 7
     with pytest.raises(ValueError, match="max_dwell"):
-        push_schedule(np.random.default_rng(0), 2, 0)
+        tile_push_schedule(np.random.default_rng(0), 2, 0)

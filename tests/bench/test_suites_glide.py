@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 
 from steer_envs.bench.report import render_markdown, summarize
@@ -26,12 +28,12 @@ TINY = {"n_demos": 3, "n_success": 8, "n_failure": 8, "epochs": 5, "n_heads": 1}
 
 
 def test_suites_are_declared_with_the_thesis_numbers() -> None:
-    from steer_envs.bench.suites.glide import protocol as glide_protocol
+    from steer_envs.baselines import glide
 
     assert "steer_envs.bench.suites.glide.suite" in BUILTIN_SUITE_MODULES
     grounding = get_suite("glide-polygon-grounding")
-    assert grounding.env_list() == list(ENV_IDS) == list(glide_protocol.ENV_IDS)
-    assert grounding.method_list() == list(VARIANTS) == list(glide_protocol.VARIANTS)
+    assert grounding.env_list() == list(ENV_IDS) == list(glide.POLYGON_ENV_IDS)
+    assert grounding.method_list() == list(VARIANTS) == list(glide.POLYGON_VARIANTS)
     assert grounding.default_seeds == 5  # the target is a mean over 5 layouts
     assert plan_trials(grounding, build_request(grounding)).trials.__len__() == 3 * 5 * 5
     assert grounding.references_for(ENV3, "full")["overlap"].value == 0.95
@@ -39,11 +41,9 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
     assert grounding.metric("train_seconds").goal == 120.0
 
     table = get_suite("glide-polygon")
-    assert {m: dict(v) for m, v in THESIS_TABLE_4_1.items()} == glide_protocol.THESIS_TABLE_4_1
-    assert EVAL_STARTS == glide_protocol.EVAL_STARTS  # kept twice so the suite imports no torch
-    from steer_envs.baselines.glide.planners import FREE_SPACE_PLANNERS as planners
-
-    assert FREE_SPACE_PLANNERS == planners
+    assert list(THESIS_TABLE_4_1) == list(METHODS) == list(glide.POLYGON_METHODS)
+    assert EVAL_STARTS == glide.EVAL_STARTS  # kept twice so the suite imports no torch
+    assert FREE_SPACE_PLANNERS == glide.FREE_SPACE_PLANNERS
     refs = table.references_for("steer_envs/PolygonNav-4Mode-v0", "glide_planning")
     assert (refs["success"].value, refs["success_perturbed"].value) == (0.987, 0.966)
     assert table.references_for("steer_envs/PolygonNav-5Mode-v0", "bc")["success_perturbed"].value == 0.596
@@ -90,8 +90,7 @@ def test_grounding_suite_runs_tiny_through_the_runner_with_report_and_figure(tmp
     text = render_markdown(summarize(summary.records))
     assert "glide-polygon-grounding" in text and "overlap (ref)" in text and "target (full loss)" in text
     suite = get_suite("glide-polygon-grounding")
-    assert suite.plot is not None
-    (figure,) = suite.plot(suite, summary.records, str(tmp_path / "plots"))
+    (figure,) = suite.figures(summary.records, str(tmp_path / "plots"))
     assert figure.endswith("glide-polygon-grounding_layout0.png")
     assert Path(figure).read_bytes()[:8] == PNG
 
@@ -198,3 +197,39 @@ def test_findings_check_the_grounding_and_table_4_1_claims() -> None:
     assert [f.holds for f in findings] == [False, False]
     (table,) = summarize([_glide_record("glide-polygon", ENV_IDS[0], "bc", {"success": 1.0, "success_perturbed": 1.0})])
     assert "finding not checked: GLiDE+Planning beats BC" in render_markdown([table])
+
+
+class _Oracle:
+    """The ground-truth modes as a 'classifier'."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+
+    def predict(self, states: np.ndarray) -> np.ndarray:
+        return self.model.mode_of(np.asarray(states, dtype=np.float64))
+
+
+def test_plot_writes_a_png_atomically(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    from steer_envs.baselines.glide import polygon_demonstrations
+    from steer_envs.bench.suites.glide.plots import plot_groundings
+
+    env = gym.make("steer_envs/PolygonNav-4Mode-v0", layout_seed=0)
+    model = env.unwrapped.model  # type: ignore[attr-defined]
+    env.close()
+    demos = polygon_demonstrations("steer_envs/PolygonNav-4Mode-v0", 0, 2, 0)
+    path = plot_groundings(
+        model,
+        {"oracle": _Oracle(model)},
+        tmp_path / "modes.png",
+        resolution=40,
+        trajectories=[d.states for d in demos],
+        title="PolygonNav-4Mode",
+    )
+    assert path.read_bytes()[:8] == PNG
+    assert [p.name for p in path.parent.iterdir()] == ["modes.png"]
+    with pytest.raises(ValueError, match=r"\.png"):
+        plot_groundings(model, {}, tmp_path / "modes.jpg")
+    with pytest.raises(TypeError, match="predict"):
+        plot_groundings(model, {"x": object()}, tmp_path / "m.png")  # type: ignore[dict-item]

@@ -6,20 +6,16 @@ import json
 
 import numpy as np
 import pytest
+from bench_helpers import suite_trial
 
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.runner import build_request, plan_trials
-from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
+from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
 from steer_envs.bench.suites.tli.plots import plot_scoop, plot_single_mode, single_mode_figure_data
 from steer_envs.bench.suites.tli.protocol import THESIS_SUCCESS, single_mode_trial
 from steer_envs.bench.suites.tli.suite import THESIS_SINGLE_MODE
 
 PNG = b"\x89PNG\r\n\x1a\n"
-
-
-def _trial(suite_name: str, method: str | None, seed: int, **overrides) -> Trial:
-    suite = get_suite(suite_name)
-    return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
 
 
 def test_suites_are_declared_with_the_thesis_numbers() -> None:
@@ -45,7 +41,7 @@ def test_suites_are_declared_with_the_thesis_numbers() -> None:
 
 
 def test_single_mode_trial_end_to_end_with_plot(tmp_path) -> None:
-    outcome = execute_trial(_trial("tli-single-mode", "ds+mod", 0, n_starts=12, max_cuts=2))
+    outcome = execute_trial(suite_trial("tli-single-mode", "ds+mod", 0, n_starts=12, max_cuts=2))
     assert outcome.ok, outcome.error
     rec = outcome.record
     m = rec["metrics"]
@@ -56,13 +52,13 @@ def test_single_mode_trial_end_to_end_with_plot(tmp_path) -> None:
     assert set(figure) == {"0.0", "1.0", "5.0"}
     assert figure["5.0"]["success_rate"] * 100 == pytest.approx(m["success_30"])  # the plot shows the trial
     json.dumps(rec, allow_nan=False)
-    bc = execute_trial(_trial("tli-single-mode", "bc", 1, n_starts=10, bc_epochs=20, plot_seeds=0))
+    bc = execute_trial(suite_trial("tli-single-mode", "bc", 1, n_starts=10, bc_epochs=20, plot_seeds=0))
     assert bc.ok, bc.error
     assert bc.record["metrics"]["cuts_30"] is None and "figure" not in bc.record.get("extra", {})
     paths = plot_single_mode(get_suite("tli-single-mode"), [rec, bc.record], str(tmp_path))
     assert [p.endswith("tli-single-mode_rollouts_layout0.png") for p in paths] == [True]
     assert open(paths[0], "rb").read(8) == PNG
-    bad = execute_trial(_trial("tli-single-mode", "dmp", 0))
+    bad = execute_trial(suite_trial("tli-single-mode", "dmp", 0))
     assert not bad.ok and "unknown method" in (bad.error or "")
 
 
@@ -81,7 +77,7 @@ def test_figure_data_reproduces_the_protocol() -> None:
 def test_scoop_trials_and_plot(tmp_path) -> None:
     records = []
     for method in ("ltl-ds", "ltl-ds+mod"):
-        outcome = execute_trial(_trial("tli-scoop", method, 0, n_perturbations=2, max_steps=2500, plot_seeds=1))
+        outcome = execute_trial(suite_trial("tli-scoop", method, 0, n_perturbations=2, max_steps=2500, plot_seeds=1))
         assert outcome.ok, outcome.error
         m = outcome.record["metrics"]
         assert m["success"] in (0.0, 100.0) and m["pushes"] <= 2 and m["steps"] <= 2500
@@ -94,7 +90,7 @@ def test_scoop_trials_and_plot(tmp_path) -> None:
 
 
 def test_ds_fit_timing_trial() -> None:
-    outcome = execute_trial(_trial("tli-ds-fit", None, 0))
+    outcome = execute_trial(suite_trial("tli-ds-fit", None, 0))
     assert outcome.ok, outcome.error
     m = outcome.record["metrics"]
     assert 0 < m["fit_seconds"] < 5.0  # the metric's goal
@@ -108,7 +104,7 @@ def test_single_mode_reproduction_ordering() -> None:
     assert run is not None
     mean: dict[str, dict[str, float]] = {}
     for method in ("bc", "bc+mod", "ds", "ds+mod"):
-        ms = [run(_trial("tli-single-mode", method, seed, plot_seeds=0)).metrics for seed in range(10)]
+        ms = [run(suite_trial("tli-single-mode", method, seed, plot_seeds=0)).metrics for seed in range(10)]
         mean[method] = {k: float(np.mean([m[k] for m in ms])) for k in ("success_0", "success_5", "success_30")}
     for level in ("success_5", "success_30"):
         assert mean["bc"][level] <= mean["bc+mod"][level]

@@ -6,20 +6,17 @@ import json
 
 import numpy as np
 import pytest
+from bench_helpers import suite_trial
 
+from steer_envs.baselines.lpv_ds.transition_ds import learned_skills, skills_fingerprint
 from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.report import summarize
-from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, Trial, get_suite
+from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
 from steer_envs.bench.suites.tli_cooking.plots import plot_cooking
-from steer_envs.bench.suites.tli_cooking.protocol import learned_skills, push_schedule, skills_fingerprint
 from steer_envs.bench.suites.tli_inspection.plots import plot_inspection
+from steer_envs.data.pushes import push_schedule
 
 PNG = b"\x89PNG\r\n\x1a\n"
-
-
-def _trial(suite_name: str, method: str, seed: int, **overrides) -> Trial:
-    suite = get_suite(suite_name)
-    return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
 
 
 def test_suites_are_registered_with_quick_settings() -> None:
@@ -41,7 +38,7 @@ def test_cooking_skills_are_learned_once_and_shared() -> None:
 def test_cooking_trials_end_to_end_with_findings_and_plot(tmp_path) -> None:
     records = []
     for method in ("phi_cb", "phi_cc"):
-        out = execute_trial(_trial("tli-cooking", method, 0, n_starts=1, horizon=1500, deliveries=2))
+        out = execute_trial(suite_trial("tli-cooking", method, 0, n_starts=1, horizon=1500, deliveries=2))
         assert out.ok, out.error
         m = out.record["metrics"]
         assert m["success"] == 100.0 and m["invalid"] == 0.0  # unperturbed runs from the start box
@@ -54,14 +51,14 @@ def test_cooking_trials_end_to_end_with_findings_and_plot(tmp_path) -> None:
     assert [f.holds for f in table.findings] == [None, None]  # phi_bc and phi_c are missing
     paths = plot_cooking(get_suite("tli-cooking"), records, str(tmp_path))
     assert len(paths) == 1 and open(paths[0], "rb").read(8) == PNG
-    bad = execute_trial(_trial("tli-cooking", "phi_x", 0))
+    bad = execute_trial(suite_trial("tli-cooking", "phi_x", 0))
     assert not bad.ok and "unknown method" in (bad.error or "")
 
 
 def test_inspection_trials_end_to_end_with_findings_and_plot(tmp_path) -> None:
     records = []
     for method in ("vanilla-ds", "ltl-ds+mod"):
-        out = execute_trial(_trial("tli-inspection", method, 0, n_episodes=3))
+        out = execute_trial(suite_trial("tli-inspection", method, 0, n_episodes=3))
         assert out.ok, out.error
         records.append(out.record)
     vanilla, ltl = (r["metrics"] for r in records)

@@ -6,26 +6,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from stub_policies import ExactDiffusion, RandomLines
 
 from steer_envs.core import DiffusionPolicyLike, NoiseSchedulerLike, TrajectoryPolicy, VelocityPolicy
 
 
-class _LinePolicy:
-    """Plans are straight lines from the observation with a random heading."""
-
-    horizon = 8
-    action_dim = 2
-
-    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        rng = generator if generator is not None else np.random.default_rng()
-        heading = rng.uniform(0, 2 * np.pi, size=(n, 1))
-        steps = np.arange(1, self.horizon + 1)[None, :, None] * 0.1
-        direction = np.concatenate([np.cos(heading), np.sin(heading)], axis=1)[:, None, :]
-        return np.asarray(obs, dtype=float)[None, None, :] + steps * direction
-
-
 def test_trajectory_policy_protocol() -> None:
-    policy = _LinePolicy()
+    policy = RandomLines(step=0.1)
     assert isinstance(policy, TrajectoryPolicy)
     assert not isinstance(policy, DiffusionPolicyLike)
     plans = policy.sample(np.zeros(2), 5, generator=np.random.default_rng(3))
@@ -54,13 +41,11 @@ torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
 
-class _GaussianDiffusionPolicy:
+class _GaussianDiffusionPolicy(ExactDiffusion):
     """Exact epsilon-predictor for data x0 ~ N(mu, s^2 I): a diffusion policy with a known answer."""
 
     horizon = 6
     action_dim = 2
-    num_inference_steps = 10
-    device = torch.device("cpu")
 
     def __init__(self, mu: np.ndarray, std: float = 1e-3) -> None:
         self.mu = torch.as_tensor(mu, dtype=torch.float64)
@@ -83,15 +68,6 @@ class _GaussianDiffusionPolicy:
 
     def unnormalize(self, traj: Any) -> Any:
         return (traj + 1) / 2 * (self.high - self.low) + self.low
-
-    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        rng = generator if generator is not None else np.random.default_rng()
-        cond = self.encode_obs(obs)
-        x = torch.as_tensor(rng.standard_normal((n, self.horizon, self.action_dim)))
-        self.scheduler.set_timesteps(self.num_inference_steps)
-        for t in self.scheduler.timesteps:
-            x = self.scheduler.step(self.predict_noise(x, t, cond), t, x).prev_sample
-        return self.unnormalize(x).numpy()
 
 
 def test_diffusers_scheduler_and_diffusion_policy_satisfy_the_contract() -> None:

@@ -18,7 +18,6 @@ from hypothesis import strategies as st
 
 from steer_envs.core.interaction import Nudge, Point, Sketch, make_interaction
 from steer_envs.core.metrics import constraint_satisfaction, motion_alignment
-from steer_envs.core.objectives import nudge_cost, point_cost
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import (
     BoundExceeded,
@@ -30,6 +29,7 @@ from steer_envs.core.validation import (
     real_array,
     real_scalar,
 )
+from steer_envs.steering.objectives import nudge_cost, point_cost
 
 # values that are no real number (or no array of them) in any numeric slot
 NOT_REAL = [

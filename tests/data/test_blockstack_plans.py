@@ -6,34 +6,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from skill_samples import blockstack_record as record
 
 from steer_envs.data.blockstack_plans import PLAN_HORIZON, PLAN_STRIDE, skill_plan, to_plan_dataset
-from steer_envs.data.blockstack_skills import OBS_DIM, ONTO_NONE, SkillRecord
+from steer_envs.data.blockstack_skills import OBS_DIM
 from steer_envs.data.trajectories import PlanWindows, load_trajectories
-
-
-def record(steps: int, *, success: bool = True, seed: int = 0, close_at: int | None = None) -> SkillRecord:
-    """A synthetic pick: the eef moves down in z by 1 mm a step, the gripper closes at ``close_at``."""
-    eef = np.stack([np.zeros(steps + 1), np.zeros(steps + 1), 0.2 - 1e-3 * np.arange(steps + 1)], axis=1)
-    grip = np.where(np.arange(steps + 1) >= (close_at if close_at is not None else steps), 1.0, -1.0)
-    obs = np.zeros((steps + 1, OBS_DIM), np.float32)
-    obs[:, :3] = eef
-    obs[:, 5] = np.arange(steps + 1)  # a marker of the step
-    return SkillRecord(
-        name="pick_1",
-        cube=1,
-        onto=ONTO_NONE,
-        target=np.zeros(3),
-        success=success,
-        violation=False,
-        seed=seed,
-        index=0,
-        obs=obs,
-        actions=np.zeros((steps, 7), np.float32),
-        eef=eef,
-        gripper=grip.astype(np.float32),
-        modes=np.zeros(steps + 1, np.int16),
-    )
 
 
 def test_waypoints_are_the_eef_every_stride_steps_padded_with_the_last() -> None:
@@ -68,24 +45,9 @@ def test_dataset_has_one_window_per_kept_skill() -> None:
     assert len(to_plan_dataset(recs, successful_only=False).meta["skills"]) == 3
 
 
-@pytest.mark.parametrize(
-    ("kwargs", "error", "match"),
-    [
-        ({"records": "x"}, TypeError, "records"),
-        ({"records": [1]}, TypeError, r"records\[0\]"),
-        ({"records": []}, ValueError, "no skill"),
-        ({"records": [record(10)], "stride": 0}, ValueError, "stride"),
-        ({"records": [record(10)], "successful_only": "yes"}, TypeError, "successful_only"),
-    ],
-)
-def test_bad_input_is_refused(kwargs: dict[str, Any], error: type, match: str) -> None:
-    with pytest.raises(error, match=match):
-        to_plan_dataset(**kwargs)
-
-
 def test_cli_writes_a_trajectory_file_from_the_shards(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    import steer_envs.bench.suites.itps_blockstack.data as shards
-    from steer_envs.bench.suites.itps_blockstack.data import main
+    import steer_envs.data.blockstack_shards as shards
+    from steer_envs.data.blockstack_shards import main
 
     merged = tmp_path / "merged.npz"
     monkeypatch.setattr(shards, "skills_dataset", lambda cache, n, k, b: ([record(40), record(50)], merged))
@@ -125,8 +87,8 @@ def _scene(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_move_scene_is_a_rigid_motion_of_positions_and_cube_yaws() -> None:
+    from steer_envs.control.blockstack import yaw_of
     from steer_envs.data.blockstack_plans import move_scene
-    from steer_envs.envs.robosuite.plan_execution import yaw_of
 
     obs, plan = _scene(np.random.default_rng(0))
     same = move_scene(obs, plan, 0.0, np.zeros(2))

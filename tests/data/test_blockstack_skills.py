@@ -5,33 +5,21 @@ One env and one 3-skill episode for the module (env creation takes seconds).
 
 from __future__ import annotations
 
-import importlib.util
 import zipfile
-from collections.abc import Iterator
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from robosuite_helpers import ROBOSUITE_MARKS, module_env
 
 from steer_envs.envs.robosuite.blockstack import SKILLS
 from steer_envs.io import DatasetError
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 SEED = 3
-
-
-@pytest.fixture(scope="module")
-def env() -> Iterator[Any]:
-    from steer_envs.data.blockstack_skills import make_env
-
-    made = make_env()
-    yield made
-    made.close()
+env = module_env("steer_envs.data.blockstack_skills:make_env")
 
 
 @pytest.fixture(scope="module")

@@ -14,15 +14,10 @@ from hypothesis import strategies as st
 
 import steer_envs  # noqa: F401
 from steer_envs.core.validation import BoundExceeded
-from steer_envs.data.counterfactual import (
-    CounterfactualReplayer,
-    PerturbedReference,
-    gripper_toggle,
-    kernel_perturbation,
-    segment_perturbation,
-)
+from steer_envs.data.counterfactual import CounterfactualReplayer
 from steer_envs.data.counterfactual_dataset import KINDS, CounterfactualDataset, build_counterfactual_dataset
 from steer_envs.data.demos import collect_demonstrations
+from steer_envs.data.perturbations import PerturbedReference, gripper_toggle, kernel_perturbation, segment_perturbation
 
 ENV_ID = "steer_envs/PolygonNav-4Mode-v0"
 

@@ -1,7 +1,7 @@
 """Kitchen skill plans and skill files: waypoint layout, yaw convention, padding, one window per skill, files, CLI.
 
 Synthetic records only (no simulator): the recorded skills are tested in
-``tests/envs/test_kitchen_plan_execution.py`` and ``tests/bench/test_itps_kitchen_data.py``.
+``tests/control/test_kitchen_control.py`` and ``tests/bench/test_itps_kitchen_data.py``.
 """
 
 from __future__ import annotations
@@ -11,48 +11,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from skill_samples import kitchen_record as record
 
 from steer_envs.data.kitchen_plans import PLAN_DIM, PLAN_HORIZON, PLAN_STRIDE, plan_yaw, skill_plan, to_plan_dataset
-from steer_envs.data.kitchen_skills import MODES, OBS_DIM, SkillRecord, load_skills, save_skills
+from steer_envs.data.kitchen_skills import OBS_DIM, SkillRecord, load_skills, save_skills
 from steer_envs.data.trajectories import PlanWindows, load_trajectories
 from steer_envs.io import DatasetError
-
-
-def record(
-    steps: int,
-    *,
-    success: bool = True,
-    seed: int = 0,
-    close_at: int | None = None,
-    yaw0: float = 0.0,
-    turn: float = 0.0,
-    name: str = "pick_bowl",
-    task: str = "sink",
-) -> SkillRecord:
-    """A synthetic skill: the eef moves down 1 mm a step, the wrist turns by ``turn``, closes at ``close_at``."""
-    t = np.arange(steps + 1)
-    eef = np.stack([np.zeros(steps + 1), np.zeros(steps + 1), 0.2 - 1e-3 * t], axis=1)
-    grip = np.where(t >= (close_at if close_at is not None else steps + 1), 1.0, -1.0)
-    yaw = (yaw0 + turn * t / max(steps, 1) + np.pi) % (2 * np.pi) - np.pi  # wrapped, as eef_yaw reads it
-    obs = np.zeros((steps + 1, OBS_DIM), np.float32)
-    obs[:, :3] = eef
-    obs[:, 7] = t  # a marker of the step
-    return SkillRecord(
-        name=name,
-        task=task,
-        success=success,
-        violation=False,
-        seed=seed,
-        index=0,
-        obs=obs,
-        actions=np.zeros((steps, 7), np.float32),
-        eef=eef,
-        yaw=yaw,
-        gripper=grip.astype(np.float32),
-        modes=np.full(steps + 1, MODES.index("closed_table"), np.int16),
-        handle=np.array([-0.1, 0.18, 1.03]),
-        hinge=np.array([-0.02, 0.54, 1.03]),
-    )
 
 
 def test_waypoints_are_the_state_every_stride_steps_padded_with_the_last() -> None:
@@ -114,22 +78,6 @@ def test_dataset_has_one_window_per_kept_skill() -> None:
     assert len(to_plan_dataset(recs, successful_only=False).meta["skills"]) == 3
 
 
-@pytest.mark.parametrize(
-    ("kwargs", "error", "match"),
-    [
-        ({"records": "x"}, TypeError, "records"),
-        ({"records": [1]}, TypeError, r"records\[0\]"),
-        ({"records": []}, ValueError, "no skill"),
-        ({"records": [record(10)], "stride": 0}, ValueError, "stride"),
-        ({"records": [record(10)], "horizon": 1.5}, TypeError, "horizon"),
-        ({"records": [record(10)], "successful_only": "yes"}, TypeError, "successful_only"),
-    ],
-)
-def test_bad_input_is_refused(kwargs: dict[str, Any], error: type, match: str) -> None:
-    with pytest.raises(error, match=match):
-        to_plan_dataset(**kwargs)
-
-
 def test_skill_plan_refuses_a_non_record() -> None:
     with pytest.raises(TypeError, match="record"):
         skill_plan("pick")  # type: ignore[arg-type]
@@ -170,8 +118,8 @@ def test_skill_files_round_trip_and_refuse_bad_files(tmp_path: Path) -> None:
 
 
 def test_cli_writes_a_trajectory_file_from_the_shards(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import steer_envs.bench.suites.itps_kitchen.data as shards
-    from steer_envs.bench.suites.itps_kitchen.data import main
+    import steer_envs.data.kitchen_shards as shards
+    from steer_envs.data.kitchen_shards import main
 
     merged = tmp_path / "merged.npz"
     seen: list[Any] = []

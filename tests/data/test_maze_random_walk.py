@@ -9,26 +9,23 @@ import subprocess
 import sys
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import pytest
 
+from steer_envs.data.datasets import load_dataset
 from steer_envs.data.maze_random_walk import (
     RandomWalkDataset,
-    WaypointController,
-    cell_path,
     generate_random_walk,
     goal_episodes,
     goal_rewards,
     load_random_walk,
     load_transitions,
     main,
-    q_iteration,
     save_random_walk,
     to_minari,
 )
-from steer_envs.data.trajectories import PlanWindows, load_trajectories
-from steer_envs.envs.maze2d import AGENT_RADIUS, MazeGrid, maze_map
+from steer_envs.data.trajectories import PlanWindows
+from steer_envs.envs.maze_grid import AGENT_RADIUS, MazeGrid, maze_map
 
 LARGE = MazeGrid(maze_map("large"))
 
@@ -36,34 +33,6 @@ LARGE = MazeGrid(maze_map("large"))
 @pytest.fixture(scope="module")
 def walk() -> RandomWalkDataset:
     return generate_random_walk("large", 40_000, seed=3, progress=False)
-
-
-def test_q_iteration_paths_are_shortest_grid_paths() -> None:
-    graph = nx.grid_2d_graph(*LARGE.shape)
-    graph.remove_nodes_from([tuple(c) for c in np.argwhere(LARGE.walls).tolist()])
-    rng = np.random.default_rng(0)
-    free = [tuple(c) for c in LARGE.free_cells.tolist()]
-    for _ in range(25):
-        a, b = (free[i] for i in rng.choice(len(free), size=2, replace=False))
-        path = cell_path(LARGE, a, b)
-        assert path[-1] == b and len(path) == nx.shortest_path_length(graph, a, b)
-        steps = np.abs(np.diff(np.array([a, *path]), axis=0)).sum(axis=1)
-        assert np.all(steps == 1) and not LARGE.walls[tuple(np.array(path).T)].any()
-    q = q_iteration(LARGE.walls, (1, 1), iters=3)
-    assert q[(7, 10)].max() == 0.0  # beyond the sweep horizon nothing is known (D4RL's 50-sweep limit)
-    with pytest.raises(ValueError, match="target"):
-        q_iteration(LARGE.walls, (0, 0))
-
-
-def test_controller_jitters_every_waypoint_but_the_goal() -> None:
-    ctrl = WaypointController(LARGE, np.random.default_rng(0))
-    ctrl.plan(np.array([1.0, 1.0]), np.array([7.04, 9.97]))
-    wps = np.array(ctrl.waypoints)
-    offsets = np.round(wps[:-1]) - wps[:-1]
-    assert np.all((offsets >= 0) & (offsets <= 0.2)) and offsets.std() > 0
-    np.testing.assert_array_equal(wps[-1], [7.0, 10.0])
-    with pytest.raises(RuntimeError, match="plan"):
-        WaypointController(LARGE).update(1.0, 1.0)
 
 
 def test_same_seed_gives_identical_data(walk: RandomWalkDataset) -> None:
@@ -123,7 +92,7 @@ def test_training_view_declares_positions_and_pools_their_statistics(tmp_path: P
         np.testing.assert_array_equal(stats[feature]["max"], hi)
     np.testing.assert_array_equal(stats["observation"]["mean"], stats["action"]["mean"])
     # the training CLI's loader reads a random-walk file as this view
-    loaded = load_trajectories(save_random_walk(walk, tmp_path / "walk.npz"))
+    loaded = load_dataset(save_random_walk(walk, tmp_path / "walk.npz"))
     np.testing.assert_array_equal(loaded.observations, traj.observations)
     assert loaded.action_obs_indices == (0, 1)
 
@@ -234,7 +203,7 @@ print(json.dumps({
 def test_cli_minari_export_with_relative_paths_loads_in_a_fresh_shell(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], how: str
 ) -> None:
-    """#21: a relative ``--out`` / data path crashed with a doubled path; the printed line must load the data."""
+    """A relative ``--out`` / data path must not double; the printed line must load the data."""
     pytest.importorskip("h5py", reason="Minari needs its hdf5 backend (pip install 'minari[hdf5]')")
     monkeypatch.chdir(tmp_path)
     argv = ["--out", "out/data", "--maze", "umaze", "--steps", "4000", "--seed", "2", "--no-progress"]

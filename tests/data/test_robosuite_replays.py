@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from robosuite_helpers import ROBOSUITE_MARKS
 
 from steer_envs.data import robosuite_replays as rr
 from steer_envs.io import DatasetError
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 
 
 @pytest.fixture(scope="module")

@@ -98,8 +98,7 @@ def test_bad_input_is_rejected() -> None:
 
 def test_classifier_labels_segment_like_any_other_labels() -> None:
     """GLiDE's classifier only provides per-step labels; the segmentation is this module's."""
-    from steer_envs.baselines.glide.classifier import label_demonstrations
-    from steer_envs.baselines.glide.mode_policies import mode_entry_points
+    from steer_envs.baselines.glide import label_demonstrations, mode_entry_points
 
     class LeftRight:
         def predict(self, states: np.ndarray) -> np.ndarray:

@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from kinematic_helpers import walk
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import steer_envs  # noqa: F401
@@ -32,15 +33,6 @@ ENV_ID = "steer_envs/ColorTracing-v0"
 def _centre(tile: str) -> np.ndarray:
     x0, y0, x1, y1 = RECTS[tile]
     return np.array([(x0 + x1) / 2, (y0 + y1) / 2])
-
-
-def _walk(env: ColorTracingEnv, *moves: tuple[float, float]) -> list[dict]:
-    infos = []
-    for target in moves:
-        target_xy = np.asarray(target, dtype=np.float64)
-        while np.linalg.norm(target_xy - env.state) > 1e-9:
-            infos.append(env.step(((target_xy - env.state) / env.dt).astype(np.float32))[4])
-    return infos
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
@@ -86,11 +78,11 @@ def test_pushes_into_d_create_the_d_mode_of_the_tile_left() -> None:
 def test_own_exits_and_steps_back_are_violations_the_chain_is_not() -> None:
     env = ColorTracingEnv()
     env.reset(options={"state": [-5.5, 0.0]})
-    infos = _walk(env, (-4.5, 0.0), (-3.5, 0.0), (-2.5, 0.0))
+    infos = walk(env, (-4.5, 0.0), (-3.5, 0.0), (-2.5, 0.0))
     assert [i["mode_name"] for i in infos][-1] == "blue" and not any(i["constraint_violation"] for i in infos)
-    back = _walk(env, (-4.5, 0.0))
+    back = walk(env, (-4.5, 0.0))
     assert back[-1]["mode_name"] == "yellow" and sum(i["constraint_violation"] for i in back) == 1
-    out = _walk(env, (-4.5, 2.5))
+    out = walk(env, (-4.5, 2.5))
     assert out[-1]["mode_name"] == "dark1" and sum(i["constraint_violation"] for i in out) == 1
 
 
@@ -103,7 +95,7 @@ def test_reentries_follow_the_automaton(automaton: str) -> None:
             env.reset(options={"state": _centre(tile)})
             env.perturb(to=_centre(tile) + np.array([0.0, 2.5]))
             env.perturb(to=_centre(target) + np.array([0.0, 1.6]))  # still in D, right above the target tile
-            infos = _walk(env, tuple(_centre(target)))
+            infos = walk(env, tuple(_centre(target)))
             entered = next(i for i in infos if i["mode_name"] != dark)
             assert entered["mode_name"] == target
             assert entered["constraint_violation"] == (REENTRY[automaton][dark] != target)
@@ -113,7 +105,7 @@ def test_red_from_d_is_a_violation_and_success_latches() -> None:
     env = ColorTracingEnv()
     env.reset(options={"state": _centre("pink")})
     env.perturb(delta=[0.0, 2.5])
-    info = _walk(env, (5.0, 1.0))[-1]
+    info = walk(env, (5.0, 1.0))[-1]
     assert info["success"] and info["mode_name"] == "red"
     env.reset(options={"state": _centre("pink")})
     _, reward, terminated, _, info = env.step(np.array([10.0, 0.0], dtype=np.float32))

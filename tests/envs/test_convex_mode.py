@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import shapely
 from gymnasium.utils.env_checker import check_env
+from kinematic_helpers import expert_successes, step_singles_like_vector
 
 import steer_envs  # noqa: F401  (registers the ids)
-from steer_envs.data.experts import ScriptedExpert, make_expert
+from steer_envs.data.experts import make_expert
 from steer_envs.envs.convex_mode import ConvexModeEnv, ConvexModeModel, convex_halfspaces, in_halfspaces
-from steer_envs.envs.kinematic import sensor_columns
 
 ENV_ID = "steer_envs/ConvexMode-v0"
 
@@ -199,16 +199,7 @@ def test_vector_env_agrees_with_single_envs() -> None:
     ended = 0
     for _ in range(150):
         actions = (drift + rng.normal(0, 5, size=(n, 2))).astype(np.float32)
-        obs, rewards, terminated, truncated, infos = vec.step(actions)
-        for i, env in enumerate(singles):
-            if done[i]:
-                continue
-            o, r, te, tr, info = env.step(actions[i])
-            np.testing.assert_array_equal(o, obs[i])
-            assert (r, te, tr) == (rewards[i], terminated[i], truncated[i])
-            assert info["mode"] == infos["mode"][i] and info["success"] == infos["success"][i]
-            assert info["constraint_violation"] == infos["constraint_violation"][i]
-            assert list(info["sensors"].values()) == sensor_columns(infos["sensors"], list(info["sensors"]))[i].tolist()
+        for i, te, tr, _ in step_singles_like_vector(vec, singles, actions, done):
             done[i] = te or tr
             ended += te
     assert ended >= 2  # some agents left the mode or reached the attractor, so termination was compared
@@ -217,19 +208,7 @@ def test_vector_env_agrees_with_single_envs() -> None:
 @pytest.mark.parametrize("layout_seed", [0, 7, 23])
 def test_expert_succeeds(layout_seed: int) -> None:
     env = gym.make(ENV_ID, layout_seed=layout_seed)
-    expert = make_expert(env)
-    assert isinstance(expert, ScriptedExpert)
-    successes = 0
-    for seed in range(100):
-        obs, info = env.reset(seed=seed)
-        expert.reset(obs, info)
-        while True:
-            obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
-            assert not info["constraint_violation"]
-            if terminated or truncated:
-                break
-        successes += info["success"]
-    assert successes >= 99
+    assert expert_successes(env, range(100), forbid_violations=True) >= 99
 
 
 def test_expert_with_noisy_starts_and_perturbations() -> None:

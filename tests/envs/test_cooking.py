@@ -3,18 +3,23 @@
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env as gym_check_env
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
+from kinematic_helpers import (
+    check_seeded_start,
+    noisy_expert_vector_parity,
+    run_expert_batch,
+    run_with_one_push,
+    walk_from,
+)
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
 from steer_envs.data.experts.cooking import CookingExpert
 from steer_envs.envs.cooking import COOKING_TASK, MODE_AP_FORMULAS, CookingEnv
-from steer_envs.envs.kinematic import sensor_columns
 
 ENV_ID = "steer_envs/Cooking-v0"
 TASK = COOKING_TASK
@@ -28,17 +33,6 @@ def _expected_label(p: np.ndarray) -> np.ndarray:
     label[(x >= 2) & (x <= 7) & (y >= 1)] = 2
     label[(np.abs(x) <= 2) & (y >= 4)] = 3
     return label
-
-
-def _walk(env: CookingEnv, start: tuple[float, float] | None, *moves: tuple[float, float]) -> list[dict]:
-    """(Reset at ``start`` and) move in straight max-speed steps through the waypoints ``moves``."""
-    infos = [] if start is None else [env.reset(options={"state": np.asarray(start, dtype=np.float64)})[1]]
-    for target in moves:
-        target = np.asarray(target, dtype=np.float64)
-        while np.linalg.norm(target - env.state) > 1e-9:
-            velocity = (target - env.state) / env.dt  # the env clips the speed to max_speed
-            infos.append(env.step(velocity.astype(np.float32))[4])
-    return infos
 
 
 def _mode_path(infos: list[dict]) -> list[str]:
@@ -59,70 +53,25 @@ def _holds(formula: str, sensors: dict[str, bool]) -> bool:
     return bool(eval(expr, {"s": sensors}))  # formulas are module constants
 
 
-def _rows(infos: dict) -> dict:
-    """A vector env's infos with ``sensors`` as the ``(N, k)`` array the expert's batch path reads."""
-    return {**infos, "sensors": sensor_columns(infos["sensors"], TASK.sensors)}
-
-
 def _run_expert_batch(
     starts: np.ndarray, *, steps: int = 2000, noise: float = 0.0, seed: int = 0, **expert_kwargs: str
 ) -> dict:
     """Roll the expert (plus optional action noise) in the vector env from ``starts``; first episode of each."""
-    n = len(starts)
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
-    obs, info = venv.reset(seed=seed, options={"state": starts})
-    expert = CookingExpert(venv.unwrapped.env, **expert_kwargs)
-    rng = np.random.default_rng(seed)
-    done = np.zeros(n, dtype=bool)
-    out = {"success": np.zeros(n, dtype=bool), "steps": np.zeros(n, dtype=np.int64), "violations": 0, "pairs": set()}
-    readings: set[tuple[tuple[bool, ...], int]] = set()
-    mode = info["mode"].copy()
-    for k in range(steps):
-        action = expert.act(obs, _rows(info)) + rng.normal(0.0, noise, size=(n, 2)).astype(np.float32)
-        obs, _, term, trunc, info = venv.step(action)
-        live = ~done
-        out["violations"] += int((info["constraint_violation"] & live).sum())
-        changed = live & (info["mode"] != mode)
-        out["pairs"] |= {
-            (TASK.modes[a], TASK.modes[b]) for a, b in zip(mode[changed], info["mode"][changed], strict=True)
-        }
-        readings |= {
-            (tuple(row), int(m))
-            for row, m in zip(
-                sensor_columns(info["sensors"], TASK.sensors)[live].tolist(), info["mode"][live], strict=True
-            )
-        }
-        mode = info["mode"].copy()
-        newly = (term | trunc) & live
-        out["success"][newly] = info["success"][newly]
-        out["steps"][newly] = k + 1
-        done |= term | trunc
-        if done.all():
-            break
-    venv.close()
-    for row, m in readings:  # the sensors always label the mode the env reports
-        assert TASK.mode_of(dict(zip(TASK.sensors, row, strict=True))) == TASK.modes[m]
-    return out
+    return run_expert_batch(
+        ENV_ID,
+        TASK,
+        lambda env: CookingExpert(env, **expert_kwargs),
+        starts,
+        steps=steps,
+        noise=noise,
+        seed=seed,
+        sensor_rows=True,
+    )
 
 
-# ----------------------------------------------------------------- checkers
-def test_gymnasium_and_sb3_checkers_pass() -> None:
-    env = gym.make(ENV_ID)
-    gym_check_env(env.unwrapped, skip_render_check=True)
-    sb3_check_env(env.unwrapped, warn=False)
-    env.close()
-
-
+# ----------------------------------------------------------------- seeding
 def test_same_seed_gives_identical_trajectories_and_starts_in_white() -> None:
-    def rollout(seed: int) -> np.ndarray:
-        env = gym.make(ENV_ID)
-        obs, info = env.reset(seed=seed)
-        assert info["mode_name"] == "w0" and env.unwrapped.model.regions(obs[None])[0] == 0
-        env.action_space.seed(seed)
-        return np.asarray([obs] + [env.step(env.action_space.sample())[0] for _ in range(60)])
-
-    np.testing.assert_array_equal(rollout(4), rollout(4))
-    assert not np.array_equal(rollout(4), rollout(5))
+    check_seeded_start(ENV_ID, "w0")
 
 
 def test_region_layout_matches_the_documented_rectangles() -> None:
@@ -136,19 +85,19 @@ def test_region_layout_matches_the_documented_rectangles() -> None:
 # ------------------------------------------------------------------ physics
 def test_chicken_first_through_white_and_broccoli_through_the_pot() -> None:
     env = CookingEnv()
-    infos = _walk(env, (-4.5, -1.0), (-4.5, 6.0), (0.0, 6.0), (0.0, 0.0), (4.5, 0.0), (4.5, 6.0), (0.0, 6.0))
+    infos = walk_from(env, (-4.5, -1.0), (-4.5, 6.0), (0.0, 6.0), (0.0, 0.0), (4.5, 0.0), (4.5, 6.0), (0.0, 6.0))
     assert _mode_path(infos) == ["w0", "y0", "dc", "wc", "gc", "done"]
     assert not any(i["constraint_violation"] for i in infos)
     final = infos[-1]["sensors"]
     assert infos[-1]["success"] and final == {"hc": False, "hb": False, "p": True, "ch": True, "br": True}
     # broccoli first, then the pot -> yellow -> pot shortcut (the thesis's d => y)
-    infos = _walk(env, (4.5, -1.0), (4.5, 6.0), (0.0, 6.0), (-3.0, 6.0), (0.0, 6.0))
+    infos = walk_from(env, (4.5, -1.0), (4.5, 6.0), (0.0, 6.0), (-3.0, 6.0), (0.0, 6.0))
     assert _mode_path(infos) == ["w0", "g0", "db", "yb", "done"]
 
 
 def test_loading_needs_an_entry_from_white_or_the_pot() -> None:
     env = CookingEnv()
-    infos = _walk(env, (-4.5, 0.0), (-4.5, 2.0))
+    infos = walk_from(env, (-4.5, 0.0), (-4.5, 2.0))
     assert infos[-1]["mode_name"] == "y0" and infos[-1]["sensors"]["hc"]
     info = env.perturb(to=np.array([-4.5, 5.0]))  # a push inside the corridor keeps the chicken
     assert info["mode_name"] == "y0"
@@ -156,31 +105,31 @@ def test_loading_needs_an_entry_from_white_or_the_pot() -> None:
     assert info["mode_name"] == "w0" and not info["constraint_violation"]
     assert env.perturb(to=np.array([-4.5, 5.0]))["mode_name"] == "w0"  # corridor to corridor never loads
     assert env.perturb(to=np.array([4.5, 5.0]))["mode_name"] == "w0"
-    infos = _walk(env, None, (4.5, 3.0))
+    infos = walk_from(env, None, (4.5, 3.0))
     assert all(i["mode_name"] == "w0" for i in infos)  # an empty spoon in green stays empty ...
-    infos = _walk(env, None, (4.5, 0.0), (4.5, 2.0))  # ... until it leaves and comes back
+    infos = walk_from(env, None, (4.5, 0.0), (4.5, 2.0))  # ... until it leaves and comes back
     assert infos[-1]["mode_name"] == "g0"
 
 
 def test_spilling_food_into_white_is_a_violation_and_loses_it() -> None:
     env = CookingEnv()
-    infos = _walk(env, (-4.5, 0.0), (-4.5, 3.0), (-8.0, 3.0), (-8.0, 0.0))
+    infos = walk_from(env, (-4.5, 0.0), (-4.5, 3.0), (-8.0, 3.0), (-8.0, 0.0))
     flagged = [k for k, i in enumerate(infos) if i["constraint_violation"]]
     assert len(flagged) == 1 and infos[flagged[0] - 1]["mode_name"] == "y0"
     assert infos[flagged[0]]["mode_name"] == "w0" and not infos[-1]["sensors"]["ch"]
     # the same through the gap under the pot, with chicken already in the pot
-    infos = _walk(env, (-4.5, 0.0), (-4.5, 6.0), (0.0, 6.0), (0.0, 0.0), (4.5, 0.0), (4.5, 3.0), (0.0, 3.0))
+    infos = walk_from(env, (-4.5, 0.0), (-4.5, 6.0), (0.0, 6.0), (0.0, 0.0), (4.5, 0.0), (4.5, 3.0), (0.0, 3.0))
     assert _mode_path(infos) == ["w0", "y0", "dc", "wc", "gc", "wc"]
     assert sum(i["constraint_violation"] for i in infos) == 1 and not infos[-1]["sensors"]["br"]
 
 
 def test_an_empty_spoon_in_the_pot_adds_nothing_and_done_absorbs() -> None:
     env = CookingEnv()
-    infos = _walk(env, (0.0, 2.0), (0.0, 6.0), (0.0, 2.0))
+    infos = walk_from(env, (0.0, 2.0), (0.0, 6.0), (0.0, 2.0))
     assert _mode_path(infos) == ["w0", "d0", "w0"]
-    infos = _walk(env, (-4.5, 0.0), (-4.5, 6.0), (0.0, 6.0), (3.0, 6.0), (0.0, 6.0))
+    infos = walk_from(env, (-4.5, 0.0), (-4.5, 6.0), (0.0, 6.0), (3.0, 6.0), (0.0, 6.0))
     assert infos[-1]["success"] and infos[-1]["mode_name"] == "done"
-    after = _walk(env, None, (4.5, 6.0), (4.5, -2.0))  # ignoring termination: nothing is spilled any more
+    after = walk_from(env, None, (4.5, 6.0), (4.5, -2.0))  # ignoring termination: nothing is spilled any more
     assert all(i["mode_name"] == "done" and i["success"] and not i["constraint_violation"] for i in after)
 
 
@@ -223,35 +172,10 @@ def test_perturb_rejects_bad_arguments() -> None:
 # ------------------------------------------------------------- vector path
 def test_vector_env_agrees_step_for_step_with_single_envs() -> None:
     n = 8
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
-    starts = np.random.default_rng(2).uniform(-8, 8, size=(n, 2))
-    vobs, vinfo = venv.reset(seed=0, options={"state": starts})
-    singles = [CookingEnv() for _ in range(n)]
-    for env, s in zip(singles, starts, strict=True):
-        env.reset(options={"state": s})
-    expert = CookingExpert(singles[0], route="direct")
-    rng = np.random.default_rng(3)
-    sigma = np.linspace(2.0, 20.0, n)[:, None]  # from nearly expert to nearly random
-    finished = np.zeros(n, dtype=bool)
-    seen_violation = False
-    for _ in range(400):
-        actions = expert.act(vobs, _rows(vinfo)) + (sigma * rng.normal(size=(n, 2))).astype(np.float32)
-        vobs, vrew, vterm, _, vinfo = venv.step(actions)
-        for k, env in enumerate(singles):
-            if finished[k]:
-                continue
-            sobs, srew, sterm, _, sinfo = env.step(actions[k])
-            np.testing.assert_allclose(vobs[k], sobs, atol=1e-6)
-            assert (vinfo["mode"][k], vrew[k], vterm[k]) == (sinfo["mode"], srew, sterm)
-            row = sensor_columns(vinfo["sensors"], TASK.sensors)[k].tolist()
-            assert row == [sinfo["sensors"][ap] for ap in TASK.sensors]
-            assert vinfo["constraint_violation"][k] == sinfo["constraint_violation"]
-            seen_violation |= sinfo["constraint_violation"]
-            finished[k] = sterm
-        if finished.all():
-            break
+    finished, seen_violation = noisy_expert_vector_parity(
+        ENV_ID, TASK, CookingEnv, lambda env: CookingExpert(env, route="direct"), n=n, sensor_rows=True
+    )
     assert finished.sum() >= n // 2 and seen_violation, "the comparison must cover loading, spills and success"
-    venv.close()
 
 
 # ------------------------------------------------------------------ expert
@@ -289,17 +213,13 @@ def test_expert_rejects_bad_arguments_and_recovers_after_a_spill() -> None:
     env = gym.make(ENV_ID)
     expert = make_expert(env, order="bc")
     obs, info = env.reset(seed=0)
-    modes, pushed_at = [], None
-    for _ in range(2000):
-        obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
-        modes.append(info["mode_name"])
-        if info["mode_name"] == "yb" and pushed_at is None and obs[1] > 3.0:
-            info = env.unwrapped.perturb(to=np.array([-7.5, 3.0]))  # out of yellow: chicken lost
-            obs, pushed_at = env.unwrapped.state.astype(np.float32), len(modes)
-            assert info["mode_name"] == "wb"
-        if terminated or truncated:
-            break
-    assert pushed_at is not None and info["success"]
+
+    def carrying(obs: Any, info: dict) -> bool:
+        return info["mode_name"] == "yb" and obs[1] > 3.0
+
+    push = {"to": np.array([-7.5, 3.0])}  # out of yellow: the chicken is lost
+    modes, pushed_at, pushed_to, info = run_with_one_push(env, expert, obs, info, 2000, carrying, **push)
+    assert pushed_at is not None and pushed_to == "wb" and info["success"]
     assert _mode_path([{"mode_name": m} for m in modes[pushed_at:]]) == ["wb", "yb", "done"]
 
 

@@ -25,7 +25,8 @@ from steer_envs.core.validation import BoundExceeded
 from steer_envs.envs import convex_mode, polygon_nav
 from steer_envs.envs.convex_mode import ConvexModeEnv, ConvexModeModel
 from steer_envs.envs.cooking import CookingEnv
-from steer_envs.envs.maze2d import Maze2DEnv, MazeGrid, maze_map
+from steer_envs.envs.maze2d import Maze2DEnv
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 from steer_envs.envs.polygon_nav import PolygonNavEnv, PolygonNavModel
 from steer_envs.envs.registry import ENTRIES, env_ids
 from steer_envs.envs.soup_scoop import SoupScoopEnv

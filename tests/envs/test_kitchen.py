@@ -8,13 +8,11 @@ The pixel test makes its own env with a renderer. Episodes are a skill long.
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import socket
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,23 +21,12 @@ import networkx as nx
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from robosuite_helpers import ROBOSUITE_MARKS, module_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
-from steer_envs.envs.robosuite.kitchen import (
-    CAVITY_FRONT_X,
-    CAVITY_HIGH,
-    CAVITY_LOW,
-    DOOR_START_OPEN,
-    SINK_XY,
-    SKILLS,
-    TABLE_Z,
-    KitchenEnv,
-    kitchen_task,
-    legal_skills,
-    skill_target,
-)
+from steer_envs.envs.robosuite.kitchen import SKILLS, KitchenEnv, kitchen_task, legal_skills, skill_target
 from steer_envs.envs.robosuite.kitchen_assets import (
     BOWL_FILE,
     BOWL_HEIGHT,
@@ -48,22 +35,23 @@ from steer_envs.envs.robosuite.kitchen_assets import (
     asset_dir,
     microwave_source,
 )
+from steer_envs.envs.robosuite.kitchen_scene import (
+    CAVITY_FRONT_X,
+    CAVITY_HIGH,
+    CAVITY_LOW,
+    DOOR_START_OPEN,
+    SINK_XY,
+    TABLE_Z,
+)
 from steer_envs.utils.env_checker import check_steer_env
 
 ENV_ID = "steer_envs/Kitchen-v0"
 ZERO = np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32)  # stand still, the gripper open
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 
 
-@pytest.fixture(scope="module")
-def env() -> Iterator[gym.Env[Any, Any]]:
-    made = gym.make(ENV_ID)
-    yield made
-    made.close()
+env = module_env(ENV_ID)
 
 
 def put_bowl(base: KitchenEnv, centre: np.ndarray) -> None:

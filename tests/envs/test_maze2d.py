@@ -11,7 +11,9 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
 from steer_envs.data.experts.maze2d import Maze2DExpert
-from steer_envs.envs.maze2d import AGENT_RADIUS, Maze2DEnv, MazeGrid, MazePhysics, maze_map
+from steer_envs.envs.maze2d import Maze2DEnv
+from steer_envs.envs.maze_grid import AGENT_RADIUS, MazeGrid, maze_map
+from steer_envs.envs.maze_physics import MazePhysics
 
 # LARGE_MAZE (9 x 12), row 0 on top:
 #   ############      row 1: free cols 1-4 and 6-10

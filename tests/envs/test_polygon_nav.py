@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import shapely
 from gymnasium.utils.env_checker import check_env
+from kinematic_helpers import expert_successes, step_singles_like_vector
 
 import steer_envs  # noqa: F401  (registers the ids)
-from steer_envs.data.experts import ScriptedExpert, make_expert
-from steer_envs.envs.kinematic import sensor_columns
+from steer_envs.data.experts import make_expert
 from steer_envs.envs.polygon_nav import PolygonNavEnv, PolygonNavModel
 
 IDS = [f"steer_envs/PolygonNav-{k}Mode-v0" for k in (3, 4, 5)]
@@ -242,7 +242,7 @@ def test_vector_env_agrees_with_single_envs(env_id: str) -> None:
     # half the agents start next to polygon 2 so that some invalid transitions happen
     starts = model.sample_start(np.random.default_rng(0), n)
     starts[: n // 2] = _exposed_edge_entry(model, 2, 1, outside=0.3)
-    obs, infos = vec.reset(seed=0, options={"state": starts})
+    obs, _ = vec.reset(seed=0, options={"state": starts})
     for i, env in enumerate(singles):
         o, info = env.reset(options={"state": starts[i]})
         np.testing.assert_array_equal(o, obs[i])
@@ -253,16 +253,7 @@ def test_vector_env_agrees_with_single_envs(env_id: str) -> None:
     violations = 0
     for _ in range(120):
         actions = (drift + rng.normal(0, 0.05, size=(n, 2))).astype(np.float32)
-        obs, rewards, terminated, truncated, infos = vec.step(actions)
-        for i, env in enumerate(singles):
-            if done[i]:
-                continue
-            o, r, te, tr, info = env.step(actions[i])
-            np.testing.assert_array_equal(o, obs[i])
-            assert (r, te, tr) == (rewards[i], terminated[i], truncated[i])
-            assert info["mode"] == infos["mode"][i] and info["success"] == infos["success"][i]
-            assert info["constraint_violation"] == infos["constraint_violation"][i]
-            assert list(info["sensors"].values()) == sensor_columns(infos["sensors"], list(info["sensors"]))[i].tolist()
+        for i, te, tr, info in step_singles_like_vector(vec, singles, actions, done):
             violations += info["constraint_violation"]
             done[i] = te or tr
     assert violations >= 1 and done.any()
@@ -272,18 +263,7 @@ def test_vector_env_agrees_with_single_envs(env_id: str) -> None:
 @pytest.mark.parametrize("layout_seed", [0, 6])
 def test_expert_succeeds(env_id: str, layout_seed: int) -> None:
     env = gym.make(env_id, layout_seed=layout_seed)
-    expert = make_expert(env)
-    assert isinstance(expert, ScriptedExpert)
-    successes = 0
-    for seed in range(100):
-        obs, info = env.reset(seed=seed)
-        expert.reset(obs, info)
-        while True:
-            obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
-            if terminated or truncated:
-                break
-        successes += info["success"]
-    assert successes >= 99
+    assert expert_successes(env, range(100)) >= 99
 
 
 def test_expert_recovers_from_glide_perturbations() -> None:

@@ -6,7 +6,6 @@ plus one rendering Lift env (``fast_render``) for the RGB-D and pixel tests.
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -16,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from robosuite_helpers import ROBOSUITE_MARKS, refuse_bad_perturb_and_action
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import steer_envs  # noqa: F401  (registers the ids)
@@ -26,10 +26,7 @@ from steer_envs.utils.env_checker import check_steer_env
 
 IDS = {"lift": "steer_envs/Lift-v0", "can": "steer_envs/Can-v0", "square": "steer_envs/Square-v0"}
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 
 
 @pytest.fixture(scope="module")
@@ -211,15 +208,8 @@ def test_bad_constructor_arguments_are_refused_before_robosuite_runs(
 def test_bad_perturb_and_action_are_refused(envs: dict[str, gym.Env[Any, Any]]) -> None:
     env = envs["square"]
     env.reset(seed=0)
-    base = env.unwrapped
-    before = base.state
-    with pytest.raises(ValueError, match="delta"):
-        base.perturb(delta=[np.nan, 0.0, 0.0])
-    with pytest.raises(TypeError, match="to"):
-        base.perturb(to="up")
-    with pytest.raises(ValueError, match="action"):
-        env.step(np.zeros(6))
-    np.testing.assert_array_equal(base.state, before)
+    before = refuse_bad_perturb_and_action(env)
+    np.testing.assert_array_equal(env.unwrapped.state, before)
     with pytest.raises(ValueError, match="options"):
         env.reset(options={"start": [0, 0, 0]})
     with pytest.raises(ValueError, match="state"):

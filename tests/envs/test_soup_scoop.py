@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env as gym_check_env
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
+from kinematic_helpers import (
+    check_seeded_start,
+    noisy_expert_vector_parity,
+    run_expert_batch,
+    run_with_one_push,
+    walk_from,
+)
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data.experts import make_expert
 from steer_envs.data.experts.soup_scoop import SoupScoopExpert
-from steer_envs.envs.kinematic import sensor_columns
 from steer_envs.envs.soup_scoop import SOUP_TASK, SoupScoopEnv
 
 ENV_ID = "steer_envs/SoupScoop-v0"
@@ -31,76 +37,14 @@ def _expected_label(p: np.ndarray) -> np.ndarray:
     return label
 
 
-def _walk(env: SoupScoopEnv, start: tuple[float, float], *moves: tuple[float, float]) -> list[dict]:
-    """Reset at ``start`` and move in straight max-speed steps through the waypoints ``moves``."""
-    _, info = env.reset(options={"state": np.asarray(start, dtype=np.float64)})
-    infos = [info]
-    for target in moves:
-        target = np.asarray(target, dtype=np.float64)
-        while np.linalg.norm(target - env.state) > 1e-9:
-            velocity = (target - env.state) / env.dt  # the env clips the speed to max_speed
-            infos.append(env.step(velocity.astype(np.float32))[4])
-    return infos
-
-
 def _run_expert_batch(starts: np.ndarray, steps: int = 1000, noise: float = 0.0, seed: int = 0) -> dict:
     """Roll the expert (plus optional action noise) in the vector env from ``starts``; first episode of each."""
-    n = len(starts)
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
-    obs, info = venv.reset(seed=seed, options={"state": starts})
-    expert = SoupScoopExpert(venv.unwrapped.env)
-    rng = np.random.default_rng(seed)
-    done = np.zeros(n, dtype=bool)
-    out = {"success": np.zeros(n, dtype=bool), "steps": np.zeros(n, dtype=np.int64), "violations": 0, "pairs": set()}
-    readings: set[tuple[tuple[bool, ...], int]] = set()
-    mode = info["mode"].copy()
-    for k in range(steps):
-        action = expert.act(obs, info) + rng.normal(0.0, noise, size=(n, 2)).astype(np.float32)
-        obs, _, term, trunc, info = venv.step(action)
-        live = ~done
-        out["violations"] += int((info["constraint_violation"] & live).sum())
-        changed = live & (info["mode"] != mode)
-        out["pairs"] |= {
-            (SOUP_TASK.modes[a], SOUP_TASK.modes[b]) for a, b in zip(mode[changed], info["mode"][changed], strict=True)
-        }
-        readings |= {
-            (tuple(row), int(m))
-            for row, m in zip(
-                sensor_columns(info["sensors"], SOUP_TASK.sensors)[live].tolist(), info["mode"][live], strict=True
-            )
-        }
-        mode = info["mode"].copy()
-        newly = (term | trunc) & live
-        out["success"][newly] = info["success"][newly]
-        out["steps"][newly] = k + 1
-        done |= term | trunc
-        if done.all():
-            break
-    venv.close()
-    for row, m in readings:  # the sensors always label the mode the env reports
-        assert SOUP_TASK.mode_of(dict(zip(SOUP_TASK.sensors, row, strict=True))) == SOUP_TASK.modes[m]
-    return out
+    return run_expert_batch(ENV_ID, SOUP_TASK, SoupScoopExpert, starts, steps=steps, noise=noise, seed=seed)
 
 
-# ----------------------------------------------------------------- checkers
-def test_gymnasium_and_sb3_checkers_pass() -> None:
-    env = gym.make(ENV_ID)
-    gym_check_env(env.unwrapped, skip_render_check=True)
-    sb3_check_env(env.unwrapped, warn=False)
-    env.close()
-
-
+# ----------------------------------------------------------------- seeding
 def test_same_seed_gives_identical_trajectories_and_starts_in_white() -> None:
-    def rollout(seed: int) -> np.ndarray:
-        env = gym.make(ENV_ID)
-        obs, info = env.reset(seed=seed)
-        assert info["mode_name"] == "a" and env.unwrapped.model.regions(obs[None])[0] == 0
-        env.action_space.seed(seed)
-        traj = [obs] + [env.step(env.action_space.sample())[0] for _ in range(60)]
-        return np.asarray(traj)
-
-    np.testing.assert_array_equal(rollout(4), rollout(4))
-    assert not np.array_equal(rollout(4), rollout(5))
+    check_seeded_start(ENV_ID, "a")
 
 
 def test_constructor_validates_arguments() -> None:
@@ -143,7 +87,7 @@ def test_task_spec_maps_both_sensor_conventions_and_thesis_transitions() -> None
 # ------------------------------------------------------------------ physics
 def test_white_to_pink_never_loads_soup() -> None:
     env = SoupScoopEnv()
-    infos = _walk(env, (1.0, 0.0), (3.0, 0.0), (3.0, 5.5), (4.0, 7.0), (4.0, 3.0))
+    infos = walk_from(env, (1.0, 0.0), (3.0, 0.0), (3.0, 5.5), (4.0, 7.0), (4.0, 3.0))
     assert env.model.regions(np.array([[3.0, 0.0], [4.0, 7.0]])).tolist() == [2, 3]
     assert all(i["mode_name"] == "a" for i in infos)  # green without soup is just reaching
     assert not any(i["sensors"]["s"] or i["sensors"]["t"] or i["constraint_violation"] for i in infos)
@@ -151,7 +95,7 @@ def test_white_to_pink_never_loads_soup() -> None:
 
 def test_soup_is_scooped_only_by_moving_from_yellow_into_pink() -> None:
     env = SoupScoopEnv()
-    infos = _walk(env, (-2.0, 0.0), (-2.0, -6.0), (3.0, -6.0))
+    infos = walk_from(env, (-2.0, 0.0), (-2.0, -6.0), (3.0, -6.0))
     names = [i["mode_name"] for i in infos]
     assert names[0] == "a" and "b" in names and names[-1] == "c"
     first_b, first_c = names.index("b"), names.index("c")
@@ -159,7 +103,7 @@ def test_soup_is_scooped_only_by_moving_from_yellow_into_pink() -> None:
     assert infos[-1]["sensors"] == {"r": False, "s": True, "t": False}
     assert env.model.regions(env.state[None])[0] == 2
     # leaving the soup before scooping is an allowed recovery b -> a, not a spill
-    infos = _walk(env, (-5.0, -5.0), (-5.0, -3.0))
+    infos = walk_from(env, (-5.0, -5.0), (-5.0, -3.0))
     assert [infos[0]["mode_name"], infos[-1]["mode_name"]] == ["b", "a"]
     assert not any(i["constraint_violation"] for i in infos)
 
@@ -171,7 +115,7 @@ def test_soup_is_scooped_only_by_moving_from_yellow_into_pink() -> None:
 def test_leaving_the_transport_region_spills_the_soup(exit_to: tuple[float, float], mode_after: str) -> None:
     env = SoupScoopEnv()
     corner = (3.0, exit_to[1])
-    infos = _walk(env, (1.0, -6.0), (3.0, -6.0), corner, exit_to)
+    infos = walk_from(env, (1.0, -6.0), (3.0, -6.0), corner, exit_to)
     flagged = [k for k, i in enumerate(infos) if i["constraint_violation"]]
     assert len(flagged) == 1, "exactly the step that leaves pink spills"
     k = flagged[0]
@@ -183,7 +127,7 @@ def test_leaving_the_transport_region_spills_the_soup(exit_to: tuple[float, floa
 @pytest.mark.parametrize(("convention", "s_at_goal"), [("public", True), ("thesis", False)])
 def test_delivery_succeeds_and_done_absorbs(convention: str, s_at_goal: bool) -> None:
     env = SoupScoopEnv(sensor_convention=convention)
-    infos = _walk(env, (1.0, -6.0), (3.0, -6.0), (4.0, -6.0), (4.0, 7.0))
+    infos = walk_from(env, (1.0, -6.0), (3.0, -6.0), (4.0, -6.0), (4.0, 7.0))
     reached = next(k for k, i in enumerate(infos) if i["success"])
     assert infos[reached]["mode_name"] == "d"
     assert infos[reached]["sensors"] == {"r": False, "s": s_at_goal, "t": True}
@@ -207,7 +151,7 @@ def _walk_from_here(env: SoupScoopEnv, target: tuple[float, float]) -> list[dict
 
 def test_perturb_moves_memory_with_the_state_and_rejects_bad_arguments() -> None:
     env = SoupScoopEnv()
-    _walk(env, (1.0, -6.0), (3.0, -6.0))
+    walk_from(env, (1.0, -6.0), (3.0, -6.0))
     info = env.perturb(to=np.array([3.0, 2.0]))  # still in pink: soup stays
     assert info["mode_name"] == "c" and info["perturbed"] and not info["constraint_violation"]
     info = env.perturb(delta=np.array([-4.0, 0.0]))  # pushed into white: the soup falls off, not the policy's fault
@@ -228,35 +172,8 @@ def test_perturb_moves_memory_with_the_state_and_rejects_bad_arguments() -> None
 # ------------------------------------------------------------- vector path
 def test_vector_env_agrees_step_for_step_with_single_envs() -> None:
     n = 8
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
-    starts = np.random.default_rng(2).uniform(-8, 8, size=(n, 2))
-    vobs, vinfo = venv.reset(seed=0, options={"state": starts})
-    singles = [SoupScoopEnv() for _ in range(n)]
-    for env, s in zip(singles, starts, strict=True):
-        env.reset(options={"state": s})
-    expert = SoupScoopExpert(singles[0])
-    rng = np.random.default_rng(3)
-    finished = np.zeros(n, dtype=bool)
-    seen_violation = False
-    sigma = np.linspace(2.0, 20.0, n)[:, None]  # from nearly expert to nearly random
-    for _ in range(400):
-        actions = expert.act(vobs, vinfo) + (sigma * rng.normal(size=(n, 2))).astype(np.float32)
-        vobs, vrew, vterm, _, vinfo = venv.step(actions)
-        for k, env in enumerate(singles):
-            if finished[k]:
-                continue
-            sobs, srew, sterm, _, sinfo = env.step(actions[k])
-            np.testing.assert_allclose(vobs[k], sobs, atol=1e-6)
-            assert (vinfo["mode"][k], vrew[k], vterm[k]) == (sinfo["mode"], srew, sterm)
-            row = sensor_columns(vinfo["sensors"], SOUP_TASK.sensors)[k].tolist()
-            assert row == [sinfo["sensors"][ap] for ap in SOUP_TASK.sensors]
-            assert vinfo["constraint_violation"][k] == sinfo["constraint_violation"]
-            seen_violation |= sinfo["constraint_violation"]
-            finished[k] = sterm
-        if finished.all():
-            break
+    finished, seen_violation = noisy_expert_vector_parity(ENV_ID, SOUP_TASK, SoupScoopEnv, SoupScoopExpert, n=n)
     assert finished.sum() >= n // 2 and seen_violation, "the comparison must cover scooping, spills and success"
-    venv.close()
 
 
 # ------------------------------------------------------------------ expert
@@ -284,17 +201,13 @@ def test_expert_recovers_after_a_perturbation_spills_the_soup() -> None:
     expert = make_expert(env)
     obs, info = env.reset(seed=0)
     expert.reset(obs, info)
-    modes, pushed_at = [], None
-    for _ in range(1000):
-        obs, _, terminated, truncated, info = env.step(expert.act(obs, info))
-        modes.append(info["mode_name"])
-        if info["mode_name"] == "c" and pushed_at is None and obs[1] > 0:
-            info = env.unwrapped.perturb(delta=np.array([-4.0, 0.0]))  # out of pink: soup spilled
-            obs, pushed_at = env.unwrapped.state.astype(np.float32), len(modes)
-            assert info["mode_name"] == "a"
-        if terminated or truncated:
-            break
-    assert pushed_at is not None and info["success"]
+
+    def lifting(obs: Any, info: dict) -> bool:
+        return info["mode_name"] == "c" and obs[1] > 0
+
+    push = {"delta": np.array([-4.0, 0.0])}  # out of pink: the soup is spilled
+    modes, pushed_at, pushed_to, info = run_with_one_push(env, expert, obs, info, 1000, lifting, **push)
+    assert pushed_at is not None and pushed_to == "a" and info["success"]
     assert "".join(dict.fromkeys(modes[:pushed_at])) == "abc"
     assert "".join(dict.fromkeys(modes[pushed_at:])) == "abcd", "re-scoops after the spill"
 

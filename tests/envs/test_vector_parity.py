@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import steer_envs  # noqa: F401  (registers the ids)
-from steer_envs.envs.kinematic import Kinematic2DVectorEnv, sensor_columns
+from steer_envs.envs.kinematic import sensor_columns
+from steer_envs.envs.kinematic_vector import Kinematic2DVectorEnv
 from steer_envs.envs.registry import ENTRIES
 
 #: every id with a vector entry point, the ``...Dense-v0`` variants included

@@ -39,6 +39,7 @@ from bench_helpers import bench_env, descendants, kill_all, run_cli, wait_gone
 
 from steer_envs.bench.cli import main
 from steer_envs.bench.executors import ExecutorStartError
+from steer_envs.bench.records import encode_record, read_jsonl, record_problem
 from steer_envs.bench.report import render, summarize
 from steer_envs.bench.runner import build_request, plan_trials, run_suite
 from steer_envs.bench.store import (
@@ -47,10 +48,7 @@ from steer_envs.bench.store import (
     RESULTS_FILE,
     ResultStore,
     StoreLockedError,
-    encode_record,
     load_results,
-    read_jsonl,
-    record_problem,
 )
 from steer_envs.bench.suite import Trial, get_suite, suites
 

@@ -32,7 +32,8 @@ import steer_envs  # noqa: F401
 from steer_envs.core.interaction import Nudge, Point, Sketch
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded
-from steer_envs.envs.maze2d import Maze2DEnv, MazeGrid
+from steer_envs.envs.maze2d import Maze2DEnv
+from steer_envs.envs.maze_grid import MazeGrid
 from steer_envs.envs.registry import entry, env_ids
 from steer_envs.envs.soup_scoop import SOUP_TASK
 from steer_envs.ltl import Atom, ModeReplanner, Next, Xor, from_hoa, parse, simplify, specs, to_hoa, translate

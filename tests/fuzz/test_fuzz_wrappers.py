@@ -19,6 +19,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from stub_policies import StraightLine
+from wrapper_bad_values import SAMPLER_KNOBS
 
 import steer_envs  # noqa: F401
 from steer_envs.core.interaction import Nudge, Point, Sketch
@@ -74,31 +76,17 @@ def _bad_value(rng: np.random.Generator, dim: int = 2) -> tuple[Any, bool]:
 
 
 # ------------------------------------------------------------------------------- fixtures
-class _Line:
-    horizon, action_dim = 8, 2
-
-    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        path = np.linspace(np.asarray(obs, dtype=np.float64)[:2], [1.0, 1.0], self.horizon)
-        return np.repeat(path[None], n, axis=0)
-
-
 def _boundaries() -> dict[str, Callable[[Any, np.random.Generator], Any]]:
     from steer_envs.baselines.glide.planners import LearnedModeMap, PlannerConfig, rrt
-    from steer_envs.bench.suites.tli.protocol import rollout, sample_starts
-    from steer_envs.bench.suites.tli.robustness import perturbation_schedule
-    from steer_envs.data.counterfactual import CounterfactualReplayer, PerturbedReference
+    from steer_envs.baselines.lpv_ds.cuts import Cut, CutSet, solve_cut
+    from steer_envs.baselines.lpv_ds.modulation import ModulatedPolicy, modulate
+    from steer_envs.baselines.lpv_ds.single_mode import rollout, sample_starts
+    from steer_envs.data.counterfactual import CounterfactualReplayer
     from steer_envs.data.demos import collect_demonstrations, rollout_expert
+    from steer_envs.data.perturbations import PerturbedReference
+    from steer_envs.data.pushes import perturbation_schedule
+    from steer_envs.steering import PostHocRanking, RandomSampling, make_sampler
     from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, SteeringWrapper
-    from steer_envs.wrappers.ds_modulation import Cut, CutSet, ModulatedPolicy, modulate, solve_cut
-    from steer_envs.wrappers.samplers import (
-        BiasedInitialization,
-        GuidedDiffusion,
-        OutputPerturbation,
-        PostHocRanking,
-        RandomSampling,
-        StochasticSampling,
-        make_sampler,
-    )
 
     def convex(**kw: Any) -> gym.Env:
         return gym.make("steer_envs/ConvexMode-v0", layout_seed=0, **kw)
@@ -106,9 +94,9 @@ def _boundaries() -> dict[str, Callable[[Any, np.random.Generator], Any]]:
     poly = gym.make("steer_envs/PolygonNav-3Mode-v0", layout_seed=0, terminate_on_violation=False)
     jump = CounterfactualReplayer(poly, "segment", execution="jump")
     tracking = CounterfactualReplayer(poly, "segment")
-    steer = SteeringWrapper(convex(), _Line(), PostHocRanking(), batch=2)
+    steer = SteeringWrapper(convex(), StraightLine(), PostHocRanking(), batch=2)
     steer.reset(seed=0)
-    flat = SteeringWrapper(convex(), _Line(), PostHocRanking(), batch=2, sketch_points=3)
+    flat = SteeringWrapper(convex(), StraightLine(), PostHocRanking(), batch=2, sketch_points=3)
     flat.reset(seed=0)
     ds = DSModulationWrapper(convex(), attractor=[0.0, 0.0])
     ds.reset(seed=0)
@@ -141,17 +129,10 @@ def _boundaries() -> dict[str, Callable[[Any, np.random.Generator], Any]]:
 
     def steer_kwarg(v: Any, rng: np.random.Generator) -> Any:
         name = ["batch", "execute", "sketch_points"][int(rng.integers(3))]
-        return SteeringWrapper(convex(), _Line(), PostHocRanking(), **{name: v})
+        return SteeringWrapper(convex(), StraightLine(), PostHocRanking(), **{name: v})
 
     def sampler_kwarg(v: Any, rng: np.random.Generator) -> Any:
-        cls, name = [
-            (GuidedDiffusion, "guide_ratio"),
-            (GuidedDiffusion, "min_guided_t"),
-            (StochasticSampling, "mcmc_steps"),
-            (BiasedInitialization, "start_t"),
-            (BiasedInitialization, "init_std"),
-            (OutputPerturbation, "index"),
-        ][int(rng.integers(6))]
+        name, cls = list(SAMPLER_KNOBS.items())[int(rng.integers(len(SAMPLER_KNOBS)))]
         return cls(**{name: v})
 
     def ds_kwarg(v: Any, rng: np.random.Generator) -> Any:
@@ -231,7 +212,7 @@ def _boundaries() -> dict[str, Callable[[Any, np.random.Generator], Any]]:
         "SteeringWrapper.interaction(flat)": lambda v, rng: flat.interaction(v if rng.random() < 0.5 else [v] * 6),
         "SteeringWrapper(kwargs)": steer_kwarg,
         "sampler(kwargs)": sampler_kwarg,
-        "sampler(n)": lambda v, rng: RandomSampling()(_Line(), np.zeros(2), None, v),
+        "sampler(n)": lambda v, rng: RandomSampling()(StraightLine(), np.zeros(2), None, v),
         "make_sampler": lambda v, rng: make_sampler(v),
         "DSModulationWrapper(kwargs)": ds_kwarg,
         "DSModulationWrapper.step": lambda v, rng: ds.step(v),

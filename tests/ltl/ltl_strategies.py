@@ -6,29 +6,11 @@ import random
 
 from hypothesis import strategies as st
 
-from steer_envs.ltl import (
-    FALSE,
-    TRUE,
-    And,
-    Atom,
-    Equiv,
-    Finally,
-    Formula,
-    Globally,
-    Implies,
-    Next,
-    Not,
-    Or,
-    Release,
-    StrongRelease,
-    Until,
-    WeakUntil,
-    Xor,
-)
+from steer_envs.ltl.syntax import BINARY_OPERATORS, FALSE, TRUE, UNARY_OPERATORS, Atom, Formula
 
 APS = ("p0", "p1", "p2")
-UNARY = (Not, Next, Finally, Globally)
-BINARY = (And, Or, Implies, Equiv, Xor, Until, Release, WeakUntil, StrongRelease)
+UNARY = UNARY_OPERATORS
+BINARY = BINARY_OPERATORS
 
 
 def formulas(depth: int = 5, aps: tuple[str, ...] = APS, *, top: bool = True) -> st.SearchStrategy[Formula]:

@@ -9,72 +9,54 @@ import pytest
 from hypothesis import given, settings
 from ltl_strategies import formulas
 
-from steer_envs.ltl import (
-    FALSE,
-    TRUE,
-    And,
-    Atom,
-    Equiv,
-    Finally,
-    Globally,
-    Implies,
-    LTLParseError,
-    Next,
-    Not,
-    Or,
-    Release,
-    StrongRelease,
-    Until,
-    WeakUntil,
-    Xor,
-    parse,
-)
+from steer_envs import ltl
+from steer_envs.ltl import LTLParseError, parse
 
-a, b, c = Atom("a"), Atom("b"), Atom("c")
+a, b, c = ltl.Atom("a"), ltl.Atom("b"), ltl.Atom("c")
 
 
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
         ("a", a),
-        ("true", TRUE),
-        ("TRUE", TRUE),
-        ("1", TRUE),
-        ("false", FALSE),
-        ("0", FALSE),
-        ("!a", Not(a)),
-        ("~a", Not(a)),
-        ("a & b", And(a, b)),
-        ("a && b", And(a, b)),
-        ("a /\\ b", And(a, b)),
-        ("a | b", Or(a, b)),
-        ("a || b", Or(a, b)),
-        ("a \\/ b", Or(a, b)),
-        ("a -> b", Implies(a, b)),
-        ("a => b", Implies(a, b)),
-        ("a --> b", Implies(a, b)),
-        ("a <-> b", Equiv(a, b)),
-        ("a <=> b", Equiv(a, b)),
-        ("a xor b", Xor(a, b)),
-        ("a ^ b", Xor(a, b)),
-        ("X a", Next(a)),
-        ("Xa", Next(a)),
-        ("F a", Finally(a)),
-        ("<> a", Finally(a)),
-        ("G a", Globally(a)),
-        ("[] a", Globally(a)),
-        ("[]<>a", Globally(Finally(a))),
-        ("GFa", Globally(Finally(a))),
-        ("a U b", Until(a, b)),
-        ("a R b", Release(a, b)),
-        ("a V b", Release(a, b)),
-        ("a W b", WeakUntil(a, b)),
-        ("a M b", StrongRelease(a, b)),
-        ("a Ub", Until(a, b)),  # after an operand, U starts a binary operator (Spot)
-        ("aUb", Atom("aUb")),  # ... but an identifier keeps its letters
-        ("X1", Atom("X1")),  # F/G/X followed by a digit is an AP (Spot)
-        ('"my ap" & "x\\"y"', And(Atom("my ap"), Atom('x"y'))),
-        ("a.b_c9", Atom("a.b_c9")),
+        ("true", ltl.TRUE),
+        ("TRUE", ltl.TRUE),
+        ("1", ltl.TRUE),
+        ("false", ltl.FALSE),
+        ("0", ltl.FALSE),
+        ("!a", ltl.Not(a)),
+        ("~a", ltl.Not(a)),
+        ("a & b", ltl.And(a, b)),
+        ("a && b", ltl.And(a, b)),
+        ("a /\\ b", ltl.And(a, b)),
+        ("a | b", ltl.Or(a, b)),
+        ("a || b", ltl.Or(a, b)),
+        ("a \\/ b", ltl.Or(a, b)),
+        ("a -> b", ltl.Implies(a, b)),
+        ("a => b", ltl.Implies(a, b)),
+        ("a --> b", ltl.Implies(a, b)),
+        ("a <-> b", ltl.Equiv(a, b)),
+        ("a <=> b", ltl.Equiv(a, b)),
+        ("a xor b", ltl.Xor(a, b)),
+        ("a ^ b", ltl.Xor(a, b)),
+        ("X a", ltl.Next(a)),
+        ("Xa", ltl.Next(a)),
+        ("F a", ltl.Finally(a)),
+        ("<> a", ltl.Finally(a)),
+        ("G a", ltl.Globally(a)),
+        ("[] a", ltl.Globally(a)),
+        ("[]<>a", ltl.Globally(ltl.Finally(a))),
+        ("GFa", ltl.Globally(ltl.Finally(a))),
+        ("a U b", ltl.Until(a, b)),
+        ("a R b", ltl.Release(a, b)),
+        ("a V b", ltl.Release(a, b)),
+        ("a W b", ltl.WeakUntil(a, b)),
+        ("a M b", ltl.StrongRelease(a, b)),
+        ("a Ub", ltl.Until(a, b)),  # after an operand, U starts a binary operator (Spot)
+        ("aUb", ltl.Atom("aUb")),  # ... but an identifier keeps its letters
+        ("X1", ltl.Atom("X1")),  # F/G/X followed by a digit is an AP (Spot)
+        ('"my ap" & "x\\"y"', ltl.And(ltl.Atom("my ap"), ltl.Atom('x"y'))),
+        ("a.b_c9", ltl.Atom("a.b_c9")),
     ],
 )
 def test_parse_syntax(text: str, expected: object) -> None:
@@ -85,25 +67,25 @@ def test_parse_syntax(text: str, expected: object) -> None:
     ("text", "expected"),
     [
         # -> and <-> bind loosest and associate to the right
-        ("a -> b -> c", Implies(a, Implies(b, c))),
-        ("a <-> b -> c", Equiv(a, Implies(b, c))),
-        ("a | b -> c", Implies(Or(a, b), c)),
+        ("a -> b -> c", ltl.Implies(a, ltl.Implies(b, c))),
+        ("a <-> b -> c", ltl.Equiv(a, ltl.Implies(b, c))),
+        ("a | b -> c", ltl.Implies(ltl.Or(a, b), c)),
         # | < xor < & (Spot's priorities)
-        ("a | b xor c", Or(a, Xor(b, c))),
-        ("a xor b & c", Xor(a, And(b, c))),
-        ("a xor b xor c", Xor(Xor(a, b), c)),
-        ("a & b | c", Or(And(a, b), c)),
+        ("a | b xor c", ltl.Or(a, ltl.Xor(b, c))),
+        ("a xor b & c", ltl.Xor(a, ltl.And(b, c))),
+        ("a xor b xor c", ltl.Xor(ltl.Xor(a, b), c)),
+        ("a & b | c", ltl.Or(ltl.And(a, b), c)),
         # & < U R W M (right associative) < unary
-        ("a U b & c", And(Until(a, b), c)),
-        ("a U b U c", Until(a, Until(b, c))),
-        ("a U b R c", Until(a, Release(b, c))),
-        ("!a U b", Until(Not(a), b)),
-        ("F a U b", Until(Finally(a), b)),
-        ("G(a -> X b)", Globally(Implies(a, Next(b)))),
-        ("!(a & b)", Not(And(a, b))),
+        ("a U b & c", ltl.And(ltl.Until(a, b), c)),
+        ("a U b U c", ltl.Until(a, ltl.Until(b, c))),
+        ("a U b R c", ltl.Until(a, ltl.Release(b, c))),
+        ("!a U b", ltl.Until(ltl.Not(a), b)),
+        ("F a U b", ltl.Until(ltl.Finally(a), b)),
+        ("G(a -> X b)", ltl.Globally(ltl.Implies(a, ltl.Next(b)))),
+        ("!(a & b)", ltl.Not(ltl.And(a, b))),
         ("((a))", a),
-        ("(a & b) & c", And(a, b, c)),  # n-ary operators flatten
-        ("a & (b & c)", And(a, b, c)),
+        ("(a & b) & c", ltl.And(a, b, c)),  # n-ary operators flatten
+        ("a & (b & c)", ltl.And(a, b, c)),
     ],
 )
 def test_precedence_and_associativity(text: str, expected: object) -> None:
@@ -145,7 +127,7 @@ def test_parse_rejects_non_text() -> None:
 
 def test_nodes_are_interned_and_immutable() -> None:
     f = parse("G(a -> F b)")
-    assert f is Globally(Implies(a, Finally(Atom("b"))))
+    assert f is ltl.Globally(ltl.Implies(a, ltl.Finally(ltl.Atom("b"))))
     assert hash(f) == hash(parse("G(a->Fb)"))
     with pytest.raises(AttributeError):
         f.foo = 1  # type: ignore[attr-defined]
@@ -160,11 +142,11 @@ def test_nodes_are_interned_and_immutable() -> None:
 
 def test_constructor_validation() -> None:
     with pytest.raises(TypeError, match="Formula"):
-        And(a, "b")  # type: ignore[arg-type]
+        ltl.And(a, "b")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="name"):
-        Atom("")
-    assert And() is TRUE and Or() is FALSE and And(a) is a
-    assert (a & b) is And(a, b) and (a | b) is Or(a, b) and ~a is Not(a) and (a >> b) is Implies(a, b)
+        ltl.Atom("")
+    assert ltl.And() is ltl.TRUE and ltl.Or() is ltl.FALSE and ltl.And(a) is a
+    assert (a & b) is ltl.And(a, b) and (a | b) is ltl.Or(a, b) and ~a is ltl.Not(a) and (a >> b) is ltl.Implies(a, b)
 
 
 @pytest.mark.parametrize(

@@ -9,15 +9,8 @@ import pytest
 
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.metrics import sketch_distances
-from steer_envs.ui.session import (
-    DOMAINS,
-    MAX_INPUT_POINTS,
-    PixelMap,
-    Session,
-    SessionError,
-    SteerSettings,
-    resample_by_arclength,
-)
+from steer_envs.ui.session import DOMAINS, Session, SteerSettings
+from steer_envs.ui.views import MAX_INPUT_POINTS, PixelMap, SessionError, resample_by_arclength
 from steer_envs.utils.threads import limit_threads
 
 

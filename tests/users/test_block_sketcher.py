@@ -11,20 +11,17 @@ The sketch -> plan ranking check (:func:`sketch_sanity`, ``-m slow``) also runs 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
 import pytest
+from robosuite_helpers import ROBOSUITE_MARKS
 
 from steer_envs.core.interaction import Sketch
 from steer_envs.envs.robosuite.blockstack import CUBE_HALF
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 SEED = 5
 ORDER = (2, 0, 3, 1)
 
@@ -76,9 +73,10 @@ def sketch_sanity(seeds: Sequence[int], *, jitter: float = 0.01, follow_through:
     from the same state (reset with the seed and replay). One row per state: the
     intended skill, every candidate's cost, whether the intended plan is the cheapest.
     """
-    from steer_envs.core.objectives import alignment_cost_np
+    from steer_envs.control.blockstack import Skill, free_table_spot
     from steer_envs.data.blockstack_skills import make_env
-    from steer_envs.data.experts.blockstack import BlockStackSkills, Skill, free_table_spot
+    from steer_envs.data.experts.blockstack import BlockStackSkills
+    from steer_envs.steering.objectives import alignment_cost_np
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     env = make_env()
@@ -134,7 +132,7 @@ def plan_from(sketch: Sketch, close: bool) -> np.ndarray:
 
 
 def test_pick_sketch_goes_up_over_and_down_to_the_intended_cube(env: Any) -> None:
-    from steer_envs.envs.robosuite.plan_execution import classify_plan
+    from steer_envs.control.blockstack import classify_plan
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     env.reset(seed=SEED)
@@ -178,8 +176,7 @@ def test_a_wrong_cube_on_the_partial_tower_is_picked_off(env: Any) -> None:
 
 
 def test_place_sketches_draw_the_eef_path_for_the_held_cube(env: Any) -> None:
-    from steer_envs.data.experts.blockstack import Skill
-    from steer_envs.envs.robosuite.plan_execution import classify_plan
+    from steer_envs.control.blockstack import Skill, classify_plan
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     env.reset(seed=SEED)
@@ -221,7 +218,7 @@ def test_intended_skills_follow_the_goal_tower_planner_and_carry_like_the_expert
 
 
 def test_bad_input_is_refused(env: Any) -> None:
-    from steer_envs.data.experts.blockstack import Skill
+    from steer_envs.control.blockstack import Skill
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     for bad, err in (((0, 1, 2), ValueError), ((0, 1, 2, 2), ValueError), ("0123", TypeError), (None, TypeError)):

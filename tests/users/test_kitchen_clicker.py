@@ -5,16 +5,13 @@ One rendered env for the module; states come from reset options (no skill is run
 
 from __future__ import annotations
 
-import importlib.util
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from robosuite_helpers import ROBOSUITE_MARKS
 
-pytestmark = [
-    pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::UserWarning"),
-    pytest.mark.skipif(importlib.util.find_spec("robosuite") is None, reason="the robosuite extra is not installed"),
-]
+pytestmark = ROBOSUITE_MARKS
 
 #: reset options -> the skills whose target the scene camera sees there
 STARTS: tuple[tuple[dict[str, str], tuple[str, ...]], ...] = (

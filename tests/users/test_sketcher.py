@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from steer_envs.core.interaction import Sketch
-from steer_envs.envs.maze2d import Maze2DEnv, MazeGrid, maze_map
+from steer_envs.envs.maze2d import Maze2DEnv
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 from steer_envs.users.sketcher import SketchUser, UserSketch
 
 

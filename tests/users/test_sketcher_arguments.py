@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from steer_envs.envs.maze2d import MazeGrid, maze_map
+from steer_envs.envs.maze_grid import MazeGrid, maze_map
 from steer_envs.users.sketcher import SketchUser
 
 GRID = MazeGrid(maze_map("umaze"))

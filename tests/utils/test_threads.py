@@ -1,4 +1,4 @@
-"""Thread limits: limit_threads restores, set_process_threads / --threads for scripts (#21)."""
+"""Thread limits: limit_threads restores, set_process_threads / --threads for scripts."""
 
 from __future__ import annotations
 

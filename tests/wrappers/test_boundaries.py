@@ -14,16 +14,17 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from wrapper_bad_values import NOT_BOOL, NOT_REAL, bad_vectors
+from stub_policies import StraightLine
+from wrapper_bad_values import NOT_BOOL, NOT_REAL, SAMPLER_KNOBS, bad_vectors
 
 import steer_envs  # noqa: F401
+from steer_envs.baselines.lpv_ds.cuts import Cut, CutSet, solve_cut
+from steer_envs.baselines.lpv_ds.modulation import ModulatedPolicy, modulate
 from steer_envs.core.interaction import Nudge, Point, Sketch
+from steer_envs.core.validation import sensor_reading
 from steer_envs.ltl import specs
 from steer_envs.ltl.specs import for_env
-from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, SteeringWrapper
-from steer_envs.wrappers.ds_modulation import Cut, CutSet, ModulatedPolicy, modulate, solve_cut
-from steer_envs.wrappers.ltl_replan import sensor_reading
-from steer_envs.wrappers.samplers import (
+from steer_envs.steering import (
     MAX_BATCH,
     BiasedInitialization,
     GuidedDiffusion,
@@ -33,20 +34,11 @@ from steer_envs.wrappers.samplers import (
     StochasticSampling,
     make_sampler,
 )
+from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, SteeringWrapper
 
 torch = pytest.importorskip("torch")
 
 CLEAN = (TypeError, ValueError)
-
-
-class Line:
-    """A non-diffusion TrajectoryPolicy: 8 waypoints straight to (1, 1)."""
-
-    horizon, action_dim = 8, 2
-
-    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        path = np.linspace(np.asarray(obs, dtype=np.float64)[:2], [1.0, 1.0], self.horizon)
-        return np.repeat(path[None], n, axis=0)
 
 
 _CACHE: dict[str, Any] = {}
@@ -59,7 +51,7 @@ def convex(**kwargs: Any) -> gym.Env:
 def steering(sketch_points: int | None = None) -> SteeringWrapper:
     key = f"steer{sketch_points}"
     if key not in _CACHE:
-        env = SteeringWrapper(convex(), Line(), PostHocRanking(), batch=2, sketch_points=sketch_points)
+        env = SteeringWrapper(convex(), StraightLine(), PostHocRanking(), batch=2, sketch_points=sketch_points)
         env.reset(seed=0)
         _CACHE[key] = env
     return _CACHE[key]
@@ -84,17 +76,17 @@ def ltl_wrapper() -> LTLReplanWrapper:
 # ------------------------------------------------------------ SteeringWrapper: arguments
 def test_steering_refuses_samplers_and_knobs_that_can_never_work() -> None:
     with pytest.raises(TypeError, match="DiffusionPolicyLike"):  # GD needs a denoiser: used to fail at every step
-        SteeringWrapper(convex(), Line(), GuidedDiffusion())
+        SteeringWrapper(convex(), StraightLine(), GuidedDiffusion())
     with pytest.raises(TypeError, match="DiffusionPolicyLike"):
-        SteeringWrapper(convex(), Line(), PostHocRanking(), unsteered=StochasticSampling())
+        SteeringWrapper(convex(), StraightLine(), PostHocRanking(), unsteered=StochasticSampling())
     with pytest.raises(ValueError, match="batch"):
-        SteeringWrapper(convex(), Line(), PostHocRanking(), batch=MAX_BATCH + 1)
+        SteeringWrapper(convex(), StraightLine(), PostHocRanking(), batch=MAX_BATCH + 1)
     with pytest.raises(TypeError, match="batch"):
-        SteeringWrapper(convex(), Line(), PostHocRanking(), batch="32")  # type: ignore[arg-type]
+        SteeringWrapper(convex(), StraightLine(), PostHocRanking(), batch="32")  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="sketch_points"):
-        SteeringWrapper(convex(), Line(), PostHocRanking(), sketch_points=6.0)  # type: ignore[arg-type]
+        SteeringWrapper(convex(), StraightLine(), PostHocRanking(), sketch_points=6.0)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="sketch_points"):
-        SteeringWrapper(convex(), Line(), PostHocRanking(), sketch_points=10**9)
+        SteeringWrapper(convex(), StraightLine(), PostHocRanking(), sketch_points=10**9)
 
 
 def test_sampler_knobs_are_checked_at_construction() -> None:
@@ -118,9 +110,9 @@ def test_sampler_knobs_are_checked_at_construction() -> None:
     with pytest.raises(TypeError, match=r"GuidedDiffusion \(GD\) takes " + gd_knobs):
         make_sampler("GD", mcmc_steps=4)
     with pytest.raises(TypeError, match="n"):
-        RandomSampling()(Line(), np.zeros(2), None, 2.0)  # type: ignore[arg-type]
+        RandomSampling()(StraightLine(), np.zeros(2), None, 2.0)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="n"):
-        RandomSampling()(Line(), np.zeros(2), None, MAX_BATCH + 1)
+        RandomSampling()(StraightLine(), np.zeros(2), None, MAX_BATCH + 1)
 
 
 # ----------------------------------------------------------- SteeringWrapper: the action
@@ -146,7 +138,7 @@ def test_steering_action_is_an_interaction_or_a_real_flat_sketch() -> None:
 def test_steering_refuses_interaction_kinds_the_env_does_not_declare() -> None:
     env = convex()
     env.unwrapped.interaction_kinds = ("sketch",)  # type: ignore[misc]
-    wrapped = SteeringWrapper(env, Line(), OutputPerturbation(), batch=2)
+    wrapped = SteeringWrapper(env, StraightLine(), OutputPerturbation(), batch=2)
     wrapped.reset(seed=0)
     assert wrapped.interaction(Sketch([[0, 0], [1, 1]])) is not None
     with pytest.raises(ValueError, match=r"kinds \['sketch'\], got a point"):
@@ -171,18 +163,11 @@ def test_property_steering_plain_refuses_anything_but_interactions(action: objec
 
 @settings(max_examples=60, deadline=None)
 @given(
-    st.sampled_from(["guide_ratio", "mcmc_steps", "init_std", "start_t", "index", "min_guided_t"]),
+    st.sampled_from(list(SAMPLER_KNOBS)),
     st.one_of(NOT_REAL, st.integers(-(10**12), -1), st.integers(10**7, 10**12), st.floats()),
 )
 def test_property_sampler_knobs(knob: str, value: object) -> None:
-    cls = {
-        "guide_ratio": GuidedDiffusion,
-        "mcmc_steps": StochasticSampling,
-        "init_std": BiasedInitialization,
-        "start_t": BiasedInitialization,
-        "index": OutputPerturbation,
-        "min_guided_t": GuidedDiffusion,
-    }[knob]
+    cls = SAMPLER_KNOBS[knob]
     try:
         sampler = cls(**{knob: value})
     except CLEAN:

@@ -9,27 +9,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import steer_envs  # noqa: F401 - registers the envs
+from steer_envs.baselines.lpv_ds.cuts import Cut, CutSet, FailureRecord, resolve_cuts, solve_cut
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS
-from steer_envs.bench.suites.tli.protocol import (
-    THESIS_SUCCESS,
-    convex_mode_demos,
-    rollout,
-    sample_starts,
-    single_mode_trial,
-)
+from steer_envs.baselines.lpv_ds.modulation import ModulatedPolicy, gamma, modulate, modulation_matrix
+from steer_envs.baselines.lpv_ds.single_mode import rollout, sample_starts
+from steer_envs.bench.suites.tli.protocol import THESIS_SUCCESS, single_mode_trial
 from steer_envs.core.policy import VelocityPolicy
 from steer_envs.data.experts import make_expert
-from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, ModulatedPolicy
-from steer_envs.wrappers.ds_modulation import (
-    Cut,
-    CutSet,
-    FailureRecord,
-    gamma,
-    modulate,
-    modulation_matrix,
-    resolve_cuts,
-    solve_cut,
-)
+from steer_envs.data.tli_demos import convex_mode_demos
+from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper
 
 DT, MAX_SPEED = 0.01, 20.0
 ANGLES = np.linspace(0.0, 2.0 * np.pi, 100_000, endpoint=False)

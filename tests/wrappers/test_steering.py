@@ -7,25 +7,27 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from stub_policies import ExactDiffusion
 
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
 from steer_envs.core.interaction import Nudge, Point, Sketch  # noqa: E402
 from steer_envs.envs.maze2d import Maze2DEnv  # noqa: E402
-from steer_envs.wrappers import SteeringWrapper  # noqa: E402
-from steer_envs.wrappers.samplers import (  # noqa: E402
+from steer_envs.steering import (  # noqa: E402
     OutputPerturbation,
     PostHocRanking,
     RandomSampling,
     StochasticSampling,
+    policy_observation,
 )
-from steer_envs.wrappers.steering import InteractionSpace, policy_observation  # noqa: E402
+from steer_envs.wrappers import SteeringWrapper  # noqa: E402
+from steer_envs.wrappers.steering import InteractionSpace  # noqa: E402
 
 START = np.array([3.0, 1.0])  # LARGE_MAZE row 3 is free from column 1 to 6
 
 
-class CorridorPolicy:
+class CorridorPolicy(ExactDiffusion):
     """Exact diffusion policy whose plans are straight lines from the agent along +-row / +-column.
 
     Normalization maps the maze's cell range to [-1, 1]. ``n_obs_steps = 2`` and
@@ -34,11 +36,8 @@ class CorridorPolicy:
 
     horizon = 12
     action_dim = 2
-    num_inference_steps = 10
     n_obs_steps = 2
     exec_start = 1
-    device = torch.device("cpu")
-    dtype = torch.float64
 
     def __init__(self, length: float = 2.2, std: float = 0.01) -> None:
         self.scheduler = diffusers.DDIMScheduler(
@@ -75,13 +74,7 @@ class CorridorPolicy:
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         self.seen_obs.append(np.array(obs))
-        rng = generator if generator is not None else np.random.default_rng()
-        cond = self.encode_obs(obs)
-        x = torch.as_tensor(rng.standard_normal((n, self.horizon, self.action_dim)))
-        self.scheduler.set_timesteps(self.num_inference_steps)
-        for t in self.scheduler.timesteps:
-            x = self.scheduler.step(self.predict_noise(x, t, cond), t, x).prev_sample
-        return self.unnormalize(x).numpy()
+        return super().sample(obs, n, generator=generator)
 
 
 def make(sampler: Any = None, **kwargs: Any) -> SteeringWrapper:

@@ -9,8 +9,8 @@ import torch
 
 import steer_envs  # noqa: F401 - registers the envs
 from steer_envs.core.interaction import Sketch
+from steer_envs.steering import PostHocRanking
 from steer_envs.wrappers import SteeringWrapper
-from steer_envs.wrappers.samplers import PostHocRanking
 
 
 class ThreadSpy:

@@ -11,7 +11,8 @@ import pytest
 
 import steer_envs  # noqa: F401  (registers the ids)
 import steer_envs.wrappers as wrappers
-from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, PostHocRanking, SteeringWrapper
+from steer_envs.steering import PostHocRanking
+from steer_envs.wrappers import DSModulationWrapper, LTLReplanWrapper, SteeringWrapper
 
 SOUP = "steer_envs/SoupScoop-v0"
 
@@ -52,7 +53,7 @@ def test_the_spec_shows_the_stack_and_rebuilds_it() -> None:
 
 
 def test_recorded_cuts_are_the_ones_given_not_the_ones_learned() -> None:
-    from steer_envs.wrappers import CutSet
+    from steer_envs.baselines.lpv_ds import CutSet
 
     cuts = {0: CutSet(np.zeros(2))}
     env = DSModulationWrapper(gym.make("steer_envs/ConvexMode-v0"), attractor=[0.0, 0.0], cuts=cuts)

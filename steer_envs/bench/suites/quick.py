@@ -12,14 +12,7 @@ True
 
 from __future__ import annotations
 
-from steer_envs.bench.suite import (
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    register_suite,
-    suites,
-)
+from steer_envs.bench.suite import Suite, Trial, TrialPlan, TrialRequest, register_suite, suites
 
 QUICK_NAME = "quick"
 

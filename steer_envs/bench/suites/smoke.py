@@ -41,16 +41,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import (
-    Finding,
-    Metric,
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    TrialResult,
-    register_suite,
-)
+from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialPlan, TrialRequest, TrialResult, register_suite
 
 EXPERT_PACKAGE = "steer_envs.data.experts"
 #: entry-point module prefix of the envs that wrap a robosuite sim (raw-step and RGB-D measurements)
@@ -322,8 +313,8 @@ def smoke_findings(table: Any) -> list[Finding]:
 
 def plot_throughput(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """Per-suite figure: single vs. vectorized steps/s per env (log scale), speed-up on top."""
-    from steer_envs.bench.plots import figure_legend, new_figure, save_figure
     from steer_envs.bench.report import summarize
+    from steer_envs.utils.plots import figure_legend, new_figure, save_figure
 
     tables = [t for t in summarize(records) if t.suite == suite.name]
     if not tables:

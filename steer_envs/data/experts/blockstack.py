@@ -23,10 +23,11 @@ rebuilds it (in reverse order) at a new spot. :class:`GoalTowerPlanner` builds
 one tower instead. :class:`BlockStackExpert` chains a planner and the skills and
 is the registry's expert for ``steer_envs/BlockStack-v0``. Everything is seeded.
 
-:class:`Skill`, :func:`free_table_spot`, the goal-tower rule and the P-control
-step are defined in :mod:`steer_envs.envs.robosuite.plan_execution` (the plan
-tracker and the simulated user share them, and the env layer is below both)
-and re-exported here.
+:class:`~steer_envs.control.blockstack.Skill`,
+:func:`~steer_envs.control.blockstack.free_table_spot`, the goal-tower rule and
+the P-control step are defined in :mod:`steer_envs.control.blockstack` (the
+plan tracker and the simulated user share them, and the control layer is below
+both).
 """
 
 from __future__ import annotations
@@ -35,27 +36,23 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import integer, one_of, real_array, real_scalar
-from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, BlockStackEnv
-from steer_envs.envs.robosuite.plan_execution import (
-    TOWER_CLEARANCE,
+from steer_envs.control.blockstack import (
     Skill,
     free_table_spot,
     goal_tower_skill,
     move_action,
     quarter_turn,
 )
-from steer_envs.envs.robosuite.plan_execution import towers as _towers
-from steer_envs.envs.robosuite.plan_execution import yaw_of as _yaw
+from steer_envs.control.blockstack import towers as _towers
+from steer_envs.control.blockstack import yaw_of as _yaw
+from steer_envs.core.validation import integer, one_of, real_array, real_scalar
+from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, BlockStackEnv
 
 __all__ = [
-    "TOWER_CLEARANCE",
     "BlockStackExpert",
     "BlockStackSkills",
     "GoalTowerPlanner",
     "RandomTowerPlanner",
-    "Skill",
-    "free_table_spot",
 ]
 
 
@@ -160,44 +157,57 @@ class BlockStackSkills:
         if self.count > self.phase_limit:
             self._next("failed")
             return np.array([0, 0, 0, 0, 0, 0, env._gripper], dtype=np.float32)
-        pos, quat = env.cube_pos, env.cube_quat
-        eef = env.state
         eef_yaw = _yaw(env.robosuite_obs["robot0_eef_quat"])
-        cube = pos[skill.cube]
         z_carry = self._carry_z(skill.cube)
         if skill.kind == "pick":
-            grip_yaw = self._turn(eef_yaw, _yaw(quat[skill.cube]))
-            if self.phase == "up":
-                action, d = self._move(np.array([eef[0], eef[1], max(eef[2], z_carry)]), -1)
-                if abs(d[2]) < 0.02:
-                    self._next("over")
-            elif self.phase == "over":
-                action, d = self._move(np.array([cube[0], cube[1], z_carry]), -1, grip_yaw)
-                if np.linalg.norm(d[:2]) < 0.008 and abs(grip_yaw) < 0.05:
-                    self._next("down")
-            elif self.phase == "down":
-                action, d = self._move(cube, -1, grip_yaw)
-                if np.linalg.norm(d) < 0.006 or (self.count > 40 and abs(d[2]) < 0.015):
-                    self._next("close")
-            elif self.phase == "close":
-                action, _ = self._move(eef, 1)
-                if self.count >= self.close_steps:
-                    self._next("lift")
-            else:  # lift
-                action, d = self._move(np.array([eef[0], eef[1], z_carry]), 1)
-                if abs(d[2]) < 0.02:
-                    self._next("done")
-            return action
-        # place: the held cube's centre over the target, using the held offset measured now
-        offset = cube - eef
+            return self._pick_action(skill, eef_yaw, z_carry)
+        return self._place_action(skill, eef_yaw, z_carry)
+
+    def _pick_action(self, skill: Skill, eef_yaw: float, z_carry: float) -> np.ndarray:
+        """A pick's phases: up to the carry height, over the cube (turned square to it), down, close, lift."""
+        env = self.env
+        eef, cube = env.state, env.cube_pos[skill.cube]
+        grip_yaw = self._turn(eef_yaw, _yaw(env.cube_quat[skill.cube]))
+        if self.phase == "up":
+            action, d = self._move(np.array([eef[0], eef[1], max(eef[2], z_carry)]), -1)
+            if abs(d[2]) < 0.02:
+                self._next("over")
+        elif self.phase == "over":
+            action, d = self._move(np.array([cube[0], cube[1], z_carry]), -1, grip_yaw)
+            if np.linalg.norm(d[:2]) < 0.008 and abs(grip_yaw) < 0.05:
+                self._next("down")
+        elif self.phase == "down":
+            action, d = self._move(cube, -1, grip_yaw)
+            if np.linalg.norm(d) < 0.006 or (self.count > 40 and abs(d[2]) < 0.015):
+                self._next("close")
+        elif self.phase == "close":
+            action, _ = self._move(eef, 1)
+            if self.count >= self.close_steps:
+                self._next("lift")
+        else:  # lift
+            action, d = self._move(np.array([eef[0], eef[1], z_carry]), 1)
+            if abs(d[2]) < 0.02:
+                self._next("done")
+        return action
+
+    def _place_goal(self, skill: Skill, eef_yaw: float) -> tuple[np.ndarray, float]:
+        """Where a place puts the held cube's centre, and the eef yaw change that squares it to its support."""
+        env = self.env
         if skill.onto is None:
             assert skill.xy is not None
-            goal = np.array([skill.xy[0], skill.xy[1], env.table_z + CUBE_HALF])
-            yaw_err = 0.0
-        else:
-            goal = pos[skill.onto] + np.array([0.0, 0.0, 2 * CUBE_HALF])
-            in_hand = _yaw(quat[skill.cube]) - eef_yaw  # the held cube's yaw relative to the fingers
-            yaw_err = self._turn(eef_yaw, _yaw(quat[skill.onto]) - in_hand)
+            return np.array([skill.xy[0], skill.xy[1], env.table_z + CUBE_HALF]), 0.0
+        pos, quat = env.cube_pos, env.cube_quat
+        goal = pos[skill.onto] + np.array([0.0, 0.0, 2 * CUBE_HALF])
+        in_hand = _yaw(quat[skill.cube]) - eef_yaw  # the held cube's yaw relative to the fingers
+        return goal, self._turn(eef_yaw, _yaw(quat[skill.onto]) - in_hand)
+
+    def _place_action(self, skill: Skill, eef_yaw: float, z_carry: float) -> np.ndarray:
+        """A place's phases: up, over the target (settled, square), down onto it, open, retreat."""
+        env = self.env
+        eef, cube = env.state, env.cube_pos[skill.cube]
+        # the held cube's centre over the target, using the held offset measured now
+        offset = cube - eef
+        goal, yaw_err = self._place_goal(skill, eef_yaw)
         if self.phase == "up":
             action, d = self._move(np.array([eef[0], eef[1], max(eef[2], z_carry)]), 1)
             if abs(d[2]) < 0.02:
@@ -208,7 +218,7 @@ class BlockStackSkills:
             action[:2] = np.clip(action[:2], -self.carry_speed, self.carry_speed)
             action[5] = np.clip(action[5], -self.carry_speed, self.carry_speed)
             # go down once over the target, square to it, and the cube has stopped swinging in the fingers
-            level = _level(quat[skill.cube]) > self.level_cos or self.count > self.settle_steps
+            level = _level(env.cube_quat[skill.cube]) > self.level_cos or self.count > self.settle_steps
             if np.linalg.norm(cube[:2] - goal[:2]) < 0.004 and abs(yaw_err) < 0.04 and level:
                 self._next("down")
         elif self.phase == "down":

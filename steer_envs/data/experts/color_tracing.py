@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.data.experts.control import velocity_toward
+from steer_envs.data.experts.control import step_toward
 from steer_envs.envs.color_tracing import (
     DARK_MODES,
     EXIT_MODE,
@@ -74,8 +74,7 @@ class ColorTracingExpert:
         dark = np.clip(mode - n_tiles, 0, len(DARK_MODES) - 1)
         back = reentry_target(pos, self._reentry[dark])
         target = np.where(on_tile[:, None], target, back)
-        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
-        return action[0] if single else action
+        return step_toward(self.env, pos, target, single)
 
 
 __all__ = ["ColorTracingExpert", "waypoints"]

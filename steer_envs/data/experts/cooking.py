@@ -21,14 +21,12 @@ vector env's ``infos``; build the expert on
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
 
-from steer_envs.data.experts.control import velocity_toward
+from steer_envs.data.experts.control import positions, sensor_rows, step_toward
 from steer_envs.envs.cooking import DARK, FOODS, SENSORS, WHITE, CookingEnv
-from steer_envs.envs.kinematic import sensor_columns
 
 #: how far inside a region a waypoint sits (so the transition happens before it is reached).
 MARGIN = 0.5
@@ -71,18 +69,11 @@ class CookingExpert:
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         """Velocity command(s): ``(2,)`` for one env, ``(N, 2)`` for a batch."""
-        pos = np.asarray(obs, dtype=np.float64)
-        single = pos.ndim == 1
-        pos = pos.reshape(-1, 2)
-        sensors = info["sensors"]
-        if isinstance(sensors, Mapping):  # one env's reading or a vector env's dict of (N,) arrays
-            sensors = sensor_columns(sensors, SENSORS)
-        sensors = np.asarray(sensors, dtype=bool).reshape(-1, len(SENSORS))
+        pos, single = positions(obs)
+        sensors = sensor_rows(info, SENSORS)
         if len(sensors) != len(pos):
             raise ValueError(f"info['sensors'] must have one row per observation ({len(pos)}), got {len(sensors)}")
-        target = self._targets(pos, sensors)
-        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
-        return action[0] if single else action
+        return step_toward(self.env, pos, self._targets(pos, sensors), single)
 
     # ------------------------------------------------------------ planning
     def _targets(self, pos: np.ndarray, sensors: np.ndarray) -> np.ndarray:

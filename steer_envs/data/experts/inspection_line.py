@@ -9,14 +9,12 @@ vector env's ``infos``).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from steer_envs.data.experts.control import velocity_toward
+from steer_envs.data.experts.control import positions, sensor_rows, step_toward
 from steer_envs.envs.inspection_line import SENSORS, InspectionLineEnv
-from steer_envs.envs.kinematic import sensor_columns
 
 
 class InspectionLineExpert:
@@ -36,16 +34,9 @@ class InspectionLineExpert:
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         """Velocity command(s): ``(2,)`` for one env, ``(N, 2)`` for a batch."""
-        pos = np.asarray(obs, dtype=np.float64)
-        single = pos.ndim == 1
-        pos = pos.reshape(-1, 2)
-        sensors = info["sensors"]
-        if isinstance(sensors, Mapping):  # one env's reading or a vector env's dict of (N,) arrays
-            sensors = sensor_columns(sensors, SENSORS)
-        on_line = np.asarray(sensors, dtype=bool).reshape(-1, len(SENSORS))[:, 0]
-        target = np.where(on_line[:, None], self._release, self._entry)
-        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
-        return action[0] if single else action
+        pos, single = positions(obs)
+        on_line = sensor_rows(info, SENSORS)[:, 0]
+        return step_toward(self.env, pos, np.where(on_line[:, None], self._release, self._entry), single)
 
 
 __all__ = ["InspectionLineExpert"]

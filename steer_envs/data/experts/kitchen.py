@@ -38,15 +38,9 @@ import numpy as np
 
 from steer_envs.core.validation import integer, one_of
 from steer_envs.envs.robosuite.kitchen import (
-    CAVITY_FRONT_X,
-    CAVITY_HIGH,
-    CAVITY_LOW,
     DOOR_OPEN_ANGLE,
     DOOR_SHUT_ANGLE,
-    DOOR_TOP_Z,
-    SINK_XY,
     SKILLS,
-    TABLE_Z,
     KitchenEnv,
     legal_skills,
     pose_action,
@@ -54,6 +48,14 @@ from steer_envs.envs.robosuite.kitchen import (
     skill_target,
 )
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
+from steer_envs.envs.robosuite.kitchen_scene import (
+    CAVITY_FRONT_X,
+    CAVITY_HIGH,
+    CAVITY_LOW,
+    DOOR_TOP_Z,
+    SINK_XY,
+    TABLE_Z,
+)
 
 __all__ = ["OPEN_GOAL", "PITCH", "KitchenExpert", "KitchenPlanner", "KitchenSkills"]
 

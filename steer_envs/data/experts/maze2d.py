@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.data.maze_random_walk import WaypointController
+from steer_envs.control.waypoint import WaypointController
 from steer_envs.envs.maze2d import Maze2DEnv
 
 

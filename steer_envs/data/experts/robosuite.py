@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from steer_envs.control.blockstack import wrap_quarter, yaw_of
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
-from steer_envs.envs.robosuite.plan_execution import wrap_quarter, yaw_of
 
 __all__ = ["CanExpert", "LiftExpert", "SquareExpert"]
 

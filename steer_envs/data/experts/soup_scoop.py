@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.data.experts.control import velocity_toward
+from steer_envs.data.experts.control import positions, step_toward
 from steer_envs.envs.soup_scoop import MODE_A, MODE_B, MODE_C, SoupScoopEnv
 
 #: depth below the soup surface (``y = -4``) of the reach target.
@@ -59,15 +59,11 @@ class SoupScoopExpert:
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
         """Velocity command(s): ``(2,)`` for one env, ``(N, 2)`` for a batch."""
-        pos = np.asarray(obs, dtype=np.float64)
-        single = pos.ndim == 1
-        pos = pos.reshape(-1, 2)
+        pos, single = positions(obs)
         mode = np.asarray(info["mode"], dtype=np.int64).reshape(-1)
         if len(mode) != len(pos):
             raise ValueError(f"info['mode'] must have one entry per observation ({len(pos)}), got {len(mode)}")
-        target = self._targets(pos, mode)
-        action = velocity_toward(pos, target, self.env.max_speed, self.env.dt).astype(np.float32)
-        return action[0] if single else action
+        return step_toward(self.env, pos, self._targets(pos, mode), single)
 
     # ------------------------------------------------------------ planning
     def _targets(self, pos: np.ndarray, mode: np.ndarray) -> np.ndarray:

@@ -1,6 +1,9 @@
 """``RobosuiteEnv``: one robosuite task (Panda, delta OSC_POSE) as a steer-envs env.
 
-robosuite is imported when an env is made, never by ``import steer_envs``.
+robosuite is imported when an env is made, never by ``import steer_envs``; it is
+the ``arm`` extra (``pip install "steer-envs[arm]"``), and making an arm env
+without it raises :class:`~steer_envs.core.extras.MissingExtraError` (an
+``ImportError``) that says so.
 The sim is robosuite's own (``env.unwrapped.rs_env``); its observation dict
 stays available under robosuite's names (``env.unwrapped.robosuite_obs``).
 
@@ -25,19 +28,32 @@ from __future__ import annotations
 import contextlib
 import logging
 from collections.abc import Callable, Iterator
+from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.extras import require
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
-from steer_envs.envs.kinematic import _check_action, check_options, check_render_mode, check_seed
+from steer_envs.envs.checks import check_action, check_options, check_render_mode, check_seed
 from steer_envs.envs.robosuite import camera as cam
 from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
 
-__all__ = ["GRASP_HOLD_STEPS", "PERTURB_MAX_STEPS", "PERTURB_TOLERANCE", "ROBOT_KEYS", "RobosuiteEnv"]
+__all__ = [
+    "ARM_FEATURE",
+    "GRASP_HOLD_STEPS",
+    "PERTURB_MAX_STEPS",
+    "PERTURB_TOLERANCE",
+    "ROBOT_KEYS",
+    "RobosuiteEnv",
+    "require_robosuite",
+]
+
+#: what needs the ``arm`` extra (robosuite), as the missing-extra message names it.
+ARM_FEATURE = "the robosuite arm envs (Lift, Can, Square, BlockStack, ArmScoop, Kitchen)"
 
 #: robot observation keys, in observation order (the task's object keys follow).
 ROBOT_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos")
@@ -54,6 +70,16 @@ GRASP_HOLD_STEPS = 2
 _SNAP_ITERS = 100
 #: bound of every observation entry (positions in m lie within ~2 m of the origin; quats, gripper qpos within 1).
 OBS_BOUND = 10.0
+
+
+def require_robosuite() -> ModuleType:
+    """The ``robosuite`` module; without it an ``ImportError`` naming ``pip install "steer-envs[arm]"``.
+
+    Every arm env calls it before it builds its sim, so ``gymnasium.make("steer_envs/Lift-v0")``
+    without robosuite fails with that message rather than deep inside.
+    """
+    with _quiet_robosuite():
+        return require("robosuite", "arm", ARM_FEATURE)
 
 
 @contextlib.contextmanager
@@ -143,10 +169,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self._object_geoms, self._pad_geoms = self._grasp_masks()
         self._robot_geoms = self._robot_mask()
         self._object_qvel = int(rs.sim.model.get_joint_qvel_addr(self._object.joints[0])[0])
-        self.robosuite_obs: dict[str, np.ndarray] = rs.reset()
-        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
-        self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self._reset_spaces()
         self._held = False
         self._grasp_start: float | None = None  # sim time of the first reading of the current grasp
         self._rest_z = 0.0
@@ -154,6 +177,13 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self._gripper = -1.0
         self._success = False
         self._begin()
+
+    def _reset_spaces(self) -> None:
+        """Reset the sim for its first observation; the observation box of ``obs_keys`` and the 7-D action box."""
+        self.robosuite_obs: dict[str, np.ndarray] = self.rs_env.reset()
+        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
+        self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
 
     def _check_view_args(
         self, render_mode: Any, camera: Any, render_size: Any, perturb_exact: Any, fast_render: Any, owner: str
@@ -174,6 +204,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         ``rng`` when it builds it (e.g. Lift's cube size), so every instance is
         the same model and episode seeds replay.
         """
+        require_robosuite()
         with _quiet_robosuite():
             from robosuite.controllers import load_composite_controller_config
 
@@ -364,7 +395,7 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One 20 Hz control step of the 7-D delta OSC action (clipped to [-1, 1])."""
-        act = np.clip(_check_action(action, self.action_space, f"{type(self).__name__}.step"), -1.0, 1.0)
+        act = np.clip(check_action(action, self.action_space, f"{type(self).__name__}.step"), -1.0, 1.0)
         self._gripper = float(act[6])
         self.robosuite_obs, reward, _, _ = self.rs_env.step(act)
         info = self._info()

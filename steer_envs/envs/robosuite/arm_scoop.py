@@ -67,8 +67,9 @@ from gymnasium import spaces
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import real_array
-from steer_envs.envs.kinematic import _check_action, check_options, check_seed
+from steer_envs.envs.checks import check_action, check_options, check_seed
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+from steer_envs.envs.robosuite.table import table_arena
 from steer_envs.envs.soup_scoop import SOUP_TASK
 
 __all__ = [
@@ -175,7 +176,6 @@ def _bowl_xml(name: str, y: float, soup: bool) -> Any:
 def _robosuite_class() -> type:
     """robosuite's Lift without the cube, with the two bowls (defined on first use: robosuite registers classes)."""
     from robosuite.environments.manipulation.lift import Lift
-    from robosuite.models.arenas import TableArena
     from robosuite.models.tasks import ManipulationTask
 
     class SteerArmScoop(Lift):  # type: ignore[misc]
@@ -183,12 +183,7 @@ def _robosuite_class() -> type:
 
         def _load_model(self) -> None:
             super(Lift, self)._load_model()
-            xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
-            self.robots[0].robot_model.set_base_xpos(xpos)
-            arena = TableArena(
-                table_full_size=self.table_full_size, table_friction=self.table_friction, table_offset=self.table_offset
-            )
-            arena.set_origin([0, 0, 0])
+            arena = table_arena(self)
             arena.worldbody.append(_bowl_xml("soup_bowl", SOUP_Y, soup=True))
             arena.worldbody.append(_bowl_xml("target_bowl", TARGET_Y, soup=False))
             self.model = ManipulationTask(mujoco_arena=arena, mujoco_robots=[r.robot_model for r in self.robots])
@@ -405,9 +400,7 @@ class ArmScoopEnv(RobosuiteEnv):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One 20 Hz step: integrate the velocity ``(y', z', pitch')`` into the target pose and track it."""
-        v = np.clip(
-            _check_action(action, self.action_space, f"{type(self).__name__}.step"), -MAX_VELOCITY, MAX_VELOCITY
-        )
+        v = np.clip(check_action(action, self.action_space, f"{type(self).__name__}.step"), -MAX_VELOCITY, MAX_VELOCITY)
         state = self.state
         ref = self._clip_state(self._reference + self.dt * v.astype(np.float64))
         self._reference = np.clip(ref, state - MAX_LAG, state + MAX_LAG)

@@ -46,13 +46,13 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import describe, integer, real_array
-from steer_envs.envs.kinematic import check_options, check_seed
+from steer_envs.envs.checks import check_options, check_seed
 from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
+from steer_envs.envs.robosuite.table import add_object_observables, table_arena
 
 __all__ = [
     "CUBE_HALF",
@@ -192,15 +192,65 @@ def check_goal_order(goal_order: Any, owner: str) -> tuple[int, ...] | None:
     return ids
 
 
+def _load_cubes(env: Any) -> None:
+    """The table arena (the robot at its edge) and the four cubes: ``env.cubes`` and ``env.model``."""
+    from robosuite.models.objects import BoxObject
+    from robosuite.models.tasks import ManipulationTask
+
+    arena = table_arena(env)
+    half = [CUBE_HALF] * 3
+    env.cubes = [
+        BoxObject(name=f"cube_{i}", size_min=half, size_max=half, rgba=list(_COLOURS[i])) for i in range(NUM_CUBES)
+    ]
+    env.model = ManipulationTask(
+        mujoco_arena=arena,
+        mujoco_robots=[robot.robot_model for robot in env.robots],
+        mujoco_objects=env.cubes,
+    )
+
+
+def _place_cubes(env: Any) -> None:
+    """Set each cube on the table at a sampled ``(x, y, yaw)`` (:meth:`sample_placements`)."""
+    for cube, (x, y, yaw) in zip(env.cubes, env.sample_placements(), strict=True):
+        pos = np.array([x, y, env.table_offset[2] + CUBE_HALF - _SEAT])
+        quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])  # wxyz
+        env.sim.data.set_joint_qpos(cube.joints[0], np.concatenate([pos, quat]))
+
+
+def _cube_observables(env: Any, observables: Any) -> Any:
+    """``observables`` with ``cube_<i>_pos`` and ``cube_<i>_quat`` (xyzw) of every cube added."""
+    from robosuite.utils.transform_utils import convert_quat
+
+    sensors = []
+    for i, body in enumerate(env.cube_body_ids):
+
+        def pos(obs_cache: Any, body: int = body) -> np.ndarray:
+            return np.array(env.sim.data.body_xpos[body])
+
+        def quat(obs_cache: Any, body: int = body) -> np.ndarray:
+            return convert_quat(np.array(env.sim.data.body_xquat[body]), to="xyzw")
+
+        sensors += [(f"cube_{i}_pos", pos), (f"cube_{i}_quat", quat)]
+    return add_object_observables(env, observables, sensors)
+
+
+def _tower_stacked(env: Any) -> bool:
+    """A 4-high tower (in ``env.goal_order`` if set), centres stacked within the rest tolerances."""
+    pos = np.array([env.sim.data.body_xpos[b] for b in env.cube_body_ids])
+    orders = [env.goal_order] if env.goal_order else itertools.permutations(range(NUM_CUBES))
+    base = env.table_offset[2] + CUBE_HALF
+    for order in orders:
+        p = pos[list(order)]
+        heights = np.abs(p[:, 2] - (base + 2 * CUBE_HALF * np.arange(NUM_CUBES))) < REST_Z_TOL
+        if heights.all() and np.all(np.linalg.norm(np.diff(p[:, :2], axis=0), axis=1) < REST_XY_TOL):
+            return True
+    return False
+
+
 @functools.cache
 def _robosuite_class() -> type:
     """The robosuite env class (defined on first use: robosuite registers env classes by name)."""
     from robosuite.environments.manipulation.stack import Stack
-    from robosuite.models.arenas import TableArena
-    from robosuite.models.objects import BoxObject
-    from robosuite.models.tasks import ManipulationTask
-    from robosuite.utils.observables import Observable, sensor
-    from robosuite.utils.transform_utils import convert_quat
 
     class SteerBlockStack(Stack):  # type: ignore[misc]
         """robosuite's Stack with four equal cubes, >= ``min_separation`` apart at reset, random yaw."""
@@ -213,22 +263,7 @@ def _robosuite_class() -> type:
 
         def _load_model(self) -> None:
             super(Stack, self)._load_model()
-            xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
-            self.robots[0].robot_model.set_base_xpos(xpos)
-            arena = TableArena(
-                table_full_size=self.table_full_size, table_friction=self.table_friction, table_offset=self.table_offset
-            )
-            arena.set_origin([0, 0, 0])
-            half = [CUBE_HALF] * 3
-            self.cubes = [
-                BoxObject(name=f"cube_{i}", size_min=half, size_max=half, rgba=list(_COLOURS[i]))
-                for i in range(NUM_CUBES)
-            ]
-            self.model = ManipulationTask(
-                mujoco_arena=arena,
-                mujoco_robots=[robot.robot_model for robot in self.robots],
-                mujoco_objects=self.cubes,
-            )
+            _load_cubes(self)
 
         def _setup_references(self) -> None:
             super(Stack, self)._setup_references()
@@ -236,12 +271,8 @@ def _robosuite_class() -> type:
 
         def _reset_internal(self) -> None:
             super(Stack, self)._reset_internal()
-            if self.deterministic_reset:
-                return
-            for cube, (x, y, yaw) in zip(self.cubes, self.sample_placements(), strict=True):
-                pos = np.array([x, y, self.table_offset[2] + CUBE_HALF - _SEAT])
-                quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])  # wxyz
-                self.sim.data.set_joint_qpos(cube.joints[0], np.concatenate([pos, quat]))
+            if not self.deterministic_reset:
+                _place_cubes(self)
 
         def sample_placements(self) -> np.ndarray:
             """(4, 3): x, y, yaw of each cube, by rejection from ``self.rng`` (>= ``min_separation`` apart)."""
@@ -254,36 +285,14 @@ def _robosuite_class() -> type:
             raise RuntimeError("SteerBlockStack: no cube placement found")  # pragma: no cover - 4 cubes always fit
 
         def _setup_observables(self) -> Any:
-            observables = super(Stack, self)._setup_observables()
-            for i, body in enumerate(self.cube_body_ids):
-
-                def pos(obs_cache: Any, body: int = body) -> np.ndarray:
-                    return np.array(self.sim.data.body_xpos[body])
-
-                def quat(obs_cache: Any, body: int = body) -> np.ndarray:
-                    return convert_quat(np.array(self.sim.data.body_xquat[body]), to="xyzw")
-
-                for name, fn in ((f"cube_{i}_pos", pos), (f"cube_{i}_quat", quat)):
-                    fn.__name__ = name
-                    observables[name] = Observable(
-                        name=name, sensor=sensor(modality="object")(fn), sampling_rate=self.control_freq
-                    )
-            return observables
+            return _cube_observables(self, super(Stack, self)._setup_observables())
 
         def reward(self, action: Any = None) -> float:
             return float(self._check_success())
 
         def _check_success(self) -> bool:
             """A 4-high tower (in ``goal_order`` if set), centres stacked within the rest tolerances."""
-            pos = np.array([self.sim.data.body_xpos[b] for b in self.cube_body_ids])
-            orders = [self.goal_order] if self.goal_order else itertools.permutations(range(NUM_CUBES))
-            base = self.table_offset[2] + CUBE_HALF
-            for order in orders:
-                p = pos[list(order)]
-                heights = np.abs(p[:, 2] - (base + 2 * CUBE_HALF * np.arange(NUM_CUBES))) < REST_Z_TOL
-                if heights.all() and np.all(np.linalg.norm(np.diff(p[:, :2], axis=0), axis=1) < REST_XY_TOL):
-                    return True
-            return False
+            return _tower_stacked(self)
 
         def visualize(self, vis_settings: Any) -> None:
             super(Stack, self).visualize(vis_settings=vis_settings)
@@ -341,10 +350,7 @@ class BlockStackEnv(RobosuiteEnv):
         owner_of = {f"cube_{i}_g0": i for i in range(NUM_CUBES)} | {"table_collision": NUM_CUBES}
         self._geom_owner = np.array([owner_of.get(model.geom_id2name(g), -1) for g in range(model.ngeom)])
         self.table_z = float(rs.table_offset[2])
-        self.robosuite_obs = rs.reset()
-        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
-        self.observation_space = spaces.Box(-10.0, 10.0, shape=(dim,), dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self._reset_spaces()
         self._gripper = -1.0
         self._begin()
 

@@ -2,7 +2,7 @@
 
 The thesis's real toy kitchen, simulated: the microwave is gymnasium-robotics'
 FrankaKitchen microwave converted for robosuite (:mod:`.kitchen_assets`,
-scale :data:`MICROWAVE_SCALE`, its opening facing the robot, the hinge on the
+scale :data:`~steer_envs.envs.robosuite.kitchen_scene.MICROWAVE_SCALE`, its opening facing the robot, the hinge on the
 robot's left), the sink a fixed robosuite ``Bin``, the bowl a small MJCF of our
 own (6 cm across: the open fingers close around it). robosuite is imported
 when an env is made, never by ``import steer_envs``.
@@ -58,38 +58,37 @@ import itertools
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import one_of, real_array, real_scalar
-from steer_envs.envs.kinematic import check_options, check_seed
+from steer_envs.envs.checks import check_options, check_seed
 from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
-from steer_envs.envs.robosuite.kitchen_assets import BOWL_FILE, BOWL_HEIGHT, MICROWAVE_FILE, asset_dir
+from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
+from steer_envs.envs.robosuite.kitchen_scene import (
+    CAVITY_HIGH,
+    CAVITY_LOW,
+    SCENE_CAMERA,
+    SINK_FLOOR_Z,
+    SINK_SIZE,
+    SINK_WALL,
+    SINK_XY,
+    TABLE_SIZE,
+    TABLE_Z,
+    kitchen_sim_class,
+)
 
 __all__ = [
     "BOWL_PLACES",
-    "BOWL_START_BOX",
-    "CAVITY_FRONT_X",
-    "CAVITY_HIGH",
-    "CAVITY_LOW",
     "DOOR_OPEN_ANGLE",
     "DOOR_SHUT_ANGLE",
-    "DOOR_START_OPEN",
-    "DOOR_TOP_Z",
     "DROP_HEIGHT",
     "KITCHEN_TASKS",
-    "MICROWAVE_SCALE",
     "ON_TABLE_HEIGHT",
     "RELEASE_STEPS",
     "R_DOWN",
-    "SCENE_CAMERA",
     "SENSORS",
-    "SINK_FLOOR_Z",
-    "SINK_SIZE",
-    "SINK_XY",
     "SKILLS",
-    "TABLE_Z",
     "KitchenEnv",
     "kitchen_task",
     "legal_skills",
@@ -102,33 +101,8 @@ __all__ = [
     "unwrap_kitchen",
 ]
 
-#: the microwave's scale (width, depth, height; source units are FrankaKitchen's): its cavity is 31 x 25 x 35 cm,
-#: tall enough for the hand and wrist above a bowl set in with the fingers pointing down.
-MICROWAVE_SCALE = (0.75, 0.75, 1.2)
-TABLE_SIZE = (0.8, 1.4, 0.05)
-TABLE_Z = 0.8
-#: x (m) of the microwave cavity's front plane (the door closes just in front of it).
-CAVITY_FRONT_X = -0.02
-_S, _SZ = MICROWAVE_SCALE[0], MICROWAVE_SCALE[2]
-#: the microwave body's origin (bottom centre of the source frame) and its yaw (its front faces -x).
-MICROWAVE_POS = (CAVITY_FRONT_X + 0.176 * _S, 0.02 + 0.345 * _S, TABLE_Z)
-#: the cavity (world, m): x from the front plane back, y across, z from the floor up.
-CAVITY_LOW = np.array([CAVITY_FRONT_X, MICROWAVE_POS[1] + 0.080 * _S - 0.207 * _S, TABLE_Z + 0.048 * _SZ])
-CAVITY_HIGH = np.array([CAVITY_FRONT_X + 0.337 * _S, MICROWAVE_POS[1] + 0.080 * _S + 0.207 * _S, TABLE_Z + 0.336 * _SZ])
-#: height (m) of the door's top edge (the door skills pass over it).
-DOOR_TOP_Z = TABLE_Z + (0.192 + 0.185) * _SZ
-#: the sink basin: centre (x, y) on the table, full size (x, y, z), wall thickness (m).
-SINK_XY = (-0.05, -0.38)
-SINK_SIZE = (0.2, 0.22, 0.07)
-SINK_WALL = 0.01
-#: height (m) of the sink basin's floor (the env's ``sink_floor_z``).
-SINK_FLOOR_Z = TABLE_Z + SINK_WALL
-#: the bowl's start on the table: x and y ranges (m) of its centre.
-BOWL_START_BOX = ((-0.2, -0.12), (-0.17, -0.07))
 #: the door counts as open beyond this angle (rad) ...
 DOOR_OPEN_ANGLE = 0.9
-#: a door that starts open (reset option ``door="open"``) starts at this angle (rad).
-DOOR_START_OPEN = 1.3
 #: ... and as shut (a task's closed door) below this one.
 DOOR_SHUT_ANGLE = 0.05
 #: a bowl not held whose centre is within this height (m) above its resting height on the table is on the table.
@@ -338,153 +312,6 @@ def pose_action(
     return action, d
 
 
-# ------------------------------------------------------------------------------ the sim
-def _look_at(pos: np.ndarray, target: np.ndarray) -> str:
-    """MJCF ``xyaxes`` of a camera at ``pos`` looking at ``target`` (image up toward world +z)."""
-    forward = (target - pos) / np.linalg.norm(target - pos)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    return " ".join(f"{v:.5f}" for v in (*right, *up))
-
-
-#: the scene camera (RGB-D, the pixel methods' default): high on the robot's right, looking over the table.
-SCENE_CAMERA = "kitchen_view"
-_SCENE_CAMERA_POS = np.array([-0.6, -1.1, 1.8])
-_SCENE_CAMERA_TARGET = np.array([-0.05, 0.0, 0.85])
-
-
-@functools.cache
-def _robosuite_class() -> type:
-    """The robosuite env class (defined on first use: robosuite registers env classes by name)."""
-    import xml.etree.ElementTree as ET
-
-    from robosuite.environments.manipulation.lift import Lift
-    from robosuite.models.arenas import TableArena
-    from robosuite.models.objects import Bin, MujocoXMLObject
-    from robosuite.models.tasks import ManipulationTask
-    from robosuite.utils.mjcf_utils import array_to_string
-    from robosuite.utils.observables import Observable, sensor
-    from robosuite.utils.transform_utils import convert_quat
-
-    class Sink(Bin):  # type: ignore[misc]
-        """robosuite's Bin, fixed to the table (no free joint)."""
-
-        def _get_geom_attrs(self) -> dict[str, Any]:
-            attrs: dict[str, Any] = super()._get_geom_attrs()
-            attrs["joints"] = None
-            return attrs
-
-    class SteerKitchen(Lift):  # type: ignore[misc]
-        """A table with a microwave, a sink and a bowl; the bowl's start and the door's set by ``start``."""
-
-        def __init__(self, *args: Any, **kwargs: Any) -> None:
-            self.start: dict[str, str] = {"bowl": "table", "door": "closed"}
-            super().__init__(*args, table_full_size=TABLE_SIZE, **kwargs)
-
-        def _load_model(self) -> None:
-            super(Lift, self)._load_model()
-            xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
-            self.robots[0].robot_model.set_base_xpos(xpos)
-            arena = TableArena(
-                table_full_size=self.table_full_size, table_friction=self.table_friction, table_offset=self.table_offset
-            )
-            arena.set_origin([0, 0, 0])
-            ET.SubElement(
-                arena.worldbody,
-                "camera",
-                name=SCENE_CAMERA,
-                mode="fixed",
-                fovy="55",
-                pos=" ".join(f"{v:.4f}" for v in _SCENE_CAMERA_POS),
-                xyaxes=_look_at(_SCENE_CAMERA_POS, _SCENE_CAMERA_TARGET),
-            )
-            folder = asset_dir()
-            self.microwave = MujocoXMLObject(
-                str(folder / MICROWAVE_FILE),
-                name="microwave",
-                joints=None,
-                duplicate_collision_geoms=False,
-                scale=list(MICROWAVE_SCALE),
-            )
-            self.microwave.get_obj().set("pos", array_to_string(MICROWAVE_POS))
-            self.microwave.get_obj().set("quat", "0.70710678 0 0 -0.70710678")  # front (-y) to -x
-            self.sink = Sink(
-                "sink",
-                bin_size=SINK_SIZE,
-                wall_thickness=SINK_WALL,
-                transparent_walls=False,
-                use_texture=False,
-                rgba=(0.55, 0.58, 0.62, 1.0),
-            )
-            self.sink.get_obj().set("pos", array_to_string([*SINK_XY, TABLE_Z + SINK_SIZE[2] / 2]))
-            self.bowl = MujocoXMLObject(str(folder / BOWL_FILE), name="bowl", duplicate_collision_geoms=True)
-            self.model = ManipulationTask(
-                mujoco_arena=arena,
-                mujoco_robots=[robot.robot_model for robot in self.robots],
-                mujoco_objects=[self.microwave, self.sink, self.bowl],
-            )
-
-        def _setup_references(self) -> None:
-            super(Lift, self)._setup_references()
-            model = self.sim.model
-            self.bowl_body_id = model.body_name2id(self.bowl.root_body)
-            self.door_qpos = int(model.get_joint_qpos_addr("microwave_microwave"))
-            self.door_qvel = int(model.get_joint_qvel_addr("microwave_microwave"))
-            self.door_body_id = model.body_name2id("microwave_microdoorroot")
-            self.handle_site_id = model.site_name2id("microwave_microhandle_site")
-
-        def _setup_observables(self) -> Any:
-            observables = super(Lift, self)._setup_observables()
-
-            def bowl_pos(obs_cache: Any) -> np.ndarray:
-                return np.array(self.sim.data.body_xpos[self.bowl_body_id])
-
-            def bowl_quat(obs_cache: Any) -> np.ndarray:
-                return convert_quat(np.array(self.sim.data.body_xquat[self.bowl_body_id]), to="xyzw")
-
-            def door_angle(obs_cache: Any) -> np.ndarray:
-                return np.array([-self.sim.data.qpos[self.door_qpos]])
-
-            for fn in (bowl_pos, bowl_quat, door_angle):
-                observables[fn.__name__] = Observable(
-                    name=fn.__name__, sensor=sensor(modality="object")(fn), sampling_rate=self.control_freq
-                )
-            return observables
-
-        def _reset_internal(self) -> None:
-            super(Lift, self)._reset_internal()
-            self.sim.data.qpos[self.door_qpos] = -DOOR_START_OPEN if self.start["door"] == "open" else 0.0
-            self.sim.data.qvel[self.door_qvel] = 0.0
-            place = self.start["bowl"]
-            if place == "table":
-                (x0, x1), (y0, y1) = BOWL_START_BOX
-                xy = np.array([self.rng.uniform(x0, x1), self.rng.uniform(y0, y1)])
-                z = TABLE_Z
-            elif place == "sink":
-                xy = np.asarray(SINK_XY) + self.rng.uniform(-0.02, 0.02, size=2)
-                z = TABLE_Z + SINK_WALL
-            else:
-                mid = (CAVITY_LOW + CAVITY_HIGH) / 2
-                xy = np.array([CAVITY_FRONT_X + 0.07, mid[1]]) + self.rng.uniform(-0.01, 0.01, size=2)
-                z = float(CAVITY_LOW[2])
-            yaw = self.rng.uniform(0.0, 2 * np.pi)
-            pose = np.array([xy[0], xy[1], z + BOWL_HEIGHT / 2 - 0.0005, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-            self.sim.data.set_joint_qpos(self.bowl.joints[0], pose)
-            self.sim.forward()
-
-        def reward(self, action: Any = None) -> float:
-            return 0.0
-
-        def _check_success(self) -> bool:
-            return False  # judged by KitchenEnv (it needs the latched sensors)
-
-        def visualize(self, vis_settings: Any) -> None:
-            super(Lift, self).visualize(vis_settings=vis_settings)
-
-    return SteerKitchen
-
-
 class KitchenEnv(RobosuiteEnv):
     """Kitchen rearrangement with a Panda: a microwave with a door, a sink and a bowl (see the module docstring).
 
@@ -493,7 +320,7 @@ class KitchenEnv(RobosuiteEnv):
         render_mode, render_size, perturb_exact, fast_render: as for
             :class:`~steer_envs.envs.robosuite.adapter.RobosuiteEnv`.
         camera: the camera ``render`` and the pixel methods use (default the scene camera
-            :data:`SCENE_CAMERA`, high on the robot's right).
+            :data:`~steer_envs.envs.robosuite.kitchen_scene.SCENE_CAMERA`, high on the robot's right).
 
     Reset options: ``state`` (eef start, as the adapter's), ``bowl`` (where the bowl
     starts: ``"table"`` (default, a seeded spot), ``"sink"``, ``"microwave"``),
@@ -531,7 +358,7 @@ class KitchenEnv(RobosuiteEnv):
             "bowl_quat",
             "door_angle",
         )
-        self._build_sim(lambda **kwargs: _robosuite_class()(**kwargs), owner)
+        self._build_sim(lambda **kwargs: kitchen_sim_class()(**kwargs), owner)
         rs = self.rs_env
         self._object = rs.bowl
         self._object_geoms, self._pad_geoms = self._grasp_masks()
@@ -539,10 +366,7 @@ class KitchenEnv(RobosuiteEnv):
         self._object_qvel = int(rs.sim.model.get_joint_qvel_addr(rs.bowl.joints[0])[0])
         self.table_z = TABLE_Z
         self._base_body = int(rs.sim.model.body_name2id("robot0_base"))
-        self.robosuite_obs = rs.reset()
-        dim = sum(int(np.asarray(self.robosuite_obs[k]).size) for k in self.obs_keys)
-        self.observation_space = spaces.Box(-10.0, 10.0, shape=(dim,), dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self._reset_spaces()
         self._gripper = -1.0
         self._begin()
 
@@ -594,7 +418,7 @@ class KitchenEnv(RobosuiteEnv):
 
     @property
     def sink_floor_z(self) -> float:
-        """Height (m) of the sink basin's floor (:data:`SINK_FLOOR_Z`)."""
+        """Height (m) of the sink basin's floor (:data:`~steer_envs.envs.robosuite.kitchen_scene.SINK_FLOOR_Z`)."""
         return SINK_FLOOR_Z
 
     # --------------------------------------------------------------- sensors

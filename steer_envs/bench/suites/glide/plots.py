@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.baselines.glide.classifier import ModePredictor, mode_overlap, workspace_grid
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
+from steer_envs.baselines.glide.modes import ModePredictor, mode_overlap, workspace_grid
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 #: mode colours (free space first): light pastels, so no mode shares a colour with a rollout's
 #: success (:data:`SUCCESS_COLOR`) or failure (:data:`FAILURE_COLOR`); no red among them.
@@ -80,7 +80,7 @@ class ModeMapRow:
         model: the env's task model (``env.unwrapped.model``) with ``low``,
             ``high``, ``num_modes``, ``vertices`` and ``mode_of``.
         panels: panel title -> labels ``(resolution**2,)`` on
-            :func:`~steer_envs.baselines.glide.classifier.workspace_grid`'s grid; a ground-truth
+            :func:`~steer_envs.baselines.glide.modes.workspace_grid`'s grid; a ground-truth
             panel is added in front.
         title: row title (shown on the ground-truth panel).
         trajectories: ``(T_i, 2)`` paths drawn on the ground-truth panel (or every panel).
@@ -118,6 +118,23 @@ def plot_mode_maps(
     path = Path(path)
     if path.suffix != ".png":
         raise ValueError(f"path must end in .png, got {str(path)!r}")
+    _check_rows(rows, mode_names)
+    names: list[str] = []
+    for r in rows:
+        names += [n for n in r.panels if n not in names]
+    n_cols = 1 + len(names)
+    fig = new_figure(max(panel_size * n_cols, 5.0), (panel_size + 0.45) * len(rows) + 1.0)
+    axes = fig.subplots(len(rows), n_cols, squeeze=False)
+    for row_axes, row in zip(axes, rows, strict=True):
+        _draw_row(row_axes, row, names, resolution, trajectories_on_every_panel)
+    fig.suptitle(title or "Mode boundaries: ground truth vs learned", fontsize=10)
+    handles = _legend_handles(rows, mode_names)
+    figure_legend(fig, handles, ncol=min(len(handles), 4))
+    return save_figure(fig, path)
+
+
+def _check_rows(rows: Sequence[ModeMapRow], mode_names: Sequence[str] | None) -> None:
+    """Refuse rows (or mode names) :func:`plot_mode_maps` cannot draw."""
     if not rows:
         raise ValueError("rows must not be empty")
     for r in rows:
@@ -129,51 +146,53 @@ def plot_mode_maps(
         isinstance(mode_names, str) or len(mode_names) < max(int(r.model.num_modes) for r in rows)
     ):
         raise ValueError("mode_names must be a sequence with one name per mode")
-    names: list[str] = []
-    for r in rows:
-        names += [n for n in r.panels if n not in names]
+
+
+def _draw_row(
+    row_axes: Sequence[Any], row: ModeMapRow, names: Sequence[str], resolution: int, trajectories_everywhere: bool
+) -> None:
+    """One row of :func:`plot_mode_maps`: the ground truth, then the panel of each of ``names`` (blank if absent)."""
     from matplotlib.colors import ListedColormap
 
-    n_cols = 1 + len(names)
-    fig = new_figure(max(panel_size * n_cols, 5.0), (panel_size + 0.45) * len(rows) + 1.0)
-    axes = fig.subplots(len(rows), n_cols, squeeze=False)
-    for row_axes, row in zip(axes, rows, strict=True):
-        model = row.model
-        k = int(model.num_modes)
-        grid = workspace_grid(model.low, model.high, resolution)
-        truth = np.asarray(model.mode_of(grid))
-        cmap = ListedColormap(list(MODE_COLORS[: max(k, 2)]))
-        extent = (model.low[0], model.high[0], model.low[1], model.high[1])
-        for col, ax in enumerate(row_axes):
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if col == 0:
-                labels, name, overlap = truth, row.title or "ground truth", None
-            else:
-                name = names[col - 1]
-                if name not in row.panels:
-                    ax.set_axis_off()
-                    continue
-                labels = np.asarray(row.panels[name])
-                if labels.shape != truth.shape:
-                    raise ValueError(f"panel {name!r} has {labels.shape} labels, expected {truth.shape}")
-                overlap = mode_overlap(labels, truth)
-            img = np.clip(labels, 0, k - 1).reshape(resolution, resolution)
-            ax.imshow(img, origin="lower", extent=extent, cmap=cmap, vmin=-0.5, vmax=k - 0.5, interpolation="nearest")
-            for v in model.vertices:
-                loop = np.vstack([v, v[:1]])
-                ax.plot(loop[:, 0], loop[:, 1], color="k", lw=0.6)
-            if col == 0 or trajectories_on_every_panel:
-                for i, tr in enumerate(row.trajectories):
-                    tr = np.asarray(tr)
-                    ok = True if row.trajectory_success is None else bool(row.trajectory_success[i])
-                    ax.plot(tr[:, 0], tr[:, 1], color=SUCCESS_COLOR if ok else FAILURE_COLOR, lw=0.7, alpha=0.8)
-            text = name if overlap is None else f"{name}\noverlap {overlap:.3f}"
-            if col > 0 and row.notes.get(name):
-                text += f" ({row.notes[name]})"
-            ax.set_title(text, fontsize=8)
-            ax.set_aspect("equal")
-    fig.suptitle(title or "Mode boundaries: ground truth vs learned", fontsize=10)
+    model = row.model
+    k = int(model.num_modes)
+    grid = workspace_grid(model.low, model.high, resolution)
+    truth = np.asarray(model.mode_of(grid))
+    cmap = ListedColormap(list(MODE_COLORS[: max(k, 2)]))
+    extent = (model.low[0], model.high[0], model.low[1], model.high[1])
+    for col, ax in enumerate(row_axes):
+        ax.set_xticks([])
+        ax.set_yticks([])
+        if col == 0:
+            labels, name, overlap = truth, row.title or "ground truth", None
+        else:
+            name = names[col - 1]
+            if name not in row.panels:
+                ax.set_axis_off()
+                continue
+            labels = np.asarray(row.panels[name])
+            if labels.shape != truth.shape:
+                raise ValueError(f"panel {name!r} has {labels.shape} labels, expected {truth.shape}")
+            overlap = mode_overlap(labels, truth)
+        img = np.clip(labels, 0, k - 1).reshape(resolution, resolution)
+        ax.imshow(img, origin="lower", extent=extent, cmap=cmap, vmin=-0.5, vmax=k - 0.5, interpolation="nearest")
+        for v in model.vertices:
+            loop = np.vstack([v, v[:1]])
+            ax.plot(loop[:, 0], loop[:, 1], color="k", lw=0.6)
+        if col == 0 or trajectories_everywhere:
+            for i, tr in enumerate(row.trajectories):
+                tr = np.asarray(tr)
+                ok = True if row.trajectory_success is None else bool(row.trajectory_success[i])
+                ax.plot(tr[:, 0], tr[:, 1], color=SUCCESS_COLOR if ok else FAILURE_COLOR, lw=0.7, alpha=0.8)
+        text = name if overlap is None else f"{name}\noverlap {overlap:.3f}"
+        if col > 0 and row.notes.get(name):
+            text += f" ({row.notes[name]})"
+        ax.set_title(text, fontsize=8)
+        ax.set_aspect("equal")
+
+
+def _legend_handles(rows: Sequence[ModeMapRow], mode_names: Sequence[str] | None) -> list[Any]:
+    """The legend of :func:`plot_mode_maps`: each mode's colour, and the rollouts' when a row has any."""
     k_max = max(int(r.model.num_modes) for r in rows)
     names = list(mode_names) if mode_names is not None else ["free space", *(f"polygon {m}" for m in range(1, k_max))]
     handles = [key_patch(f"mode {m}: {names[m]}", facecolor=MODE_COLORS[m], edgecolor="0.4") for m in range(k_max)]
@@ -182,8 +201,7 @@ def plot_mode_maps(
             key_line("rollout, success", color=SUCCESS_COLOR),
             key_line("rollout, failure", color=FAILURE_COLOR),
         ]
-    figure_legend(fig, handles, ncol=min(len(handles), 4))
-    return save_figure(fig, path)
+    return handles
 
 
 def plot_groundings(

@@ -5,7 +5,8 @@
   ``wrong_feasibility`` (a plan one mode short), ``no_prediction_loss``
   (``L_succ`` and ``L_fail`` off) and the ``kmeans`` trajectory-segmentation
   baseline) x one layout (the seed; layouts 0-4 by default), through
-  :func:`~steer_envs.bench.suites.glide.protocol.grounding_trial`. Metrics: the
+  :func:`~steer_envs.baselines.glide.polygon.learn_grounding` and
+  :func:`~steer_envs.baselines.glide.polygon_eval.grounding_scores`. Metrics: the
   overlap of the learned modes with the ground truth on a 200 x 200 grid (the
   report's mean over the seeds is the mean over layouts; target for the full
   loss: >= 0.95), the mean per-mode IoU (stricter: free space fills most of the
@@ -20,7 +21,8 @@
   (episodes of ``max_steps``, default 1000 as in the public evaluation loop,
   starting in free space or, with ``start=first_mode``, inside the first polygon)
   without and with the evaluation perturbations
-  (:func:`~steer_envs.bench.suites.glide.protocol.policy_table_trial`), and the
+  (:func:`~steer_envs.baselines.glide.polygon.make_polygon_policy`,
+  :func:`~steer_envs.baselines.glide.polygon_eval.evaluate_polygon_policy`), and the
   report prints the thesis's success rates beside ours. The thesis averages BC
   over 10 seeds: ``bc_seeds`` (default 10) and ``glide_seeds`` (default 3: one
   data set + classifier per seed, since one seed says as much about the draw
@@ -44,24 +46,20 @@ ValueError: glide-polygon-grounding: parameter 'n_heads' must be >= 1, got 0
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
+from steer_envs.bench.metrics import EVAL_SECONDS, evaluation_metrics, success_references, train_seconds
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import (
-    Finding,
-    Metric,
-    Reference,
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    TrialResult,
-    register_suite,
-)
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.bench.trials import check_trial
 from steer_envs.utils.threads import single_threaded
+
+if TYPE_CHECKING:
+    from steer_envs.bench.suite import Trial, TrialRequest
 
 GROUNDING_SUITE = "glide-polygon-grounding"
 POLICY_SUITE = "glide-polygon"
@@ -70,13 +68,13 @@ VARIANTS: tuple[str, ...] = ("full", "no_counterfactuals", "wrong_feasibility", 
 METHODS: tuple[str, ...] = ("bc", "glide_bc", "glide_planning")
 #: where evaluation episodes start: uniform in free space (the env's reset, the thesis's "starting in
 #: the free space") or uniform inside the first polygon (the public polygon env's default reset, which
-#: counts the agent as having just entered it); the same as ``protocol.EVAL_STARTS``
+#: counts the agent as having just entered it). This and the names above are the library's
+#: (``baselines.glide``: ``EVAL_STARTS``, ``POLYGON_ENV_IDS``, ``POLYGON_VARIANTS``, ``POLYGON_METHODS``),
+#: repeated here, like the tables below, so declaring the suite imports no torch
 EVAL_STARTS: tuple[str, ...] = ("free", "first_mode")
 #: how GLiDE+Planning crosses free space; the same as ``planners.FREE_SPACE_PLANNERS``
-#: (kept here, like the tables below, so declaring the suite imports no torch)
 FREE_SPACE_PLANNERS: tuple[str, ...] = ("costmap", "rrt")
-#: thesis Table 4.1: method -> modes -> (success, success +perturb); the same numbers as
-#: ``protocol.THESIS_TABLE_4_1``.
+#: thesis Table 4.1: method -> modes -> (success, success +perturb).
 THESIS_TABLE_4_1: Mapping[str, Mapping[int, tuple[float, float]]] = {
     "bc": {3: (0.967, 0.908), 4: (0.814, 0.614), 5: (0.810, 0.596)},
     "glide_bc": {3: (0.963, 0.887), 4: (0.892, 0.753), 5: (0.893, 0.753)},
@@ -118,8 +116,8 @@ class GlideSetupParams(SuiteParams):
         return self.cache_dir or None
 
     def setup(self, **extra: Any) -> Any:
-        """The :class:`~steer_envs.bench.suites.glide.protocol.GlideSetup` these parameters describe."""
-        from steer_envs.bench.suites.glide.protocol import GlideSetup
+        """The :class:`~steer_envs.baselines.glide.polygon.GlideSetup` these parameters describe."""
+        from steer_envs.baselines.glide.polygon import GlideSetup
 
         base = GlideSetup()
         train = replace(base.train, epochs=self.epochs, n_heads=self.n_heads)
@@ -178,13 +176,13 @@ class PolicyParams(GlideSetupParams):
 
     def planner(self) -> Any:
         """GLiDE+Planning's settings: the setup's defaults, with :attr:`free_space_planner`."""
-        from steer_envs.bench.suites.glide.protocol import GlideSetup
+        from steer_envs.baselines.glide.polygon import GlideSetup
 
         return replace(GlideSetup().planner, free_space_planner=self.free_space_planner)
 
     def bc(self) -> Any:
         """The BC training settings: the setup's defaults, with :attr:`bc_steps`."""
-        from steer_envs.bench.suites.glide.protocol import GlideSetup
+        from steer_envs.baselines.glide.polygon import GlideSetup
 
         return replace(GlideSetup().bc, steps=self.bc_steps)
 
@@ -198,26 +196,18 @@ def _num_modes(env: str | None) -> int:
 # ------------------------------------------------------------ glide-polygon-grounding
 def run_grounding_trial(trial: Trial) -> TrialResult:
     """One env x variant x layout (the seed): overlap and IoU of the learned modes."""
+    from steer_envs.baselines.glide import grounding_scores, learn_grounding
     from steer_envs.bench.suites.glide.plots import encode_labels
-    from steer_envs.bench.suites.glide.protocol import grounding_trial
 
-    _num_modes(trial.env)
-    if trial.method not in VARIANTS:
-        raise ValueError(f"{GROUNDING_SUITE}: unknown variant {trial.method!r}; expected one of {VARIANTS}")
+    check_trial(trial, envs=ENV_IDS, methods=VARIANTS, method_word="variant")
     params = GroundingParams.from_json(trial.params)
     resolution = params.grid_resolution
     setup = params.setup(grid_resolution=resolution)
-    keep = trial.seed < params.plot_seeds
+    env, variant = str(trial.env), str(trial.method)
     with single_threaded():
-        res = grounding_trial(
-            str(trial.env),
-            trial.seed,
-            str(trial.method),
-            params.train_seed,
-            setup=setup,
-            cache_dir=params.cache,
-            keep_labels=keep,
-        )
+        grounding = learn_grounding(env, trial.seed, variant, params.train_seed, setup=setup, cache_dir=params.cache)
+        scores, labels = grounding_scores(env, trial.seed, grounding.predictor, setup.grid_resolution)
+    res = {**scores, **grounding.info}
     metrics = {
         "overlap": res["overlap"],
         "mean_iou": res["mean_iou"],
@@ -236,11 +226,11 @@ def run_grounding_trial(trial: Trial) -> TrialResult:
             if k in res
         },
     }
-    if keep:
+    if trial.seed < params.plot_seeds:
         extra["figure"] = {
             "resolution": resolution,
-            "labels": encode_labels(res["labels"]),
-            "demos": [[[round(float(v), 3) for v in p] for p in d[::2]] for d in res["demo_states"]],
+            "labels": encode_labels(labels),
+            "demos": [[[round(float(v), 3) for v in p] for p in d.states[::2]] for d in grounding.demos],
         }
     return TrialResult(metrics, extra)
 
@@ -373,14 +363,7 @@ GLIDE_POLYGON_GROUNDING = register_suite(
             Metric("overlap", "fraction of the 200 x 200 grid labelled with the true mode", fmt=".3f"),
             Metric("mean_iou", "mean over modes of the IoU of learned and true mode regions", fmt=".3f"),
             Metric("free_only_overlap", "overlap of labelling everything free space (trivial floor)", fmt=".3f"),
-            Metric(
-                "train_seconds",
-                "classifier training wall time (s; k-means: its fit)",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".1f",
-                goal=TRAIN_SECONDS_GOAL,
-            ),
+            train_seconds("classifier training wall time (s; k-means: its fit)", goal=TRAIN_SECONDS_GOAL),
             Metric(
                 "data_seconds",
                 "perturbation data set build time (s; none when cached or not used)",
@@ -418,52 +401,54 @@ def _plan_policy(suite: Suite, request: TrialRequest) -> TrialPlan:
     return TrialPlan(tuple(trials))
 
 
-def run_policy_trial(trial: Trial) -> TrialResult:
-    """One env x method x training seed: success without and with perturbations (thesis Table 4.1)."""
-    from steer_envs.bench.suites.glide.protocol import policy_table_trial
+def _evaluate_column(policy: Any, trial: Trial, params: PolicyParams, perturbed: bool) -> dict[str, Any]:
+    """One column of a Table 4.1 cell; for GLiDE+Planning also its planner's calls over these rollouts."""
+    from steer_envs.baselines.glide import GlidePlanningPolicy, evaluate_polygon_policy
 
-    _num_modes(trial.env)
-    if trial.method not in METHODS:
-        raise ValueError(f"{POLICY_SUITE}: unknown method {trial.method!r}; expected one of {METHODS}")
+    res = evaluate_polygon_policy(
+        policy,
+        str(trial.env),
+        params.layout_seed,
+        n_rollouts=params.n_rollouts,
+        perturbed=perturbed,
+        seed=trial.seed,
+        max_steps=params.max_steps,
+        start=params.start,
+    )
+    if isinstance(policy, GlidePlanningPolicy):
+        res["planner_calls"] = dict(policy.stats)
+        policy.stats = dict.fromkeys(policy.stats, 0)
+    return res
+
+
+def run_policy_trial(trial: Trial) -> TrialResult:
+    """One env x method x training seed: success without and with perturbations (thesis Table 4.1).
+
+    One trained policy, ``n_rollouts`` episodes each without and with the evaluation perturbations
+    (the same start states in both). ``train_seconds``: the classifier's training for the GLiDE
+    methods (a cached classifier reports its original training time), the MLP's for BC.
+    """
+    from steer_envs.baselines.glide import make_polygon_policy
+
+    check_trial(trial, envs=ENV_IDS, methods=METHODS)
     params = PolicyParams.from_json(trial.params)
     setup = params.setup(bc=params.bc(), planner=params.planner())
     with single_threaded():
-        res = policy_table_trial(
-            str(trial.env),
-            params.layout_seed,
-            str(trial.method),
-            params.n_rollouts,
-            trial.seed,
-            setup=setup,
-            cache_dir=params.cache,
-            max_steps=params.max_steps,
-            start=params.start,
+        policy, info = make_polygon_policy(
+            str(trial.method), str(trial.env), params.layout_seed, trial.seed, setup=setup, cache_dir=params.cache
         )
+        began = time.perf_counter()
+        clean = _evaluate_column(policy, trial, params, False)
+        perturbed = _evaluate_column(policy, trial, params, True)
+        eval_seconds = time.perf_counter() - began
     metrics = {
-        "success": res["success"],
-        "success_perturbed": res["success_perturbed"],
-        "violation": res["unperturbed"]["violation_rate"],
-        "violation_perturbed": res["perturbed"]["violation_rate"],
-        "timeout_perturbed": res["perturbed"]["timeout_rate"],
-        "train_seconds": res["train_seconds"],
-        "eval_seconds": res["eval_seconds"],
+        **evaluation_metrics(clean, perturbed),
+        "timeout_perturbed": perturbed["timeout_rate"],
+        "train_seconds": float(info.get("train_seconds", 0.0)),
+        "eval_seconds": eval_seconds,
     }
-    extra = {
-        "unperturbed": res["unperturbed"],
-        "perturbed": res["perturbed"],
-        "classifier_cached": res["classifier_cached"],
-    }
+    extra = {"unperturbed": clean, "perturbed": perturbed, "classifier_cached": bool(info.get("cached", False))}
     return TrialResult(metrics, extra)
-
-
-def _policy_references() -> tuple[Reference, ...]:
-    refs = []
-    for method, by_modes in THESIS_TABLE_4_1.items():
-        for k, (plain, perturbed) in by_modes.items():
-            env = f"steer_envs/PolygonNav-{k}Mode-v0"
-            refs.append(Reference("success", plain, env=env, method=method, source="thesis Table 4.1"))
-            refs.append(Reference("success_perturbed", perturbed, env=env, method=method, source="thesis Table 4.1"))
-    return tuple(refs)
 
 
 GLIDE_POLYGON = register_suite(
@@ -483,15 +468,11 @@ GLIDE_POLYGON = register_suite(
                 "episodes out of steps (neither success nor an invalid transition), +perturb",
                 higher_is_better=False,
             ),
-            Metric(
-                "train_seconds",
+            train_seconds(
                 "training wall time (s): the classifier for GLiDE (as first trained), the MLP for BC",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".1f",
                 goal=TRAIN_SECONDS_GOAL,
             ),
-            Metric("eval_seconds", "both evaluations' wall time (s)", kind="timing", higher_is_better=False, fmt=".1f"),
+            EVAL_SECONDS,
         ),
         run_trial=run_policy_trial,
         envs=ENV_IDS,
@@ -500,7 +481,7 @@ GLIDE_POLYGON = register_suite(
         trials_param="n_rollouts",
         default_seeds=1,
         generate=_plan_policy,
-        references=_policy_references(),
+        references=success_references(THESIS_TABLE_4_1, "steer_envs/PolygonNav-{}Mode-v0".format, "thesis Table 4.1"),
         findings=policy_findings,
     )
 )

@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.suite import Suite
+from steer_envs.utils.plots import new_figure, save_figure
 
 #: one colour per mode index (up to 6 modes).
 MODE_COLORS = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860")
@@ -59,16 +60,16 @@ def save_mode_strips(labels: Mapping[str, Sequence[Mapping[str, Any]]], task: st
     return save_figure(fig, path)
 
 
-def plot_mode_strips(records: Sequence[Mapping[str, Any]], out_dir: str, *, suite: str) -> list[str]:
+def plot_mode_strips(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """One PNG per task: for each kept demo, the ground truth and every variant's learned modes."""
     by_env: dict[str, dict[str, Any]] = {}
     for r in records:
         labels = r.get("extra", {}).get("labels")
-        if r["config"]["suite"] != suite or not labels:
+        if r["config"]["suite"] != suite.name or not labels:
             continue
         by_env.setdefault(r["config"]["env"], {})[r["config"]["method"]] = labels
     written = []
     for env, variants in sorted(by_env.items()):
         task = env.split("/")[-1].split("-")[0].lower()
-        written.append(str(save_mode_strips(variants, task, env, Path(out_dir) / f"{suite}-{task}-modes.png")))
+        written.append(str(save_mode_strips(variants, task, env, Path(out_dir) / f"{suite.name}-{task}-modes.png")))
     return written

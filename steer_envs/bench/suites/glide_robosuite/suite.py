@@ -3,7 +3,7 @@
 * ``glide-robosuite-data``: one trial = one task x one demo index (the seed):
   the expert's demo from that reset seed and, for the first ``replay_demos``
   indices, ``replays_per_demo`` perturbed replays, written as one shard under
-  ``cache_dir`` (:mod:`~steer_envs.bench.suites.glide_robosuite.data`). Running
+  ``cache_dir`` (:mod:`~steer_envs.data.robosuite_shards`). Running
   it through ``steer-bench run`` gives generation in parallel (``--workers``,
   ``--executor ray``), resumption (a finished shard is never rebuilt) and the
   runner's progress bar. The other two suites build any missing shard
@@ -26,14 +26,16 @@ ValueError: glide-robosuite-grounding: parameter 'epochs' must be >= 1, got 0
 
 from __future__ import annotations
 
-import os
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar
 
+from steer_envs.bench.metrics import BUILT, EVAL_SECONDS, evaluation_metrics, success_references, train_seconds
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.trials import check_trial
+from steer_envs.data.shards import default_cache_dir
 from steer_envs.utils.threads import single_threaded
 
 DATA_SUITE = "glide-robosuite-data"
@@ -45,7 +47,9 @@ TASK_OF_ENV: Mapping[str, str] = {
     "steer_envs/Square-v0": "square",
 }
 ENV_IDS: tuple[str, ...] = tuple(TASK_OF_ENV)
-#: thesis Table 4.2 (the same numbers as ``protocol.THESIS_TABLE_4_2``; kept here so declaring imports no torch).
+ENV_OF_TASK: Mapping[str, str] = {task: env for env, task in TASK_OF_ENV.items()}
+#: thesis Table 4.2; its variants are the library's ``baselines.glide.ARM_VARIANTS`` (repeated here, like the
+#: methods below, so declaring the suites imports no torch).
 THESIS_TABLE_4_2: Mapping[str, Mapping[str, float]] = {
     "full": {"can": 0.83, "lift": 0.83, "square": 0.67},
     "no_dynamics": {"can": 0.67, "lift": 0.75, "square": 0.46},
@@ -60,12 +64,6 @@ THESIS_TABLE_4_3: Mapping[str, Mapping[str, tuple[float, float]]] = {
     "glide_bc": {"can": (0.85, 0.40), "lift": (0.99, 0.39), "square": (0.25, 0.15)},
 }
 METHODS: tuple[str, ...] = tuple(THESIS_TABLE_4_3)
-
-
-def default_cache_dir() -> str:
-    """``$XDG_CACHE_HOME/steer-envs/glide-robosuite`` (``~/.cache`` when unset)."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return str(Path(root) / "steer-envs" / "glide-robosuite")
 
 
 def _task(env: str | None) -> str:
@@ -97,11 +95,13 @@ class DataParams(SuiteParams):
 
     @property
     def cache(self) -> str:
-        return self.cache_dir or default_cache_dir()
+        from steer_envs.data.robosuite_shards import CACHE_NAME
+
+        return self.cache_dir or str(default_cache_dir(CACHE_NAME))
 
     def shard(self, task: str, index: int) -> Any:
-        """The :class:`~steer_envs.bench.suites.glide_robosuite.data.ShardSettings` of demo ``index`` of ``task``."""
-        from steer_envs.bench.suites.glide_robosuite.data import ShardSettings
+        """The :class:`~steer_envs.data.robosuite_shards.ShardSettings` of demo ``index`` of ``task``."""
+        from steer_envs.data.robosuite_shards import ShardSettings
 
         return ShardSettings(
             task,
@@ -114,7 +114,7 @@ class DataParams(SuiteParams):
 
     def trajectories(self, task: str, n_demos: int) -> list[Any]:
         """Every trajectory of ``task``'s first ``n_demos`` shards (missing ones built here)."""
-        from steer_envs.bench.suites.glide_robosuite.data import read_shards
+        from steer_envs.data.robosuite_shards import read_shards
 
         return read_shards(self.cache, [self.shard(task, i) for i in range(n_demos)])
 
@@ -146,9 +146,10 @@ class GroundingParams(DataParams):
             )
 
     def setup(self) -> Any:
-        from steer_envs.bench.suites.glide_robosuite.protocol import GroundingSetup
+        """The :class:`~steer_envs.baselines.glide.arm_grounding.ArmGroundingSetup` of these parameters."""
+        from steer_envs.baselines.glide import ArmGroundingSetup
 
-        return GroundingSetup(
+        return ArmGroundingSetup(
             n_demos=self.n_demos,
             replay_demos=self.replay_demos,
             replays_per_demo=self.replays_per_demo,
@@ -166,7 +167,7 @@ def run_data_trial(trial: Trial) -> TrialResult:
     """One task x demo index: build (or find) its shard."""
     import numpy as np
 
-    from steer_envs.bench.suites.glide_robosuite.data import ensure_shard
+    from steer_envs.data.robosuite_shards import ensure_shard
 
     task = _task(trial.env)
     params = DataParams.from_json(trial.params)
@@ -193,7 +194,7 @@ register_suite(
             Metric("demo_success", "the expert's demo succeeded"),
             Metric("replays", "perturbed replays in the shard (truncated copies not counted)", fmt=".0f"),
             Metric("replay_success", "replays labelled successful", fmt=".2f"),
-            Metric("built", "the shard was built by this trial (0: found on disk)", kind="timing", fmt=".0f"),
+            BUILT,
         ),
         run_trial=run_data_trial,
         envs=ENV_IDS,
@@ -206,16 +207,15 @@ register_suite(
 # ------------------------------------------------------------ glide-robosuite-grounding
 def run_grounding_trial(trial: Trial) -> TrialResult:
     """One task x variant x training seed: accuracy of the learned modes on every demo sample."""
-    from steer_envs.bench.suites.glide_robosuite.protocol import grounding
+    from steer_envs.baselines.glide import evaluate_arm_grounding
 
     task = _task(trial.env)
-    if trial.method not in VARIANTS:
-        raise ValueError(f"{GROUNDING_SUITE}: unknown variant {trial.method!r}; expected one of {VARIANTS}")
+    check_trial(trial, methods=VARIANTS, method_word="variant")
     params = GroundingParams.from_json(trial.params)
     keep = 3 if trial.seed < params.plot_seeds else 0
     with single_threaded():
         trajs = params.trajectories(task, params.n_demos)
-        res = grounding(task, str(trial.method), trajs, seed=trial.seed, setup=params.setup(), keep=keep)
+        res = evaluate_arm_grounding(task, str(trial.method), trajs, seed=trial.seed, setup=params.setup(), keep=keep)
     metrics = {
         "accuracy": res["accuracy"],
         "demo_modes_found": sum(a is not None and a > 0.5 for a in res["accuracy_per_mode"])
@@ -253,13 +253,6 @@ def grounding_findings(table: Any) -> list[Finding]:
     return [first, second]
 
 
-def plot_grounding(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
-    """Learned vs true modes along the first demos of each task (the full loss and k-means)."""
-    from steer_envs.bench.suites.glide_robosuite.plots import plot_mode_strips
-
-    return plot_mode_strips(records, out_dir, suite=suite.name)
-
-
 register_suite(
     Suite(
         name=GROUNDING_SUITE,
@@ -276,13 +269,7 @@ register_suite(
                 higher_is_better=False,
                 fmt=".4f",
             ),
-            Metric(
-                "train_seconds",
-                "classifier training (or k-means) wall time (s)",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".1f",
-            ),
+            train_seconds("classifier training (or k-means) wall time (s)"),
         ),
         run_trial=run_grounding_trial,
         envs=ENV_IDS,
@@ -295,7 +282,7 @@ register_suite(
             for variant, by_task in THESIS_TABLE_4_2.items()
             for env, acc in ((e, by_task[_task(e)]) for e in ENV_IDS)
         ),
-        plot=plot_grounding,
+        plot="steer_envs.bench.suites.glide_robosuite.plots:plot_mode_strips",
         findings=grounding_findings,
     )
 )
@@ -322,14 +309,14 @@ class PolicyParams(GroundingParams):
     ``"public_code_gripper"``: the same schedule, but half of the perturbations
     force the gripper open for 5-20 steps instead (the wrapper's split and
     range), as the thesis's text ("displace the end-effector or open the
-    gripper") and issue #16 name both kinds.
+    gripper") names both kinds.
     ``perturb_after_mode_change``: the "+p" perturbations start only once the
     episode's ground-truth mode has first changed (the arm has left reach;
     :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
     ``after_mode_change``); off, most of them land during reach.
     ``bc_hidden`` / ``bc_steps``: the hidden layers and training steps of every
     BC MLP (BC's, and GLiDE+BC's one per mode;
-    :class:`~steer_envs.bench.suites.glide_robosuite.policies.ArmBCSettings`).
+    :class:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings`).
     """
 
     suite_name: ClassVar[str] = POLICY_SUITE
@@ -361,51 +348,64 @@ class PolicyParams(GroundingParams):
         return out
 
     def bc_settings(self) -> Any:
-        """The :class:`~steer_envs.bench.suites.glide_robosuite.policies.ArmBCSettings` of these parameters."""
-        from steer_envs.bench.suites.glide_robosuite.policies import ArmBCSettings
+        """The :class:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings` of these parameters."""
+        from steer_envs.baselines.glide import ArmBCSettings
 
         return ArmBCSettings(hidden=tuple(self.bc_hidden), steps=self.bc_steps)
 
 
+def _evaluate(task: str, policy: Any, predictor: Any, params: PolicyParams, perturbed: bool) -> dict[str, Any]:
+    """``n_episodes`` of the registered env of ``task``, wrapped in the "+p" perturbations when ``perturbed``."""
+    import gymnasium as gym
+
+    from steer_envs.baselines.glide import evaluate_arm_policy
+    from steer_envs.data.robosuite_replays import ENV_IDS as ARM_ENV_IDS
+    from steer_envs.wrappers.arm_perturbation import ArmPerturbationWrapper
+
+    env: Any = gym.make(ARM_ENV_IDS[task])
+    if perturbed:
+        env = ArmPerturbationWrapper(env, **params.perturbation_settings())
+    try:
+        return evaluate_arm_policy(env, policy, predictor=predictor, n_episodes=params.n_episodes)
+    finally:
+        env.close()
+
+
+def _predictor(task: str, trial: Trial, params: PolicyParams, trajs: list[Any], demos: list[Any]) -> tuple[Any, Any]:
+    """What GLiDE+BC segments the demos by (:data:`PREDICTORS`), and the grounding's training time."""
+    from steer_envs.baselines.glide import GROUND_TRUTH, KMeansModes, train_arm_predictor
+
+    if trial.method == "glide_bc" and params.predictor == "classifier":
+        predictor, info = train_arm_predictor(task, "full", trajs, seed=trial.seed, setup=params.setup())
+        return predictor, info["train_seconds"]
+    if trial.method == "glide_bc" and params.predictor == "kmeans":
+        return KMeansModes(task, demos, seed=trial.seed), None
+    return GROUND_TRUTH, None
+
+
 def run_policy_trial(trial: Trial) -> TrialResult:
     """One task x method x training seed: success without and with the "+p" perturbations (thesis Table 4.3)."""
-    from steer_envs.bench.suites.glide_robosuite.data import split
-    from steer_envs.bench.suites.glide_robosuite.policies import GROUND_TRUTH, KMeansModes, policy_trial
-    from steer_envs.bench.suites.glide_robosuite.protocol import train_predictor
+    from steer_envs.baselines.glide import train_arm_policy
+    from steer_envs.data.robosuite_replay_sets import split_demos
 
     task = _task(trial.env)
-    if trial.method not in METHODS:
-        raise ValueError(f"{POLICY_SUITE}: unknown method {trial.method!r}; expected one of {METHODS}")
+    check_trial(trial, methods=METHODS)
     params = PolicyParams.from_json(trial.params)
     with single_threaded():
         trajs = params.trajectories(task, params.n_demos)
-        demos, _ = split(trajs)
-        predictor: Any = GROUND_TRUTH
-        grounding_seconds = None
-        if trial.method == "glide_bc" and params.predictor == "classifier":
-            predictor, info = train_predictor(task, "full", trajs, seed=trial.seed, setup=params.setup())
-            grounding_seconds = info["train_seconds"]
-        elif trial.method == "glide_bc" and params.predictor == "kmeans":
-            predictor = KMeansModes(task, demos, seed=trial.seed)
-        res = policy_trial(
-            task,
-            str(trial.method),
-            trial.seed,
-            demos=demos,
-            predictor=predictor,
-            n_episodes=params.n_episodes,
-            perturbed="both",
-            perturbation=params.perturbation_settings(),
-            bc=params.bc_settings(),
+        demos, _ = split_demos(trajs)
+        predictor, grounding_seconds = _predictor(task, trial, params, trajs, demos)
+        start = time.perf_counter()
+        policy = train_arm_policy(
+            task, str(trial.method), trial.seed, demos=demos, predictor=predictor, bc=params.bc_settings()
         )
-    clean, pert = res["eval"]["clean"], res["eval"]["perturbed"]
+        train_seconds = time.perf_counter() - start
+        clean = _evaluate(task, policy, predictor, params, perturbed=False)
+        pert = _evaluate(task, policy, predictor, params, perturbed=True)
     metrics = {
-        "success": clean["success_rate"],
-        "success_perturbed": pert["success_rate"],
+        **evaluation_metrics(clean, pert),
         "success_drop": clean["success_rate"] - pert["success_rate"],
-        "violation": clean["violation_rate"],
-        "violation_perturbed": pert["violation_rate"],
-        "train_seconds": res["train_seconds"] + (grounding_seconds or 0.0),
+        "train_seconds": train_seconds + (grounding_seconds or 0.0),
         "eval_seconds": clean["eval_seconds"] + pert["eval_seconds"],
     }
     extra = {
@@ -449,17 +449,6 @@ def policy_findings(table: Any) -> list[Finding]:
     return [Finding(claim, holds, detail)]
 
 
-def _policy_references() -> tuple[Reference, ...]:
-    refs = []
-    for method, by_task in THESIS_TABLE_4_3.items():
-        for env in ENV_IDS:
-            plain, perturbed = by_task[_task(env)]
-            refs.append(Reference("success", plain, env=env, method=method, source="thesis Table 4.3"))
-            refs.append(Reference("success_perturbed", perturbed, env=env, method=method, source="thesis Table 4.3"))
-            refs.append(Reference("success_drop", plain - perturbed, env=env, method=method, source="thesis Table 4.3"))
-    return tuple(refs)
-
-
 register_suite(
     Suite(
         name=POLICY_SUITE,
@@ -473,14 +462,8 @@ register_suite(
             Metric("success_drop", "success lost to the perturbations", higher_is_better=False, fmt=".2f"),
             Metric("violation", "episodes with an invalid mode transition, no perturbations", higher_is_better=False),
             Metric("violation_perturbed", "episodes with an invalid mode transition, +p", higher_is_better=False),
-            Metric(
-                "train_seconds",
-                "training wall time (s): BC, or GLiDE's classifier plus the per-mode BCs",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".1f",
-            ),
-            Metric("eval_seconds", "both evaluations' wall time (s)", kind="timing", higher_is_better=False, fmt=".1f"),
+            train_seconds("training wall time (s): BC, or GLiDE's classifier plus the per-mode BCs"),
+            EVAL_SECONDS,
         ),
         run_trial=run_policy_trial,
         envs=ENV_IDS,
@@ -488,7 +471,7 @@ register_suite(
         params=PolicyParams(),
         trials_param="n_episodes",
         default_seeds=1,
-        references=_policy_references(),
+        references=success_references(THESIS_TABLE_4_3, ENV_OF_TASK.__getitem__, "thesis Table 4.3", drop=True),
         findings=policy_findings,
     )
 )

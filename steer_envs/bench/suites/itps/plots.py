@@ -20,20 +20,19 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
-from steer_envs.bench.report import summarize
+from steer_envs.bench.report import suite_table
 from steer_envs.bench.suite import Suite
-from steer_envs.bench.suites.itps.suite import ENV_ID, METHODS, TABLE_2_1
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 __all__ = ["plot_itps"]
 
 
-def _maze_walls(records: Sequence[Mapping[str, Any]]) -> np.ndarray:
+def _maze_walls(records: Sequence[Mapping[str, Any]], default_env: str) -> np.ndarray:
     import gymnasium as gym
 
     import steer_envs  # noqa: F401
 
-    env_id = next((r["config"]["env"] for r in records if r["config"].get("env")), ENV_ID)
+    env_id = next((r["config"]["env"] for r in records if r["config"].get("env")), default_env)
     env: Any = gym.make(env_id).unwrapped
     try:
         return np.array(env.grid.walls)
@@ -100,8 +99,9 @@ def _plans_key() -> list[Any]:
 def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """Trade-off plot (Avg/Min L2 vs collision, thesis numbers hollow) and the qualitative grid."""
     written: list[str] = []
-    tables = [t for t in summarize(records) if t.suite == suite.name]
-    rows = [r for r in tables[0].rows if r.stats.get("avg_l2") is not None] if tables else []
+    table = suite_table(suite, records)
+    rows = [r for r in table.rows if r.stats.get("avg_l2") is not None] if table else []
+    thesis = {(ref.method, ref.metric): ref.value for ref in suite.references}
     if rows:
         fig = new_figure(6.5, 4.5)
         ax = fig.add_subplot()
@@ -112,9 +112,9 @@ def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) 
             ax.scatter([coll], [avg], color=color, marker=marker, s=60, label=r.method)
             ax.scatter([coll], [mn], color=color, marker=marker, s=25, alpha=0.6)
             ax.plot([coll, coll], [mn, avg], color=color, linewidth=1, alpha=0.6)
-            ref = TABLE_2_1.get(r.method or "")
-            if ref is not None:
-                ax.scatter([ref[2]], [ref[1]], facecolors="none", edgecolors=color, marker=marker, s=60)
+            ref_coll, ref_avg = thesis.get((r.method, "collision")), thesis.get((r.method, "avg_l2"))
+            if ref_coll is not None and ref_avg is not None:
+                ax.scatter([ref_coll], [ref_avg], facecolors="none", edgecolors=color, marker=marker, s=60)
         ax.set_xlabel("collision rate (fraction of the batch)")
         ax.set_ylabel("L2 to sketch / maze extent (big: Avg, small: Min)")
         ax.set_title("itps-maze2d: alignment vs. collision (hollow: thesis Table 2.1)", fontsize=10)
@@ -123,9 +123,11 @@ def plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) 
         written.append(str(save_figure(fig, Path(out_dir) / f"{suite.name}_tradeoff.png")))
     with_plans = [r for r in records if "plans" in r.get("extra", {})]
     if with_plans:
-        methods = [m for m in METHODS if any(r["config"]["method"] == m for r in with_plans)]
+        listed = suite.methods() if callable(suite.methods) else suite.methods
+        methods = [m for m in listed if any(r["config"]["method"] == m for r in with_plans)]
         seeds = sorted({int(r["seed"]) for r in with_plans})[:3]
-        walls = _maze_walls(with_plans)
+        envs = suite.envs() if callable(suite.envs) else suite.envs
+        walls = _maze_walls(with_plans, str(envs[0]))
         fig = new_figure(max(2.4 * len(methods) + 0.5, 6.5), 1.9 * len(seeds) + 1.2)
         axes = fig.subplots(len(seeds), len(methods), squeeze=False)
         for i, seed in enumerate(seeds):

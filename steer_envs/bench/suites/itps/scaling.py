@@ -5,7 +5,7 @@ Table 2.1's collision findings need a DP that rarely collides unsteered (ITPS:
 suite measures the trade: one method is one *pilot*, ``w{W}@{S}M``, a DP of
 down dims ``(W, 2W, 4W)`` (the ``cpu`` preset otherwise) trained on ``S``
 million samples of the shipped random walk, then scored on ``eval_starts``
-starts of the ITPS protocol (:func:`~steer_envs.bench.suites.itps.protocol.steering_trial`)
+starts of the ITPS protocol (:func:`~steer_envs.steering.maze.steering_trial`)
 with RS, PR, BI, GD and SS. Pilots train resumably under ``cache_dir``
 (``--run-dir`` of the training CLI): a killed run continues where it stopped,
 a finished pilot is only re-scored. Seeds are training seeds.
@@ -24,7 +24,6 @@ import hashlib
 import itertools
 import json
 import math
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +33,7 @@ import numpy as np
 
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
+from steer_envs.data.shards import default_cache_dir
 from steer_envs.utils.threads import limit_threads
 
 __all__ = ["ITPS_MAZE2D_SCALING", "PILOTS", "ScalingParams", "parse_pilot", "pilot_checkpoint"]
@@ -62,12 +62,6 @@ def parse_pilot(name: str) -> tuple[int, float]:
     return out
 
 
-def default_cache_dir() -> str:
-    """``$XDG_CACHE_HOME/steer-envs/itps-maze2d-scaling`` (``~/.cache`` when unset)."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return str(Path(root) / "steer-envs" / SUITE_NAME)
-
-
 @dataclass(frozen=True)
 class ScalingParams(SuiteParams):
     """Parameters of ``itps-maze2d-scaling``.
@@ -80,7 +74,8 @@ class ScalingParams(SuiteParams):
     starts scored per pilot, ``batch`` plans per steering call,
     ``through_wall`` the share of sketches through walls (as ``itps-maze2d``);
     ``torch_threads`` per trial process; ``cache_dir`` holds the data and the
-    pilots' run folders (default :func:`default_cache_dir`); ``walk_steps``
+    pilots' run folders (default: :func:`~steer_envs.data.shards.default_cache_dir`
+    of the suite's name); ``walk_steps``
     raw steps of the random walk (the shipped checkpoints': 1M, seed 0).
     """
 
@@ -108,18 +103,18 @@ class ScalingParams(SuiteParams):
     @property
     def cache(self) -> Path:
         """The folder of the data and the pilots' runs."""
-        return Path(self.cache_dir or default_cache_dir())
+        return Path(self.cache_dir) if self.cache_dir else default_cache_dir(SUITE_NAME)
 
 
 def _dataset(cache: Path, steps: int) -> Any:
     """The shipped checkpoints' random walk (``steps`` raw steps, seed 0), generated once into ``cache``."""
+    from steer_envs.data.datasets import load_dataset
     from steer_envs.data.maze_random_walk import generate_random_walk, save_random_walk
-    from steer_envs.data.trajectories import load_trajectories
 
     path = cache / f"maze2d-large-randomwalk-{steps}-seed0.npz"
     if not path.exists():
         save_random_walk(generate_random_walk("large", steps, seed=0, progress=False), path)
-    return load_trajectories(path)
+    return load_dataset(path)
 
 
 def pilot_checkpoint(params: ScalingParams, pilot: str, seed: int) -> Path:
@@ -154,8 +149,8 @@ def run_scaling_trial(trial: Trial) -> TrialResult:
     """Train (or load) one pilot, then score it with every DP sampler on the ITPS starts."""
     from steer_envs.baselines.diffusion import DiffusionPolicy
     from steer_envs.baselines.training.trainer import sidecar_path
-    from steer_envs.bench.suites.itps.protocol import steering_trial
     from steer_envs.bench.suites.itps.suite import table_2_1_checks
+    from steer_envs.steering.maze import steering_trial
 
     params = ScalingParams.from_json(trial.params)
     pilot = str(trial.method)
@@ -167,11 +162,11 @@ def run_scaling_trial(trial: Trial) -> TrialResult:
         scores: dict[str, dict[str, list[float]]] = {s: {"min_l2": [], "avg_l2": [], "collision": []} for s in SAMPLERS}
         for start in range(params.eval_starts):
             for sampler in SAMPLERS:
-                result = steering_trial(
+                result, _ = steering_trial(
                     str(trial.env), start, policy, sampler, batch=params.batch, through_wall=params.through_wall
                 )
                 for key, values in scores[sampler].items():
-                    values.append(float(result.metrics[key]))  # type: ignore[arg-type]
+                    values.append(float(result[key]))  # type: ignore[arg-type]
     mean = {s: {k: float(np.mean(v)) for k, v in m.items()} for s, m in scores.items()}
     metrics: dict[str, float | None] = {
         "samples_m": millions,
@@ -245,8 +240,8 @@ def scaling_findings(table: Any) -> list[Finding]:
 
 
 def _plot(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
-    from steer_envs.bench.plots import new_figure, save_figure
     from steer_envs.bench.report import summarize
+    from steer_envs.utils.plots import new_figure, save_figure
 
     tables = [t for t in summarize(records) if t.suite == suite.name]
     if not tables:

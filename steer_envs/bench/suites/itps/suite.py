@@ -1,7 +1,7 @@
 """``itps-maze2d``: thesis Table 2.1 — steering DP and ACT with sketches in Maze2D-Large.
 
 One trial = one random start location (the seed) x one method (policy x
-sampler), run by :func:`~steer_envs.bench.suites.itps.protocol.steering_trial`:
+sampler), run by :func:`~steer_envs.steering.maze.steering_trial`:
 the agent is reset at a random free cell, a simulated user draws a sketch from
 there (a share of them through walls), and the method samples a batch of 32
 plans. Every method of a seed sees the same start, the same sketch and the
@@ -35,8 +35,8 @@ plans within bfloat16 rounding;
 :meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`). The
 default, ``"fastest"``, is ``"openvino"`` where OpenVINO is installed, else
 ``"onnx"`` (or ``"trace"``); ``--param dp_accelerate=none`` gives eager's plans.
-The goal on ``latency_ms`` is 250 ms a call (issue #19's target for SS on one
-core).
+The goal on ``latency_ms`` is 250 ms a call (the interactive-latency target for SS
+on one core).
 
 Policies come from :func:`steer_envs.baselines.pretrained.load_pretrained`
 (``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the
@@ -59,24 +59,19 @@ ValueError: itps-maze2d: parameter 'through_wall' must be in [0, 1], got 1.5
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
+from steer_envs.bench.findings import listing
+from steer_envs.bench.metrics import table_references
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import (
-    Finding,
-    Metric,
-    Reference,
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    TrialResult,
-    register_suite,
-)
-from steer_envs.bench.suites.itps.protocol import POLICY_UNAVAILABLE, load_policy, steering_trial
+from steer_envs.bench.policies import PRETRAINED_LOADER
+from steer_envs.bench.suite import Finding, Metric, Suite, TrialPlan, TrialResult, register_suite
 from steer_envs.utils.threads import limit_threads
+
+if TYPE_CHECKING:
+    from steer_envs.bench.suite import Reference, Trial, TrialRequest
 
 SUITE_NAME = "itps-maze2d"
 ENV_ID = "steer_envs/Maze2D-Large-v0"
@@ -84,8 +79,6 @@ DP_SAMPLERS: tuple[str, ...] = ("RS", "PR", "OP", "BI", "GD", "SS")
 ACT_SAMPLERS: tuple[str, ...] = ("RS", "PR", "OP")
 METHODS: tuple[str, ...] = tuple(f"DP-{s}" for s in DP_SAMPLERS) + tuple(f"ACT-{s}" for s in ACT_SAMPLERS)
 _DIFFUSION_ONLY = frozenset({"BI", "GD", "SS"})
-#: the loader of the committed checkpoints
-PRETRAINED_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
 
 #: thesis Table 2.1: method -> (Min L2, Avg L2, Collision)
 TABLE_2_1: dict[str, tuple[float, float, float]] = {
@@ -142,8 +135,11 @@ class ItpsParams(SuiteParams):
         """The policy ``kind`` (``"dp"`` / ``"act"``) these parameters name (cached per process)."""
         if kind not in ("dp", "act"):
             raise ValueError(f"{SUITE_NAME}: policy kind must be 'dp' or 'act', got {kind!r}")
+        from steer_envs.baselines.pretrained import shared_policy
+
         accelerate = self.dp_accelerate if kind == "dp" else "none"
-        return load_policy(getattr(self, f"{kind}_loader"), kind, getattr(self, f"{kind}_checkpoint"), accelerate)
+        loader, checkpoint = getattr(self, f"{kind}_loader"), getattr(self, f"{kind}_checkpoint")
+        return shared_policy(kind, checkpoint, accelerate, loader=loader, owner="dp_accelerate")
 
 
 def split_method(method: str) -> tuple[str, str]:
@@ -155,6 +151,7 @@ def split_method(method: str) -> tuple[str, str]:
 
 
 def _plan_itps(suite: Suite, request: TrialRequest) -> TrialPlan:
+    from steer_envs.baselines.pretrained import POLICY_UNAVAILABLE
     from steer_envs.core.policy import DiffusionPolicyLike
 
     params: ItpsParams = suite.resolve_params(request.params, request.trials, base=request.base)
@@ -187,10 +184,12 @@ def _plan_itps(suite: Suite, request: TrialRequest) -> TrialPlan:
 
 def run_itps_trial(trial: Trial) -> TrialResult:
     """One start location x one method (see the module docstring)."""
+    from steer_envs.steering.maze import steering_trial
+
     params = ItpsParams.from_json(trial.params)
     with limit_threads(blas_threads=None, torch_threads=params.torch_threads or None):
         kind, sampler = split_method(str(trial.method))
-        return steering_trial(
+        metrics, extra = steering_trial(
             str(trial.env),
             trial.seed,
             params.policy(kind),
@@ -200,12 +199,7 @@ def run_itps_trial(trial: Trial) -> TrialResult:
             latency_repeats=params.latency_repeats,
             keep_plans=trial.seed < params.plot_seeds,
         )
-
-
-def _plot_itps(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.itps.plots import plot_itps
-
-    return plot_itps(suite, records, out_dir)
+    return TrialResult(metrics, extra)
 
 
 #: Table 2.1's qualitative findings, in the order :func:`table_2_1_checks` returns their verdicts
@@ -251,7 +245,7 @@ def itps_findings(table: Any) -> list[Finding]:
         return None if values is None else {m.removeprefix("DP-"): v for m, v in values.items()}
 
     def fmt(values: Mapping[str, float] | None, *methods: str) -> str:
-        return ", ".join(f"{m[3:]} {values[m]:.3f}" for m in methods) if values else ""
+        return listing(values, ".3f", strip="DP-", names=methods) if values else ""
 
     verdicts = table_2_1_checks(by_sampler(min_l2), by_sampler(avg_l2), by_sampler(coll))
     details = ["", fmt(coll, "DP-SS", "DP-RS"), fmt(coll, "DP-GD", "DP-BI", "DP-SS"), ""]
@@ -267,11 +261,10 @@ def itps_findings(table: Any) -> list[Finding]:
 
 
 def _references() -> tuple[Reference, ...]:
-    refs = []
-    for method, (mn, avg, coll) in TABLE_2_1.items():
-        for metric, value in (("min_l2", mn), ("avg_l2", avg), ("collision", coll)):
-            refs.append(Reference(metric, value, env=ENV_ID, method=method, source="thesis Table 2.1"))
-    return tuple(refs)
+    table = {
+        method: dict(zip(("min_l2", "avg_l2", "collision"), row, strict=True)) for method, row in TABLE_2_1.items()
+    }
+    return table_references(table, env=ENV_ID, source="thesis Table 2.1")
 
 
 ITPS_MAZE2D = register_suite(
@@ -309,7 +302,7 @@ ITPS_MAZE2D = register_suite(
         references=_references(),
         quick={"plot_seeds": 2},
         quick_seeds=4,
-        plot=_plot_itps,
+        plot="steer_envs.bench.suites.itps.plots:plot_itps",
         findings=itps_findings,
     )
 )

@@ -22,16 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
-from steer_envs.bench.report import summarize
+from steer_envs.bench.plots import quadrant_figure
 from steer_envs.bench.suite import Suite
+from steer_envs.utils.plots import figure_legend, key_line, new_figure, save_figure
 
 __all__ = ["plot_blockstack"]
 
 _CUBE_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:orange")
 #: the picked plan's (colour, line style) when aligned / misaligned: no cube colour means a verdict
 _ALIGNED, _MISALIGNED = ("tab:purple", "-"), ("tab:brown", "-.")
-_QUADRANTS = (("AS", "tab:green"), ("AF", "tab:olive"), ("MS", "tab:cyan"), ("MF", "tab:gray"))
 
 
 def _switch(plan: np.ndarray) -> int | None:
@@ -68,7 +67,7 @@ def _plans_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: s
     with_plans = [r for r in records if r.get("extra", {}).get("plans")]
     if not with_plans:
         return None
-    from steer_envs.bench.suites.itps_blockstack.protocol import METHOD_SAMPLERS
+    from steer_envs.steering.blockstack import METHOD_SAMPLERS
 
     methods = [m for m in METHOD_SAMPLERS if any(r["config"]["method"] == m for r in with_plans)]
     seeds = sorted({int(r["seed"]) for r in with_plans})
@@ -106,38 +105,7 @@ def _plans_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: s
     return str(save_figure(fig, Path(out_dir) / f"{suite.name}_plans.png"))
 
 
-def _quadrant_figure(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> str | None:
-    from steer_envs.bench.suites.itps_blockstack.suite import TABLE_2_2
-
-    tables = [t for t in summarize(records) if t.suite == suite.name]
-    rows = [r for r in tables[0].rows if r.stats.get("TA") is not None] if tables else []
-    if not rows:
-        return None
-    fig = new_figure(1.2 * len(rows) + 2.5, 4.0)
-    ax = fig.add_subplot()
-    x = np.arange(len(rows))
-    bottom = np.zeros(len(rows))
-    for name, color in _QUADRANTS:
-        values = np.array([(r.stats[name].mean if r.stats.get(name) else 0.0) or 0.0 for r in rows])  # type: ignore[union-attr]
-        ax.bar(x, values, bottom=bottom, color=color, label=name, width=0.6)
-        bottom += values
-    for i, r in enumerate(rows):
-        ref = TABLE_2_2.get(r.method or "")
-        if ref:
-            ax.scatter([i - 0.15], [ref["TA"]], facecolors="none", edgecolors="black", marker="o", s=45)
-            ax.scatter([i + 0.15], [ref["CS"]], facecolors="none", edgecolors="black", marker="D", s=40)
-    ax.scatter([], [], facecolors="none", edgecolors="black", marker="o", label="thesis TA")
-    ax.scatter([], [], facecolors="none", edgecolors="black", marker="D", label="thesis CS")
-    ax.set_xticks(x, [r.method or "" for r in rows], fontsize=8)
-    ax.set_ylim(0, 1.05)
-    ax.set_ylabel("share of interactions")
-    ax.set_title(f"{suite.name}: aligned / misaligned x success / failure", fontsize=10)
-    figure_legend(fig, ax.get_legend_handles_labels()[0], ncol=3)  # below the axes: the stacks reach 1.0
-    ax.grid(alpha=0.3, axis="y")
-    return str(save_figure(fig, Path(out_dir) / f"{suite.name}_quadrants.png"))
-
-
 def plot_blockstack(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """The figures of the module docstring (those the records can fill)."""
-    written = [_quadrant_figure(suite, records, out_dir), _plans_figure(suite, records, out_dir)]
+    written = [quadrant_figure(suite, records, out_dir), _plans_figure(suite, records, out_dir)]
     return [w for w in written if w is not None]

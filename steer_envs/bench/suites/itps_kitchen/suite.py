@@ -3,11 +3,11 @@
 * ``itps-kitchen-data``: one trial = one episode seed: the scripted expert's
   skills from that reset seed on the seed's task (``tasks[seed % len(tasks)]``:
   by default even seeds ``microwave``, odd seeds ``sink``), written as one
-  shard under ``cache_dir`` (:mod:`~steer_envs.bench.suites.itps_kitchen.data`).
+  shard under ``cache_dir`` (:mod:`~steer_envs.data.kitchen_shards`).
   Running it through ``steer-bench run`` gives generation in parallel
   (``--workers``, ``--executor ray``), resumption (a finished shard is never
   rebuilt) and the runner's progress bar;
-  :func:`~steer_envs.bench.suites.itps_kitchen.data.skills_dataset` merges the shards.
+  :func:`~steer_envs.data.kitchen_shards.skills_dataset` merges the shards.
 
 ``cache_dir`` defaults to ``$XDG_CACHE_HOME/steer-envs/itps-kitchen``
 (``~/.cache`` when unset). Trials run with one BLAS thread.
@@ -17,13 +17,13 @@
   simulated user steers at each of the first ``max_interactions`` skill
   boundaries by clicking, in the scene camera, the target of a legal skill other
   than the one it watched the policy sample
-  (:mod:`~steer_envs.bench.suites.itps_kitchen.protocol`). Methods (thesis
+  (:func:`~steer_envs.steering.kitchen.kitchen_trial`). Methods (thesis
   Table 2.3): RS (unsteered), GD (point, ``gd_ratio`` 5 at every DDIM step), SS
   (point, ``ss_ratio`` 100, 4 MCMC iterations), OP (a physical push of the end
   effector ``op_distance`` m toward the click, then RS). Seeds alternate the
   thesis's two tasks (``tasks``, default microwave / sink: the policy's merged
   training setting). The policy comes from ``loader`` (the committed
-  checkpoint, :func:`steer_envs.baselines.pretrained.load_kitchen`) or a
+  checkpoint, ``load_pretrained("kitchen")`` of :mod:`steer_envs.baselines.pretrained`) or a
   ``checkpoint`` file; while it is missing the suite runs nothing and says so.
   The ``plot`` hook draws the quadrants beside the thesis's and a rollout strip
   (:mod:`~steer_envs.bench.suites.itps_kitchen.plots`); the guide-ratio sweep of
@@ -42,36 +42,26 @@ ValueError: itps-kitchen: parameter 'gd_ratio' must be >= 0, got -1.0
 
 from __future__ import annotations
 
-import os
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import judge
+from steer_envs.bench.metrics import BUILT, QUADRANT_METRICS, SHARE, table_references
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import (
-    Finding,
-    Metric,
-    Reference,
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    TrialResult,
-    register_suite,
-)
-from steer_envs.utils.threads import limit_threads, single_threaded
+from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
+from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.trials import check_trial
+from steer_envs.data.shards import default_cache_dir
+from steer_envs.utils.threads import single_threaded
 
 __all__ = [
     "DATA_SUITE",
     "ENV_ID",
-    "KITCHEN_LOADER",
     "SUITE_NAME",
     "TABLE_2_3",
     "TASKS",
     "DataParams",
     "SteerParams",
-    "default_cache_dir",
     "run_data_trial",
     "run_steer_trial",
     "steer_findings",
@@ -81,12 +71,6 @@ DATA_SUITE = "itps-kitchen-data"
 ENV_ID = "steer_envs/Kitchen-v0"
 #: the env's tasks (``KITCHEN_TASKS``; spelled out so that registering the suite imports no env module).
 TASKS = ("clean", "microwave", "sink")
-
-
-def default_cache_dir() -> str:
-    """``$XDG_CACHE_HOME/steer-envs/itps-kitchen`` (``~/.cache`` when unset)."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return str(Path(root) / "steer-envs" / "itps-kitchen")
 
 
 @dataclass(frozen=True)
@@ -114,13 +98,12 @@ class DataParams(SuiteParams):
     def __post_init__(self) -> None:
         ok = 0 < len(self.tasks) <= 100 and all(t in TASKS for t in self.tasks)
         self.require("tasks", ok, f"a non-empty list of {TASKS}")
-        self.require_at_least(1, "max_skills")
-        self.require_at_most(1000, "max_skills")
+        self.require_between(1, 1000, "max_skills")
 
     @property
     def cache(self) -> str:
         """The cache folder in use."""
-        return self.cache_dir or default_cache_dir()
+        return self.cache_dir or str(default_cache_dir("itps-kitchen"))
 
     def task_of(self, seed: int) -> str:
         """The task of episode seed ``seed`` (the first of :meth:`tasks_of`)."""
@@ -133,11 +116,10 @@ class DataParams(SuiteParams):
 
 def run_data_trial(trial: Trial) -> TrialResult:
     """One episode seed: build (or find) its shard."""
-    from steer_envs.bench.suites.itps_kitchen.data import ensure_shard, shard_settings
+    from steer_envs.data.kitchen_shards import ensure_shard, shard_settings
     from steer_envs.envs.robosuite.kitchen import kitchen_task
 
-    if trial.env != ENV_ID:
-        raise ValueError(f"{DATA_SUITE}: unknown env {trial.env!r}; expected {ENV_ID!r}")
+    check_trial(trial, envs=(ENV_ID,))
     params = DataParams.from_json(trial.params)
     tasks = params.tasks_of(trial.seed)
     records, paths, goals, built = [], [], [], False
@@ -183,7 +165,7 @@ register_suite(
             Metric("violations", "skills that reported a constraint violation", higher_is_better=False, fmt=".2f"),
             Metric("goal", "the episode reached its task's goal", fmt=".2f"),
             Metric("steps", "control steps per skill", fmt=".0f"),
-            Metric("built", "the shard was built by this trial (0: found on disk)", kind="timing", fmt=".0f"),
+            BUILT,
         ),
         run_trial=run_data_trial,
         envs=(ENV_ID,),
@@ -197,8 +179,8 @@ register_suite(
 
 # ------------------------------------------------------------------ itps-kitchen
 SUITE_NAME = "itps-kitchen"
-#: the loader of the committed Kitchen checkpoint
-KITCHEN_LOADER = "steer_envs.baselines.pretrained:load_kitchen"
+#: the columns of Table 2.3 (:data:`steer_envs.steering.kitchen.METHODS`; spelled out so that registering the suite
+#: imports no robosuite module)
 METHODS = ("DP-RS", "DP-GD", "DP-SS", "DP-OP")
 
 #: thesis Table 2.3 (real toy kitchen, pixel clicks; OP: physical corrections): method -> {metric: share}
@@ -211,7 +193,7 @@ TABLE_2_3: dict[str, dict[str, float]] = {
 
 
 @dataclass(frozen=True)
-class SteerParams(SuiteParams):
+class SteerParams(SkillPolicyParams):
     """Parameters of ``itps-kitchen``.
 
     ``tasks`` the seeds cycle through; ``batch`` plans per sampling call (1,
@@ -223,11 +205,12 @@ class SteerParams(SuiteParams):
     skills at most; ``gd_ratio`` / ``ss_ratio`` GD's and SS's beta (thesis: 5 and
     100); ``op_distance`` OP's push (m); ``plot_seeds`` seeds that keep camera
     frames for the rollout strip; ``torch_threads`` per trial process (0:
-    torch's default); ``loader`` a ``module:function`` returning the policy,
-    ``checkpoint`` a checkpoint file that replaces it.
+    torch's default); ``loader`` a ``module:function`` returning the policy
+    (called with ``"kitchen"``), ``checkpoint`` a checkpoint file that replaces it.
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
+    policy_name: ClassVar[str] = "kitchen"
     tasks: tuple[str, ...] = ("microwave", "sink")
     batch: int = 1
     max_interactions: int = 4
@@ -239,66 +222,28 @@ class SteerParams(SuiteParams):
     torch_threads: int = 1
     #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
     accelerate: str = "auto"
-    loader: str = KITCHEN_LOADER
+    loader: str = PRETRAINED_LOADER
     checkpoint: str = ""
 
     def __post_init__(self) -> None:
         ok = 0 < len(self.tasks) <= 100 and all(t in TASKS for t in self.tasks)
         self.require("tasks", ok, f"a non-empty list of {TASKS}")
-        self.require_at_least(1, "batch")
-        self.require_at_most(4096, "batch")
-        self.require_at_least(1, "max_interactions")
-        self.require_at_most(100, "max_interactions")
-        self.require_at_least(1, "max_skills")
-        self.require_at_most(100, "max_skills")
+        self.require_steering()
+        self.require_between(1, 100, "max_skills")
         self.require("gd_ratio", self.gd_ratio >= 0, ">= 0")
         self.require("ss_ratio", self.ss_ratio >= 0, ">= 0")
         self.require("op_distance", 0 <= self.op_distance <= 1, "in [0, 1] (m)")
-        self.require_at_least(0, "plot_seeds")
-        self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
-        from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS  # here: it imports torch
-
-        self.require_in("accelerate", ACCELERATIONS)
-
-    def policy(self) -> Any:
-        """The frozen skill policy (cached per process)."""
-        from steer_envs.baselines.diffusion.acceleration import accelerated
-        from steer_envs.bench.suites.itps_kitchen.protocol import load_kitchen_policy
-
-        return accelerated(load_kitchen_policy(self.loader, self.checkpoint), self.accelerate, owner="accelerate")
-
-
-def _plan_steer(suite: Suite, request: TrialRequest) -> TrialPlan:
-    from steer_envs.bench.suites.itps_kitchen.protocol import POLICY_UNAVAILABLE
-
-    params: SteerParams = suite.resolve_params(request.params, request.trials, base=request.base)
-    try:
-        params.policy()
-    except POLICY_UNAVAILABLE as exc:
-        note = (
-            f"skipped every method: the Kitchen policy is not available ({type(exc).__name__}: {exc}); "
-            "train it with scripts/train_kitchen_checkpoint.sh or set --param loader=module:function"
-        )
-        return TrialPlan((), (note,))
-    trials = [
-        suite.trial(env, method, seed, params)
-        for env in request.envs
-        for method in request.methods
-        for seed in suite.seed_list(request)
-    ]
-    return TrialPlan(tuple(trials), ())
 
 
 def run_steer_trial(trial: Trial) -> TrialResult:
     """One evaluation scene x one method: a rollout the clicking user steers."""
-    from steer_envs.bench.suites.itps_kitchen.protocol import env_for, kitchen_trial
+    from steer_envs.steering.kitchen import env_for, kitchen_trial
 
-    if trial.env != ENV_ID:
-        raise ValueError(f"{SUITE_NAME}: unknown env {trial.env!r}; expected {ENV_ID!r}")
+    check_trial(trial, envs=(ENV_ID,))
     params = SteerParams.from_json(trial.params)
     task = params.tasks[trial.seed % len(params.tasks)]
-    with limit_threads(blas_threads=1, torch_threads=params.torch_threads or None):
-        return kitchen_trial(
+    with params.thread_limits():
+        metrics, extra = kitchen_trial(
             trial.seed,
             params.policy(),
             str(trial.method),
@@ -312,47 +257,34 @@ def run_steer_trial(trial: Trial) -> TrialResult:
             keep_frames=trial.seed < params.plot_seeds,
             env=env_for(task),
         )
+    return TrialResult(metrics, extra)
 
 
 def steer_findings(table: Any) -> list[Finding]:
     """Table 2.3's findings, checked on a run's summary table."""
     ta, cs, aligned_success = (table.means(m, list(METHODS)) for m in ("TA", "CS", "AS"))
-    findings = []
-    claim = "SS raises aligned success over RS (thesis: +21 points)"
-    holds = None if aligned_success is None else aligned_success["DP-SS"] > aligned_success["DP-RS"]
-    detail = (
-        "" if aligned_success is None else f"AS SS {aligned_success['DP-SS']:.2f} vs RS {aligned_success['DP-RS']:.2f}"
-    )
-    findings.append(Finding(claim, holds, detail))
-    claim = "OP aligns most (highest TA) but fails most (lowest CS)"
-    if ta is None or cs is None:
-        findings.append(Finding(claim, None))
-    else:
-        holds = ta["DP-OP"] >= max(ta.values()) and cs["DP-OP"] <= min(cs.values())
-        detail = ", ".join(f"{m[3:]} TA {ta[m]:.2f} CS {cs[m]:.2f}" for m in METHODS)
-        findings.append(Finding(claim, holds, detail))
-    claim = "GD at beta 5 barely changes alignment (TA within 0.1 of RS's)"
-    holds = None if ta is None else abs(ta["DP-GD"] - ta["DP-RS"]) <= 0.1
-    detail = "" if ta is None else f"TA GD {ta['DP-GD']:.2f} vs RS {ta['DP-RS']:.2f}"
-    findings.append(Finding(claim, holds, detail))
-    return findings
+    return [
+        judge(
+            "SS raises aligned success over RS (thesis: +21 points)",
+            aligned_success,
+            lambda v: v["DP-SS"] > v["DP-RS"],
+            "AS SS {DP-SS:.2f} vs RS {DP-RS:.2f}",
+        ),
+        judge(
+            "OP aligns most (highest TA) but fails most (lowest CS)",
+            {"TA": ta, "CS": cs},
+            lambda v: v["TA"]["DP-OP"] >= max(v["TA"].values()) and v["CS"]["DP-OP"] <= min(v["CS"].values()),
+            lambda v: ", ".join(f"{m[3:]} TA {v['TA'][m]:.2f} CS {v['CS'][m]:.2f}" for m in METHODS),
+        ),
+        judge(
+            "GD at beta 5 barely changes alignment (TA within 0.1 of RS's)",
+            ta,
+            lambda v: abs(v["DP-GD"] - v["DP-RS"]) <= 0.1,
+            "TA GD {DP-GD:.2f} vs RS {DP-RS:.2f}",
+        ),
+    ]
 
 
-def _steer_references() -> tuple[Reference, ...]:
-    return tuple(
-        Reference(metric, value, env=ENV_ID, method=method, source="thesis Table 2.3")
-        for method, values in TABLE_2_3.items()
-        for metric, value in values.items()
-    )
-
-
-def _plot_steer(suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.itps_kitchen.plots import plot_kitchen
-
-    return plot_kitchen(suite, records, out_dir)
-
-
-_SHARE = "share of the trial's interactions"
 register_suite(
     Suite(
         name=SUITE_NAME,
@@ -362,12 +294,9 @@ register_suite(
             "steer the next skill; TA, CS and the AS/AF/MS/MF quadrants."
         ),
         metrics=(
-            Metric("TA", f"aligned: the run plan does the intended skill ({_SHARE})", fmt=".2f"),
-            Metric("CS", f"success: the skill happened, legally in the task tree, no violation ({_SHARE})", fmt=".2f"),
-            Metric("AS", "aligned success", fmt=".2f"),
-            Metric("AF", "aligned failure", higher_is_better=False, fmt=".2f"),
-            Metric("MS", "misaligned success", higher_is_better=False, fmt=".2f"),
-            Metric("MF", "misaligned failure", higher_is_better=False, fmt=".2f"),
+            Metric("TA", f"aligned: the run plan does the intended skill ({SHARE})", fmt=".2f"),
+            Metric("CS", f"success: the skill happened, legally in the task tree, no violation ({SHARE})", fmt=".2f"),
+            *QUADRANT_METRICS,
             Metric("goal", "the rollout reached its task's goal", fmt=".2f"),
             Metric("skills", "skills run in the rollout", fmt=".1f"),
             Metric("interactions", "steered skill boundaries of the rollout", fmt=".1f"),
@@ -384,9 +313,9 @@ register_suite(
         methods=METHODS,
         params=SteerParams(),
         default_seeds=20,
-        generate=_plan_steer,
-        references=_steer_references(),
-        plot=_plot_steer,
+        generate=policy_planner("the Kitchen policy", "train it with scripts/train_kitchen_checkpoint.sh"),
+        references=table_references(TABLE_2_3, env=ENV_ID, source="thesis Table 2.3"),
+        plot="steer_envs.bench.suites.itps_kitchen.plots:plot_kitchen",
         findings=steer_findings,
     )
 )

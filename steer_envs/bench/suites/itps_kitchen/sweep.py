@@ -2,7 +2,7 @@
 
     python -m steer_envs.bench.suites.itps_kitchen.sweep --ratios 1,5,20,100,300 --seeds 3 --out runs/kitchen-sweep
 
-Runs :func:`~steer_envs.bench.suites.itps_kitchen.protocol.guide_ratio_sweep`
+Runs :func:`~steer_envs.steering.kitchen.guide_ratio_sweep`
 (GD and SS, the same beta at every DDIM step) with the Kitchen policy
 (``--checkpoint`` or the shipped one) and writes ``sweep.json`` and
 ``sweep.png`` (:func:`~steer_envs.bench.suites.itps_kitchen.plots.plot_sweep`)
@@ -24,7 +24,7 @@ __all__ = ["main", "parse_args"]
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line (argparse exits 2 on a usage error)."""
     from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
-    from steer_envs.bench.suites.itps_kitchen.protocol import SWEEP_STARTS
+    from steer_envs.steering.kitchen import SWEEP_STARTS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ratios", default="1,5,20,100,300", help="comma-separated guide ratios >= 0")
@@ -66,17 +66,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     """Run the sweep and write its JSON and figure; 0 on success, 2 without a policy."""
     args = parse_args(argv)
-    from steer_envs.baselines.diffusion.acceleration import accelerated
+    from steer_envs.baselines.pretrained import POLICY_UNAVAILABLE, shared_policy
     from steer_envs.bench.suites.itps_kitchen.plots import plot_sweep
-    from steer_envs.bench.suites.itps_kitchen.protocol import guide_ratio_sweep, load_kitchen_policy
-    from steer_envs.bench.suites.itps_kitchen.suite import KITCHEN_LOADER
+    from steer_envs.steering.kitchen import guide_ratio_sweep
 
     try:
-        policy = load_kitchen_policy(KITCHEN_LOADER, args.checkpoint)
-    except (ValueError, ImportError, AttributeError, FileNotFoundError) as exc:  # POLICY_UNAVAILABLE + bad files
+        policy = shared_policy("kitchen", args.checkpoint, args.accelerate, owner="--accelerate")
+    except (ValueError, *POLICY_UNAVAILABLE) as exc:
         print(f"the Kitchen policy is not available ({type(exc).__name__}: {exc})", file=sys.stderr)
         return 2
-    policy = accelerated(policy, args.accelerate, owner="--accelerate")
     result = guide_ratio_sweep(policy, args.ratios, seeds=args.seeds, batch=args.batch, starts=args.starts)
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(args.out / "sweep.json", json.dumps(result, indent=1))

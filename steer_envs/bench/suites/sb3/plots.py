@@ -5,7 +5,7 @@ their evaluation steps; a seed stopped early or cut short ends its line where
 fewer seeds remain). The 80 % target is a dashed line.
 
 >>> from steer_envs.bench.suite import get_suite
->>> plot_learning_curves(get_suite("sb3"), [], "unused")  # no records: nothing to draw
+>>> plot_learning_curves(get_suite("sb3"), [], "unused", methods=("sac",), target=80.0)  # no records: nothing
 []
 """
 
@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
 from steer_envs.bench.suite import Suite
+from steer_envs.utils.plots import figure_legend, key_line, new_figure, save_figure
 
 __all__ = ["learning_curves", "plot_learning_curves"]
 
@@ -49,11 +49,21 @@ def learning_curves(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str,
 
 
 def plot_learning_curves(
-    suite: Suite, records: Sequence[Mapping[str, Any]], out_dir: str, *, methods: Sequence[str], target: float
+    suite: Suite,
+    records: Sequence[Mapping[str, Any]],
+    out_dir: str,
+    *,
+    methods: Sequence[str] | None = None,
+    target: float | None = None,
 ) -> list[str]:
-    """Write ``<suite>_learning_curves.png`` (nothing without stored curves): ``methods`` first, ``target`` dashed."""
+    """Write ``<suite>_learning_curves.png`` (nothing without stored curves): ``methods`` first, ``target`` dashed.
+
+    ``methods`` defaults to the suite's, ``target`` to the goal of its ``success`` metric.
+    """
     curves = learning_curves(records)
-    order = methods
+    order = [m for m in suite.method_list() if m is not None] if methods is None else methods
+    if target is None:
+        target = suite.metric("success").goal or 0.0
     methods = [m for m in order if m in curves] + sorted(set(curves) - set(order))
     if not methods:
         return []

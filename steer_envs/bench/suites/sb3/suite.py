@@ -41,22 +41,15 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Settings, default_cache_dir, method_fits, train_and_evaluate
+from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Settings, method_fits, train_and_evaluate
 from steer_envs.bench.params import SuiteParams
-from steer_envs.bench.suite import (
-    Finding,
-    Metric,
-    Reference,
-    Suite,
-    Trial,
-    TrialPlan,
-    TrialRequest,
-    TrialResult,
-    register_suite,
-)
-from steer_envs.bench.suites.sb3.plots import plot_learning_curves
+from steer_envs.bench.suite import Finding, Metric, Reference, Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.data.shards import default_cache_dir
+
+if TYPE_CHECKING:
+    from steer_envs.bench.suite import Trial, TrialRequest
 
 __all__ = ["DEFAULT_TIMESTEPS", "SB3", "Sb3Params", "dense_envs", "sb3_findings"]
 
@@ -90,7 +83,7 @@ class Sb3Params(SuiteParams):
     (module docstring);
     ``threads`` torch / BLAS threads of the trial; ``checkpoint``: save model,
     replay buffer and curve at every evaluation under ``cache_dir`` (default
-    :func:`default_cache_dir`) and resume from there; ``stop_success``: end
+    :func:`~steer_envs.data.shards.default_cache_dir` ``("sb3")``) and resume from there; ``stop_success``: end
     training once an evaluation reaches this success (%; 0 = never).
     """
 
@@ -125,20 +118,10 @@ class Sb3Params(SuiteParams):
         return self.timesteps if self.timesteps is not None else DEFAULT_TIMESTEPS[method]
 
     def settings(self, method: str) -> Sb3Settings:
-        """The library's :class:`~steer_envs.baselines.sb3.Sb3Settings` of a ``method`` trial."""
+        """The library's :class:`~steer_envs.baselines.sb3.Sb3Settings` of a ``method`` trial (the same fields)."""
+        cache = Path(self.cache_dir) if self.cache_dir else default_cache_dir(SUITE_NAME)
         return Sb3Settings(
-            timesteps=self.budget(method),
-            eval_episodes=self.eval_episodes,
-            eval_every=self.eval_every,
-            normalize_actions=self.normalize_actions,
-            observe_sensors=self.observe_sensors,
-            maze_goal_obs=self.maze_goal_obs,
-            maze_relative_actions=self.maze_relative_actions,
-            max_episode_steps=self.max_episode_steps,
-            threads=self.threads,
-            checkpoint=self.checkpoint,
-            cache=Path(self.cache_dir) if self.cache_dir else default_cache_dir(),
-            stop_success=self.stop_success,
+            timesteps=self.budget(method), cache=cache, **self.kwargs(without=("timesteps", "cache_dir"))
         )
 
 
@@ -236,10 +219,6 @@ def sb3_findings(table: Any) -> list[Finding]:
     ]
 
 
-def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    return plot_learning_curves(suite, records, out_dir, methods=METHODS, target=TARGET_SUCCESS)
-
-
 SB3 = register_suite(
     Suite(
         name=SUITE_NAME,
@@ -271,7 +250,7 @@ SB3 = register_suite(
             Reference("success", TARGET_SUCCESS, method="sac", source="RL-readiness target (100k steps)"),
             Reference("success", TARGET_SUCCESS, method="sac-her", source="RL-readiness target (50k steps)"),
         ),
-        plot=_plot,
+        plot="steer_envs.bench.suites.sb3.plots:plot_learning_curves",
         findings=sb3_findings,
     )
 )

@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
+from steer_envs.bench.plots import recorded_figures
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 __all__ = [
     "NOISE_LABELS",
@@ -52,8 +53,8 @@ def _round(a: np.ndarray, digits: int = 3) -> list[Any]:
 
 
 def _trace(policy: Any, model: Any, starts: np.ndarray, n_steps: int, every: int) -> np.ndarray:
-    """States ``(N, n_steps // every + 1, 2)`` under ConvexMode's dynamics (as ``protocol.rollout``), thinned."""
-    from steer_envs.bench.suites.tli.protocol import DT, MAX_SPEED
+    """States ``(N, n_steps // every + 1, 2)`` under ConvexMode's dynamics (as ``single_mode.rollout``), thinned."""
+    from steer_envs.baselines.lpv_ds.single_mode import DT, MAX_SPEED
 
     x = np.asarray(starts, dtype=np.float64).copy()
     out = [x.copy()]
@@ -92,14 +93,8 @@ def single_mode_figure_data(
     path), ``cuts`` (``point``, ``normal``), ``cut_points`` (last in-mode states
     of the cut failures), ``success_rate`` (over all starts), ``num_cuts``.
     """
-    from steer_envs.bench.suites.tli.protocol import (
-        N_STEPS,
-        POLICY_KINDS,
-        cut_loop,
-        fitted_policy,
-        rollout,
-        sample_starts,
-    )
+    from steer_envs.baselines.lpv_ds.single_mode import N_STEPS, cut_loop, fitted_policy, rollout, sample_starts
+    from steer_envs.bench.suites.tli.protocol import POLICY_KINDS
 
     if policy_kind not in POLICY_KINDS:
         raise ValueError(f"policy_kind must be one of {POLICY_KINDS}, got {policy_kind!r}")
@@ -190,10 +185,8 @@ def _draw_single_panel(ax: Any, data: Mapping[str, Any], title: str) -> None:
 def plot_single_mode(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """The Fig. 3.4-style grid per plotted layout (records with ``extra["figure"]``); returns the PNG paths."""
     by_layout: dict[int, dict[str, Mapping[str, Any]]] = {}
-    for rec in records:
-        fig_data = (rec.get("extra") or {}).get("figure")
-        if fig_data:
-            by_layout.setdefault(int(rec["seed"]), {})[str(rec["config"]["method"])] = fig_data
+    for (layout, method), fig_data in recorded_figures(records).items():
+        by_layout.setdefault(layout, {})[method] = fig_data
     written = []
     for layout, per_method in sorted(by_layout.items()):
         methods = [m for m in _ROW_ORDER if m in per_method] + sorted(set(per_method) - set(_ROW_ORDER))
@@ -262,11 +255,7 @@ def _draw_scoop_regions(ax: Any) -> None:
 
 def plot_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """SoupScoop rollouts of LTL-DS (columns: methods, rows: plotted experiments); returns the PNG path."""
-    cells: dict[tuple[int, str], Mapping[str, Any]] = {}
-    for rec in records:
-        fig_data = (rec.get("extra") or {}).get("figure")
-        if fig_data:
-            cells[(int(rec["seed"]), str(rec["config"]["method"]))] = fig_data
+    cells = recorded_figures(records)
     if not cells:
         return []
     seeds = sorted({s for s, _ in cells})

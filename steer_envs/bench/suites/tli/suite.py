@@ -36,8 +36,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.metrics import table_references
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.trials import check_trial
 from steer_envs.utils.threads import single_threaded
 
 CONVEX_ENV = "steer_envs/ConvexMode-v0"
@@ -86,27 +88,15 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
     """One layout x one policy at the three noise levels (see the module docstring)."""
     from steer_envs.bench.suites.tli.protocol import POLICY_KINDS, single_mode_trial
 
-    if trial.method not in POLICY_KINDS:
-        raise ValueError(f"tli-single-mode: unknown method {trial.method!r}; expected one of {POLICY_KINDS}")
+    check_trial(trial, methods=POLICY_KINDS)
     params = SingleModeParams.from_json(trial.params)
-    kind = str(trial.method)
-    cut_sigma = params.cut_sigma
+    kind, cut_sigma, kwargs = str(trial.method), params.cut_sigma, params.kwargs(without=("plot_seeds",))
     metrics: dict[str, float | None] = {}
     per_noise: dict[str, Any] = {}
     figures: dict[str, Any] = {}
     with single_threaded():
         for label, sigma in NOISE_LEVELS.items():
-            res = single_mode_trial(
-                trial.seed,
-                sigma,
-                kind,
-                n_starts=params.n_starts,
-                seed=trial.seed,
-                bc_epochs=params.bc_epochs,
-                max_cuts=params.max_cuts,
-                cut_sigma=cut_sigma,
-                demos=params.demos,
-            )
+            res = single_mode_trial(trial.seed, sigma, kind, seed=trial.seed, **kwargs)
             metrics[f"success_{label}"] = 100.0 * res["success_rate"]
             per_noise[label] = {
                 k: res[k]
@@ -116,16 +106,9 @@ def run_single_mode_trial(trial: Trial) -> TrialResult:
             if trial.seed < params.plot_seeds and cut_sigma is None:
                 from steer_envs.bench.suites.tli.plots import single_mode_figure_data
 
+                shown = params.kwargs(without=("plot_seeds", "cut_sigma"))  # cut_sigma None: the batch's own cuts
                 figures[str(sigma)] = single_mode_figure_data(
-                    trial.seed,
-                    sigma,
-                    kind,
-                    res["n_demos"],
-                    n_starts=params.n_starts,
-                    seed=trial.seed,
-                    bc_epochs=params.bc_epochs,
-                    max_cuts=params.max_cuts,
-                    demos=params.demos,
+                    trial.seed, sigma, kind, res["n_demos"], seed=trial.seed, **shown
                 )
     mod = kind.endswith("+mod")
     metrics["cuts_5"] = float(per_noise["5"]["num_cuts"]) if mod else None
@@ -164,18 +147,10 @@ def single_mode_findings(table: Any) -> list[Finding]:
 
 
 def _single_mode_references() -> tuple[Reference, ...]:
-    refs = []
-    for method, values in THESIS_SINGLE_MODE.items():
-        for label, value in zip(NOISE_LEVELS, values, strict=True):
-            refs.append(Reference(f"success_{label}", value, env=CONVEX_ENV, method=method, source="thesis Fig. 3.5"))
-    refs.append(Reference("cuts_30", 4.0, env=CONVEX_ENV, method="ds+mod", source="thesis Fig. 3.5 (cuts to 100 %)"))
-    return tuple(refs)
-
-
-def _plot_single_mode(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli.plots import plot_single_mode
-
-    return plot_single_mode(suite, records, out_dir)
+    success = {m: {f"success_{label}": v for label, v in zip(NOISE_LEVELS, values, strict=True)}
+               for m, values in THESIS_SINGLE_MODE.items()}  # fmt: skip
+    cuts = Reference("cuts_30", 4.0, env=CONVEX_ENV, method="ds+mod", source="thesis Fig. 3.5 (cuts to 100 %)")
+    return (*table_references(success, env=CONVEX_ENV, source="thesis Fig. 3.5"), cuts)
 
 
 TLI_SINGLE_MODE = register_suite(
@@ -208,7 +183,7 @@ TLI_SINGLE_MODE = register_suite(
         references=_single_mode_references(),
         quick={"n_starts": 30, "bc_epochs": 500, "plot_seeds": 1},
         quick_seeds=2,
-        plot=_plot_single_mode,
+        plot="steer_envs.bench.suites.tli.plots:plot_single_mode",
         findings=single_mode_findings,
     )
 )
@@ -244,22 +219,12 @@ def run_scoop_trial(trial: Trial) -> TrialResult:
     """One soup-scooping experiment under pushes, without or with modulation."""
     from steer_envs.bench.suites.tli.robustness import scoop_trial
 
-    if trial.method not in SCOOP_METHODS:
-        raise ValueError(f"tli-scoop: unknown method {trial.method!r}; expected one of {SCOOP_METHODS}")
+    check_trial(trial, methods=SCOOP_METHODS)
     params = ScoopParams.from_json(trial.params)
     record = trial.seed < params.plot_seeds
     with single_threaded():
-        res = scoop_trial(
-            trial.seed,
-            trial.method == "ltl-ds+mod",
-            params.n_perturbations,
-            max_steps=params.max_steps,
-            push_window=params.push_window,
-            magnitude=params.magnitude,
-            demos=params.demos,
-            ds_eps=params.ds_eps,
-            record=record,
-        )
+        modulation, kwargs = trial.method == "ltl-ds+mod", params.kwargs(without=("plot_seeds",))
+        res = scoop_trial(trial.seed, modulation, **kwargs, record=record)
     metrics = {
         "success": 100.0 * res["success"],
         "loops": float(res["invariance_failures"]),
@@ -274,12 +239,6 @@ def run_scoop_trial(trial: Trial) -> TrialResult:
 
         extra["figure"] = scoop_figure_data(res)
     return TrialResult(metrics, extra)
-
-
-def _plot_scoop(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli.plots import plot_scoop
-
-    return plot_scoop(suite, records, out_dir)
 
 
 TLI_SCOOP = register_suite(
@@ -306,7 +265,7 @@ TLI_SCOOP = register_suite(
         references=(Reference("success", 100.0, env=SCOOP_ENV, method="ltl-ds+mod", source="thesis 3.7.2 (10/10)"),),
         quick={"max_steps": 3000, "plot_seeds": 1},
         quick_seeds=2,
-        plot=_plot_scoop,
+        plot="steer_envs.bench.suites.tli.plots:plot_scoop",
     )
 )
 

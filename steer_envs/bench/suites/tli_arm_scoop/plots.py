@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, new_figure, save_figure
+from steer_envs.bench.plots import recorded_figures
+from steer_envs.utils.plots import figure_legend, key_line, new_figure, save_figure
 
 __all__ = ["plot_arm_scoop"]
 
@@ -59,11 +60,8 @@ def _boundary(ax: Any, low: np.ndarray, high: np.ndarray) -> None:
 
 def plot_arm_scoop(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """One PNG from the first recorded ``ltl-ds+mod`` trial (else any recorded one); returns its path."""
-    data = None
-    for rec in sorted(records, key=lambda r: r["config"]["method"] != "ltl-ds+mod"):
-        data = (rec.get("extra") or {}).get("figure")
-        if data:
-            break
+    recorded = sorted(recorded_figures(records).items(), key=lambda cell: cell[0][1] != "ltl-ds+mod")
+    data = recorded[0][1] if recorded else None
     if not data:
         return []
     low, high = _box()

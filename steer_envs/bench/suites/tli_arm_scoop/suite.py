@@ -16,12 +16,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import cell_means, full, judge
+from steer_envs.bench.metrics import NUM_CUTS
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
-from steer_envs.utils.threads import single_threaded
+from steer_envs.bench.trials import run_protocol
 
 ENV_ID = "steer_envs/ArmScoop-v0"
 METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
+MOD = "ltl-ds+mod"
 SOURCE = "thesis appendix 'Robot Experiment 1: Soup-Scooping' (30/30 trials, six subjects)"
 
 
@@ -52,15 +55,7 @@ def run_scoop_trial(trial: Trial) -> TrialResult:
     """One experiment of one method: ``n_episodes`` pushed episodes on the arm."""
     from steer_envs.bench.suites.tli_arm_scoop.protocol import scoop_trial
 
-    if trial.method not in METHODS:
-        raise ValueError(f"tli-arm-scoop: unknown method {trial.method!r}; expected one of {METHODS}")
-    p = ArmScoopParams.from_json(trial.params)
-    record = trial.seed < p.plot_seeds
-    with single_threaded():
-        res = scoop_trial(
-            trial.seed, str(trial.method), n_episodes=p.n_episodes, n_pushes=p.n_pushes, max_dwell=p.max_dwell,
-            max_steps=p.max_steps, record=record,
-        )  # fmt: skip
+    _, res = run_protocol(trial, ArmScoopParams, scoop_trial, METHODS)
     undone = res["undone_episodes"]
     metrics = {
         "success": 100.0 * res["success"],
@@ -75,54 +70,46 @@ def run_scoop_trial(trial: Trial) -> TrialResult:
         "steps": res["steps"],
     }
     extra: dict[str, Any] = {"failure_modes": res["failure_modes"], "undone_episodes": undone}
-    if record:
+    if "figure" in res:
         extra["figure"] = res["figure"]
     return TrialResult(metrics, extra)
 
 
 def scoop_findings(table: Any) -> list[Finding]:
     """The thesis's claims: every trial succeeds with modulation; LTL replans after task-level pushes; cuts bound."""
-    out = []
-    success = table.means("success", METHODS)
-    claim = "LTL-DS with modulation succeeds in every pushed trial (thesis: 30/30 with six human subjects)"
-    if success is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = f"ltl-ds+mod {success['ltl-ds+mod']:.0f} %, ltl-ds (no modulation) {success['ltl-ds']:.0f} %"
-        out.append(Finding(claim, success["ltl-ds+mod"] >= 100.0 - 1e-9, detail))
-    rec, pushes = table.mean("recovered", "ltl-ds+mod"), table.mean("task_pushes", "ltl-ds+mod")
-    claim = "LTL replans after task-level pushes (beads spilled, spoon lifted out empty): those episodes still succeed"
-    if rec is None or pushes is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = f"ltl-ds+mod: {pushes:.2f} task-level pushes per episode, {rec:.0f} % of their episodes succeeded"
-        out.append(Finding(claim, pushes > 0 and rec >= 100.0 - 1e-9, detail))
-    fails, repeats = table.means("failures", METHODS), table.means("repeats", METHODS)
-    cuts = table.mean("num_cuts", "ltl-ds+mod")
-    claim = "with modulation no invariance failure is experienced again: none crosses a cut learned before it"
-    if fails is None or repeats is None or cuts is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = (
-            f"invariance failures per episode: ltl-ds {fails['ltl-ds']:.2f}, ltl-ds+mod {fails['ltl-ds+mod']:.2f}; "
-            f"{cuts:.0f} cuts learned; failures through an earlier cut: ltl-ds {repeats['ltl-ds']:.0f}, "
-            f"ltl-ds+mod {repeats['ltl-ds+mod']:.0f}"
-        )
-        out.append(Finding(claim, cuts > 0 and repeats["ltl-ds+mod"] == 0, detail))
-    nominal, modulated = (table.mean(k, "ltl-ds+mod") for k in ("sampled_exits_nominal", "sampled_exits_modulated"))
-    claim = "the cuts learned on the arm bound the scoop DS: fewer sampled flows leave the mode after modulation"
-    if nominal is None or modulated is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = f"sampled scoop flows exiting the mode: nominal {nominal:.1f} %, modulated {modulated:.1f} %"
-        out.append(Finding(claim, modulated < nominal, detail))
-    return out
-
-
-def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli_arm_scoop.plots import plot_arm_scoop
-
-    return plot_arm_scoop(suite, records, out_dir)
+    failures = {k: table.means(k, METHODS) for k in ("failures", "repeats")} | {"cuts": table.mean("num_cuts", MOD)}
+    return [
+        judge(
+            "LTL-DS with modulation succeeds in every pushed trial (thesis: 30/30 with six human subjects)",
+            table.means("success", METHODS),
+            lambda s: full(s[MOD]),
+            lambda s: f"ltl-ds+mod {s[MOD]:.0f} %, ltl-ds (no modulation) {s['ltl-ds']:.0f} %",
+        ),
+        judge(
+            "LTL replans after task-level pushes (beads spilled, spoon lifted out empty): those episodes still succeed",
+            cell_means(table, MOD, ("recovered", "task_pushes")),
+            lambda m: m["task_pushes"] > 0 and full(m["recovered"]),
+            "ltl-ds+mod: {task_pushes:.2f} task-level pushes per episode, "
+            "{recovered:.0f} % of their episodes succeeded",
+        ),
+        judge(
+            "with modulation no invariance failure is experienced again: none crosses a cut learned before it",
+            failures,
+            lambda f: f["cuts"] > 0 and f["repeats"][MOD] == 0,
+            lambda f: (
+                f"invariance failures per episode: ltl-ds {f['failures']['ltl-ds']:.2f}, "
+                f"ltl-ds+mod {f['failures'][MOD]:.2f}; {f['cuts']:.0f} cuts learned; failures through an earlier "
+                f"cut: ltl-ds {f['repeats']['ltl-ds']:.0f}, ltl-ds+mod {f['repeats'][MOD]:.0f}"
+            ),
+        ),
+        judge(
+            "the cuts learned on the arm bound the scoop DS: fewer sampled flows leave the mode after modulation",
+            cell_means(table, MOD, ("sampled_exits_nominal", "sampled_exits_modulated")),
+            lambda e: e["sampled_exits_modulated"] < e["sampled_exits_nominal"],
+            "sampled scoop flows exiting the mode: nominal {sampled_exits_nominal:.1f} %, "
+            "modulated {sampled_exits_modulated:.1f} %",
+        ),
+    ]
 
 
 TLI_ARM_SCOOP = register_suite(
@@ -139,7 +126,7 @@ TLI_ARM_SCOOP = register_suite(
             Metric("task_pushes", "pushes per episode that undid task progress (spill, empty spoon)"),
             Metric("recovered", "episodes with a task-level push that still succeeded (%)", fmt=".0f"),
             Metric("spills", "beads spilled by the policy itself per episode", higher_is_better=False),
-            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            NUM_CUTS,
             Metric(
                 "repeats",
                 "invariance failures that crossed a cut learned from earlier ones (per trial)",
@@ -169,7 +156,7 @@ TLI_ARM_SCOOP = register_suite(
         references=(Reference("success", 100.0, env=ENV_ID, method="ltl-ds+mod", source=SOURCE),),
         quick={"n_episodes": 2},
         quick_seeds=1,
-        plot=_plot,
+        plot="steer_envs.bench.suites.tli_arm_scoop.plots:plot_arm_scoop",
         findings=scoop_findings,
     )
 )

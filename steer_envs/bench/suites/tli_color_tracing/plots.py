@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, key_line, key_patch, new_figure, save_figure
+from steer_envs.bench.plots import recorded_figures
+from steer_envs.utils.plots import figure_legend, key_line, key_patch, new_figure, save_figure
 
 __all__ = ["plot_color_tracing"]
 
@@ -59,11 +60,9 @@ def plot_color_tracing(suite: Any, records: Sequence[Mapping[str, Any]], out_dir
     """One PNG: columns are automata, the first plotted seed's pushed episodes; returns its path."""
     cells: dict[str, Any] = {}
     seeds: dict[str, int] = {}
-    for rec in records:
-        fig_data = (rec.get("extra") or {}).get("figure")
-        method = str(rec["config"]["method"])
-        if fig_data and (method not in cells or int(rec["seed"]) < seeds[method]):
-            cells[method], seeds[method] = fig_data, int(rec["seed"])
+    for (seed, method), fig_data in sorted(recorded_figures(records).items(), key=lambda cell: cell[0][0]):
+        if method not in cells:  # its lowest recorded seed
+            cells[method], seeds[method] = fig_data, seed
     methods = [m for m in _ORDER if m in cells]
     if not methods:
         return []

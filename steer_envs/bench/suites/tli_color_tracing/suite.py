@@ -16,9 +16,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import all_full, cell_means, full, judge
+from steer_envs.bench.metrics import NUM_CUTS
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
-from steer_envs.utils.threads import single_threaded
+from steer_envs.bench.trials import run_protocol
 
 ENV_ID = "steer_envs/ColorTracing-v0"
 AUTOMATA: tuple[str, ...] = ("a", "b", "c")
@@ -63,15 +65,7 @@ def run_color_trial(trial: Trial) -> TrialResult:
     """One experiment under one replanning automaton, without and with pushes."""
     from steer_envs.bench.suites.tli_color_tracing.protocol import color_trial
 
-    if trial.method not in AUTOMATA:
-        raise ValueError(f"tli-color-tracing: unknown method {trial.method!r}; expected one of {AUTOMATA}")
-    p = ColorTracingParams.from_json(trial.params)
-    record = trial.seed < p.plot_seeds
-    with single_threaded():
-        res = color_trial(
-            trial.seed, str(trial.method), n_episodes=p.n_episodes, n_pushes=p.n_pushes, max_dwell=p.max_dwell,
-            max_steps=p.max_steps, modulation=p.modulation, record=record,
-        )  # fmt: skip
+    p, res = run_protocol(trial, ColorTracingParams, color_trial, AUTOMATA)
     clean, push = res["clean"], res["push"]
     metrics = {
         "success_clean": 100.0 * clean["success"],
@@ -86,43 +80,29 @@ def run_color_trial(trial: Trial) -> TrialResult:
         "steps": push["steps"],
     }
     extra: dict[str, Any] = {"pushes": push["push_log"]}
-    if record:
+    if "figure" in push:
         extra["figure"] = {"push": push["figure"]}
     return TrialResult(metrics, extra)
 
 
+def _reentry_finding(table: Any, a: str) -> Finding:
+    """Automaton ``a``'s re-entry rule held after every push."""
+    return judge(
+        f"{RULES[a]}: the next mode entered after every push is the one the automaton prescribes",
+        cell_means(table, a, ("reentry_ok", "pushes")),
+        lambda c: c["pushes"] > 0 and full(c["reentry_ok"]),
+        a + ": {reentry_ok:.0f} % of pushes re-entered as prescribed ({pushes:.1f} pushes per episode)",
+    )
+
+
 def color_findings(table: Any) -> list[Finding]:
     """Per automaton: its re-entry rule held after every push; the automaton told D1..D4 apart; red reached."""
-    out = []
-    for a in AUTOMATA:
-        ok, pushes = table.mean("reentry_ok", a), table.mean("pushes", a)
-        claim = f"{RULES[a]}: the next mode entered after every push is the one the automaton prescribes"
-        if ok is None or pushes is None:
-            out.append(Finding(claim, None))
-            continue
-        detail = f"{a}: {ok:.0f} % of pushes re-entered as prescribed ({pushes:.1f} pushes per episode)"
-        out.append(Finding(claim, pushes > 0 and ok >= 100.0 - 1e-9, detail))
-    tracked = table.means("tracked_ok", AUTOMATA)
+    out = [_reentry_finding(table, a) for a in AUTOMATA]
     claim = "the automaton tells D1..D4 apart from the sensor history: its D mode equals the env's after every push"
-    if tracked is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = ", ".join(f"{a} {tracked[a]:.0f} %" for a in AUTOMATA)
-        out.append(Finding(claim, all(tracked[a] >= 100.0 - 1e-9 for a in AUTOMATA), detail))
-    success = table.means("success", AUTOMATA)
+    out.append(all_full(table, claim, "tracked_ok", AUTOMATA))
     claim = "LTL-DS from a single demonstration reaches red in every pushed episode under every automaton"
-    if success is None:
-        out.append(Finding(claim, None))
-    else:
-        detail = ", ".join(f"{a} {success[a]:.0f} %" for a in AUTOMATA)
-        out.append(Finding(claim, all(success[a] >= 100.0 - 1e-9 for a in AUTOMATA), detail))
+    out.append(all_full(table, claim, "success", AUTOMATA))
     return out
-
-
-def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli_color_tracing.plots import plot_color_tracing
-
-    return plot_color_tracing(suite, records, out_dir)
 
 
 TLI_COLOR_TRACING = register_suite(
@@ -146,7 +126,7 @@ TLI_COLOR_TRACING = register_suite(
             Metric("tracked_ok", "pushes whose D mode the automaton tracked as the env's (%)", fmt=".0f"),
             Metric("failures", "invariance failures (own exits into D) per episode", higher_is_better=False),
             Metric("violations", "env constraint violations per episode", higher_is_better=False),
-            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            NUM_CUTS,
             Metric("steps", "steps per pushed episode", higher_is_better=False, fmt=".0f"),
         ),
         run_trial=run_color_trial,
@@ -162,7 +142,7 @@ TLI_COLOR_TRACING = register_suite(
         ),
         quick={"n_episodes": 2, "n_pushes": 2},
         quick_seeds=1,
-        plot=_plot,
+        plot="steer_envs.bench.suites.tli_color_tracing.plots:plot_color_tracing",
         findings=color_findings,
     )
 )

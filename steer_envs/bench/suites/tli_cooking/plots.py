@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import figure_legend, new_figure, save_figure
+from steer_envs.bench.plots import recorded_figures
+from steer_envs.utils.plots import figure_legend, new_figure, save_figure
 
 __all__ = ["plot_cooking"]
 
@@ -40,10 +41,8 @@ def _regions(ax: Any) -> None:
 def plot_cooking(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: str) -> list[str]:
     """One PNG per plotted experiment seed; returns the paths."""
     by_seed: dict[int, dict[str, Mapping[str, Any]]] = {}
-    for rec in records:
-        fig_data = (rec.get("extra") or {}).get("figure")
-        if fig_data:
-            by_seed.setdefault(int(rec["seed"]), {})[str(rec["config"]["method"])] = fig_data
+    for (seed, method), fig_data in recorded_figures(records).items():
+        by_seed.setdefault(seed, {})[method] = fig_data
     name = getattr(suite, "name", "tli-cooking")
     paths = []
     for seed, cells in sorted(by_seed.items()):

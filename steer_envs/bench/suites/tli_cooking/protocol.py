@@ -2,436 +2,44 @@
 
 Thesis appendix "Generalization Results": two demonstrations add chicken and
 broccoli to the pot in different orders; LTL-DS learns one LPV-DS per *mode
-transition* (a mode can lead to several next modes here) and the skills are
-recombined, without retraining, by the edited automata ``phi_cb``, ``phi_bc``,
-``phi_c`` and ``phi_cc`` (:func:`steer_envs.ltl.specs.cooking`).
+transition* and the skills are recombined, without retraining, by the edited
+automata ``phi_cb``, ``phi_bc``, ``phi_c`` and ``phi_cc``
+(:func:`steer_envs.ltl.specs.cooking`). The pieces live in the library:
 
-* **Demonstrations** (:func:`cooking_demonstrations`): the scripted expert,
-  chicken first leaving the pot sideways (``w y d g d``, the thesis's Fig. (c))
-  and broccoli first leaving the pot through the white gap (``w g d w y d``).
-* **Skills** (:func:`fit_skills`): each demonstration is cut where the spoon's
-  region letter changes (``w`` empty spoon, ``y`` holding chicken, ``g``
-  holding broccoli, ``d`` in the pot; read from the sensors). Every segment is
-  keyed by its transition (``("w", "y")``, ...); the segments of one key train
-  one LPV-DS whose attractor is the mean first state after them (the guard,
-  pushed ``overshoot`` further along the crossing direction).
-* **Policy** (:class:`TransitionDSPolicy`): a
-  :class:`~steer_envs.ltl.replanner.ModeReplanner` tracks the automaton from the
-  sensors; the next mode is the first step of the shortest goal-covering lasso
-  that uses only transitions with a learned skill (or stays in a mode); the
-  skill of ``(current letter, next letter)`` gives the velocity, zero when the
-  plan is to stay (an absorbing goal).
-  With ``modulation`` (the default, LTL-DS proper) a mode change that is
-  neither the planned one nor a push is an invariance failure of the active
-  skill: a cut through the last in-mode state is added to that skill (the
-  thesis's QCQP, :func:`~steer_envs.wrappers.ds_modulation.resolve_cuts`) and
-  its flow is modulated by its cuts from then on (cuts persist across episodes).
-* **Outcome** per automaton: ``phi_cb``/``phi_bc``: the goal ``d2`` (both foods in
+* **Demonstrations**: :func:`~steer_envs.data.tli_demos.cooking_demonstrations`,
+  the scripted expert, chicken first (``w y d g d``, the thesis's Fig. (c))
+  and broccoli first (``w g d w y d``).
+* **Skills and policy**: :func:`~steer_envs.baselines.lpv_ds.transition_ds.learned_skills`
+  and :class:`~steer_envs.baselines.lpv_ds.transition_ds.TransitionDSPolicy`
+  (with ``modulation``, cuts from invariance failures; they persist across episodes).
+* **Episodes**: :func:`~steer_envs.baselines.lpv_ds.episodes.cooking_episode`.
+  Outcome per automaton: ``phi_cb``/``phi_bc``: the goal ``d2`` (both foods in
   the pot); ``phi_c``: the goal ``d`` with chicken and without broccoli in the
-  pot; ``phi_cc``: ``deliveries`` chicken deliveries (a ``hc -> p`` sensor
-  change) within the horizon. *Invalid transitions* are automaton-unexpected
-  mode changes not caused by a push (the policy's own); *replans* are all
-  unexpected changes (pushes included).
-* **Pushes**: ``n_pushes`` displacements at distinct random steps in
-  ``[1, push_window]``, uniform direction, length uniform in ``[0, magnitude]``.
+  pot; ``phi_cc``: ``deliveries`` chicken deliveries within the horizon.
+  *Invalid transitions* are automaton-unexpected mode changes not caused by a
+  push (the policy's own); *replans* are all unexpected changes (pushes included).
+* **Pushes**: :func:`~steer_envs.data.pushes.push_schedule`, ``n_pushes``
+  displacements at distinct random steps in ``[1, push_window]``, uniform
+  direction, length uniform in ``[0, magnitude]``.
 """
 
 from __future__ import annotations
 
-import functools
-import hashlib
 import itertools
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
-import networkx as nx
 import numpy as np
 
-from steer_envs.baselines.lpv_ds.lpvds import LPVDS
-from steer_envs.baselines.lpv_ds.ltl_ds import hold_beyond_cuts
-from steer_envs.core.task import TaskSpec
-from steer_envs.core.validation import boolean, integer, one_of, real_scalar
-from steer_envs.ltl.gr1 import GR1Spec
-from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
-from steer_envs.wrappers.ds_modulation import ATTRACTOR_MARGIN, CutSet, FailureRecord, modulate, resolve_cuts
+from steer_envs.baselines.lpv_ds.episodes import cooking_episode
+from steer_envs.baselines.lpv_ds.transition_ds import TransitionDSPolicy, learned_skills, skills_fingerprint
+from steer_envs.bench.trials import checked_counts, episode_means, reset_seed, trial_env
+from steer_envs.core.validation import one_of
+from steer_envs.data.pushes import push_schedule
 
-__all__ = [
-    "DEMO_PLANS",
-    "ENV_ID",
-    "VARIANTS",
-    "Skill",
-    "TransitionDSPolicy",
-    "cooking_demonstrations",
-    "cooking_episode",
-    "cooking_trial",
-    "fit_skills",
-    "learned_skills",
-    "push_schedule",
-    "skills_fingerprint",
-    "spoon_letters",
-]
+__all__ = ["ENV_ID", "VARIANTS", "cooking_trial"]
 
 ENV_ID = "steer_envs/Cooking-v0"
 VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
-#: the two demonstrations: (expert order, expert route from the pot to the second food)
-DEMO_PLANS: tuple[tuple[str, str], ...] = (("cb", "direct"), ("bc", "white"))
-#: LPV-DS stability margin of the skills (the library default lets far flows crawl)
-DS_EPS = 1.0
-#: attractors sit this far past the mean guard crossing (> dt * max_speed = 0.1)
-OVERSHOOT = 0.25
-#: most cuts one skill learns
-MAX_CUTS = 8
-
-
-def spoon_letters(sensors: np.ndarray, sensor_names: Sequence[str]) -> list[str]:
-    """The spoon's region letter per reading: ``y`` (holds chicken), ``g`` (broccoli), ``d`` (pot), else ``w``."""
-    col = {ap: i for i, ap in enumerate(sensor_names)}
-    s = np.asarray(sensors, dtype=bool).reshape(-1, len(sensor_names))
-    out = np.where(s[:, col["hc"]], "y", np.where(s[:, col["hb"]], "g", np.where(s[:, col["p"]], "d", "w")))
-    return [str(v) for v in out]
-
-
-def cooking_demonstrations(seed: int) -> list[Any]:
-    """The two expert demonstrations of experiment ``seed`` (see the module docstring)."""
-    import gymnasium as gym
-
-    import steer_envs  # noqa: F401 - registers the ids in a fresh worker
-    from steer_envs.data.demos import rollout_expert
-
-    seed = integer(seed, "seed", low=0, owner="cooking_demonstrations")
-    env = gym.make(ENV_ID)
-    try:
-        demos = []
-        for i, (order, route) in enumerate(DEMO_PLANS):
-            demo = rollout_expert(env, 1000 * seed + i, expert_kwargs={"order": order, "route": route})
-            if not demo.success:
-                raise RuntimeError(f"cooking_demonstrations: the expert ({order}, {route}) failed from seed {seed}")
-            demos.append(demo)
-        return demos
-    finally:
-        env.close()
-
-
-@dataclass(frozen=True)
-class Skill:
-    """One learned transition skill: an LPV-DS from region ``source`` into region ``target``."""
-
-    source: str
-    target: str
-    policy: LPVDS
-    attractor: np.ndarray
-    n_points: int
-
-
-def fit_skills(
-    demos: Sequence[Any],
-    sensor_names: Sequence[str],
-    dt: float,
-    *,
-    ds_eps: float = DS_EPS,
-    overshoot: float = OVERSHOOT,
-    random_state: int = 0,
-) -> dict[tuple[str, str], Skill]:
-    """One LPV-DS per demonstrated region transition (see the module docstring)."""
-    if not demos:
-        raise ValueError("fit_skills: demos must be a non-empty sequence")
-    dt = real_scalar(dt, "dt", low=0.0, low_inclusive=False, owner="fit_skills")
-    overshoot = real_scalar(overshoot, "overshoot", low=0.0, owner="fit_skills")
-    pieces: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
-    for demo in demos:
-        x = np.asarray(demo.states, dtype=np.float64)
-        letters = spoon_letters(demo.sensors, sensor_names)
-        start = 0
-        for t in range(1, len(x)):
-            if letters[t] != letters[t - 1]:
-                seg = x[start:t]
-                vel = (x[start + 1 : t + 1] - seg) / dt  # the motion actually made (speed-clipped)
-                pieces.setdefault((letters[t - 1], letters[t]), []).append((seg, vel, x[t - 1], x[t]))
-                start = t
-    skills: dict[tuple[str, str], Skill] = {}
-    for key, segs in sorted(pieces.items()):
-        after = np.stack([s[3] for s in segs])
-        direction = (after - np.stack([s[2] for s in segs])).mean(axis=0)
-        attractor = after.mean(axis=0)
-        if overshoot > 0 and np.linalg.norm(direction) > 1e-9:
-            attractor = attractor + overshoot * direction / np.linalg.norm(direction)
-        xs = [np.vstack([s[0], attractor]) for s in segs]  # each segment ends at the attractor (thesis: shifted)
-        vs = [np.vstack([s[1], np.zeros(2)]) for s in segs]
-        ds = LPVDS(eps=ds_eps, random_state=random_state).fit(xs, vs, attractor=attractor)
-        skills[key] = Skill(key[0], key[1], ds, attractor, int(sum(len(s[0]) for s in segs)))
-    return skills
-
-
-@functools.lru_cache(maxsize=4)
-def learned_skills(seed: int, ds_eps: float = DS_EPS, overshoot: float = OVERSHOOT) -> dict[tuple[str, str], Skill]:
-    """The skills of experiment ``seed``, learned once and shared by every automaton (cached; do not modify)."""
-    from steer_envs.envs.cooking import SENSORS
-
-    return fit_skills(
-        cooking_demonstrations(seed), SENSORS, 0.01, ds_eps=ds_eps, overshoot=overshoot, random_state=seed
-    )
-
-
-def skills_fingerprint(skills: Mapping[tuple[str, str], Skill]) -> str:
-    """A short hash of the skills' parameters: equal fingerprints mean the very same DS set."""
-    h = hashlib.sha256()
-    for key in sorted(skills):
-        ds = skills[key].policy
-        h.update(repr(key).encode())
-        for arr in (ds.attractor, ds.A, ds.b, ds.means):
-            h.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
-    return h.hexdigest()[:12]
-
-
-def _clip(v: np.ndarray, max_speed: float) -> np.ndarray:
-    speed = float(np.linalg.norm(v))
-    return v if speed <= max_speed else v * (max_speed / speed)
-
-
-class TransitionDSPolicy:
-    """LTL-DS with one DS per mode transition: automaton mode from the sensors, the planned transition's skill.
-
-    Args:
-        task: the env's task (its sensors are the automaton's environment APs).
-        spec: the edited GR(1) spec (its modes' first letters name the spoon's region).
-        skills: ``(source letter, target letter) -> Skill``.
-        max_speed: the env's speed limit.
-        modulation: learn cuts from invariance failures and modulate the skills by them.
-        max_cuts: most cuts per skill (each re-solve is quadratic in the skill's failures).
-
-    Attributes:
-        replans: automaton-unexpected transitions since :meth:`reset` (pushes included).
-        invalid: unexpected transitions not caused by a push.
-        failures: invariance failures since :meth:`reset` (not planned, not a push).
-        stuck_steps: steps with no plan over the learned skills (zero velocity).
-        cut_sets: ``skill key -> CutSet`` of the learned cuts (kept across episodes).
-    """
-
-    def __init__(
-        self,
-        task: TaskSpec,
-        spec: GR1Spec,
-        skills: Mapping[tuple[str, str], Skill],
-        *,
-        max_speed: float,
-        modulation: bool = True,
-        max_cuts: int = MAX_CUTS,
-    ) -> None:
-        if not isinstance(skills, Mapping) or not skills:
-            raise TypeError("TransitionDSPolicy: skills must be a non-empty mapping (source, target) -> Skill")
-        self.replanner = ModeReplanner(task, spec)
-        self.automaton = self.replanner.automaton
-        self.skills = dict(skills)
-        self.max_speed = real_scalar(max_speed, "max_speed", low=0.0, low_inclusive=False, owner="TransitionDSPolicy")
-        aut = self.automaton
-        self._letter = [node.mode[0] for node in aut.nodes]
-        graph = nx.DiGraph()
-        graph.add_nodes_from(range(len(aut.nodes)))
-        for i, succ in enumerate(aut.plan_succ):
-            for j in succ:
-                a, b = self._letter[i], self._letter[j]
-                if a == b or (a, b) in self.skills:
-                    graph.add_edge(i, j)
-        self._graph = graph
-        self._goal = frozenset().union(*aut.goals) if aut.goals else frozenset()
-        self._next_cache: dict[int, int | None] = {}
-        self.modulation = boolean(modulation, "modulation", owner="TransitionDSPolicy")
-        self.max_cuts = integer(max_cuts, "max_cuts", low=0, owner="TransitionDSPolicy")
-        self.cut_sets = {k: CutSet(sk.attractor) for k, sk in self.skills.items()}
-        self._records: dict[tuple[str, str], list[FailureRecord]] = {k: [] for k in self.skills}
-        self.replans = self.invalid = self.failures = self.stuck_steps = 0
-        self.mode_path: list[str] = []
-        self._x: np.ndarray | None = None
-        self._entry: np.ndarray | None = None
-        self._active: tuple[str, str] | None = None
-        self._target: str | None = None
-
-    def _next_node(self, start: int) -> int | None:
-        """First step of the shortest goal lasso from ``start`` over skill-backed edges (None: no plan)."""
-        if start in self._next_cache:
-            return self._next_cache[start]
-        dist = nx.single_source_shortest_path(self._graph, start)
-        best: tuple[int, int] | None = None
-        choice: int | None = None
-        for s in self._goal:
-            if s not in dist:
-                continue
-            if self._graph.has_edge(s, s):
-                cycle = 1
-            else:
-                back = [
-                    len(nx.shortest_path(self._graph, t, s))
-                    for t in self._graph.successors(s)
-                    if nx.has_path(self._graph, t, s)
-                ]
-                if not back:
-                    continue
-                cycle = min(back)
-            key = (len(dist[s]) - 1 + cycle, s)
-            if best is None or key < best:
-                best = key
-                path = dist[s]
-                if len(path) > 1:
-                    choice = path[1]
-                elif self._graph.has_edge(s, s):
-                    choice = s
-                else:  # at the goal: the first step of its cycle
-                    choice = min(
-                        (t for t in self._graph.successors(s) if nx.has_path(self._graph, t, s)),
-                        key=lambda t: (len(nx.shortest_path(self._graph, t, s)), t),
-                    )
-        self._next_cache[start] = choice
-        return choice
-
-    @property
-    def mode(self) -> str:
-        """The tracked automaton mode."""
-        return self.replanner.current_mode
-
-    def next_mode(self) -> str | None:
-        """The mode the policy drives toward (None when no skill-backed plan exists)."""
-        assert self.replanner.state is not None
-        nxt = self._next_node(self.replanner.state)
-        return None if nxt is None else self.automaton.nodes[nxt].mode
-
-    @property
-    def num_cuts(self) -> int:
-        """Cuts over all skills."""
-        return sum(len(c) for c in self.cut_sets.values())
-
-    def reset(self, obs: np.ndarray, info: Mapping[str, Any]) -> None:
-        """Start an episode from its first reading (cuts are kept)."""
-        self.replanner.reset(info["sensors"])
-        self.replans = self.invalid = self.failures = self.stuck_steps = 0
-        self.mode_path = [self.mode]
-        self._x = np.asarray(obs, dtype=np.float64).reshape(2).copy()
-        self._entry = self._x.copy()
-        self._active, self._target = None, None
-
-    def observe(self, obs: np.ndarray, info: Mapping[str, Any]) -> None:
-        """Track a reading; ``info["perturbed"]`` marks a push; an invariance failure may add a cut."""
-        x = np.asarray(obs, dtype=np.float64).reshape(2).copy()
-        pushed = boolean(info.get("perturbed", False), "info['perturbed']", owner="TransitionDSPolicy")
-        before_mode = self.mode
-        try:
-            changed = self.replanner.update(info["sensors"]) != before_mode
-        except UnknownSensorReading:
-            changed = False  # a reading no mode explains (an empty spoon in the pot before any food): keep the mode
-        if changed:
-            if self.replanner.last_unexpected:
-                self.replans += 1
-                self.invalid += not pushed
-            if not pushed and self._active is not None and self.mode != self._target:
-                self.failures += 1
-                self._learn(self._active, x)
-            self.mode_path.append(self.mode)
-            self._entry = x.copy()
-        self._x = x
-
-    def _learn(self, key: tuple[str, str], failure: np.ndarray) -> None:
-        assert self._x is not None and self._entry is not None
-        records = [*self._records[key], FailureRecord(self._x.copy(), failure, self._entry.copy())]
-        if not self.modulation or len(records) > self.max_cuts:
-            return
-        try:
-            cuts = resolve_cuts(records, self.skills[key].attractor, ATTRACTOR_MARGIN)
-        except ValueError:
-            return  # no cut separates this failure (kept out of the records)
-        self._records[key] = records
-        self.cut_sets[key].set_cuts(cuts)
-
-    def act(self, obs: np.ndarray, info: Mapping[str, Any]) -> np.ndarray:
-        """The velocity (float32 ``(2,)``) of the planned transition's skill, modulated by its cuts."""
-        self.observe(obs, info)
-        assert self.replanner.state is not None and self._x is not None
-        nxt = self._next_node(self.replanner.state)
-        self._active, self._target = None, None
-        if nxt is None:
-            self.stuck_steps += 1
-            return np.zeros(2, dtype=np.float32)
-        a, b = self._letter[self.replanner.state], self._letter[nxt]
-        self._target = self.automaton.nodes[nxt].mode
-        if a == b:
-            return np.zeros(2, dtype=np.float32)  # the plan stays in this mode (an absorbing goal)
-        self._active = (a, b)
-        x = self._x[None]
-        v = _clip(np.asarray(self.skills[(a, b)].policy(x), dtype=np.float64)[0], self.max_speed)[None]
-        cuts = self.cut_sets[(a, b)]
-        if self.modulation and len(cuts):
-            v = hold_beyond_cuts(x, modulate(x, v, cuts, self.max_speed), cuts)
-        return v[0].astype(np.float32)
-
-
-def push_schedule(rng: np.random.Generator, n: int, window: int, magnitude: float) -> dict[int, np.ndarray]:
-    """``n`` pushes ``step -> displacement`` at distinct steps in ``[1, window]`` (uniform direction and length)."""
-    n = integer(n, "n", low=0, owner="push_schedule")
-    window = integer(window, "window", low=max(1, n), owner="push_schedule")
-    magnitude = real_scalar(magnitude, "magnitude", low=0.0, owner="push_schedule")
-    steps = rng.choice(np.arange(1, window + 1), size=n, replace=False)
-    angle = rng.uniform(0.0, 2.0 * np.pi, size=n)
-    size = rng.uniform(0.0, magnitude, size=n)
-    return {int(s): m * np.array([np.cos(a), np.sin(a)]) for s, a, m in zip(steps, angle, size, strict=True)}
-
-
-def cooking_episode(
-    env: Any,
-    policy: TransitionDSPolicy,
-    variant: str,
-    start_seed: int,
-    pushes: Mapping[int, np.ndarray],
-    *,
-    horizon: int,
-    deliveries: int,
-    record: bool = False,
-) -> dict[str, Any]:
-    """One episode on the unwrapped Cooking env; outcome per the module docstring."""
-    base = env.unwrapped
-    obs, info = base.reset(seed=start_seed)
-    policy.reset(obs, info)
-    delivered, steps, success = 0, 0, False
-    holding = bool(info["sensors"]["hc"])
-    trace: list[list[list[float]]] = [[base.state.tolist()]]
-    push_log: list[dict[str, Any]] = []
-    for steps in range(1, horizon + 1):
-        if steps in pushes:
-            before = base.state
-            info = base.perturb(delta=pushes[steps])
-            obs = base.state.astype(np.float32)
-            push_log.append({"step": steps, "from": before.tolist(), "to": base.state.tolist()})
-            if record:
-                trace.append([base.state.tolist()])
-            policy.observe(obs, info)
-            holding = bool(info["sensors"]["hc"])
-        obs, _, _, _, info = base.step(policy.act(obs, info))
-        if record:
-            trace[-1].append(base.state.tolist())
-        s = info["sensors"]
-        delivered += holding and s["p"]
-        holding = bool(s["hc"])
-        policy.observe(obs, info)
-        if variant in ("phi_cb", "phi_bc"):
-            success = info["success"] and policy.mode == "d2"
-        elif variant == "phi_c":
-            success = policy.mode == "d" and s["ch"] and not s["br"]
-        else:
-            success = delivered >= deliveries
-        if success or (info["success"] and variant in ("phi_c", "phi_cc")):
-            break  # done, or the broccoli went into the pot (the env's goal absorbs: the task cannot recover)
-    out: dict[str, Any] = {
-        "success": bool(success),
-        "steps": steps,
-        "invalid": policy.invalid,
-        "replans": policy.replans,
-        "failures": policy.failures,
-        "stuck_steps": policy.stuck_steps,
-        "deliveries": delivered,
-        "mode_path": policy.mode_path,
-    }
-    if record:
-        out["trace"] = [np.round(np.asarray(seg), 3).tolist() for seg in trace]
-        out["pushes"] = push_log
-    return out
 
 
 def cooking_trial(
@@ -448,43 +56,31 @@ def cooking_trial(
     record: bool = False,
 ) -> dict[str, Any]:
     """``n_starts`` episodes without and with pushes under automaton ``variant``; JSON-able aggregate."""
-    import gymnasium as gym
-
-    import steer_envs  # noqa: F401
     from steer_envs.ltl.specs import cooking
 
-    seed = integer(seed, "seed", low=0, owner="cooking_trial")
     one_of(variant, "variant", VARIANTS, owner="cooking_trial")
-    n_starts = integer(n_starts, "n_starts", low=1, owner="cooking_trial")
-    horizon = integer(horizon, "horizon", low=1, owner="cooking_trial")
-    deliveries = integer(deliveries, "deliveries", low=1, owner="cooking_trial")
+    seed, n_starts, horizon, deliveries = checked_counts(
+        "cooking_trial", seed=(seed, 0), n_starts=(n_starts, 1), horizon=(horizon, 1), deliveries=(deliveries, 1)
+    )
     skills = learned_skills(seed)
-    env = gym.make(ENV_ID)
-    base: Any = env.unwrapped
-    policy = TransitionDSPolicy(base.task, cooking(variant), skills, max_speed=base.max_speed, modulation=modulation)
     rng = np.random.default_rng([seed, 5077])
     results: dict[str, list[dict[str, Any]]] = {"clean": [], "push": []}
-    try:
+    with trial_env(ENV_ID) as (env, base):
+        policy = TransitionDSPolicy(
+            base.task, cooking(variant), skills, max_speed=base.max_speed, modulation=modulation
+        )
         for i, cond in itertools.product(range(n_starts), ("clean", "push")):
-            start_seed = int(np.random.SeedSequence([seed, i, 31]).generate_state(1)[0] % (2**31))
             pushes = push_schedule(rng, n_pushes, push_window, magnitude) if cond == "push" else {}
             results[cond].append(
                 cooking_episode(
-                    env, policy, variant, start_seed, pushes, horizon=horizon, deliveries=deliveries,
+                    env, policy, variant, reset_seed(seed, i, 31), pushes, horizon=horizon, deliveries=deliveries,
                     record=record and i == 0,
                 )
             )  # fmt: skip
-    finally:
-        env.close()
     out: dict[str, Any] = {"fingerprint": skills_fingerprint(skills), "skills": sorted("->".join(k) for k in skills)}
     for cond, eps in results.items():
         out[cond] = {
-            "success": float(np.mean([e["success"] for e in eps])),
-            "invalid": float(np.mean([e["invalid"] for e in eps])),
-            "replans": float(np.mean([e["replans"] for e in eps])),
-            "failures": float(np.mean([e["failures"] for e in eps])),
-            "deliveries": float(np.mean([e["deliveries"] for e in eps])),
-            "steps": float(np.mean([e["steps"] for e in eps])),
+            **episode_means(eps, ("success", "invalid", "replans", "failures", "deliveries", "steps")),
             "stuck": int(sum(e["stuck_steps"] > 0 for e in eps)),
         }
         if record:

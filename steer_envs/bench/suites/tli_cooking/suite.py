@@ -15,9 +15,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import all_full
+from steer_envs.bench.metrics import NUM_CUTS
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
-from steer_envs.utils.threads import single_threaded
+from steer_envs.bench.trials import run_protocol
 
 ENV_ID = "steer_envs/Cooking-v0"
 VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
@@ -54,23 +56,7 @@ def run_cooking_trial(trial: Trial) -> TrialResult:
     """One experiment under one edited automaton, with and without pushes."""
     from steer_envs.bench.suites.tli_cooking.protocol import cooking_trial
 
-    if trial.method not in VARIANTS:
-        raise ValueError(f"tli-cooking: unknown method {trial.method!r}; expected one of {VARIANTS}")
-    p = CookingParams.from_json(trial.params)
-    record = trial.seed < p.plot_seeds
-    with single_threaded():
-        res = cooking_trial(
-            trial.seed,
-            str(trial.method),
-            n_starts=p.n_starts,
-            n_pushes=p.n_pushes,
-            push_window=p.push_window,
-            magnitude=p.magnitude,
-            horizon=p.horizon,
-            deliveries=p.deliveries,
-            modulation=p.modulation,
-            record=record,
-        )
+    _, res = run_protocol(trial, CookingParams, cooking_trial, VARIANTS)
     clean, push = res["clean"], res["push"]
     metrics = {
         "success": 100.0 * clean["success"],
@@ -84,7 +70,7 @@ def run_cooking_trial(trial: Trial) -> TrialResult:
         "deliveries": clean["deliveries"],
     }
     extra: dict[str, Any] = {"skills": res["skills"], "fingerprint": res["fingerprint"]}
-    if record:
+    if "figure" in clean:
         extra["figure"] = {
             "clean": clean["figure"],
             "push": push["figure"],
@@ -95,24 +81,9 @@ def run_cooking_trial(trial: Trial) -> TrialResult:
 
 def cooking_findings(table: Any) -> list[Finding]:
     """Every edited task succeeds from every start without retraining (and, reported beside, under pushes)."""
-    out = []
-    for metric, claim in (
-        ("success", "every edited task (phi_cb, phi_bc, phi_c, phi_cc) succeeds from every start without retraining"),
-        ("success_push", "every edited task recovers from random pushes by replanning (thesis Fig. (c)-(f))"),
-    ):
-        means = table.means(metric, VARIANTS)
-        if means is None:
-            out.append(Finding(claim, None))
-            continue
-        detail = ", ".join(f"{v} {means[v]:.0f} %" for v in VARIANTS)
-        out.append(Finding(claim, all(means[v] >= 100.0 - 1e-9 for v in VARIANTS), detail))
-    return out
-
-
-def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli_cooking.plots import plot_cooking
-
-    return plot_cooking(suite, records, out_dir)
+    claim = "every edited task (phi_cb, phi_bc, phi_c, phi_cc) succeeds from every start without retraining"
+    push_claim = "every edited task recovers from random pushes by replanning (thesis Fig. (c)-(f))"
+    return [all_full(table, claim, "success", VARIANTS), all_full(table, push_claim, "success_push", VARIANTS)]
 
 
 TLI_COOKING = register_suite(
@@ -131,7 +102,7 @@ TLI_COOKING = register_suite(
             Metric("invalid_push", "invalid transitions (not caused by a push) per episode", higher_is_better=False),
             Metric("replans_push", "replans per episode under pushes", higher_is_better=False),
             Metric("loops_push", "invariance failures (discrete loops) per episode", higher_is_better=False),
-            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            NUM_CUTS,
             Metric("deliveries", "chicken deliveries per episode, no pushes", fmt=".1f"),
         ),
         run_trial=run_cooking_trial,
@@ -143,7 +114,7 @@ TLI_COOKING = register_suite(
         references=tuple(Reference("success", 100.0, env=ENV_ID, method=v, source=THESIS_SOURCE) for v in VARIANTS),
         quick={"n_starts": 3, "horizon": 2000},
         quick_seeds=1,
-        plot=_plot,
+        plot="steer_envs.bench.suites.tli_cooking.plots:plot_cooking",
         findings=cooking_findings,
     )
 )

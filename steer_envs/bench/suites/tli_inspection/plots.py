@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.bench.plots import new_figure, save_figure
+from steer_envs.bench.plots import recorded_figures
+from steer_envs.utils.plots import new_figure, save_figure
 
 __all__ = ["plot_inspection"]
 
@@ -25,11 +26,9 @@ def plot_inspection(suite: Any, records: Sequence[Mapping[str, Any]], out_dir: s
 
     from steer_envs.envs.inspection_line import RECTS
 
-    cells = {}
-    for rec in records:
-        fig_data = (rec.get("extra") or {}).get("figure")
-        if fig_data and str(rec["config"]["method"]) not in cells:
-            cells[str(rec["config"]["method"])] = fig_data
+    cells: dict[str, Any] = {}
+    for (_, method), fig_data in recorded_figures(records).items():
+        cells.setdefault(method, fig_data)  # the first recorded
     if not cells:
         return []
     methods = [m for m in ("vanilla-ds", "ltl-ds", "ltl-ds+mod") if m in cells]

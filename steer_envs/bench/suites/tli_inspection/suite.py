@@ -14,8 +14,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import cell_means, full, judge
+from steer_envs.bench.metrics import NUM_CUTS
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.trials import check_trial
 from steer_envs.utils.threads import single_threaded
 
 ENV_ID = "steer_envs/InspectionLine-v0"
@@ -45,20 +48,13 @@ def run_inspection_trial(trial: Trial) -> TrialResult:
     """One experiment of one method, without and with large pushes."""
     from steer_envs.bench.suites.tli_inspection.protocol import inspection_trial
 
-    if trial.method not in METHODS:
-        raise ValueError(f"tli-inspection: unknown method {trial.method!r}; expected one of {METHODS}")
+    check_trial(trial, methods=METHODS)
     p = InspectionParams.from_json(trial.params)
     record = trial.seed < p.plot_seeds
-    method = str(trial.method)
+    method, kwargs = str(trial.method), p.kwargs(without=("plot_seeds",))
     with single_threaded():
-        clean = inspection_trial(
-            trial.seed, method, n_episodes=p.n_episodes, n_pushes=p.n_pushes, min_push=0.0, max_push=0.0,
-            max_steps=p.max_steps,
-        )  # fmt: skip
-        push = inspection_trial(
-            trial.seed, method, n_episodes=p.n_episodes, n_pushes=p.n_pushes, min_push=p.min_push,
-            max_push=p.max_push, max_steps=p.max_steps, record=record,
-        )  # fmt: skip
+        clean = inspection_trial(trial.seed, method, **{**kwargs, "min_push": 0.0, "max_push": 0.0})
+        push = inspection_trial(trial.seed, method, **kwargs, record=record)
     metrics = {
         "success_clean": 100.0 * clean["success"],
         "success": 100.0 * push["success"],
@@ -74,31 +70,20 @@ def run_inspection_trial(trial: Trial) -> TrialResult:
 
 def inspection_findings(table: Any) -> list[Finding]:
     """The thesis's point: vanilla DS reaches its attractor but skips the inspection; LTL-DS re-does it."""
-    out = []
-    v = {k: table.mean(k, "vanilla-ds") for k in ("reached", "uninspected", "success")}
-    claim = "vanilla DS reaches the release station after large pushes, but without the inspection in some episodes"
-    if None in v.values():
-        out.append(Finding(claim, None))
-    else:
-        detail = (
-            f"vanilla-ds: reached {v['reached']:.0f} %, uninspected {v['uninspected']:.0f} %, "
-            f"success {v['success']:.0f} %"
-        )
-        out.append(Finding(claim, v["reached"] >= 100.0 - 1e-9 and v["uninspected"] > 0, detail))
-    m = {k: table.mean(k, "ltl-ds+mod") for k in ("success", "inspections")}
-    claim = "LTL-DS with cuts re-does the inspection after large pushes and succeeds in every episode"
-    if None in m.values():
-        out.append(Finding(claim, None))
-    else:
-        detail = f"ltl-ds+mod: success {m['success']:.0f} %, {m['inspections']:.2f} inspections per episode"
-        out.append(Finding(claim, m["success"] >= 100.0 - 1e-9 and m["inspections"] > 1.0, detail))
-    return out
-
-
-def _plot(suite: Suite, records: Any, out_dir: str) -> list[str]:
-    from steer_envs.bench.suites.tli_inspection.plots import plot_inspection
-
-    return plot_inspection(suite, records, out_dir)
+    return [
+        judge(
+            "vanilla DS reaches the release station after large pushes, but without the inspection in some episodes",
+            cell_means(table, "vanilla-ds", ("reached", "uninspected", "success")),
+            lambda v: full(v["reached"]) and v["uninspected"] > 0,
+            "vanilla-ds: reached {reached:.0f} %, uninspected {uninspected:.0f} %, success {success:.0f} %",
+        ),
+        judge(
+            "LTL-DS with cuts re-does the inspection after large pushes and succeeds in every episode",
+            cell_means(table, "ltl-ds+mod", ("success", "inspections")),
+            lambda m: full(m["success"]) and m["inspections"] > 1.0,
+            "ltl-ds+mod: success {success:.0f} %, {inspections:.2f} inspections per episode",
+        ),
+    ]
 
 
 TLI_INSPECTION = register_suite(
@@ -119,7 +104,7 @@ TLI_INSPECTION = register_suite(
             ),
             Metric("reached", "episodes ending at the release station (%), inspected or not", fmt=".0f"),
             Metric("inspections", "times the object was put on the line per episode", fmt=".2f"),
-            Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f"),
+            NUM_CUTS,
             Metric("steps", "steps per episode", higher_is_better=False, fmt=".0f"),
         ),
         run_trial=run_inspection_trial,
@@ -134,7 +119,7 @@ TLI_INSPECTION = register_suite(
         ),
         quick={"n_episodes": 4},
         quick_seeds=1,
-        plot=_plot,
+        plot="steer_envs.bench.suites.tli_inspection.plots:plot_inspection",
         findings=inspection_findings,
     )
 )

@@ -161,55 +161,79 @@ def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float]:
     }
 
 
+class _LoadClients:
+    """The load test's clients (one thread each) and what they count, under one lock."""
+
+    def __init__(self, params: Any, seed: int) -> None:
+        self.params, self.seed = params, seed
+        self.counts = {"calls": 0, "dropped": 0, "errors": 0, "malformed_answered": 0}
+        self.latencies: list[float] = []
+        self.lock = threading.Lock()
+        self.stop_at = 0.0
+
+    def steer_loop(self, index: int, url: str) -> None:
+        """Steer with random sketches until :attr:`stop_at`, timing each call."""
+        rng = np.random.default_rng([self.seed, index])
+        try:
+            client = _Client(url)
+            ready = client.ask({"type": "hello"}, ("ready",))
+            client.ask(_settings(self.params), ("settings",))
+            while time.monotonic() < self.stop_at:
+                message = {"type": "steer", "kind": "sketch", "points": _sketch(np.asarray(ready["agent"]), rng)}
+                t0 = time.perf_counter()
+                reply = client.ask(message, ("plans",))
+                with self.lock:
+                    if reply["type"] == "error":
+                        self.counts["errors"] += 1
+                    else:
+                        self.counts["calls"] += 1
+                        self.latencies.append((time.perf_counter() - t0) * 1e3)
+            client.close()
+        except Exception:  # a closed connection or a timeout: the client was dropped
+            with self.lock:
+                self.counts["dropped"] += 1
+
+    def malformed_loop(self, url: str) -> None:
+        """Send ``params.malformed`` malformed messages, counting those answered with an error."""
+        try:
+            client = _Client(url)
+            client.ask({"type": "hello"}, ("ready",))
+            for i in range(self.params.malformed):
+                reply = client.ask(MALFORMED[i % len(MALFORMED)])
+                if reply["type"] == "error":
+                    with self.lock:
+                        self.counts["malformed_answered"] += 1
+            client.close()
+        except Exception:
+            with self.lock:
+                self.counts["dropped"] += 1
+
+    def metrics(self, rss_growth_mb: float, server_ok: bool) -> dict[str, float]:
+        """The load metrics of the finished test."""
+        counts, params = self.counts, self.params
+        return {
+            "steer_calls": float(counts["calls"]),
+            "calls_per_s": counts["calls"] / params.duration_s,
+            "p95_latency_ms": float(np.percentile(self.latencies, 95)) if self.latencies else float("nan"),
+            "dropped": float(counts["dropped"]),
+            "errors": float(counts["errors"]),
+            "malformed_unanswered": float(params.malformed - counts["malformed_answered"]),
+            "server_crashes": 0.0 if server_ok else 1.0,
+            "rss_growth_mb": rss_growth_mb,
+        }
+
+
 def run_load(params: Any, seed: int) -> dict[str, float]:
     """``connections`` steering clients for ``duration_s`` s plus ``malformed`` bad messages on one more."""
     from steer_envs.ui.browser import RunningServer
     from steer_envs.ui.server import UIConfig
 
-    counts = {"calls": 0, "dropped": 0, "errors": 0, "malformed_answered": 0}
-    latencies: list[float] = []
-    lock = threading.Lock()
-    stop_at = [0.0]
-
-    def steer_loop(index: int, url: str) -> None:
-        rng = np.random.default_rng([seed, index])
-        try:
-            client = _Client(url)
-            ready = client.ask({"type": "hello"}, ("ready",))
-            client.ask(_settings(params), ("settings",))
-            while time.monotonic() < stop_at[0]:
-                message = {"type": "steer", "kind": "sketch", "points": _sketch(np.asarray(ready["agent"]), rng)}
-                t0 = time.perf_counter()
-                reply = client.ask(message, ("plans",))
-                with lock:
-                    if reply["type"] == "error":
-                        counts["errors"] += 1
-                    else:
-                        counts["calls"] += 1
-                        latencies.append((time.perf_counter() - t0) * 1e3)
-            client.close()
-        except Exception:  # a closed connection or a timeout: the client was dropped
-            with lock:
-                counts["dropped"] += 1
-
-    def malformed_loop(url: str) -> None:
-        try:
-            client = _Client(url)
-            client.ask({"type": "hello"}, ("ready",))
-            for i in range(params.malformed):
-                reply = client.ask(MALFORMED[i % len(MALFORMED)])
-                if reply["type"] == "error":
-                    with lock:
-                        counts["malformed_answered"] += 1
-            client.close()
-        except Exception:
-            with lock:
-                counts["dropped"] += 1
-
+    clients = _LoadClients(params, seed)
     with RunningServer(UIConfig(seed=seed, workers=2, accelerate=params.accelerate)) as server:
-        stop_at[0] = time.monotonic() + params.duration_s
-        threads = [threading.Thread(target=steer_loop, args=(i, server.ws_url)) for i in range(params.connections)]
-        threads.append(threading.Thread(target=malformed_loop, args=(server.ws_url,)))
+        clients.stop_at = time.monotonic() + params.duration_s
+        url = server.ws_url
+        threads = [threading.Thread(target=clients.steer_loop, args=(i, url)) for i in range(params.connections)]
+        threads.append(threading.Thread(target=clients.malformed_loop, args=(url,)))
         for thread in threads:
             thread.start()
         time.sleep(min(params.duration_s / 3.0, 20.0))
@@ -222,16 +246,7 @@ def run_load(params: Any, seed: int) -> dict[str, float]:
         probe = _Client(server.ws_url)
         answered = probe.ask({"type": "hello"}, ("ready",))["type"] == "ready"
         probe.close()
-    return {
-        "steer_calls": float(counts["calls"]),
-        "calls_per_s": counts["calls"] / params.duration_s,
-        "p95_latency_ms": float(np.percentile(latencies, 95)) if latencies else float("nan"),
-        "dropped": float(counts["dropped"]),
-        "errors": float(counts["errors"]),
-        "malformed_unanswered": float(params.malformed - counts["malformed_answered"]),
-        "server_crashes": 0.0 if alive and answered else 1.0,
-        "rss_growth_mb": rss_end - rss_warm,
-    }
+    return clients.metrics(rss_end - rss_warm, alive and answered)
 
 
 def run_ui_trial(trial: Trial, params_type: type[SuiteParams]) -> dict[str, float]:

@@ -14,11 +14,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from steer_envs.bench.findings import cell_means
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, register_suite
 
 METHODS: tuple[str, ...] = ("roundtrip", "load")
-#: the issue's budgets: a round trip under 0.5 s, memory "flat" = this much growth at most
+#: the budgets: a round trip under 0.5 s, memory "flat" = this much growth at most
 TARGET_MS = 500.0
 FLAT_MB = 64.0
 
@@ -80,31 +81,30 @@ def run_steer_ui_trial(trial: Trial) -> dict[str, float | None]:
 
 
 def ui_findings(table: Any) -> list[Finding]:
-    """The issue's checks: round trip under 0.5 s; load without drops, errors, crashes or memory growth."""
+    """The checks: round trip under 0.5 s; load without drops, errors, crashes or memory growth."""
     out = []
-    rtt = {k: table.mean(k, "roundtrip") for k in ("roundtrip_ms", "network_ms", "sampler_ms", "draw_ms")}
+    rtt = cell_means(table, "roundtrip", ("roundtrip_ms", "network_ms", "sampler_ms", "draw_ms"))
     claim = f"a steering round trip (sketch sent -> plans drawn) takes under {TARGET_MS:.0f} ms"
     if rtt["roundtrip_ms"] is None:
         out.append(Finding(claim, None))
     else:
         detail = (
-            f"round trip {rtt['roundtrip_ms']:.0f} ms = network {rtt['network_ms']:.0f} + sampler "
-            f"{rtt['sampler_ms']:.0f} + drawing {rtt['draw_ms']:.1f} + transfer/encoding"
+            "round trip {roundtrip_ms:.0f} ms = network {network_ms:.0f} + sampler {sampler_ms:.0f} + drawing "
+            "{draw_ms:.1f} + transfer/encoding"
         )
-        out.append(Finding(claim, rtt["roundtrip_ms"] < TARGET_MS, detail))
-    load = {k: table.mean(k, "load") for k in LOAD_METRICS}
+        out.append(Finding(claim, rtt["roundtrip_ms"] < TARGET_MS, detail.format_map(rtt)))
+    load = cell_means(table, "load", LOAD_METRICS)
     claim = "concurrent connections steer without a drop, an error or a crash; every malformed message is answered"
     if load["dropped"] is None:
         out.append(Finding(claim, None))
     else:
         bad = load["dropped"] + load["errors"] + load["server_crashes"] + load["malformed_unanswered"]
         detail = (
-            f"{load['steer_calls']:.0f} steering calls ({load['calls_per_s']:.2f}/s, "
-            f"p95 {load['p95_latency_ms']:.0f} ms), "
-            f"dropped {load['dropped']:.0f}, errors {load['errors']:.0f}, crashes {load['server_crashes']:.0f}, "
-            f"unanswered malformed {load['malformed_unanswered']:.0f}"
+            "{steer_calls:.0f} steering calls ({calls_per_s:.2f}/s, p95 {p95_latency_ms:.0f} ms), dropped "
+            "{dropped:.0f}, errors {errors:.0f}, crashes {server_crashes:.0f}, unanswered malformed "
+            "{malformed_unanswered:.0f}"
         )
-        out.append(Finding(claim, bad == 0, detail))
+        out.append(Finding(claim, bad == 0, detail.format_map(load)))
         claim = f"memory stays flat under load (growth under {FLAT_MB:.0f} MiB after warm-up)"
         out.append(Finding(claim, load["rss_growth_mb"] < FLAT_MB, f"{load['rss_growth_mb']:+.1f} MiB"))
     return out
