@@ -95,6 +95,8 @@ class Table:
     findings: list[Finding] = field(default_factory=list)
     #: the suite's default seed count (the size its findings are meant for); None when unregistered
     default_seeds: int | None = None
+    #: ``name=value`` of the quick tour's reduced settings every row ran with (empty: a full-size run)
+    reduced: list[str] = field(default_factory=list)
 
     def referenced_metrics(self) -> list[Metric]:
         """Metrics that have a reference in at least one row."""
@@ -190,6 +192,8 @@ def summarize(records: Iterable[Mapping[str, Any]], *, lookup: Callable[[str], S
         table = Table(
             suite_name, description, metrics, rows, varying, default_seeds=suite.default_seeds if suite else None
         )
+        if suite is not None:
+            table.reduced = reduced_settings(suite, rows)
         if suite is not None and suite.findings is not None:
             table.findings = _checked_findings(suite, table)
         tables.append(table)
@@ -267,22 +271,46 @@ def goal_lines(table: Table) -> list[str]:
     return lines
 
 
+def reduced_settings(suite: Suite, rows: Sequence[Row]) -> list[str]:
+    """``name=value`` of the quick-tour overrides (those off the suite's defaults) that every row ran with.
+
+    Such a run (``steer-bench run quick``) is a smoke test of the pipeline,
+    too small for claims about full-size runs; empty for any other run.
+
+    >>> reduced_settings(get_suite("tli-arm-scoop"), [])
+    []
+    """
+    if not suite.quick or not rows:
+        return []
+    defaults = suite.defaults.to_json()
+    quick = suite.resolve_params({}, base=suite.quick).to_json()
+    # plot_* parameters only change figures, not the experiment
+    changed = {
+        k: v for k, v in quick.items() if k in suite.quick and defaults.get(k) != v and not k.startswith("plot_")
+    }
+    if not changed or not all(all(r.params.get(k) == v for k, v in changed.items()) for r in rows):
+        return []
+    return [f"{k}={v}" for k, v in changed.items()]
+
+
 def seeds_run(table: Table) -> int:
     """The most seeds any row of ``table`` ran (0 for an empty table)."""
     return max((len(r.seeds) for r in table.rows), default=0)
 
 
 def judged(table: Table) -> bool:
-    """Whether ``table`` ran the seeds its suite's findings are meant for (unregistered suites: always)."""
-    return table.default_seeds is None or seeds_run(table) >= table.default_seeds
+    """Whether ``table`` is a run its suite's findings are meant for: the default seeds, not the quick settings."""
+    enough = table.default_seeds is None or seeds_run(table) >= table.default_seeds
+    return enough and not table.reduced
 
 
 def finding_lines(table: Table) -> list[str]:
     """``finding holds|FAILS|not checked|not judged: claim (detail)`` lines.
 
-    A run on fewer seeds than the suite's default cannot judge a claim made
-    about the full run: its verdicts print as ``not judged``, with the seeds
-    run and needed and the verdict these seeds lean to, never as a failure.
+    A run on fewer seeds than the suite's default, or at the quick tour's
+    reduced settings, cannot judge a claim made about the full run: its
+    verdicts print as ``not judged``, saying why and the verdict this run
+    leans to, never as a failure.
     """
     verdict = {True: "holds", False: "FAILS", None: "not checked"}
     seeds, enough = seeds_run(table), judged(table)
@@ -293,8 +321,12 @@ def finding_lines(table: Table) -> list[str]:
             lines.append(f"finding {verdict[f.holds]}: {f.claim}{detail}")
         else:
             lean = "holds" if f.holds else "fails"
-            need = f"{seeds} of the {table.default_seeds} seeds it needs; on these it {lean}"
-            lines.append(f"finding not judged ({need}): {f.claim}{detail}")
+            why = []
+            if table.default_seeds is not None and seeds < table.default_seeds:
+                why.append(f"{seeds} of the {table.default_seeds} seeds it needs")
+            if table.reduced:
+                why.append(f"the quick tour's reduced {', '.join(table.reduced)}")
+            lines.append(f"finding not judged ({'; '.join(why)}; on these it {lean}): {f.claim}{detail}")
     return lines
 
 

@@ -81,3 +81,28 @@ def test_stat_of_values_at_the_top_of_the_float_range() -> None:
     stat = Stat.of([top, top, top])
     assert stat.mean == top and stat.std == 0.0
     assert Stat.of([top, -top, 5e-324]).mean == 0.0
+
+
+def test_a_quick_tour_run_is_not_judged() -> None:
+    """A table at the quick tour's reduced settings prints its verdicts as not judged, saying why."""
+    from steer_envs.bench.report import Row, Table, finding_lines, judged, reduced_settings
+    from steer_envs.bench.suite import Finding, get_suite
+
+    suite = get_suite("tli-arm-scoop")
+    quick = suite.resolve_params({}, base=suite.quick).to_json()
+    full = suite.defaults.to_json()
+    seeds = list(range(suite.default_seeds))
+
+    def table(params: dict) -> Table:
+        rows = [Row("steer_envs/ArmScoop-v0", "ltl-ds+mod", params, len(seeds), seeds, {}, {})]
+        out = Table(suite.name, "", [], rows, [], default_seeds=suite.default_seeds)
+        out.reduced = reduced_settings(suite, rows)
+        out.findings = [Finding("a claim", False, "measured")]
+        return out
+
+    assert reduced_settings(suite, table(quick).rows) == ["n_episodes=2"] and not judged(table(quick))
+    assert finding_lines(table(quick)) == [
+        "finding not judged (the quick tour's reduced n_episodes=2; on these it fails): a claim (measured)"
+    ]
+    assert reduced_settings(suite, table(full).rows) == [] and judged(table(full))
+    assert finding_lines(table(full)) == ["finding FAILS: a claim (measured)"]
