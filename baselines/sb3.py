@@ -46,9 +46,8 @@ from typing import Any
 
 from steer_envs.core.extras import require
 from steer_envs.core.validation import boolean, integer, real_scalar
-from steer_envs.data.shards import default_cache_dir
 from steer_envs.envs.registry import entry
-from steer_envs.io import atomic_directory
+from steer_envs.io import atomic_directory, default_cache_dir
 from steer_envs.utils.threads import limit_threads
 
 __all__ = [

@@ -61,6 +61,7 @@ except ImportError:  # pragma: no cover - not on Linux / macOS
     fcntl = None  # type: ignore[assignment]
 
 __all__ = [
+    "CACHE_ENV",
     "MAX_NPZ_BYTES",
     "STALE_AFTER_S",
     "CheckpointError",
@@ -71,11 +72,33 @@ __all__ = [
     "atomic_write_npz",
     "atomic_write_text",
     "clean_stale_temps",
+    "default_cache_dir",
     "fsync_dir",
     "npz_json",
     "read_npz",
     "require_arrays",
 ]
+
+
+#: the environment variable whose folder holds every cache (``~/.cache`` when unset or empty)
+CACHE_ENV = "XDG_CACHE_HOME"
+
+
+def default_cache_dir(name: str) -> Path:
+    """``$XDG_CACHE_HOME/steer-envs/<name>`` (``~/.cache/steer-envs/<name>`` when the variable is unset or empty).
+
+    ``name``: one folder name (a suite's, e.g. ``"itps-blockstack"``).
+
+    Every cache of the library lives there: the shards of the studies, the
+    SB3 runs, the converted Kitchen assets.
+
+    >>> default_cache_dir("itps-kitchen").parts[-2:]
+    ('steer-envs', 'itps-kitchen')
+    """
+    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name:
+        raise ValueError(f"default_cache_dir: `name` must be one folder name, got {name!r}")
+    root = os.environ.get(CACHE_ENV) or str(Path.home() / ".cache")
+    return Path(root) / "steer-envs" / name
 
 
 class CheckpointError(ValueError):

@@ -13,7 +13,7 @@ of the BlockStack Diffusion Policy (:func:`~steer_envs.data.blockstack_plans.to_
 
     python -m steer_envs.data.blockstack_shards --cache-dir DIR --episodes 200 --out plans.npz
 
-The default cache folder is :func:`~steer_envs.data.shards.default_cache_dir` ``("itps-blockstack")``.
+The default cache folder is :func:`~steer_envs.io.default_cache_dir` ``("itps-blockstack")``.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ __all__ = ["CACHE_NAME", "SHARD_VERSION", "ShardSettings", "ensure_shard", "main
 
 #: bump when shard contents change for the same settings (old shards are then not reused).
 SHARD_VERSION = 1
-#: the folder name of :func:`~steer_envs.data.shards.default_cache_dir` for these shards.
+#: the folder name of :func:`~steer_envs.io.default_cache_dir` for these shards.
 CACHE_NAME = "itps-blockstack"
 
 

@@ -22,7 +22,7 @@ and the merged data holds both. The option is part of the shard's and the
 merged file's name, so plain and pushed data are never mixed up; plain shards
 keep the names they had before the option existed.
 
-The default cache folder is :func:`~steer_envs.data.shards.default_cache_dir` ``("itps-kitchen")``.
+The default cache folder is :func:`~steer_envs.io.default_cache_dir` ``("itps-kitchen")``.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ __all__ = [
 
 #: bump when shard contents change for the same settings (old shards are then not reused).
 SHARD_VERSION = 1
-#: the folder name of :func:`~steer_envs.data.shards.default_cache_dir` for these shards.
+#: the folder name of :func:`~steer_envs.io.default_cache_dir` for these shards.
 CACHE_NAME = "itps-kitchen"
 
 _ENVS: LazyEnvs[str, KitchenEnv] = LazyEnvs(ks.make_env)

@@ -8,7 +8,7 @@ Shards live under ``cache_dir/shards`` in the shared
 rebuilt, so generation resumes where it stopped and runs in parallel processes
 (the ``glide-robosuite-data`` suite runs one shard per trial).
 :func:`task_dataset` reads a task's shards, building any missing one here.
-The default cache folder is :func:`~steer_envs.data.shards.default_cache_dir` ``("glide-robosuite")``.
+The default cache folder is :func:`~steer_envs.io.default_cache_dir` ``("glide-robosuite")``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ __all__ = [
     "task_dataset",
 ]
 
-#: the folder name of :func:`~steer_envs.data.shards.default_cache_dir` for these shards.
+#: the folder name of :func:`~steer_envs.io.default_cache_dir` for these shards.
 CACHE_NAME = "glide-robosuite"
 #: bump when shard contents change for the same settings (old shards are then not reused).
 SHARD_VERSION = 4

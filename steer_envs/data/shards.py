@@ -50,10 +50,8 @@ from typing import Any, Generic, TypeVar
 from steer_envs.io import DatasetError
 
 __all__ = [
-    "CACHE_ENV",
     "LazyEnvs",
     "ShardCache",
-    "default_cache_dir",
     "plan_set_args",
     "plan_set_parser",
     "shard_file",
@@ -64,23 +62,6 @@ S = TypeVar("S")
 R = TypeVar("R")
 E = TypeVar("E")
 K = TypeVar("K", bound=Hashable)
-
-#: the environment variable whose folder holds every cache (``~/.cache`` when unset or empty)
-CACHE_ENV = "XDG_CACHE_HOME"
-
-
-def default_cache_dir(name: str) -> Path:
-    """``$XDG_CACHE_HOME/steer-envs/<name>`` (``~/.cache/steer-envs/<name>`` when the variable is unset or empty).
-
-    ``name``: one folder name (a suite's, e.g. ``"itps-blockstack"``).
-
-    >>> default_cache_dir("itps-kitchen").parts[-2:]
-    ('steer-envs', 'itps-kitchen')
-    """
-    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name:
-        raise ValueError(f"default_cache_dir: `name` must be one folder name, got {name!r}")
-    root = os.environ.get(CACHE_ENV) or str(Path.home() / ".cache")
-    return Path(root) / "steer-envs" / name
 
 
 def shard_file(folder: str | os.PathLike[str], file_name: str) -> Path:

@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from steer_envs.data.shards import LazyEnvs, ShardCache, default_cache_dir, shard_file, shard_meta
-from steer_envs.io import DatasetError, atomic_write_text
+from steer_envs.data.shards import LazyEnvs, ShardCache, shard_file, shard_meta
+from steer_envs.io import DatasetError, atomic_write_text, default_cache_dir
 
 
 def _load(path: Path) -> list[int]:

@@ -24,13 +24,12 @@ downloaded. Nothing here imports robosuite.
 from __future__ import annotations
 
 import hashlib
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
-from steer_envs.io import atomic_directory
+from steer_envs.io import atomic_directory, default_cache_dir
 
 __all__ = [
     "BOWL_FILE",
@@ -89,9 +88,8 @@ def microwave_source() -> Path:
 
 
 def cache_root() -> Path:
-    """``$XDG_CACHE_HOME/steer-envs/kitchen-assets`` (``~/.cache`` when unset)."""
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(root) / "steer-envs" / "kitchen-assets"
+    """``$XDG_CACHE_HOME/steer-envs/kitchen-assets`` (``~/.cache`` when unset), by ``default_cache_dir``."""
+    return default_cache_dir("kitchen-assets")
 
 
 def microwave_xml(source: Path) -> str:

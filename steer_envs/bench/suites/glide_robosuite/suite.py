@@ -35,7 +35,7 @@ from steer_envs.bench.metrics import BUILT, EVAL_SECONDS, evaluation_metrics, su
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
-from steer_envs.data.shards import default_cache_dir
+from steer_envs.io import default_cache_dir
 from steer_envs.utils.threads import single_threaded
 
 DATA_SUITE = "glide-robosuite-data"

@@ -33,7 +33,7 @@ import numpy as np
 
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
-from steer_envs.data.shards import default_cache_dir
+from steer_envs.io import default_cache_dir
 from steer_envs.utils.threads import limit_threads
 
 __all__ = ["ITPS_MAZE2D_SCALING", "PILOTS", "ScalingParams", "parse_pilot", "pilot_checkpoint"]
@@ -74,7 +74,7 @@ class ScalingParams(SuiteParams):
     starts scored per pilot, ``batch`` plans per steering call,
     ``through_wall`` the share of sketches through walls (as ``itps-maze2d``);
     ``torch_threads`` per trial process; ``cache_dir`` holds the data and the
-    pilots' run folders (default: :func:`~steer_envs.data.shards.default_cache_dir`
+    pilots' run folders (default: :func:`~steer_envs.io.default_cache_dir`
     of the suite's name); ``walk_steps``
     raw steps of the random walk (the shipped checkpoints': 1M, seed 0).
     """

@@ -51,7 +51,7 @@ from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
-from steer_envs.data.shards import default_cache_dir
+from steer_envs.io import default_cache_dir
 from steer_envs.utils.threads import single_threaded
 
 __all__ = [

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Settings, method_fits, train_and_evaluate
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, TrialPlan, TrialResult, register_suite
-from steer_envs.data.shards import default_cache_dir
+from steer_envs.io import default_cache_dir
 
 if TYPE_CHECKING:
     from steer_envs.bench.suite import Trial, TrialRequest
@@ -83,7 +83,7 @@ class Sb3Params(SuiteParams):
     (module docstring);
     ``threads`` torch / BLAS threads of the trial; ``checkpoint``: save model,
     replay buffer and curve at every evaluation under ``cache_dir`` (default
-    :func:`~steer_envs.data.shards.default_cache_dir` ``("sb3")``) and resume from there; ``stop_success``: end
+    :func:`~steer_envs.io.default_cache_dir` ``("sb3")``) and resume from there; ``stop_success``: end
     training once an evaluation reaches this success (%; 0 = never).
     """
 
