@@ -69,3 +69,48 @@ class ExactDiffusion:
 
     def unnormalize(self, traj: Any) -> Any:
         raise NotImplementedError
+
+
+class Corridor(ExactDiffusion):
+    """Exact diffusion policy whose plans are straight lines ``length`` long from the agent along +-row / +-column.
+
+    Normalization maps the Maze2D large map's cell range to [-1, 1]; ``std`` is
+    the plans' spread. ``n_obs_steps = 2`` and ``exec_start = 1`` mimic
+    LeRobot's DP (``plan[0]`` restates the position). Needs diffusers.
+    """
+
+    action_dim = 2
+    n_obs_steps = 2
+    exec_start = 1
+
+    def __init__(self, horizon: int = 12, length: float = 2.2, std: float = 0.01) -> None:
+        import diffusers
+
+        self.scheduler = diffusers.DDIMScheduler(
+            num_train_timesteps=100, beta_schedule="squaredcos_cap_v2", clip_sample=True
+        )
+        self.dirs = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+        self.horizon, self.length, self.std = horizon, length, std
+        self.low, self.high = np.array([0.0, 0.0]), np.array([8.0, 11.0])
+
+    def encode_obs(self, obs: Any) -> torch.Tensor:
+        xy = np.asarray(obs, dtype=np.float64).reshape(-1, np.shape(obs)[-1])[-1, :2]
+        steps = np.linspace(0.0, 1.0, self.horizon)[None, :, None] * self.length
+        return torch.as_tensor(self.normalize(xy[None, None] + steps * self.dirs[:, None, :]))
+
+    def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
+        abar = self.scheduler.alphas_cumprod[int(t)].to(torch.float64)
+        var = abar * self.std**2 + 1 - abar
+        diff = x_t.to(torch.float64)[:, None] - abar.sqrt() * cond[None]
+        logw = -(diff**2).sum((-1, -2)) / (2 * var)
+        weights = (logw - logw.logsumexp(dim=1, keepdim=True)).exp()[:, :, None, None]
+        return (1 - abar).sqrt() * (weights * diff).sum(1) / var
+
+    def normalize(self, traj: Any) -> Any:
+        return 2 * (traj - self.low) / (self.high - self.low) - 1
+
+    def unnormalize(self, traj: Any) -> Any:
+        lo, hi = (
+            (torch.as_tensor(self.low), torch.as_tensor(self.high)) if torch.is_tensor(traj) else (self.low, self.high)
+        )
+        return (traj + 1) / 2 * (hi - lo) + lo

@@ -6,7 +6,9 @@
 * The docs site's snippets run. Convention: every ```python block in
   ``docs/**/*.md`` runs, on its own (each block does its own imports), unless
   the line before its fence is ``<!-- no-run -->``; ``<!-- slow -->`` there
-  marks it slow (over ~30 s: run with ``-m slow``). ``pycon`` blocks are
+  marks it slow (over ~30 s: run with ``-m slow``); ``<!-- interop -->`` marks
+  a block that needs LeRobot: it runs in ``scripts/test_interop.sh``
+  (tests/interop/test_interop_docs.py), not here. ``pycon`` blocks are
   examples with output and do not run here. The README's blocks run in
   ``tests/test_readme.py``.
 * The README reads as a README: no dates, no issue references, no table cell
@@ -30,6 +32,7 @@ EXAMPLES = ROOT / "examples"
 
 NO_RUN = "<!-- no-run -->"
 SLOW = "<!-- slow -->"
+INTEROP = "<!-- interop -->"
 MAX_CELL = 300
 
 _FENCE = re.compile(r"^(?P<indent>[ \t]*)```(?P<lang>[\w+-]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$", re.M | re.S)
@@ -86,7 +89,7 @@ def python_blocks(paths: list[Path]) -> list[Block]:
 def _runnable() -> list[Any]:
     params = []
     for block in python_blocks(doc_pages()):
-        if block.marker == NO_RUN:
+        if block.marker in (NO_RUN, INTEROP):
             continue
         marks = [pytest.mark.slow] if block.marker == SLOW else []
         params.append(pytest.param(block, id=block.name, marks=marks))

@@ -27,6 +27,7 @@ RANKS = {
     "utils": 4,
     "baselines": 5,
     "steering": 5,
+    "adapters": 6,
     "wrappers": 6,
     "ui": 7,
     "bench": 8,

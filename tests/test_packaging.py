@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pytest
 
-from steer_envs.core.extras import EXTRAS
+from steer_envs.core.extras import EXTRAS, NOT_IN_ALL
 
 ROOT = Path(__file__).resolve().parents[1]
 #: source folder -> installed package name (setup.cfg's package_dir)
@@ -103,7 +103,7 @@ def test_every_package_folder_is_listed() -> None:
 def test_all_is_every_feature_extra() -> None:
     extras = _extras()
     assert set(extras) == {*EXTRAS, "all", "dev", "docs"}, "steer_envs.core.extras.EXTRAS lists the feature extras"
-    union = {req for extra in EXTRAS for req in extras[extra]}
+    union = {req for extra in EXTRAS if extra not in NOT_IN_ALL for req in extras[extra]}
     assert set(extras["all"]) == union
 
 
@@ -127,8 +127,14 @@ def test_the_readme_commands_install_everything() -> None:
     for script in ("quick.sh", "test.sh"):
         assert "scripts/bootstrap.sh" in (ROOT / "scripts" / script).read_text()
     pinned = {_name(line.split("==")[0]) for line in _lines((ROOT / "requirements" / "constraints.txt").read_text())}
-    wanted = _lines(_setup_cfg()["options"]["install_requires"]) + [r for reqs in _extras().values() for r in reqs]
+    extras = _extras()
+    main = [r for name, reqs in extras.items() if name not in NOT_IN_ALL for r in reqs]
+    wanted = _lines(_setup_cfg()["options"]["install_requires"]) + main
     assert {_name(r) for r in wanted} - pinned == set(), "requirements/constraints.txt must pin every requirement"
+    # the extras `all` leaves out are pinned in the interop environment's lock (scripts/test_interop.sh)
+    interop = {_name(line.split("==")[0]) for line in _lines((ROOT / "requirements" / "interop.txt").read_text())}
+    apart = {_name(r) for name in NOT_IN_ALL for r in extras[name]}
+    assert apart - interop == set(), "requirements/interop.txt must pin the extras `all` leaves out"
 
 
 # ------------------------------------------------------------------------------------------ the wheel

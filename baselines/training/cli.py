@@ -6,7 +6,8 @@
   the policy (:func:`steer_envs.baselines.factory.get_preset`);
 * ``--model KEY=VALUE``: override one config field (``down_dims=[32,64,128]``);
   ``--train KEY=VALUE`` or ``--steps``, ``--lr``, ... one training setting;
-* ``--dataset``: a :mod:`steer_envs.data.trajectories` file or a Maze2D random walk.
+* ``--dataset``: a :mod:`steer_envs.data.trajectories` file, a Maze2D random walk, or another library's
+  dataset: ``lerobot:DIR``, ``robomimic:FILE``, ``minari:ID`` (:func:`~steer_envs.data.datasets.load_dataset`).
 
 ``--run-dir DIR`` makes a run resumable (its full state saved in ``DIR`` every
 ``--save-every`` seconds and on SIGINT / SIGTERM); ``--resume DIR`` continues
@@ -48,7 +49,7 @@ from steer_envs.baselines.training.trainer import (
     snapshot_run,
     train_policy,
 )
-from steer_envs.data.datasets import load_dataset
+from steer_envs.data.datasets import canonical_dataset, load_dataset
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.io import CheckpointError, atomic_write_text
 from steer_envs.utils.cli import parse_key_value
@@ -97,9 +98,10 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy", choices=policy_names(), help="policy to train (with --check: optional)")
     parser.add_argument(
         "--dataset",
-        metavar="FILE",
-        help="training data: a steer_envs.data.trajectories .npz or a maze2d random walk "
-        "(python -m steer_envs.data.maze_random_walk); with --resume: default the run's own",
+        metavar="DATA",
+        help="training data: a steer_envs.data.trajectories .npz, a maze2d random walk "
+        "(python -m steer_envs.data.maze_random_walk), lerobot:DIR (a LeRobotDataset), robomimic:FILE (an HDF5 "
+        "file) or minari:ID (a local Minari dataset); with --resume: default the run's own",
     )
     parser.add_argument(
         "--out", help="checkpoint path (.safetensors); a .json record goes beside it (default with --run-dir: in it)"
@@ -295,7 +297,7 @@ def _new_run(parser: argparse.ArgumentParser, args: argparse.Namespace, argv: li
         "preset": preset_name,
         "config": config.to_dict(),
         "settings": settings.to_dict(),
-        "dataset": str(Path(args.dataset).resolve()),
+        "dataset": canonical_dataset(args.dataset),
         "out": _stored_out(out, args.run_dir),
         "device": args.device or "cpu",
         "command": f"{PROG} " + " ".join(argv),

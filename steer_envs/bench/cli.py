@@ -50,6 +50,7 @@ from steer_envs.bench.store import (
 )
 from steer_envs.bench.suite import Suite, get_suite, load_plugins, suites
 from steer_envs.utils.cli import parse_key_value
+from steer_envs.utils.fields import same_named
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -246,22 +247,8 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     load_plugins(args.plugin)
     suite = get_suite(args.suite)
     out = args.out if args.out is not None else Path("runs") / suite.name
-    params = dict(args.param)
-    summary = run_suite(
-        suite,
-        out,
-        envs=args.env,
-        methods=args.method,
-        seeds=args.seeds,
-        trials=args.trials,
-        params=params,
-        executor=args.executor,
-        workers=args.workers,
-        address=args.address,
-        progress=args.progress,
-        fresh=args.fresh,
-        argv=list(argv),
-    )
+    given = same_named(run_suite, args, envs=args.env, methods=args.method, params=dict(args.param), argv=list(argv))
+    summary = run_suite(suite, out, **given)
     tables = summarize(summary.records)
     title = f"steer-bench {suite.name}: {len(summary.records)} trials in {out}"
     text = render_markdown(tables, title=title, notes=summary.notes)

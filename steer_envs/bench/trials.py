@@ -1,16 +1,14 @@
 """What trial functions share, and the protocols of the robot-experiment suites (thesis ch. 3: TLI / LTL-DS).
 
 A trial function refuses a trial its suite does not plan with
-:func:`check_trial`. A robot-experiment suite's trial function runs its protocol with :func:`run_protocol` (the
-trial's seed and method, the suite's parameters as keyword arguments, one
-thread); a protocol builds its env with :func:`trial_env`, seeds each episode
-with :func:`reset_seed` and averages the episodes' outcomes with
-:func:`episode_means`.
+:func:`check_trial`. A robot-experiment suite's trial function runs its
+protocol with :func:`run_protocol` (the trial's seed and method, the suite's
+parameters, one thread); a protocol builds its env with :func:`trial_env`,
+seeds each episode with :func:`reset_seed` and averages the episodes'
+outcomes with :func:`episode_means`.
 
 >>> reset_seed(0, 1, 7) == reset_seed(0, 1, 7) != reset_seed(0, 2, 7)
 True
->>> checked_counts("demo", seed=(3, 0), n_episodes=(2, 1))
-[3, 2]
 >>> episode_means([{"success": True, "steps": 10}, {"success": False, "steps": 20}], ("success", "steps"))
 {'success': 0.5, 'steps': 15.0}
 """
@@ -25,10 +23,9 @@ import numpy as np
 
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Trial
-from steer_envs.core.validation import integer
 from steer_envs.utils.threads import single_threaded
 
-__all__ = ["check_trial", "checked_counts", "episode_means", "reset_seed", "run_protocol", "trial_env"]
+__all__ = ["check_trial", "episode_means", "reset_seed", "run_protocol", "trial_env"]
 
 P = TypeVar("P", bound=SuiteParams)
 
@@ -54,17 +51,17 @@ def check_trial(
 def run_protocol(
     trial: Trial, params_type: type[P], protocol: Callable[..., dict[str, Any]], methods: Sequence[str]
 ) -> tuple[P, dict[str, Any]]:
-    """``protocol(seed, method, **params, record=...)`` for ``trial``, single-threaded; the params and its result.
+    """``protocol(seed, method, params, record=...)`` for ``trial``, single-threaded; the params and its result.
 
-    The trial's method must be one of ``methods``; the parameters (but
-    ``plot_seeds``) are the protocol's keyword arguments, and the first
-    ``plot_seeds`` seeds record figure data.
+    The trial's method must be one of ``methods``; the protocol reads its
+    settings from the suite's parameters, and the first ``plot_seeds`` seeds
+    record figure data.
     """
     check_trial(trial, methods=methods)
     params = params_type.from_json(trial.params)
     record = trial.seed < params.plot_seeds  # type: ignore[attr-defined]
     with single_threaded():
-        result = protocol(trial.seed, str(trial.method), **params.kwargs(without=("plot_seeds",)), record=record)
+        result = protocol(trial.seed, str(trial.method), params, record=record)
     return params, result
 
 
@@ -91,8 +88,3 @@ def episode_means(episodes: Iterable[Mapping[str, Any]], keys: Iterable[str]) ->
     """The mean over ``episodes`` of each outcome in ``keys`` (as floats)."""
     episodes = list(episodes)
     return {k: float(np.mean([float(e[k]) for e in episodes])) for k in keys}
-
-
-def checked_counts(owner: str, **bounded: tuple[Any, int]) -> list[int]:
-    """Each argument ``name=(value, low)`` as an int ``>= low`` (``ValueError`` / ``TypeError`` naming ``owner``)."""
-    return [integer(value, name, low=low, owner=owner) for name, (value, low) in bounded.items()]

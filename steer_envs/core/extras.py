@@ -6,7 +6,11 @@ named for the feature (``setup.cfg``; :data:`EXTRAS`):
 ``arm`` (robosuite: the arm envs), ``rl`` (stable-baselines3), ``minari``
 (Minari export), ``ray`` (the Ray executor), ``ui`` (the steer-ui web
 server), ``onnx`` / ``openvino`` (faster Diffusion Policy inference),
-``human`` (pygame windows); ``all`` is every one of them.
+``human`` (pygame windows), ``robomimic`` (h5py: robomimic HDF5 datasets),
+``lerobot`` (LeRobot: its policies and LeRobotDataset); ``all`` is every one
+of them but ``lerobot``, whose own pins (torch, diffusers) clash with the
+others' (it goes into an environment of its own, see
+``scripts/test_interop.sh``).
 
 A feature imports its optional package through :func:`require`, so a user
 without the extra gets :class:`MissingExtraError` (an ``ImportError``) naming
@@ -28,10 +32,12 @@ from types import ModuleType
 
 from gymnasium.error import DependencyNotInstalled
 
-__all__ = ["EXTRAS", "MissingExtraError", "install_command", "missing_modules", "require"]
+__all__ = ["EXTRAS", "NOT_IN_ALL", "MissingExtraError", "install_command", "missing_modules", "require"]
 
 #: the feature extras of ``setup.cfg`` (``all`` installs every one; ``dev`` and ``docs`` are for contributors).
-EXTRAS: tuple[str, ...] = ("arm", "rl", "minari", "ray", "ui", "onnx", "openvino", "human")
+EXTRAS: tuple[str, ...] = ("arm", "rl", "minari", "ray", "ui", "onnx", "openvino", "human", "robomimic", "lerobot")
+#: the feature extras ``all`` leaves out (their pins clash with the rest)
+NOT_IN_ALL: tuple[str, ...] = ("lerobot",)
 
 
 def install_command(extra: str) -> str:

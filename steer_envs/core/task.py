@@ -17,7 +17,7 @@ from typing import Any, Literal
 import networkx as nx
 import numpy as np
 
-from steer_envs.core.validation import boolean, describe
+from steer_envs.core.validation import boolean, describe, name_tuple
 
 SensorKey = frozenset[str]
 
@@ -44,19 +44,7 @@ def _ap_name(name: object, what: str) -> str:
 
 
 def _names(value: Any, what: str) -> tuple[str, ...]:
-    """A tuple of non-empty str names (a single str is refused: it is not a tuple of its characters)."""
-    if isinstance(value, (str, bytes, Mapping, set, frozenset)):  # one name, or no order
-        raise TypeError(f"TaskSpec: `{what}` must be a tuple of names, got {describe(value)}")
-    try:
-        items = list(value)
-    except TypeError:
-        raise TypeError(f"TaskSpec: `{what}` must be a tuple of names, got {describe(value)}") from None
-    names: list[str] = []
-    for name in items:
-        if not isinstance(name, str) or not name:
-            raise TypeError(f"TaskSpec: `{what}` must hold non-empty str names, got {describe(name)}")
-        names.append(name)
-    return tuple(names)
+    return name_tuple(value, f"`{what}`", owner="TaskSpec")
 
 
 def _transition(pair: object) -> tuple[str, str]:

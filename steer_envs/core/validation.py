@@ -36,6 +36,7 @@ __all__ = [
     "describe",
     "frozen_array",
     "integer",
+    "name_tuple",
     "one_of",
     "real_array",
     "real_scalar",
@@ -171,6 +172,50 @@ def one_of(value: T, name: str, choices: Collection[T], *, owner: str | None = N
     return value
 
 
+def name_tuple(
+    value: Any, name: str, *, owner: str | None = None, what: str = "names", ordered: bool = True, empty: bool = False
+) -> tuple[str, ...]:
+    """``value`` as a tuple of str ``what`` (e.g. mode names); ``TypeError`` naming the argument otherwise.
+
+    A single str is refused (it is not a tuple of its characters), and with
+    ``ordered`` so are mappings and sets (their order is not the caller's);
+    ``empty`` lets ``""`` through.
+
+    >>> name_tuple(["a", "b"], "modes", owner="TaskSpec")
+    ('a', 'b')
+    >>> name_tuple("ab", "modes", owner="TaskSpec")
+    Traceback (most recent call last):
+    TypeError: TaskSpec: modes must be a tuple of names, got str 'ab'
+    """
+    where = _where(name, owner)
+    refused = (str, bytes, Mapping, set, frozenset) if ordered else (str, bytes)
+    try:
+        if isinstance(value, refused):
+            raise TypeError
+        items = tuple(value)
+    except TypeError:
+        raise TypeError(f"{where} must be a tuple of {what}, got {describe(value)}") from None
+    for item in items:
+        if not isinstance(item, str) or not (item or empty):
+            kind = "str" if empty else "non-empty str"
+            raise TypeError(f"{where} must hold {kind} {what}, got {describe(item)}")
+    return items
+
+
+def _raw_array(value: Any, where: str, what: str) -> tuple[Any, np.ndarray]:
+    """``value`` (a tensor read as numpy) and ``np.asarray`` of it, refusing what cannot be an array of ``what``."""
+    original = value
+    value = _from_tensor(value, where)
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise TypeError(f"{where} must be an array of {what}, got {describe(original)}")
+    try:
+        return value, np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nested sequences, odd objects
+        raise ValueError(f"{where} must be a rectangular array of {what} ({exc}), got {describe(original)}") from None
+    except RuntimeError:  # a sequence of torch tensors that require grad
+        raise TypeError(f"{where} must be one array or tensor of {what}, got {describe(original)}") from None
+
+
 def real_array(
     value: Any,
     name: str,
@@ -204,17 +249,7 @@ def real_array(
     """
     where = _where(name, owner)
     original = value
-    value = _from_tensor(value, where)
-    if value is None or isinstance(value, (str, bytes, dict, set)):
-        raise TypeError(f"{where} must be an array of real numbers, got {describe(original)}")
-    try:
-        raw = np.asarray(value)
-    except (ValueError, TypeError) as exc:  # ragged nested sequences, odd objects
-        raise ValueError(
-            f"{where} must be a rectangular array of real numbers ({exc}), got {describe(original)}"
-        ) from None
-    except RuntimeError:  # a sequence of torch tensors that require grad
-        raise TypeError(f"{where} must be one array or tensor of real numbers, got {describe(original)}") from None
+    value, raw = _raw_array(value, where, "real numbers")
     if raw.dtype.kind not in "iuf" or (isinstance(value, (list, tuple)) and _holds_bools(value)):
         kind = raw.dtype if raw.dtype.kind not in "iuf" else "bool"  # numpy reads [1.0, True] as floats
         raise TypeError(f"{where} must hold real numbers, got dtype {kind} ({describe(original)})")
@@ -245,15 +280,7 @@ def bool_array(value: Any, name: str, *, shape: Sequence[int] | None = None, own
     """
     where = _where(name, owner)
     original = value
-    value = _from_tensor(value, where)
-    if value is None or isinstance(value, (str, bytes, dict, set)):
-        raise TypeError(f"{where} must be an array of bools, got {describe(original)}")
-    try:
-        raw = np.asarray(value)
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{where} must be a rectangular array of bools ({exc}), got {describe(original)}") from None
-    except RuntimeError:  # a sequence of torch tensors that require grad
-        raise TypeError(f"{where} must be one array or tensor of bools, got {describe(original)}") from None
+    _, raw = _raw_array(value, where, "bools")
     if raw.dtype.kind != "b":
         raise TypeError(f"{where} must hold bools (True/False), got dtype {raw.dtype} ({describe(original)})")
     if shape is not None:

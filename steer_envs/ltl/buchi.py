@@ -31,7 +31,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
-from steer_envs.core.validation import boolean, describe, integer
+from steer_envs.core.validation import boolean, describe, integer, name_tuple
 from steer_envs.ltl.automaton import Automaton, Edge
 from steer_envs.ltl.guards import MAX_APS, full_mask
 from steer_envs.ltl.guards import formula_mask as _formula_mask
@@ -303,18 +303,7 @@ def _tableau(start: Formula, aps: tuple[str, ...], max_terms: int | None, name: 
 
 def check_aps(aps: Any, who: str) -> tuple[str, ...]:
     """An AP order: a sequence (not a single string) of str names."""
-    if isinstance(aps, (str, bytes)):
-        raise TypeError(f"{who}: `aps` must be a sequence of AP names, not one string ({describe(aps)})")
-    try:
-        items = list(aps)
-    except TypeError:
-        raise TypeError(f"{who}: `aps` must be a sequence of AP names, got {describe(aps)}") from None
-    names: list[str] = []
-    for name in items:
-        if not isinstance(name, str):
-            raise TypeError(f"{who}: `aps` must hold str AP names, got {describe(name)}")
-        names.append(name)
-    return tuple(names)
+    return name_tuple(aps, "`aps`", owner=who, what="AP names", ordered=False, empty=True)
 
 
 def translate(

@@ -11,12 +11,11 @@ part), and builds the full formula for the translator.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
-from steer_envs.core.validation import describe
+from steer_envs.core.validation import describe, name_tuple
 from steer_envs.ltl import syntax as s
 from steer_envs.ltl.parser import LTLParseError, parse
 from steer_envs.ltl.syntax import Formula, FormulaTooDeep, check_depth
@@ -46,18 +45,7 @@ def _has_next(f: Formula) -> bool:
 
 
 def _names(value: Any, what: str) -> tuple[str, ...]:
-    if isinstance(value, (str, bytes, Mapping, set, frozenset)):  # one name, or no order
-        raise TypeError(f"GR1Spec.{what} must be an ordered tuple of mode names, got {describe(value)}")
-    try:
-        items = list(value)
-    except TypeError:
-        raise TypeError(f"GR1Spec.{what} must be a tuple of mode names, got {describe(value)}") from None
-    names: list[str] = []
-    for name in items:
-        if not isinstance(name, str) or not name:
-            raise TypeError(f"GR1Spec.{what} must hold non-empty str mode names, got {describe(name)}")
-        names.append(name)
-    return tuple(names)
+    return name_tuple(value, f"GR1Spec.{what}", what="mode names")
 
 
 @dataclass(frozen=True)

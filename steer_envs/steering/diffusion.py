@@ -1,10 +1,14 @@
 """The samplers that steer the denoising of a diffusion policy: BI, GD and SS (thesis §2.3, Algorithm 1).
 
-They need a :class:`~steer_envs.core.policy.DiffusionPolicyLike` (a
-diffusers-style scheduler, epsilon prediction). Guidance gradients are taken
-in the policy's normalized space (:class:`NormalizedObjective`); noise comes
-from the numpy generator, so with zero guidance they reproduce the policy's
-own ``sample`` for the same generator state.
+They need a :class:`~steer_envs.core.policy.DiffusionPolicyLike` with a
+DDPM/DDIM-style scheduler; the network may predict the noise, the clean plan
+or ``v`` (:mod:`~steer_envs.steering.schedulers` converts, and refuses
+schedulers it cannot be correct for). Guidance gradients are taken in the
+policy's normalized space (:class:`NormalizedObjective`); the initial noise
+comes from the numpy generator and a stochastic scheduler step's noise from a
+torch generator seeded by it, so with zero guidance they reproduce
+:func:`denoise_plans` (and a policy's own ``sample`` that draws alike) for the
+same generator state.
 """
 
 from __future__ import annotations
@@ -27,8 +31,9 @@ from steer_envs.steering.base import (
     interaction_dims,
 )
 from steer_envs.steering.objectives import point_cost, resample_path_torch, sketch_cost
+from steer_envs.steering.schedulers import check_scheduler, from_epsilon, step_generator, to_epsilon
 
-__all__ = ["BiasedInitialization", "GuidedDiffusion", "NormalizedObjective", "StochasticSampling"]
+__all__ = ["BiasedInitialization", "GuidedDiffusion", "NormalizedObjective", "StochasticSampling", "denoise_plans"]
 
 
 class NormalizedObjective:
@@ -88,31 +93,19 @@ class NormalizedObjective:
 
 
 class _DiffusionSampler(Sampler):
-    """Shared denoising loop of BI, GD and SS (diffusers-style scheduler, epsilon prediction)."""
+    """Shared denoising loop of BI, GD and SS (a DDPM/DDIM-style scheduler, any prediction type)."""
 
     requires_diffusion = True
 
     def _setup(self, policy: Any, obs: Any, interaction: Any) -> tuple[Any, Any, int, torch.dtype]:
-        config = getattr(policy.scheduler, "config", None)
-        prediction = getattr(config, "prediction_type", "epsilon") if config is not None else "epsilon"
-        if prediction != "epsilon":
-            raise ValueError(
-                f"{type(self).__name__} steers the noise estimate: policy.scheduler must use "
-                f"prediction_type='epsilon' (predict_noise returns epsilon), got {prediction!r}"
-            )
+        check_scheduler(policy.scheduler, type(self).__name__)
         horizon = int(getattr(policy, "diffusion_horizon", policy.horizon))
         dtype = getattr(policy, "dtype", torch.float32)
         dtype = dtype if isinstance(dtype, torch.dtype) and dtype.is_floating_point else torch.float32
         objective = NormalizedObjective(policy, interaction, dtype)
         with torch.no_grad():
             cond = policy.encode_obs(obs)
-        steps = integer(policy.num_inference_steps, "policy.num_inference_steps", low=1, high=MAX_DENOISING_STEPS)
-        policy.scheduler.set_timesteps(steps)
-        if len(policy.scheduler.timesteps) > MAX_DENOISING_STEPS:
-            raise ValueError(
-                f"{type(self).__name__}: policy.scheduler has {len(policy.scheduler.timesteps)} timesteps, "
-                f"more than {MAX_DENOISING_STEPS} denoising steps"
-            )
+        _set_timesteps(policy, type(self).__name__)
         return objective, cond, horizon, dtype
 
     @staticmethod
@@ -123,11 +116,7 @@ class _DiffusionSampler(Sampler):
 
     @staticmethod
     def _eps(policy: Any, x: torch.Tensor, t: Any, cond: Any) -> torch.Tensor:
-        with torch.no_grad():
-            eps = policy.predict_noise(x, t, cond)
-        if not isinstance(eps, torch.Tensor) or eps.shape != x.shape:
-            raise ValueError(f"policy.predict_noise must return a tensor of shape {tuple(x.shape)}")
-        return eps
+        return _noise_estimate(policy, x, t, cond)
 
     @staticmethod
     def _finish(policy: Any, x: torch.Tensor, n: int) -> np.ndarray:
@@ -183,8 +172,8 @@ class GuidedDiffusion(_DiffusionSampler):
         objective, cond, horizon, dtype = self._setup(policy, obs, interaction)
         scheduler = policy.scheduler
         shape = (n, horizon, int(policy.action_dim))
-        step_kwargs = self._step_kwargs(scheduler)
         x = self._noise(rng, shape, dtype, policy.device)
+        step_kwargs = {**self._step_kwargs(scheduler), **step_generator(scheduler, rng, x.device)}
         evals = 0
         for t in scheduler.timesteps:
             for j in range(self.mcmc_steps):
@@ -193,7 +182,7 @@ class GuidedDiffusion(_DiffusionSampler):
                 if j < self.mcmc_steps - 1:
                     x = self._renoise(scheduler, x, eps, t, self._noise(rng, shape, dtype, policy.device))
                 else:
-                    x = scheduler.step(eps, t, x, **step_kwargs).prev_sample
+                    x = scheduler.step(from_epsilon(eps, x, t, scheduler), t, x, **step_kwargs).prev_sample
         return self._finish(policy, x, n), argmin_choice, {"network_evals": float(evals)}, None
 
     def _step_kwargs(self, scheduler: Any) -> dict[str, Any]:
@@ -272,10 +261,60 @@ class BiasedInitialization(_DiffusionSampler):
         shape = (n, horizon, int(policy.action_dim))
         init = objective.as_trajectory(horizon).to(dtype)
         x = init.unsqueeze(0) + self.init_std * self._noise(rng, shape, dtype, policy.device)
+        step_kwargs = step_generator(scheduler, rng, x.device)
         evals = 0
         for t in scheduler.timesteps:
             if int(t) > self.start_t:
                 continue
-            x = scheduler.step(self._eps(policy, x, t, cond), t, x).prev_sample
+            eps = self._eps(policy, x, t, cond)
+            x = scheduler.step(from_epsilon(eps, x, t, scheduler), t, x, **step_kwargs).prev_sample
             evals += 1
         return self._finish(policy, x, n), argmin_choice, {"network_evals": float(evals)}, None
+
+
+def _set_timesteps(policy: Any, who: str) -> None:
+    steps = integer(policy.num_inference_steps, "policy.num_inference_steps", low=1, high=MAX_DENOISING_STEPS)
+    policy.scheduler.set_timesteps(steps)
+    if len(policy.scheduler.timesteps) > MAX_DENOISING_STEPS:
+        raise ValueError(
+            f"{who}: policy.scheduler has {len(policy.scheduler.timesteps)} timesteps, "
+            f"more than {MAX_DENOISING_STEPS} denoising steps"
+        )
+
+
+def _noise_estimate(policy: Any, x: torch.Tensor, t: Any, cond: Any) -> torch.Tensor:
+    """``eps(x_t, t | cond)`` from the network's output in the scheduler's prediction type (no gradient)."""
+    scheduler = policy.scheduler
+    scale = getattr(scheduler, "scale_model_input", None)
+    with torch.no_grad():
+        model_in = scale(x, t) if callable(scale) else x
+        output = policy.predict_noise(model_in, t, cond)
+    if not isinstance(output, torch.Tensor) or output.shape != x.shape:
+        raise ValueError(f"policy.predict_noise must return a tensor of shape {tuple(x.shape)}")
+    return to_epsilon(output, x, t, scheduler)
+
+
+def denoise_plans(policy: DiffusionPolicyLike, obs: Any, n: int, generator: np.random.Generator) -> np.ndarray:
+    """``n`` unsteered plans ``(n, H, d)`` in env units: the samplers' denoising loop without guidance.
+
+    The initial noise is a float32 (float64 for float64 policies) standard
+    normal draw from ``generator`` and a stochastic step's noise comes from a
+    torch generator seeded by it, exactly as in BI/GD/SS: a policy whose
+    ``sample`` calls this gives RS the plans GD gives with ``guide_ratio=0``.
+    An adapter for a third-party diffusion policy uses it as its ``sample``.
+    """
+    check_scheduler(policy.scheduler, "denoise_plans")
+    horizon = int(getattr(policy, "diffusion_horizon", policy.horizon))
+    dtype = getattr(policy, "dtype", torch.float32)
+    dtype = dtype if isinstance(dtype, torch.dtype) and dtype.is_floating_point else torch.float32
+    with torch.no_grad():
+        cond = policy.encode_obs(obs)
+    _set_timesteps(policy, "denoise_plans")
+    scheduler = policy.scheduler
+    x = _DiffusionSampler._noise(generator, (n, horizon, int(policy.action_dim)), dtype, policy.device)
+    step_kwargs = step_generator(scheduler, generator, x.device)
+    with torch.no_grad():
+        for t in scheduler.timesteps:
+            eps = _noise_estimate(policy, x, t, cond)
+            x = scheduler.step(from_epsilon(eps, x, t, scheduler), t, x, **step_kwargs).prev_sample
+    return _DiffusionSampler._finish(policy, x, n)

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 from steer_envs.core.extras import MissingExtraError, require
 from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
+from steer_envs.utils.fields import build_from
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -76,15 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"warning: binding to {args.host}: anyone who can reach port {args.port} can use this server's CPU",
             file=sys.stderr,
         )
-    config = UIConfig(
-        domain=args.domain,
-        env=args.env,
-        policy=args.policy,
-        checkpoint=args.checkpoint,
-        accelerate=args.accelerate,
-        seed=args.seed,
-        workers=args.workers,
-    )
+    config = build_from(UIConfig, args)
     try:
         app = create_app(config)
     except (ValueError, TypeError) as exc:

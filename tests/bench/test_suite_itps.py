@@ -12,6 +12,8 @@ import pytest
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
 
+from stub_policies import Corridor  # noqa: E402
+
 from steer_envs.bench.executors import execute_trial  # noqa: E402
 from steer_envs.bench.runner import build_request, plan_trials  # noqa: E402
 from steer_envs.bench.suite import Trial, get_suite  # noqa: E402
@@ -22,60 +24,15 @@ LOADER = f"{__name__}:load_test_policy"
 FAST = {"dp_loader": LOADER, "act_loader": LOADER, "batch": 8, "plot_seeds": 1}
 
 
-class CorridorDiffusion:
-    """Exact diffusion policy: straight plans from the agent along the four grid directions."""
-
-    horizon = 16
-    action_dim = 2
-    num_inference_steps = 10
-    n_obs_steps = 2
-    exec_start = 1
-    device = torch.device("cpu")
-    dtype = torch.float64
-
-    def __init__(self) -> None:
-        self.scheduler = diffusers.DDIMScheduler(
-            num_train_timesteps=100, beta_schedule="squaredcos_cap_v2", clip_sample=True
-        )
-        self.dirs = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-        self.low, self.high = np.array([0.0, 0.0]), np.array([8.0, 11.0])
-
-    def encode_obs(self, obs: Any) -> torch.Tensor:
-        xy = np.asarray(obs, dtype=np.float64).reshape(-1, np.shape(obs)[-1])[-1, :2]
-        steps = np.linspace(0.0, 4.0, self.horizon)[None, :, None]
-        return torch.as_tensor(self.normalize(xy[None, None] + steps * self.dirs[:, None, :]))
-
-    def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
-        abar = self.scheduler.alphas_cumprod[int(t)].to(torch.float64)
-        var = abar * 1e-4 + 1 - abar
-        diff = x_t.to(torch.float64)[:, None] - abar.sqrt() * cond[None]
-        logw = -(diff**2).sum((-1, -2)) / (2 * var)
-        weights = (logw - logw.logsumexp(dim=1, keepdim=True)).exp()[:, :, None, None]
-        return (1 - abar).sqrt() * (weights * diff).sum(1) / var
-
-    def normalize(self, traj: Any) -> Any:
-        return 2 * (traj - self.low) / (self.high - self.low) - 1
-
-    def unnormalize(self, traj: Any) -> Any:
-        lo, hi = (
-            (torch.as_tensor(self.low), torch.as_tensor(self.high)) if torch.is_tensor(traj) else (self.low, self.high)
-        )
-        return (traj + 1) / 2 * (hi - lo) + lo
-
-    def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
-        rng = generator if generator is not None else np.random.default_rng()
-        cond = self.encode_obs(obs)
-        x = torch.as_tensor(rng.standard_normal((n, self.horizon, self.action_dim)))
-        self.scheduler.set_timesteps(self.num_inference_steps)
-        for t in self.scheduler.timesteps:
-            x = self.scheduler.step(self.predict_noise(x, t, cond), t, x).prev_sample
-        return self.unnormalize(x).numpy()
+def _corridor() -> Corridor:
+    """Exact diffusion policy: straight plans 4 long from the agent along the four grid directions."""
+    return Corridor(horizon=16, length=4.0)
 
 
 class SamplerOnly:
     """An ACT-like policy: only ``sample`` (no denoiser to steer)."""
 
-    def __init__(self, inner: CorridorDiffusion) -> None:
+    def __init__(self, inner: Corridor) -> None:
         self.inner = inner
         self.horizon, self.action_dim, self.exec_start = inner.horizon, inner.action_dim, 0
 
@@ -84,11 +41,11 @@ class SamplerOnly:
 
 
 def load_test_policy(kind: str) -> Any:
-    return CorridorDiffusion() if kind == "dp" else SamplerOnly(CorridorDiffusion())
+    return _corridor() if kind == "dp" else SamplerOnly(_corridor())
 
 
 def load_sampler_only(kind: str) -> Any:
-    return SamplerOnly(CorridorDiffusion())
+    return SamplerOnly(_corridor())
 
 
 def missing_checkpoint(kind: str) -> Any:

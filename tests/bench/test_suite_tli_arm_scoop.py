@@ -18,6 +18,7 @@ from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
+from steer_envs.bench.suites.tli_arm_scoop.params import ArmScoopParams
 from steer_envs.bench.suites.tli_arm_scoop.plots import _wrong_exit, plot_arm_scoop
 from steer_envs.bench.suites.tli_arm_scoop.protocol import scoop_trial
 from steer_envs.data.pushes import ARM_PUSH_MODES, ARM_PUSH_SCALE, push_plan
@@ -89,11 +90,9 @@ def test_bad_input_names_the_argument() -> None:
     bad = execute_trial(_trial("ds", 0))
     assert not bad.ok and "unknown method" in (bad.error or "")
     with pytest.raises(ValueError, match="method"):
-        scoop_trial(0, "bc")
-    with pytest.raises(ValueError, match="n_episodes"):
-        scoop_trial(0, "ltl-ds", n_episodes=0)
+        scoop_trial(0, "bc", ArmScoopParams())
     with pytest.raises(TypeError, match="seed"):
-        scoop_trial("0", "ltl-ds")  # type: ignore[arg-type]
+        scoop_trial("0", "ltl-ds", ArmScoopParams())  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="max_dwell"):
         push_plan(np.random.default_rng(0), 2, 0)
     with pytest.raises(ValueError, match="n_episodes"):

@@ -15,6 +15,7 @@ from steer_envs.bench.executors import execute_trial
 from steer_envs.bench.plots import figure_problems
 from steer_envs.bench.report import summarize
 from steer_envs.bench.suite import BUILTIN_SUITE_MODULES, get_suite
+from steer_envs.bench.suites.tli_color_tracing.params import ColorTracingParams
 from steer_envs.bench.suites.tli_color_tracing.plots import plot_color_tracing
 from steer_envs.bench.suites.tli_color_tracing.protocol import color_trial
 from steer_envs.data.pushes import tile_push_schedule
@@ -73,11 +74,9 @@ def test_bad_input_names_the_argument() -> None:
     bad = execute_trial(_trial("d", 0))
     assert not bad.ok and "unknown method" in (bad.error or "")
     with pytest.raises(ValueError, match="automaton"):
-        color_trial(0, "x")
-    with pytest.raises(ValueError, match="n_episodes"):
-        color_trial(0, "a", n_episodes=0)
+        color_trial(0, "x", ColorTracingParams())
     with pytest.raises(TypeError, match="seed"):
-        color_trial("0", "a")  # type: ignore[arg-type]
+        color_trial("0", "a", ColorTracingParams())  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="tile"):
         ReentryFlow("purple")
     with pytest.raises(ValueError, match="n_episodes"):

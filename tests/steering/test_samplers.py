@@ -305,8 +305,8 @@ def test_constructor_and_scheduler_validation(policy: MixturePolicy) -> None:
     with pytest.raises(ValueError, match="one of"):
         make_sampler("XX")
     assert isinstance(make_sampler("ss"), StochasticSampling) and "guide_ratio=60.0" in repr(make_sampler("SS"))
-    policy.scheduler = diffusers.DDIMScheduler(num_train_timesteps=100, prediction_type="sample")
-    with pytest.raises(ValueError, match="prediction_type='epsilon'"):
+    policy.scheduler = diffusers.EulerDiscreteScheduler(num_train_timesteps=100)
+    with pytest.raises(ValueError, match=r"GuidedDiffusion: policy.scheduler \(EulerDiscreteScheduler\)"):
         GuidedDiffusion()(policy, OBS, sketch_at(0.0), 2)
 
 

@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from stub_policies import ExactDiffusion
+from stub_policies import Corridor
 
 torch = pytest.importorskip("torch")
 diffusers = pytest.importorskip("diffusers")
@@ -27,50 +27,12 @@ from steer_envs.wrappers.steering import InteractionSpace  # noqa: E402
 START = np.array([3.0, 1.0])  # LARGE_MAZE row 3 is free from column 1 to 6
 
 
-class CorridorPolicy(ExactDiffusion):
-    """Exact diffusion policy whose plans are straight lines from the agent along +-row / +-column.
+class CorridorPolicy(Corridor):
+    """:class:`Corridor` plans (12 waypoints, 2.2 long) that record every observation they are asked to plan from."""
 
-    Normalization maps the maze's cell range to [-1, 1]. ``n_obs_steps = 2`` and
-    ``exec_start = 1`` mimic LeRobot's DP (``plan[0]`` restates the position).
-    """
-
-    horizon = 12
-    action_dim = 2
-    n_obs_steps = 2
-    exec_start = 1
-
-    def __init__(self, length: float = 2.2, std: float = 0.01) -> None:
-        self.scheduler = diffusers.DDIMScheduler(
-            num_train_timesteps=100, beta_schedule="squaredcos_cap_v2", clip_sample=True
-        )
-        self.dirs = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-        self.length, self.std = length, std
-        self.low, self.high = np.array([0.0, 0.0]), np.array([8.0, 11.0])
+    def __init__(self) -> None:
+        super().__init__()
         self.seen_obs: list[np.ndarray] = []
-
-    def encode_obs(self, obs: Any) -> torch.Tensor:
-        xy = np.asarray(obs, dtype=np.float64).reshape(-1, np.shape(obs)[-1])[-1, :2]
-        steps = np.linspace(0.0, 1.0, self.horizon)[None, :, None] * self.length
-        return torch.as_tensor(self.normalize(xy[None, None] + steps * self.dirs[:, None, :]))
-
-    def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
-        abar = self.scheduler.alphas_cumprod[int(t)].to(torch.float64)
-        var = abar * self.std**2 + 1 - abar
-        diff = x_t.to(torch.float64)[:, None] - abar.sqrt() * cond[None]
-        logw = -(diff**2).sum((-1, -2)) / (2 * var)
-        weights = (logw - logw.logsumexp(dim=1, keepdim=True)).exp()[:, :, None, None]
-        return (1 - abar).sqrt() * (weights * diff).sum(1) / var
-
-    def normalize(self, traj: Any) -> Any:
-        return 2 * (traj - self.low) / (self.high - self.low) - 1
-
-    def unnormalize(self, traj: Any) -> Any:
-        lo, hi = torch.as_tensor(self.low), torch.as_tensor(self.high)
-        return (
-            (traj + 1) / 2 * (hi - lo) + lo
-            if torch.is_tensor(traj)
-            else (traj + 1) / 2 * (self.high - self.low) + self.low
-        )
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         self.seen_obs.append(np.array(obs))

@@ -29,7 +29,7 @@ import contextlib
 import logging
 from collections.abc import Callable, Iterator
 from types import ModuleType
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 import gymnasium as gym
 import numpy as np
@@ -49,6 +49,7 @@ __all__ = [
     "PERTURB_TOLERANCE",
     "ROBOT_KEYS",
     "RobosuiteEnv",
+    "ViewOptions",
     "require_robosuite",
 ]
 
@@ -94,6 +95,23 @@ def _quiet_robosuite() -> Iterator[None]:
         logging.getLogger("robosuite_logs").setLevel(logging.ERROR)
 
 
+class ViewOptions(TypedDict, total=False):
+    """The rendering and perturbation options every robosuite env takes by keyword (their defaults in brackets).
+
+    ``render_mode`` (None) or ``"rgb_array"``; ``camera`` the camera ``render``
+    draws (the env's :attr:`~RobosuiteEnv.default_camera`); ``render_size``
+    (256) its side in pixels; ``perturb_exact`` (True) set the joints after a
+    push so the state is exactly the pushed one; ``fast_render`` (False) the
+    offscreen renderer without robosuite's per-frame overhead.
+    """
+
+    render_mode: str | None
+    camera: str
+    render_size: int
+    perturb_exact: bool
+    fast_render: bool
+
+
 class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     """A robosuite task (``"lift"``, ``"can"``, ``"square"``) with ground-truth modes and perturbations.
 
@@ -134,21 +152,18 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 - Env's type
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     control_freq = 20
+    #: the camera ``render`` draws when ``camera`` is not given
+    default_camera = "agentview"
     _OPTION_KEYS = frozenset({"state"})
 
     def __init__(
         self,
         task: str = "lift",
-        *,
-        render_mode: str | None = None,
-        camera: str = "agentview",
-        render_size: int = 256,
-        perturb_exact: bool = True,
-        fast_render: bool = False,
+        **view: Unpack[ViewOptions],
     ) -> None:
         owner = type(self).__name__
         self.task_name = one_of(task, "task", TASK_NAMES, owner=owner)
-        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
+        self._check_view_args(view, owner)
         self.spec_task = TASKS[self.task_name]
         self.task = task_spec(self.spec_task)
         self.obs_keys: tuple[str, ...] = ROBOT_KEYS + self.spec_task.object_keys
@@ -185,16 +200,18 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(dim,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
 
-    def _check_view_args(
-        self, render_mode: Any, camera: Any, render_size: Any, perturb_exact: Any, fast_render: Any, owner: str
-    ) -> None:
-        """Validate and keep the rendering and perturbation arguments every robosuite env takes."""
-        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"], owner)
+    def _check_view_args(self, view: ViewOptions, owner: str) -> None:
+        """Validate and keep the :class:`ViewOptions` every robosuite env takes."""
+        unknown = sorted(set(view) - set(ViewOptions.__annotations__))
+        if unknown:
+            raise TypeError(f"{owner}: unexpected keyword argument(s) {unknown}")
+        self.render_mode = check_render_mode(view.get("render_mode"), self.metadata["render_modes"], owner)
+        camera = view.get("camera", self.default_camera)
         if not isinstance(camera, str):
             raise TypeError(f"{owner}: `camera` must be a str, got {type(camera).__name__}")
-        self.render_size = integer(render_size, "render_size", low=16, high=2048, owner=owner)
-        self.perturb_exact = boolean(perturb_exact, "perturb_exact", owner=owner)
-        self.fast_render = boolean(fast_render, "fast_render", owner=owner)
+        self.render_size = integer(view.get("render_size", 256), "render_size", low=16, high=2048, owner=owner)
+        self.perturb_exact = boolean(view.get("perturb_exact", True), "perturb_exact", owner=owner)
+        self.fast_render = boolean(view.get("fast_render", False), "fast_render", owner=owner)
         self.camera = camera
 
     def _build_sim(self, make: Callable[..., Any], owner: str) -> None:

@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any
+from typing import Any, Unpack
 
 import gymnasium as gym
 import numpy as np
@@ -68,7 +68,7 @@ from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import real_array
 from steer_envs.envs.checks import check_action, check_options, check_seed
-from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+from steer_envs.envs.robosuite.adapter import RobosuiteEnv, ViewOptions
 from steer_envs.envs.robosuite.table import table_arena
 from steer_envs.envs.soup_scoop import SOUP_TASK
 
@@ -236,20 +236,13 @@ class ArmScoopEnv(RobosuiteEnv):
 
     interaction_kinds: tuple[InteractionKind, ...] = ("nudge",)
     _OPTION_KEYS = frozenset({"state"})
+    default_camera = "frontview"
     #: control period (s): one env step.
     dt = 1.0 / RobosuiteEnv.control_freq
 
-    def __init__(
-        self,
-        *,
-        render_mode: str | None = None,
-        camera: str = "frontview",
-        render_size: int = 256,
-        perturb_exact: bool = True,
-        fast_render: bool = False,
-    ) -> None:
+    def __init__(self, **view: Unpack[ViewOptions]) -> None:
         owner = type(self).__name__
-        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
+        self._check_view_args(view, owner)
         self.task_name = "arm_scoop"
         self.task = arm_scoop_task()
         self.obs_keys = ()

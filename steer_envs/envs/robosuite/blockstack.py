@@ -43,7 +43,7 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
@@ -51,7 +51,7 @@ from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import describe, integer, real_array
 from steer_envs.envs.checks import check_options, check_seed
-from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
+from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv, ViewOptions
 from steer_envs.envs.robosuite.table import add_object_observables, table_arena
 
 __all__ = [
@@ -326,16 +326,11 @@ class BlockStackEnv(RobosuiteEnv):
     def __init__(
         self,
         goal_order: Sequence[int] | None = None,
-        *,
-        render_mode: str | None = None,
-        camera: str = "agentview",
-        render_size: int = 256,
-        perturb_exact: bool = True,
-        fast_render: bool = False,
+        **view: Unpack[ViewOptions],
     ) -> None:
         owner = type(self).__name__
         self.default_goal = check_goal_order(goal_order, owner)
-        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
+        self._check_view_args(view, owner)
         self.task_name = "blockstack"
         self.task = blockstack_task()
         self.obs_keys = (

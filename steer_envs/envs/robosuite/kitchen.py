@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import functools
 import itertools
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
@@ -63,7 +63,7 @@ from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import one_of, real_array, real_scalar
 from steer_envs.envs.checks import check_options, check_seed
-from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv
+from steer_envs.envs.robosuite.adapter import GRASP_HOLD_STEPS, RobosuiteEnv, ViewOptions
 from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
 from steer_envs.envs.robosuite.kitchen_scene import (
     CAVITY_HIGH,
@@ -334,20 +334,16 @@ class KitchenEnv(RobosuiteEnv):
 
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     _OPTION_KEYS = frozenset({"state", "bowl", "door"})
+    default_camera = SCENE_CAMERA
 
     def __init__(
         self,
         task: str = "clean",
-        *,
-        render_mode: str | None = None,
-        camera: str = SCENE_CAMERA,
-        render_size: int = 256,
-        perturb_exact: bool = True,
-        fast_render: bool = False,
+        **view: Unpack[ViewOptions],
     ) -> None:
         owner = type(self).__name__
         self.kitchen_task = one_of(task, "task", KITCHEN_TASKS, owner=owner)
-        self._check_view_args(render_mode, camera, render_size, perturb_exact, fast_render, owner)
+        self._check_view_args(view, owner)
         self.task_name = "kitchen"
         self.task = kitchen_task(self.kitchen_task)
         self.obs_keys = (

@@ -56,6 +56,7 @@ from steer_envs.bench.metrics import EVAL_SECONDS, evaluation_metrics, success_r
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, TrialPlan, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
+from steer_envs.utils.fields import same_named
 from steer_envs.utils.threads import single_threaded
 
 if TYPE_CHECKING:
@@ -121,15 +122,7 @@ class GlideSetupParams(SuiteParams):
 
         base = GlideSetup()
         train = replace(base.train, epochs=self.epochs, n_heads=self.n_heads)
-        return replace(
-            base,
-            n_demos=self.n_demos,
-            demo_goal_steps=self.demo_goal_steps,
-            n_success=self.n_success,
-            n_failure=self.n_failure,
-            train=train,
-            **extra,
-        )
+        return replace(base, **same_named(GlideSetup, self, train=train, **extra))
 
 
 @dataclass(frozen=True)

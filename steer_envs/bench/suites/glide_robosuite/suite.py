@@ -36,6 +36,7 @@ from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
 from steer_envs.io import default_cache_dir
+from steer_envs.utils.fields import build_from
 from steer_envs.utils.threads import single_threaded
 
 DATA_SUITE = "glide-robosuite-data"
@@ -103,14 +104,7 @@ class DataParams(SuiteParams):
         """The :class:`~steer_envs.data.robosuite_shards.ShardSettings` of demo ``index`` of ``task``."""
         from steer_envs.data.robosuite_shards import ShardSettings
 
-        return ShardSettings(
-            task,
-            index,
-            self.replay_demos,
-            self.replays_per_demo,
-            success_hold=self.success_hold,
-            extra_gripper=self.extra_gripper,
-        )
+        return build_from(ShardSettings, self, task=task, index=index)
 
     def trajectories(self, task: str, n_demos: int) -> list[Any]:
         """Every trajectory of ``task``'s first ``n_demos`` shards (missing ones built here)."""
@@ -149,17 +143,7 @@ class GroundingParams(DataParams):
         """The :class:`~steer_envs.baselines.glide.arm_grounding.ArmGroundingSetup` of these parameters."""
         from steer_envs.baselines.glide import ArmGroundingSetup
 
-        return ArmGroundingSetup(
-            n_demos=self.n_demos,
-            replay_demos=self.replay_demos,
-            replays_per_demo=self.replays_per_demo,
-            epochs=self.epochs,
-            n_heads=self.n_heads,
-            best_head_weight=self.best_head_weight,
-            prune_to=self.prune_to,
-            stride=self.stride,
-            dyn_weight=self.dyn_weight,
-        )
+        return build_from(ArmGroundingSetup, self)
 
 
 # ------------------------------------------------------------------ glide-robosuite-data

@@ -52,6 +52,7 @@ from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, poli
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
 from steer_envs.io import default_cache_dir
+from steer_envs.utils.fields import same_named
 from steer_envs.utils.threads import single_threaded
 
 __all__ = [
@@ -247,15 +248,7 @@ def run_steer_trial(trial: Trial) -> TrialResult:
             trial.seed,
             params.policy(),
             str(trial.method),
-            tasks=params.tasks,
-            batch=params.batch,
-            max_interactions=params.max_interactions,
-            max_skills=params.max_skills,
-            gd_ratio=params.gd_ratio,
-            ss_ratio=params.ss_ratio,
-            op_distance=params.op_distance,
-            keep_frames=trial.seed < params.plot_seeds,
-            env=env_for(task),
+            **same_named(kitchen_trial, params, keep_frames=trial.seed < params.plot_seeds, env=env_for(task)),
         )
     return TrialResult(metrics, extra)
 

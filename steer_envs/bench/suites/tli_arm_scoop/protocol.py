@@ -45,38 +45,24 @@ import numpy as np
 from steer_envs.baselines.lpv_ds.episodes import arm_scoop_episode, sampled_exits
 from steer_envs.baselines.lpv_ds.ltl_ds import LTLDSPolicy, repeated_failures
 from steer_envs.baselines.lpv_ds.task_policies import arm_scoop_policy
-from steer_envs.bench.trials import checked_counts, episode_means, reset_seed, trial_env
-from steer_envs.core.validation import one_of
+from steer_envs.bench.suites.tli_arm_scoop.params import ENV_ID, METHODS, ArmScoopParams
+from steer_envs.bench.trials import episode_means, reset_seed, trial_env
+from steer_envs.core.validation import integer, one_of
 from steer_envs.data.pushes import push_plan
 
-__all__ = ["ENV_ID", "METHODS", "scoop_trial"]
-
-ENV_ID = "steer_envs/ArmScoop-v0"
-METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
+__all__ = ["scoop_trial"]
 
 
-def scoop_trial(
-    seed: int,
-    method: str,
-    *,
-    n_episodes: int = 30,
-    n_pushes: int = 3,
-    max_dwell: int = 20,
-    max_steps: int = 600,
-    record: bool = False,
-) -> dict[str, Any]:
-    """``n_episodes`` pushed episodes of ``method``; JSON-able means (and figure data with ``record``)."""
+def scoop_trial(seed: int, method: str, params: ArmScoopParams, *, record: bool = False) -> dict[str, Any]:
+    """``params.n_episodes`` pushed episodes of ``method``; JSON-able means (and figure data with ``record``)."""
     one_of(method, "method", METHODS, owner="scoop_trial")
-    seed, n_episodes, n_pushes, max_dwell, max_steps = checked_counts(
-        "scoop_trial", seed=(seed, 0), n_episodes=(n_episodes, 1), n_pushes=(n_pushes, 0), max_dwell=(max_dwell, 1),
-        max_steps=(max_steps, 1),
-    )  # fmt: skip
+    seed = integer(seed, "seed", low=0, owner="scoop_trial")
     with trial_env(ENV_ID) as (_, base):
         policy = arm_scoop_policy(seed, modulation=method == "ltl-ds+mod")
         episodes = []
-        for i in range(n_episodes):
-            plan = push_plan(np.random.default_rng([seed, i, 99]), n_pushes, max_dwell)
-            episodes.append(arm_scoop_episode(base, policy, reset_seed(seed, i, 11), plan, max_steps))
+        for i in range(params.n_episodes):
+            plan = push_plan(np.random.default_rng([seed, i, 99]), params.n_pushes, params.max_dwell)
+            episodes.append(arm_scoop_episode(base, policy, reset_seed(seed, i, 11), plan, params.max_steps))
     out: dict[str, Any] = episode_means(episodes, ("success", "steps", "failures", "task_pushes", "spills"))
     undone = [e for e in episodes if e["task_pushes"] > 0]
     out["undone_episodes"] = len(undone)

@@ -13,42 +13,16 @@ thesis: 30 trials by six subjects).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 from steer_envs.bench.findings import cell_means, full, judge
 from steer_envs.bench.metrics import NUM_CUTS
-from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.suites.tli_arm_scoop.params import ENV_ID, METHODS, ArmScoopParams
 from steer_envs.bench.trials import run_protocol
 
-ENV_ID = "steer_envs/ArmScoop-v0"
-METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
 MOD = "ltl-ds+mod"
 SOURCE = "thesis appendix 'Robot Experiment 1: Soup-Scooping' (30/30 trials, six subjects)"
-
-
-@dataclass(frozen=True)
-class ArmScoopParams(SuiteParams):
-    """Parameters of ``tli-arm-scoop``.
-
-    ``n_episodes`` pushed episodes per trial (cuts persist across them);
-    ``n_pushes`` pushes per episode (the first while scooping, the second while
-    carrying, more in random modes), each after ``1..max_dwell`` steps in its
-    mode; ``max_steps`` per episode; the first ``plot_seeds`` experiments keep
-    data for the figure.
-    """
-
-    suite_name: ClassVar[str] = "tli-arm-scoop"
-    n_episodes: int = 30
-    n_pushes: int = 3
-    max_dwell: int = 20
-    max_steps: int = 600
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_dwell", "max_steps")
-        self.require_at_least(0, "n_pushes", "plot_seeds")
 
 
 def run_scoop_trial(trial: Trial) -> TrialResult:

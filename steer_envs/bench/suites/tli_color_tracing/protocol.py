@@ -49,37 +49,24 @@ import numpy as np
 
 from steer_envs.baselines.lpv_ds.episodes import color_episode
 from steer_envs.baselines.lpv_ds.task_policies import color_policy
-from steer_envs.bench.trials import checked_counts, episode_means, reset_seed, trial_env
-from steer_envs.core.validation import one_of
+from steer_envs.bench.suites.tli_color_tracing.params import ENV_ID, ColorTracingParams
+from steer_envs.bench.trials import episode_means, reset_seed, trial_env
+from steer_envs.core.validation import integer, one_of
 from steer_envs.data.pushes import tile_push_schedule
 from steer_envs.envs.color_tracing import AUTOMATA
 
-__all__ = ["AUTOMATA", "ENV_ID", "color_trial"]
-
-ENV_ID = "steer_envs/ColorTracing-v0"
+__all__ = ["color_trial"]
 
 
-def color_trial(
-    seed: int,
-    automaton: str,
-    *,
-    n_episodes: int = 10,
-    n_pushes: int = 2,
-    max_dwell: int = 15,
-    max_steps: int = 2500,
-    modulation: bool = True,
-    record: bool = False,
-) -> dict[str, Any]:
-    """``n_episodes`` episodes without and with pushes under ``automaton``; JSON-able summaries."""
+def color_trial(seed: int, automaton: str, params: ColorTracingParams, *, record: bool = False) -> dict[str, Any]:
+    """``params.n_episodes`` episodes without and with pushes under ``automaton``; JSON-able summaries."""
     one_of(automaton, "automaton", AUTOMATA, owner="color_trial")
-    seed, n_episodes, n_pushes, max_dwell, max_steps = checked_counts(
-        "color_trial", seed=(seed, 0), n_episodes=(n_episodes, 1), n_pushes=(n_pushes, 0), max_dwell=(max_dwell, 1),
-        max_steps=(max_steps, 1),
-    )  # fmt: skip
+    seed = integer(seed, "seed", low=0, owner="color_trial")
+    n_episodes, max_dwell, max_steps = params.n_episodes, params.max_dwell, params.max_steps
     with trial_env(ENV_ID, automaton=automaton) as (_, base):
-        policy = color_policy(seed, automaton, modulation=modulation, max_speed=base.max_speed, dt=base.dt)
+        policy = color_policy(seed, automaton, modulation=params.modulation, max_speed=base.max_speed, dt=base.dt)
         out: dict[str, Any] = {}
-        for cond, k in (("clean", 0), ("push", n_pushes)):
+        for cond, k in (("clean", 0), ("push", params.n_pushes)):
             rng = np.random.default_rng([seed, 2020, k])
             episodes = []
             for i in range(n_episodes):

@@ -13,17 +13,14 @@ region through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 from steer_envs.bench.findings import all_full, cell_means, full, judge
 from steer_envs.bench.metrics import NUM_CUTS
-from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.suites.tli_color_tracing.params import AUTOMATA, ENV_ID, ColorTracingParams
 from steer_envs.bench.trials import run_protocol
 
-ENV_ID = "steer_envs/ColorTracing-v0"
-AUTOMATA: tuple[str, ...] = ("a", "b", "c")
 SOURCE = "thesis appendix 'Robot Experiment 3: Color Tracing' (videos; no numbers given)"
 #: each automaton's re-entry rule in words (the claim its finding checks)
 RULES = {
@@ -31,30 +28,6 @@ RULES = {
     "b": "(b) a push into D after yellow re-enters at blue (from yellow: at yellow)",
     "c": "(c) a push into D from yellow re-enters at blue, from blue at pink (other tiles: the tile left)",
 }
-
-
-@dataclass(frozen=True)
-class ColorTracingParams(SuiteParams):
-    """Parameters of ``tli-color-tracing``.
-
-    ``n_episodes`` per condition (no pushes / pushes); ``n_pushes`` pushes into
-    D per episode, each from its own random tile after ``1..max_dwell`` steps
-    on it; ``max_steps`` per episode;
-    ``modulation`` learns cuts from invariance failures; the first
-    ``plot_seeds`` experiments keep episodes for the figure.
-    """
-
-    suite_name: ClassVar[str] = "tli-color-tracing"
-    n_episodes: int = 10
-    n_pushes: int = 3
-    max_dwell: int = 15
-    max_steps: int = 2500
-    modulation: bool = True
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_dwell", "max_steps")
-        self.require_at_least(0, "n_pushes", "plot_seeds")
 
 
 def _percent(part: float, whole: float) -> float | None:

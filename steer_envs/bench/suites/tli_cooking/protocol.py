@@ -32,45 +32,30 @@ import numpy as np
 
 from steer_envs.baselines.lpv_ds.episodes import cooking_episode
 from steer_envs.baselines.lpv_ds.transition_ds import TransitionDSPolicy, learned_skills, skills_fingerprint
-from steer_envs.bench.trials import checked_counts, episode_means, reset_seed, trial_env
-from steer_envs.core.validation import one_of
+from steer_envs.bench.suites.tli_cooking.params import ENV_ID, VARIANTS, CookingParams
+from steer_envs.bench.trials import episode_means, reset_seed, trial_env
+from steer_envs.core.validation import integer, one_of
 from steer_envs.data.pushes import push_schedule
 
-__all__ = ["ENV_ID", "VARIANTS", "cooking_trial"]
-
-ENV_ID = "steer_envs/Cooking-v0"
-VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
+__all__ = ["cooking_trial"]
 
 
-def cooking_trial(
-    seed: int,
-    variant: str,
-    *,
-    n_starts: int = 10,
-    n_pushes: int = 2,
-    push_window: int = 400,
-    magnitude: float = 8.0,
-    horizon: int = 3000,
-    deliveries: int = 3,
-    modulation: bool = True,
-    record: bool = False,
-) -> dict[str, Any]:
-    """``n_starts`` episodes without and with pushes under automaton ``variant``; JSON-able aggregate."""
+def cooking_trial(seed: int, variant: str, params: CookingParams, *, record: bool = False) -> dict[str, Any]:
+    """``params.n_starts`` episodes without and with pushes under automaton ``variant``; JSON-able aggregate."""
     from steer_envs.ltl.specs import cooking
 
     one_of(variant, "variant", VARIANTS, owner="cooking_trial")
-    seed, n_starts, horizon, deliveries = checked_counts(
-        "cooking_trial", seed=(seed, 0), n_starts=(n_starts, 1), horizon=(horizon, 1), deliveries=(deliveries, 1)
-    )
+    seed = integer(seed, "seed", low=0, owner="cooking_trial")
+    horizon, deliveries = params.horizon, params.deliveries
     skills = learned_skills(seed)
     rng = np.random.default_rng([seed, 5077])
     results: dict[str, list[dict[str, Any]]] = {"clean": [], "push": []}
     with trial_env(ENV_ID) as (env, base):
         policy = TransitionDSPolicy(
-            base.task, cooking(variant), skills, max_speed=base.max_speed, modulation=modulation
+            base.task, cooking(variant), skills, max_speed=base.max_speed, modulation=params.modulation
         )
-        for i, cond in itertools.product(range(n_starts), ("clean", "push")):
-            pushes = push_schedule(rng, n_pushes, push_window, magnitude) if cond == "push" else {}
+        for i, cond in itertools.product(range(params.n_starts), ("clean", "push")):
+            pushes = push_schedule(rng, params.n_pushes, params.push_window, params.magnitude) if cond == "push" else {}
             results[cond].append(
                 cooking_episode(
                     env, policy, variant, reset_seed(seed, i, 31), pushes, horizon=horizon, deliveries=deliveries,

@@ -12,44 +12,15 @@ pushes through :func:`~steer_envs.bench.suites.tli_cooking.protocol.cooking_tria
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 from steer_envs.bench.findings import all_full
 from steer_envs.bench.metrics import NUM_CUTS
-from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.suites.tli_cooking.params import ENV_ID, VARIANTS, CookingParams
 from steer_envs.bench.trials import run_protocol
 
-ENV_ID = "steer_envs/Cooking-v0"
-VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
 THESIS_SOURCE = "thesis appendix 'Generalization Results', Fig. (c)-(f)"
-
-
-@dataclass(frozen=True)
-class CookingParams(SuiteParams):
-    """Parameters of ``tli-cooking``.
-
-    ``n_starts`` episodes per condition (no pushes / pushes); ``n_pushes``
-    pushes at steps ``1..push_window`` of length up to ``magnitude``;
-    ``horizon`` steps per episode; ``deliveries`` chicken deliveries that make
-    ``phi_cc`` a success; ``modulation`` learns cuts; the first ``plot_seeds``
-    experiments keep their first episode for the figure.
-    """
-
-    suite_name: ClassVar[str] = "tli-cooking"
-    n_starts: int = 10
-    n_pushes: int = 2
-    push_window: int = 400
-    magnitude: float = 8.0
-    horizon: int = 3000
-    deliveries: int = 3
-    modulation: bool = True
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_starts", "horizon", "deliveries", "push_window")
-        self.require_at_least(0, "n_pushes", "plot_seeds", "magnitude")
 
 
 def run_cooking_trial(trial: Trial) -> TrialResult:

@@ -35,33 +35,19 @@ import numpy as np
 
 from steer_envs.baselines.lpv_ds.episodes import inspection_episode
 from steer_envs.baselines.lpv_ds.task_policies import inspection_policy, vanilla_ds
-from steer_envs.bench.trials import checked_counts, episode_means, reset_seed, trial_env
-from steer_envs.core.validation import one_of, real_scalar
+from steer_envs.bench.suites.tli_inspection.params import ENV_ID, METHODS, InspectionParams
+from steer_envs.bench.trials import episode_means, reset_seed, trial_env
+from steer_envs.core.validation import integer, one_of
 from steer_envs.data.pushes import track_pushes
 from steer_envs.data.tli_demos import inspection_demonstrations
 
-__all__ = ["ENV_ID", "METHODS", "inspection_trial"]
-
-ENV_ID = "steer_envs/InspectionLine-v0"
-METHODS: tuple[str, ...] = ("vanilla-ds", "ltl-ds", "ltl-ds+mod")
+__all__ = ["inspection_trial"]
 
 
-def inspection_trial(
-    seed: int,
-    method: str,
-    *,
-    n_episodes: int = 10,
-    n_pushes: int = 1,
-    min_push: float = 4.0,
-    max_push: float = 10.0,
-    max_steps: int = 3000,
-    record: bool = False,
-) -> dict[str, Any]:
-    """``n_episodes`` episodes of ``method`` from the grasping region under the push rule; JSON-able means."""
+def inspection_trial(seed: int, method: str, params: InspectionParams, *, record: bool = False) -> dict[str, Any]:
+    """``params.n_episodes`` episodes of ``method`` from the grasping region under the push rule; JSON-able means."""
     one_of(method, "method", METHODS, owner="inspection_trial")
-    seed, n_episodes = checked_counts("inspection_trial", seed=(seed, 0), n_episodes=(n_episodes, 1))
-    max_push = real_scalar(max_push, "max_push", low=0.0, owner="inspection_trial")
-    min_push = real_scalar(min_push, "min_push", low=0.0, high=max_push, owner="inspection_trial")
+    seed = integer(seed, "seed", low=0, owner="inspection_trial")
     with trial_env(ENV_ID) as (_, base):
         demos = inspection_demonstrations(seed)
         if method == "vanilla-ds":
@@ -70,10 +56,12 @@ def inspection_trial(
             policy = inspection_policy(demos, base, seed, modulation=method == "ltl-ds+mod")
         rng = np.random.default_rng([seed, 881])
         episodes: list[dict[str, Any]] = []
-        for i in range(n_episodes):
-            pushes = track_pushes(rng, n_pushes, min_push, max_push)
+        for i in range(params.n_episodes):
+            pushes = track_pushes(rng, params.n_pushes, params.min_push, params.max_push)  # drawn even when unused
             start = reset_seed(seed, i, 5)
-            episodes.append(inspection_episode(base, policy, start, pushes if max_push > 0 else [], max_steps))
+            episodes.append(
+                inspection_episode(base, policy, start, pushes if params.max_push > 0 else [], params.max_steps)
+            )
     out: dict[str, Any] = episode_means(episodes, ("success", "uninspected", "inspections", "steps"))
     out["num_cuts"] = 0 if method == "vanilla-ds" else policy.num_cuts
     if record:

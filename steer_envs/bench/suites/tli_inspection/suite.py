@@ -11,37 +11,16 @@ without pushes and ``n_episodes`` with large pushes through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 from steer_envs.bench.findings import cell_means, full, judge
 from steer_envs.bench.metrics import NUM_CUTS
-from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
+from steer_envs.bench.suites.tli_inspection.params import ENV_ID, METHODS, InspectionParams
 from steer_envs.bench.trials import check_trial
 from steer_envs.utils.threads import single_threaded
 
-ENV_ID = "steer_envs/InspectionLine-v0"
-METHODS: tuple[str, ...] = ("vanilla-ds", "ltl-ds", "ltl-ds+mod")
 SOURCE = "thesis appendix 'Robot Experiment 2: Inspection Line'"
-
-
-@dataclass(frozen=True)
-class InspectionParams(SuiteParams):
-    """Parameters of ``tli-inspection``: episodes per condition, pushes per episode, push lengths, step cap."""
-
-    suite_name: ClassVar[str] = "tli-inspection"
-    n_episodes: int = 10
-    n_pushes: int = 1
-    min_push: float = 4.0
-    max_push: float = 10.0
-    max_steps: int = 3000
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_steps")
-        self.require_at_least(0, "n_pushes", "min_push", "plot_seeds")
-        self.require("max_push", self.max_push >= self.min_push, ">= min_push")
 
 
 def run_inspection_trial(trial: Trial) -> TrialResult:
@@ -51,10 +30,10 @@ def run_inspection_trial(trial: Trial) -> TrialResult:
     check_trial(trial, methods=METHODS)
     p = InspectionParams.from_json(trial.params)
     record = trial.seed < p.plot_seeds
-    method, kwargs = str(trial.method), p.kwargs(without=("plot_seeds",))
+    method = str(trial.method)
     with single_threaded():
-        clean = inspection_trial(trial.seed, method, **{**kwargs, "min_push": 0.0, "max_push": 0.0})
-        push = inspection_trial(trial.seed, method, **kwargs, record=record)
+        clean = inspection_trial(trial.seed, method, p.replace(min_push=0.0, max_push=0.0))
+        push = inspection_trial(trial.seed, method, p, record=record)
     metrics = {
         "success_clean": 100.0 * clean["success"],
         "success": 100.0 * push["success"],
