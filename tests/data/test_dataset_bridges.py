@@ -63,7 +63,7 @@ def test_bad_robomimic_files_name_the_file(tmp_path: Path) -> None:
     with pytest.raises(DatasetError, match="no robomimic dataset file"):
         from_robomimic(tmp_path / "missing.hdf5")
     (tmp_path / "junk.hdf5").write_bytes(b"not hdf5")
-    with pytest.raises(DatasetError, match="junk.hdf5 is not an HDF5 file"):
+    with pytest.raises(DatasetError, match=r"junk\.hdf5 is not an HDF5 file"):
         load_dataset(f"robomimic:{tmp_path / 'junk.hdf5'}")
 
 
