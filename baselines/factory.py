@@ -32,6 +32,8 @@ from steer_envs.baselines.common.configuration import PolicyConfig, Preset
 from steer_envs.baselines.common.torch_policy import CHECKPOINT_FORMAT, TorchPolicy, check_device, read_checkpoint
 from steer_envs.baselines.diffusion import PRESETS as DP_PRESETS
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
+from steer_envs.baselines.flow import PRESETS as FLOW_PRESETS
+from steer_envs.baselines.flow import FlowConfig, FlowPolicy
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.io import CheckpointError
 
@@ -64,6 +66,7 @@ class PolicySpec:
 POLICIES: dict[str, PolicySpec] = {
     "dp": PolicySpec(DiffusionConfig, DiffusionPolicy, dict(DP_PRESETS)),
     "act": PolicySpec(ACTConfig, ACTPolicy, dict(ACT_PRESETS)),
+    "flow": PolicySpec(FlowConfig, FlowPolicy, dict(FLOW_PRESETS)),
 }
 
 
@@ -71,7 +74,7 @@ def policy_names() -> list[str]:
     """The registered policy names, sorted.
 
     >>> policy_names()
-    ['act', 'dp']
+    ['act', 'dp', 'flow']
     """
     return sorted(POLICIES)
 

@@ -5,7 +5,7 @@
 8
 """
 
-from steer_envs.baselines.diffusion.configuration import PREDICTIONS, PRESETS, DiffusionConfig
+from steer_envs.baselines.diffusion.configuration import PREDICTIONS, PRESETS, DiffusionConfig, PlanNetConfig
 from steer_envs.baselines.diffusion.modeling import DiffusionPolicy
 from steer_envs.baselines.diffusion.network import ConditionalUnet1D, DiffusionNet, ObsEncoder
 
@@ -17,4 +17,5 @@ __all__ = [
     "DiffusionNet",
     "DiffusionPolicy",
     "ObsEncoder",
+    "PlanNetConfig",
 ]

@@ -31,7 +31,15 @@ from dataclasses import dataclass
 from steer_envs.baselines.common.configuration import PolicyConfig, Preset, TrainSettings, check_int, int_tuple
 from steer_envs.core.validation import boolean, one_of, real_scalar
 
-__all__ = ["BETA_SCHEDULES", "MAX_HORIZON", "MAX_TIMESTEPS", "PREDICTIONS", "PRESETS", "DiffusionConfig"]
+__all__ = [
+    "BETA_SCHEDULES",
+    "MAX_HORIZON",
+    "MAX_TIMESTEPS",
+    "PREDICTIONS",
+    "PRESETS",
+    "DiffusionConfig",
+    "PlanNetConfig",
+]
 
 #: the network's target: the noise (Chi et al.) or the velocity v = sqrt(abar) eps - sqrt(1 - abar) x0.
 PREDICTIONS = ("epsilon", "v")
@@ -43,8 +51,8 @@ BETA_SCHEDULES = ("linear", "scaled_linear", "squaredcos_cap_v2")
 
 
 @dataclass(frozen=True, kw_only=True)
-class DiffusionConfig(PolicyConfig):
-    """Features, plan layout, network and sampler of a :class:`~steer_envs.baselines.diffusion.DiffusionPolicy`.
+class PlanNetConfig(PolicyConfig):
+    """Features, plan layout and U-Net of a policy that generates whole plans (DP, the flow policy).
 
     Plans use LeRobot's layout: ``horizon`` waypoints starting at the action of
     the oldest observed step, so ``plan[n_obs_steps - 1]`` is the current
@@ -55,11 +63,10 @@ class DiffusionConfig(PolicyConfig):
         n_obs_steps: observations of history in the condition.
         down_dims: U-Net channel widths per level.
         kernel_size, n_groups: convolution kernel (odd) and GroupNorm groups.
-        step_embed_dim: diffusion-step embedding width (even).
-        num_train_timesteps, num_inference_steps, beta_schedule, clip_sample_range:
-            the DDIM scheduler (diffusers ``DDIMScheduler``).
-        prediction: the network's target, ``"epsilon"`` or ``"v"``; samplers
-            always see epsilon (``predict_noise`` converts v exactly).
+        step_embed_dim: noise-level embedding width (even).
+        num_train_timesteps: noise levels: DDIM's diffusion steps; a flow's time ``tau``
+            in ``[0, 1]`` enters the embedding as ``tau * num_train_timesteps``.
+        num_inference_steps: DDIM steps, or a flow's Euler steps, per plan.
         time_channel: append the plan index (in [-1, 1]) as an input channel.
         obs_embed_dim: width of an MLP over Fourier features of the normalized
             observation history (0: the history enters FiLM directly).
@@ -67,8 +74,8 @@ class DiffusionConfig(PolicyConfig):
 
     Bounds beyond those of :class:`PolicyConfig`: ``horizon`` at most
     :data:`MAX_HORIZON`, ``num_train_timesteps`` at most :data:`MAX_TIMESTEPS`,
-    at most 32 U-Net levels, ``beta_schedule`` one of :data:`BETA_SCHEDULES`
-    (a loaded checkpoint is also limited by the network size its config implies).
+    at most 32 U-Net levels (a loaded checkpoint is also limited by the network
+    size its config implies).
     """
 
     horizon: int = 64
@@ -79,9 +86,6 @@ class DiffusionConfig(PolicyConfig):
     step_embed_dim: int = 64
     num_train_timesteps: int = 100
     num_inference_steps: int = 10
-    beta_schedule: str = "squaredcos_cap_v2"
-    clip_sample_range: float = 1.0
-    prediction: str = "v"
     time_channel: bool = True
     obs_embed_dim: int = 256
     obs_octaves: int = 6
@@ -113,20 +117,16 @@ class DiffusionConfig(PolicyConfig):
                 f"num_inference_steps must be in [1, num_train_timesteps={self.num_train_timesteps}], "
                 f"got {self.num_inference_steps}"
             )
-        one_of(self.beta_schedule, "beta_schedule", BETA_SCHEDULES)
-        one_of(self.prediction, "prediction", PREDICTIONS)
         for name in ("obs_embed_dim", "obs_octaves"):
             object.__setattr__(self, name, check_int(getattr(self, name), name, 0))
         if self.obs_octaves > 30:
             raise ValueError(f"obs_octaves must be <= 30 (frequencies pi * 2**k), got {self.obs_octaves}")
-        clip = real_scalar(self.clip_sample_range, "clip_sample_range", low=0.0, low_inclusive=False)
-        object.__setattr__(self, "clip_sample_range", clip)
         object.__setattr__(self, "time_channel", boolean(self.time_channel, "time_channel"))
 
     def parameter_count(self) -> int | None:
         """Numbers in the network's state dict, from the config alone (see :class:`DiffusionNet`).
 
-        >>> DiffusionConfig(obs_dim=2, action_dim=2).parameter_count()
+        >>> PlanNetConfig(obs_dim=2, action_dim=2).parameter_count()
         707250
         """
         self.require_features()
@@ -164,6 +164,29 @@ class DiffusionConfig(PolicyConfig):
     def window_layout(self) -> dict[str, int]:
         """``PlanWindows`` arguments for this layout (plans start ``n_obs_steps - 1`` steps back)."""
         return {"n_obs": self.n_obs_steps, "horizon": self.horizon, "action_start": 1 - self.n_obs_steps}
+
+
+@dataclass(frozen=True, kw_only=True)
+class DiffusionConfig(PlanNetConfig):
+    """:class:`PlanNetConfig` plus the DDIM sampler of a :class:`~steer_envs.baselines.diffusion.DiffusionPolicy`.
+
+    Attributes:
+        beta_schedule, clip_sample_range: the DDIM scheduler (diffusers ``DDIMScheduler``,
+            ``num_train_timesteps`` steps; ``beta_schedule`` one of :data:`BETA_SCHEDULES`).
+        prediction: the network's target, ``"epsilon"`` or ``"v"``; samplers
+            always see epsilon (``predict_noise`` converts v exactly).
+    """
+
+    beta_schedule: str = "squaredcos_cap_v2"
+    clip_sample_range: float = 1.0
+    prediction: str = "v"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        one_of(self.beta_schedule, "beta_schedule", BETA_SCHEDULES)
+        one_of(self.prediction, "prediction", PREDICTIONS)
+        clip = real_scalar(self.clip_sample_range, "clip_sample_range", low=0.0, low_inclusive=False)
+        object.__setattr__(self, "clip_sample_range", clip)
 
 
 #: the optimizer of Diffusion Policy / ITPS (betas, weight decay); the cpu preset raises the learning rate.

@@ -22,7 +22,7 @@ import torch
 from diffusers.models.embeddings import get_timestep_embedding
 from torch import nn
 
-from steer_envs.baselines.diffusion.configuration import DiffusionConfig
+from steer_envs.baselines.diffusion.configuration import PlanNetConfig
 
 __all__ = ["ConditionalUnet1D", "DiffusionNet", "ObsEncoder"]
 
@@ -147,7 +147,7 @@ class DiffusionNet(nn.Module):
 
     ramp: torch.Tensor
 
-    def __init__(self, cfg: DiffusionConfig) -> None:
+    def __init__(self, cfg: PlanNetConfig) -> None:
         super().__init__()
         if cfg.obs_dim is None or cfg.action_dim is None:
             raise ValueError("DiffusionNet needs cfg.obs_dim and cfg.action_dim")

@@ -10,6 +10,9 @@ that the members *exist*, not their signatures or return shapes.
 * :class:`DiffusionPolicyLike` - additionally exposes its noise predictor,
   scheduler and normalization; needed by biased initialization (BI), guided
   diffusion (GD) and stochastic sampling (SS), which intervene inside denoising.
+* :class:`FlowPolicyLike` - a flow-matching policy: instead of a noise
+  predictor and a scheduler it exposes its velocity field; BI, GD and SS run
+  and steer its integration in the flow's own form (``steer_envs.steering``).
 * :class:`VelocityPolicy` - a batched dynamical system ``x -> x_dot`` (LPV-DS, BC),
   the input of DS modulation in the TLI chapter.
 
@@ -33,7 +36,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["DiffusionPolicyLike", "NoiseSchedulerLike", "TrajectoryPolicy", "VelocityPolicy"]
+__all__ = ["DiffusionPolicyLike", "FlowPolicyLike", "NoiseSchedulerLike", "TrajectoryPolicy", "VelocityPolicy"]
 
 
 @runtime_checkable
@@ -101,11 +104,49 @@ class DiffusionPolicyLike(TrajectoryPolicy, Protocol):
         ...
 
     def predict_noise(self, x_t: Any, t: Any, cond: Any) -> Any:
-        """The network's noise estimate ``eps(x_t, t | cond)``, same shape as ``x_t``.
+        """The network's output at ``(x_t, t | cond)``, same shape as ``x_t``.
 
-        Must be differentiable in ``x_t`` (guidance backpropagates through it).
-        A model trained with sample prediction converts its output to epsilon.
+        In the scheduler's ``config.prediction_type``: the noise estimate
+        (``"epsilon"``, the default), the clean plan (``"sample"``) or
+        ``"v_prediction"``; the guided samplers convert
+        (:mod:`steer_envs.steering.schedulers`). Differentiable in ``x_t``.
         """
+        ...
+
+    def normalize(self, traj: Any) -> Any:
+        """Env units -> normalized space, elementwise over ``(..., d)``; numpy in numpy out, torch in torch out."""
+        ...
+
+    def unnormalize(self, traj: Any) -> Any:
+        """Inverse of :meth:`normalize`."""
+        ...
+
+
+@runtime_checkable
+class FlowPolicyLike(TrajectoryPolicy, Protocol):
+    """A flow-matching policy whose integration a sampler can run and steer.
+
+    The flow carries noise ``x_0 ~ N(0, I)`` at time ``tau = 0`` to a plan at
+    ``tau = 1`` along ``dx/dtau = v(x, tau | cond)`` (rectified flow:
+    ``x_tau = tau * x_1 + (1 - tau) * x_0``, so ``v = x_1 - x_0`` and the clean
+    plan implied at ``(x, tau)`` is ``x + (1 - tau) * v``). Integration runs
+    ``num_inference_steps`` Euler steps of ``1 / num_inference_steps`` in the
+    policy's *normalized* space, on torch tensors ``(n, H, d)`` on :attr:`device`.
+    """
+
+    num_inference_steps: int
+
+    @property
+    def device(self) -> Any:
+        """Torch device of the network (where samplers create noise)."""
+        ...
+
+    def encode_obs(self, obs: Any) -> Any:
+        """Conditioning for :meth:`predict_velocity` from an env observation (computed once per call)."""
+        ...
+
+    def predict_velocity(self, x: Any, tau: Any, cond: Any) -> Any:
+        """The velocity ``v(x, tau | cond)``, same shape as ``x``; ``tau`` a float in ``[0, 1]``."""
         ...
 
     def normalize(self, traj: Any) -> Any:

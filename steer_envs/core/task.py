@@ -17,6 +17,7 @@ from typing import Any, Literal
 import networkx as nx
 import numpy as np
 
+from steer_envs.core.regions import Boxes
 from steer_envs.core.validation import boolean, describe, name_tuple
 
 SensorKey = frozenset[str]
@@ -111,6 +112,24 @@ def _labels(raw: Any, modes: tuple[str, ...]) -> tuple[str, ...]:
     return labels
 
 
+def _regions(
+    raw: Any, forbidden: Any, mode_regions: Any, modes: tuple[str, ...]
+) -> tuple[dict[str, Boxes], tuple[str, ...], dict[str, str]]:
+    """``regions``, ``forbidden`` and ``mode_regions`` checked against each other and the modes."""
+    regions = dict(raw or {})
+    for name, region in regions.items():
+        if not isinstance(name, str) or not isinstance(region, Boxes):
+            raise TypeError(f"TaskSpec: `regions` must map names to Boxes, got {name!r}: {describe(region)}")
+    bad = [r for r in _names(forbidden or (), "forbidden") if r not in regions]
+    if bad:
+        raise ValueError(f"TaskSpec: `forbidden` names unknown regions {bad} (regions: {sorted(regions)})")
+    mapping = dict(mode_regions or {})
+    for mode, region_name in mapping.items():
+        if mode not in modes or region_name not in regions:
+            raise ValueError(f"TaskSpec: `mode_regions` maps {mode!r} -> {region_name!r}: unknown mode or region")
+    return regions, _names(forbidden or (), "forbidden"), mapping
+
+
 @dataclass(frozen=True)
 class TaskSpec:
     """Modes, sensor APs, the sensor -> mode labelling and allowed transitions.
@@ -136,6 +155,10 @@ class TaskSpec:
             specs); everywhere a mode is looked up (:meth:`mode_index`,
             :meth:`is_allowed`, :meth:`shortest_plan`, ...) a label is accepted as an
             alias of its mode, and :meth:`label_of` gives it. Default: the mode names.
+        regions: named :class:`~steer_envs.core.regions.Boxes` of the task's space (a maze's walls).
+        forbidden: names of regions a plan must never enter.
+        mode_regions: mode -> the region where that mode holds; a plan in the current mode
+            must not enter the region of a mode it may not move to (:meth:`unsafe_regions`).
 
     Bad input (duplicate or unknown modes, unknown APs) raises ``ValueError``;
     names that are not non-empty strings raise ``TypeError``. A ``goal`` given
@@ -170,6 +193,9 @@ class TaskSpec:
     ltl: str | None = None
     ltl_variants: Mapping[str, str] = field(default_factory=dict, hash=False)
     labels: tuple[str, ...] = ()
+    regions: Mapping[str, Boxes] = field(default_factory=dict, hash=False)
+    forbidden: tuple[str, ...] = ()
+    mode_regions: Mapping[str, str] = field(default_factory=dict, hash=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -195,6 +221,30 @@ class TaskSpec:
             raise TypeError(f"TaskSpec: `ltl` must be LTL text (str) or None, got {describe(self.ltl)}")
         object.__setattr__(self, "ltl_variants", dict(self.ltl_variants))
         object.__setattr__(self, "labels", _labels(self.labels, modes))
+        regions, forbidden, mode_regions = _regions(self.regions, self.forbidden, self.mode_regions, modes)
+        object.__setattr__(self, "regions", regions)
+        object.__setattr__(self, "forbidden", forbidden)
+        object.__setattr__(self, "mode_regions", mode_regions)
+
+    def unsafe_regions(self, mode: str | None = None) -> list[Boxes]:
+        """The regions a plan must stay out of: the forbidden ones, and (given the current ``mode``) the
+        regions of the modes ``mode`` may not move to (a disallowed transition).
+
+        >>> from steer_envs.core.regions import Boxes
+        >>> box = Boxes([[0.0]], [[1.0]])
+        >>> task = TaskSpec("t", ("a", "b", "c"), transitions={("a", "b")}, regions={"b": box, "c": box, "wall": box},
+        ...                 forbidden=("wall",), mode_regions={"b": "b", "c": "c"})
+        >>> len(task.unsafe_regions()), len(task.unsafe_regions("a"))  # "a" may not go to "c"
+        (1, 2)
+        """
+        out = [self.regions[name] for name in self.forbidden]
+        if mode is None:
+            return out
+        current = self.modes[self.mode_index(mode)]
+        for other, region in self.mode_regions.items():
+            if other != current and not self.is_allowed(current, other):
+                out.append(self.regions[region])
+        return out
 
     # ------------------------------------------------------------------ modes
     @property

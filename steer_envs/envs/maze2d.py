@@ -84,6 +84,7 @@ import numpy as np
 from gymnasium import spaces
 
 from steer_envs.core.interaction import InteractionKind
+from steer_envs.core.regions import Boxes
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_scalar
 from steer_envs.envs.checks import (
@@ -555,7 +556,8 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
 
 
 def _maze_task(maze_name: str) -> TaskSpec:
-    """The one-mode task of a maze: ``navigate``, whatever the sensors read."""
+    """The one-mode task of a maze: ``navigate``, whatever the sensors read; its wall cells are forbidden."""
+    walls = np.argwhere(MazeGrid(maze_map(maze_name)).walls).astype(np.float64)
     return TaskSpec(
         name=f"maze2d-{maze_name}",
         modes=("navigate",),
@@ -566,6 +568,8 @@ def _maze_task(maze_name: str) -> TaskSpec:
             frozenset({"in_wall_contact"}): "navigate",
             frozenset({"at_goal", "in_wall_contact"}): "navigate",
         },
+        regions={"walls": Boxes.cells(walls)},
+        forbidden=("walls",),
     )
 
 

@@ -36,7 +36,7 @@ def _data(obs_dim: int = 5, action_dim: int = 3, **declared) -> TrajectoryDatase
 
 
 def test_registry_maps_names_to_classes() -> None:
-    assert policy_names() == ["act", "dp"]
+    assert policy_names() == ["act", "dp", "flow"]
     assert get_policy_class("dp") is DiffusionPolicy and get_config_class("dp") is DiffusionConfig
     assert get_policy_class("act") is ACTPolicy and get_config_class("act") is ACTConfig
     for name, spec in POLICIES.items():

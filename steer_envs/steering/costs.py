@@ -1,0 +1,138 @@
+"""Steering costs beyond alignment: any differentiable function of a plan, and the safety cost of a task.
+
+A *plan cost* is a callable ``cost(plans) -> (n,)`` on a torch tensor of plans
+``(n, H, d)`` in env units (what the policy's ``unnormalize`` gives),
+differentiable in ``plans``. The samplers that take costs (``costs=`` of
+:func:`~steer_envs.steering.make_sampler`) add them to the user's alignment:
+GD and SS follow their gradient during denoising (through the policy's
+``unnormalize``), and every sampler ranks its batch by alignment plus
+weighted costs, so PR, OP and BI pick the plan they like best too.
+
+:func:`safety_cost` turns a task's :class:`~steer_envs.core.task.TaskSpec`
+into a cost: the mean depth of a plan's waypoints inside its unsafe regions
+(forbidden regions, and the regions of modes the current mode may not move
+to: :meth:`~steer_envs.core.task.TaskSpec.unsafe_regions`), so TLI's
+constraints guide any policy's plans.
+
+>>> import torch
+>>> from steer_envs.core.regions import Boxes
+>>> wall = region_cost([Boxes([[0.0, 0.0]], [[1.0, 1.0]])])
+>>> wall(torch.tensor([[[0.5, 0.5], [2.0, 2.0]]])).tolist()  # one waypoint 0.5 deep, one outside
+[0.25]
+>>> speed = lambda plans: (plans.diff(dim=1) ** 2).sum(dim=(1, 2))  # any differentiable function of the plan
+>>> [weight for _, weight in check_costs([speed, (wall, 5.0)])]
+[1.0, 5.0]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from steer_envs.core.regions import Boxes
+from steer_envs.core.task import TaskSpec
+from steer_envs.core.validation import describe, real_scalar
+
+__all__ = ["PlanCost", "WeightedCosts", "check_costs", "region_cost", "safety_cost"]
+
+#: a differentiable plan cost: plans ``(n, H, d)`` in env units -> costs ``(n,)``
+PlanCost = Callable[[torch.Tensor], torch.Tensor]
+
+
+def region_cost(regions: Sequence[Boxes]) -> PlanCost:
+    """The mean over waypoints of how deep each waypoint is inside any of ``regions`` (0 outside all).
+
+    Its gradient pushes a waypoint inside a box toward the box's nearest face,
+    with the magnitude of the alignment cost's (``1 / H`` per waypoint).
+    """
+    boxes = list(regions)
+    for box in boxes:
+        if not isinstance(box, Boxes):
+            raise TypeError(f"region_cost: `regions` must hold Boxes, got {describe(box)}")
+
+    def cost(plans: torch.Tensor) -> torch.Tensor:
+        total = plans.new_zeros(plans.shape[:-2])
+        for box in boxes:
+            if len(box) == 0:
+                continue
+            p = plans[..., list(box.dims)].unsqueeze(-2)  # (n, H, 1, m)
+            low = torch.as_tensor(box.low, dtype=plans.dtype, device=plans.device)
+            high = torch.as_tensor(box.high, dtype=plans.dtype, device=plans.device)
+            inside = torch.minimum(p - low, high - p).amin(dim=-1)  # (n, H, k), negative outside a box
+            total = total + inside.clamp_min(0.0).amax(dim=-1).mean(dim=-1)
+        return total
+
+    cost.__name__ = "region_cost"
+    return cost
+
+
+def safety_cost(task: TaskSpec, mode: str | None = None) -> PlanCost:
+    """The safety cost of ``task`` (in the current ``mode``, if given): :func:`region_cost` of its unsafe regions.
+
+    ``ValueError`` when the task declares no region a plan must stay out of.
+    """
+    if not isinstance(task, TaskSpec):
+        raise TypeError(f"safety_cost: `task` must be a TaskSpec, got {describe(task)}")
+    regions = task.unsafe_regions(mode)
+    if not regions:
+        raise ValueError(
+            f"safety_cost: task {task.name!r} declares no forbidden region (TaskSpec.forbidden / mode_regions)"
+        )
+    cost = region_cost(regions)
+    cost.__name__ = f"safety_cost({task.name})"
+    return cost
+
+
+def check_costs(costs: Any) -> list[tuple[PlanCost, float]]:
+    """``costs`` as ``[(cost, weight), ...]``: each item a plan cost (weight 1) or a ``(cost, weight)`` pair."""
+    if costs is None:
+        return []
+    if callable(costs) or isinstance(costs, (str, bytes)) or not hasattr(costs, "__iter__"):
+        raise TypeError(f"`costs` must be a sequence of plan costs or (cost, weight) pairs, got {describe(costs)}")
+    out = []
+    for item in costs:
+        pair = (item, 1.0) if callable(item) else tuple(item) if isinstance(item, (tuple, list)) else ()
+        if len(pair) != 2 or not callable(pair[0]):
+            raise TypeError(f"`costs` items must be plan costs or (cost, weight) pairs, got {describe(item)}")
+        out.append((pair[0], real_scalar(pair[1], "a cost's weight", low=0.0)))
+    return out
+
+
+class WeightedCosts:
+    """The weighted sum of plan costs a sampler was given: its values (ranking) and its gradient (guidance)."""
+
+    def __init__(self, costs: Any) -> None:
+        self.terms = check_costs(costs)
+
+    def __bool__(self) -> bool:
+        return bool(self.terms)
+
+    def _total(self, plans: torch.Tensor) -> torch.Tensor:
+        total = plans.new_zeros(plans.shape[0])
+        for cost, weight in self.terms:
+            value = cost(plans)
+            if not isinstance(value, torch.Tensor) or value.shape != (plans.shape[0],):
+                what = tuple(value.shape) if isinstance(value, torch.Tensor) else describe(value)
+                raise ValueError(f"a plan cost must return a tensor of shape ({plans.shape[0]},), got {what}")
+            total = total + weight * value
+        return total
+
+    def values(self, plans: np.ndarray) -> np.ndarray:
+        """``(n,)`` weighted costs of plans ``(n, H, d)`` in env units (0 without costs)."""
+        if not self.terms:
+            return np.zeros(len(plans))
+        with torch.no_grad():
+            return self._total(torch.as_tensor(plans, dtype=torch.float64)).numpy()
+
+    def grad(self, policy: Any, x: torch.Tensor) -> torch.Tensor:
+        """``grad_x sum_b cost(unnormalize(x_b))`` in the policy's normalized space (zeros without costs)."""
+        if not self.terms:
+            return torch.zeros_like(x)
+        leaf = x.detach().requires_grad_(True)
+        with torch.enable_grad():
+            total = self._total(policy.unnormalize(leaf)).sum()
+            (grad,) = torch.autograd.grad(total, leaf, allow_unused=True)
+        return torch.zeros_like(x) if grad is None else grad.to(x.dtype)
