@@ -53,6 +53,7 @@ from steer_envs.utils.threads import limit_threads
 __all__ = [
     "GOAL_ENVS",
     "METHODS",
+    "Sb3Options",
     "Sb3Run",
     "Sb3Settings",
     "env_options",
@@ -83,26 +84,20 @@ def _default_cache() -> Path:
 
 
 @dataclass(frozen=True)
-class Sb3Settings:
-    """How a run trains, evaluates and checkpoints.
+class Sb3Options:
+    """How a run evaluates, builds its env and checkpoints: what :class:`Sb3Settings` and the ``sb3`` suite share.
 
-    ``timesteps``: training steps; ``eval_episodes`` deterministic episodes per
-    evaluation, every ``eval_every`` steps (and at step 0);
-    ``normalize_actions`` (``[-1, 1]`` actions, which SAC's tanh policy
-    assumes), ``observe_sensors`` (the task's sensor bits in the observation;
-    ignored on Maze2D), ``maze_goal_obs`` (``sac`` on a plain Maze2D
-    ``...Dense-v0`` id trains on its ``...GoalDense-v0`` sibling, flattened),
-    ``maze_relative_actions``, ``max_episode_steps`` (0: the id's limit): the
-    env options; ``threads``: torch / BLAS threads; ``checkpoint``: save and
-    resume under ``cache``; ``stop_success``: end training once an evaluation
-    reaches this success (%; 0 = never).
-
-    >>> Sb3Settings(timesteps=0)
-    Traceback (most recent call last):
-    ValueError: Sb3Settings.timesteps must be an int in [1, inf], got 0
+    ``eval_episodes`` deterministic episodes per evaluation, every
+    ``eval_every`` steps (and at step 0); ``normalize_actions`` (``[-1, 1]``
+    actions, which SAC's tanh policy assumes), ``observe_sensors`` (the task's
+    sensor bits in the observation; ignored on Maze2D), ``maze_goal_obs``
+    (``sac`` on a plain Maze2D ``...Dense-v0`` id trains on its
+    ``...GoalDense-v0`` sibling, flattened), ``maze_relative_actions``,
+    ``max_episode_steps`` (0: the id's limit): the env options; ``threads``:
+    torch / BLAS threads; ``checkpoint``: save and resume; ``stop_success``:
+    end training once an evaluation reaches this success (%; 0 = never).
     """
 
-    timesteps: int
     eval_episodes: int = 20
     eval_every: int = 10_000
     normalize_actions: bool = True
@@ -112,8 +107,20 @@ class Sb3Settings:
     max_episode_steps: int = 0
     threads: int = 1
     checkpoint: bool = True
-    cache: Path = field(default_factory=_default_cache)
     stop_success: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sb3Settings(Sb3Options):
+    """How a run trains: ``timesteps`` training steps (keyword only), its options, checkpoints under ``cache``.
+
+    >>> Sb3Settings(timesteps=0)
+    Traceback (most recent call last):
+    ValueError: Sb3Settings.timesteps must be an int in [1, inf], got 0
+    """
+
+    timesteps: int = field(kw_only=True)
+    cache: Path = field(default_factory=_default_cache)
 
     def __post_init__(self) -> None:
         name = type(self).__name__

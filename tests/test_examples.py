@@ -95,3 +95,13 @@ def test_steer_blockstack_builds_part_of_a_tower_and_saves_the_strip(tmp_path: P
     assert png.stat().st_size > 10_000
     res = _run("steer_blockstack.py", "--order", "0,1,2", "--out", str(tmp_path))
     assert res.returncode == 2 and "--order" in res.stderr
+
+
+def test_steer_safely_compares_plain_and_safe_steering(tmp_path: Path) -> None:
+    res = _run("steer_safely.py", "--starts", "2", "--batch", "4", "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert "plain   Min L2" in res.stdout and "safety  Min L2" in res.stdout
+    (png,) = tmp_path.glob("steer_safely_SS.png")
+    assert png.stat().st_size > 10_000
+    bad = _run("steer_safely.py", "--weight", "0")
+    assert bad.returncode == 2 and "--weight" in bad.stderr

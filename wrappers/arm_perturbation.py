@@ -62,6 +62,7 @@ import numpy as np
 from steer_envs.core.validation import describe, integer, one_of, real_scalar
 from steer_envs.envs.checks import check_seed
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv
+from steer_envs.wrappers.constructor_args import record_constructor_args
 
 __all__ = ["PERTURBATION_KINDS", "PUBLIC_CODE_SETTINGS", "PUSH_STYLES", "ArmPerturbationWrapper"]
 
@@ -155,19 +156,7 @@ class ArmPerturbationWrapper(
         after_mode_change: bool = False,
         max_episode_steps: int | None = None,
     ) -> None:
-        gym.utils.RecordConstructorArgs.__init__(
-            self,
-            probability=probability,
-            max_perturbations=max_perturbations,
-            quiet_steps=quiet_steps,
-            push_range=push_range,
-            push_style=push_style,
-            push_steps=push_steps,
-            gripper_fraction=gripper_fraction,
-            gripper_steps=gripper_steps,
-            after_mode_change=after_mode_change,
-            max_episode_steps=max_episode_steps,
-        )
+        record_constructor_args(self, locals())
         if not isinstance(env, gym.Env) or not isinstance(env.unwrapped, RobosuiteEnv):
             raise TypeError(f"{_OWNER}: `env` must be a RobosuiteEnv (wrapped or not), got {describe(env)}")
         gym.Wrapper.__init__(self, env)

@@ -24,6 +24,7 @@ from steer_envs.baselines.lpv_ds.cuts import ATTRACTOR_MARGIN, CutSet, FailureRe
 from steer_envs.baselines.lpv_ds.modulation import clip_speed, modulate
 from steer_envs.core.env import HasTask, perturbable_env
 from steer_envs.core.validation import boolean, describe, integer, real_array, real_scalar
+from steer_envs.wrappers.constructor_args import record_constructor_args
 
 __all__ = ["DSModulationWrapper", "PlanFn"]
 
@@ -102,16 +103,8 @@ class DSModulationWrapper(gym.ActionWrapper[Any, Any, Any], gym.utils.RecordCons
         learn: bool = True,
         cuts: Mapping[int, CutSet] | None = None,
     ) -> None:
-        gym.utils.RecordConstructorArgs.__init__(
-            self,
-            attractor=attractor,
-            plan=plan,
-            home_mode=home_mode,
-            margin=margin,
-            learn=learn,
-            cuts=copy.deepcopy(cuts),
-            _disable_deepcopy=True,  # `plan` may be a bound method: record it, do not copy its owner
-        )
+        # `plan` may be a bound method: record it, do not copy its owner (the cuts are copied)
+        record_constructor_args(self, locals(), deepcopy=False, cuts=copy.deepcopy(cuts))
         gym.ActionWrapper.__init__(self, env)
         who = WHO
         base = perturbable_env(env, who=who)

@@ -29,6 +29,7 @@ from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import sensor_reading
 from steer_envs.ltl.gr1 import GR1Spec
 from steer_envs.ltl.replanner import ModeReplanner, UnknownSensorReading
+from steer_envs.wrappers.constructor_args import record_constructor_args
 
 __all__ = ["LTLReplanWrapper"]
 
@@ -64,7 +65,7 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
     def __init__(
         self, env: gym.Env[Any, Any], spec: GR1Spec | str | None = None, *, task: TaskSpec | None = None
     ) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, spec=spec, task=task)
+        record_constructor_args(self, locals())
         gym.Wrapper.__init__(self, env)
         if task is None:
             task = task_of(env, who="LTLReplanWrapper (or pass `task=`)")

@@ -53,6 +53,7 @@ from steer_envs.steering import (
     policy_observation,
 )
 from steer_envs.utils.threads import limit_threads
+from steer_envs.wrappers.constructor_args import record_constructor_args
 
 __all__ = ["InteractionSpace", "SteeringWrapper"]
 
@@ -137,7 +138,7 @@ def _check_arguments(policy: Any, sampler: Any, unsteered: Any, batch: Any, exec
         raise TypeError(f"`sampler` must be a Sampler (RS, PR, OP, BI, GD, SS), got {type(sampler).__name__}")
     if unsteered is not None and not isinstance(unsteered, Sampler):
         raise TypeError(f"`unsteered` must be a Sampler or None, got {type(unsteered).__name__}")
-    # a diffusion sampler given a policy that is no DiffusionPolicyLike would fail at every step
+    # a diffusion sampler given a policy that is no DiffusionPolicyLike / FlowPolicyLike would fail at every step
     sampler.check_policy(policy)
     if unsteered is not None:
         unsteered.check_policy(policy)
@@ -169,7 +170,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         env: an env whose action is the next state/waypoint the policy plans
             (e.g. ``steer_envs/Maze2D-Large-v0``).
         policy: a :class:`~steer_envs.core.policy.TrajectoryPolicy` (a
-            ``DiffusionPolicyLike`` for BI/GD/SS) planning in the env's action space.
+            ``DiffusionPolicyLike`` or ``FlowPolicyLike`` for BI/GD/SS) planning in the env's action space.
         sampler: the steering strategy used for non-``None`` actions.
         batch: plans sampled per step (ITPS: 32).
         execute: waypoints of the chosen plan executed per step (default: all).
@@ -179,7 +180,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
             threads are often far slower; ``None`` leaves torch's setting alone).
 
     Arguments that can never work are refused here: a diffusion sampler (BI/GD/SS)
-    with a policy that is not ``DiffusionPolicyLike``, ``batch`` outside
+    with a policy that is neither ``DiffusionPolicyLike`` nor ``FlowPolicyLike``, ``batch`` outside
     ``[1, MAX_BATCH]``, ``sketch_points`` outside ``[2, MAX_SKETCH_POINTS]``, and
     sampler knobs are checked by the samplers' constructors. What an action may be
     is said in :meth:`interaction`.
@@ -220,17 +221,7 @@ class SteeringWrapper(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstruct
         unsteered: Sampler | None = None,
         threads: int | None = 1,
     ) -> None:
-        gym.utils.RecordConstructorArgs.__init__(
-            self,
-            policy=policy,
-            sampler=sampler,
-            batch=batch,
-            execute=execute,
-            sketch_points=sketch_points,
-            unsteered=unsteered,
-            threads=threads,
-            _disable_deepcopy=True,
-        )
+        record_constructor_args(self, locals(), deepcopy=False)
         gym.Wrapper.__init__(self, env)
         _check_arguments(policy, sampler, unsteered, batch, execute, sketch_points)
         inner = env.action_space

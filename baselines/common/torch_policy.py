@@ -274,6 +274,26 @@ class TorchPolicy(ABC):
             obs, self.n_obs_steps, self.obs_dim, self.config.obs_indices, owner=f"{type(self).__name__}"
         )
 
+    def encode_obs(self, obs: Any) -> torch.Tensor:
+        """Global condition ``(1, n_obs_steps * obs_dim)``: the normalized observation history (DP, the flow)."""
+        hist = self.observation_history(obs)
+        return self.obs_normalizer.normalize(torch.from_numpy(hist).to(self._device)).reshape(1, -1)
+
+    def _noised_batch(
+        self, obs: torch.Tensor, plans: torch.Tensor, generator: torch.Generator | None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.device]:
+        """A checked training batch: ``(normalized plans, condition, standard normal noise, generator device)``.
+
+        The noise is the first draw from ``generator`` (on its device), so a
+        loss that draws its noise level next keeps one draw order.
+        """
+        self._check_batch(obs, plans, generator)
+        clean = self.normalize(plans.to(self._device, torch.float32))
+        cond = self.obs_normalizer.normalize(obs.to(self._device, torch.float32)).reshape(plans.shape[0], -1)
+        gen_device = generator.device if generator is not None else self._device
+        noise = torch.randn(clean.shape, generator=generator, device=gen_device).to(self._device)
+        return clean, cond, noise, gen_device
+
     def _sample_args(self, n: Any, generator: Any) -> np.random.Generator:
         return check_sample_args(n, generator, owner=f"{type(self).__name__}.sample", max_samples=self.max_samples)
 

@@ -160,11 +160,6 @@ class DiffusionPolicy(TorchPolicy):
         return DiffusionNet(self.config)
 
     # ------------------------------------------------------------ protocol
-    def encode_obs(self, obs: Any) -> torch.Tensor:
-        """Global condition ``(1, n_obs_steps * obs_dim)``: the normalized observation history."""
-        hist = self.observation_history(obs)
-        return self.obs_normalizer.normalize(torch.from_numpy(hist).to(self._device)).reshape(1, -1)
-
     def predict_noise(self, x_t: torch.Tensor, t: Any, cond: torch.Tensor) -> torch.Tensor:
         """``eps(x_t, t | cond)`` for normalized plans ``x_t (n, H, d)``; differentiable in ``x_t``.
 
@@ -263,12 +258,8 @@ class DiffusionPolicy(TorchPolicy):
 
         Both real finite tensors; ``generator`` a ``torch.Generator`` or ``None``.
         """
-        self._check_batch(obs, plans, generator)
+        x0, cond, noise, gen_device = self._noised_batch(obs, plans, generator)
         b = plans.shape[0]
-        x0 = self.normalize(plans.to(self._device, torch.float32))
-        cond = self.obs_normalizer.normalize(obs.to(self._device, torch.float32)).reshape(b, -1)
-        gen_device = generator.device if generator is not None else self._device
-        noise = torch.randn(x0.shape, generator=generator, device=gen_device).to(self._device)
         t = torch.randint(0, self.config.num_train_timesteps, (b,), generator=generator, device=gen_device)
         t = t.to(self._device)
         x_t = self.scheduler.add_noise(x0, noise, t)

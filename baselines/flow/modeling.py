@@ -66,11 +66,6 @@ class FlowPolicy(TorchPolicy):
         return DiffusionNet(self.config)
 
     # ------------------------------------------------------------ FlowPolicyLike
-    def encode_obs(self, obs: Any) -> torch.Tensor:
-        """Condition ``(1, n_obs_steps * obs_dim)``: the normalized observation history."""
-        hist = self.observation_history(obs)
-        return self.obs_normalizer.normalize(torch.from_numpy(hist).to(self._device)).reshape(1, -1)
-
     def predict_velocity(self, x: torch.Tensor, tau: Any, cond: torch.Tensor) -> torch.Tensor:
         """``v(x, tau | cond)`` for normalized plans ``x (n, H, d)``; differentiable in ``x``.
 
@@ -130,12 +125,8 @@ class FlowPolicy(TorchPolicy):
         ``tau ~ U(0, 1)``, ``x_tau = tau * x_1 + (1 - tau) * x_0``, target ``x_1 - x_0``
         (relative to the current position for relative plans).
         """
-        self._check_batch(obs, plans, generator)
+        x1, cond, noise, gen_device = self._noised_batch(obs, plans, generator)
         b = plans.shape[0]
-        x1 = self.normalize(plans.to(self._device, torch.float32))
-        cond = self.obs_normalizer.normalize(obs.to(self._device, torch.float32)).reshape(b, -1)
-        gen_device = generator.device if generator is not None else self._device
-        noise = torch.randn(x1.shape, generator=generator, device=gen_device).to(self._device)
         tau = torch.rand((b,), generator=generator, device=gen_device).to(self._device)
         level = tau.reshape(-1, 1, 1)
         anchor = self._anchor(cond)

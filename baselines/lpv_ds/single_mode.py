@@ -38,6 +38,7 @@ from steer_envs.baselines.lpv_ds.cuts import CutSet, FailureRecord, resolve_cuts
 from steer_envs.baselines.lpv_ds.lpvds import LPVDS
 from steer_envs.baselines.lpv_ds.modulation import ModulatedPolicy
 from steer_envs.core.policy import VelocityPolicy
+from steer_envs.core.rejection import rejection_sample
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.data.tli_demos import convex_mode_demos
 
@@ -93,22 +94,18 @@ def sample_starts(model: Any, demo_points: np.ndarray, sigma: float, n: int, rng
     """
     sigma = real_scalar(sigma, "sigma", low=0.0, owner="sample_starts")
     n = integer(n, "n", low=0, owner="sample_starts")
-    out = np.empty((n, 2))
-    todo = np.arange(n)
-    for _ in range(MAX_DRAWS):
-        if len(todo) == 0:
-            return out
-        cand = demo_points[rng.integers(0, len(demo_points), size=len(todo))]
-        cand = cand + rng.normal(0.0, sigma, size=cand.shape)
-        ok = model.inside(cand)
-        out[todo[ok]] = cand[ok]
-        todo = todo[~ok]
-    if len(todo) == 0:
-        return out
-    raise BoundExceeded(
-        f"sample_starts: {len(todo)} of {n} start states not inside the mode within MAX_DRAWS={MAX_DRAWS} rounds "
-        f"(sigma={sigma})"
-    )
+
+    def draw(m: int) -> np.ndarray:
+        cand = demo_points[rng.integers(0, len(demo_points), size=m)]
+        return cand + rng.normal(0.0, sigma, size=cand.shape)
+
+    def failure(missing: int) -> str:
+        return (
+            f"sample_starts: {missing} of {n} start states not inside the mode within MAX_DRAWS={MAX_DRAWS} rounds "
+            f"(sigma={sigma})"
+        )
+
+    return rejection_sample(draw, model.inside, n, 2, MAX_DRAWS, failure)
 
 
 def rollout(policy: VelocityPolicy, model: Any, starts: np.ndarray, n_steps: int = N_STEPS) -> dict[str, np.ndarray]:

@@ -3,6 +3,7 @@
 * data suites (one trial builds one shard): :data:`BUILT`;
 * skill-steering suites (thesis Tables 2.2, 2.3): the alignment / success quadrants :data:`QUADRANT_METRICS`;
 * robot-experiment suites (thesis ch. 3): :data:`NUM_CUTS`;
+* Maze2D steering suites (thesis Table 2.1 and beyond): :data:`MAZE_STEERING_METRICS`;
 * a thesis table ``{method: {metric: value}}`` as references: :func:`table_references`;
 * policy suites that evaluate without and with perturbations (thesis Tables 4.1, 4.3):
   :func:`evaluation_metrics` (the columns of the two evaluations), :data:`EVAL_SECONDS`,
@@ -24,6 +25,7 @@ from steer_envs.bench.suite import Metric, Reference
 __all__ = [
     "BUILT",
     "EVAL_SECONDS",
+    "MAZE_STEERING_METRICS",
     "NUM_CUTS",
     "QUADRANT_METRICS",
     "SHARE",
@@ -45,6 +47,24 @@ QUADRANT_METRICS: tuple[Metric, ...] = (
     Metric("AF", "aligned failure", higher_is_better=False, fmt=".2f"),
     Metric("MS", "misaligned success", higher_is_better=False, fmt=".2f"),
     Metric("MF", "misaligned failure", higher_is_better=False, fmt=".2f"),
+)
+#: one Maze2D steering call scored as Table 2.1 (:func:`steer_envs.steering.maze.steering_trial`)
+MAZE_STEERING_METRICS: tuple[Metric, ...] = (
+    Metric("min_l2", "L2 of the picked plan to the sketch / maze extent", higher_is_better=False, fmt=".3f"),
+    Metric("avg_l2", "batch-mean L2 to the sketch / maze extent", higher_is_better=False, fmt=".3f"),
+    Metric("collision", "fraction of the batch with a waypoint in a wall", higher_is_better=False, fmt=".3f"),
+    Metric(
+        "latency_ms", "ms per steering call (batch 32)", kind="timing", higher_is_better=False, fmt=".1f", goal=250.0
+    ),
+    Metric(
+        "ss_gd_latency",
+        "SS / GD time per call, back to back",
+        kind="timing",
+        higher_is_better=False,
+        fmt=".2f",
+        goal=4.5,
+    ),
+    Metric("network_evals", "denoiser calls per steering call", higher_is_better=False, fmt=".0f"),
 )
 #: the wall time of a policy's two evaluations
 EVAL_SECONDS = Metric(

@@ -5,7 +5,10 @@ A trial function refuses a trial its suite does not plan with
 protocol with :func:`run_protocol` (the trial's seed and method, the suite's
 parameters, one thread); a protocol builds its env with :func:`trial_env`,
 seeds each episode with :func:`reset_seed` and averages the episodes'
-outcomes with :func:`episode_means`.
+outcomes with :func:`episode_means`. The suites' parameters derive from
+:class:`ProtocolParams` (pushes per episode, figure seeds), those that count
+episodes and cap their steps from :class:`PushedEpisodesParams` (with pushes
+after a random dwell: :class:`DwellPushesParams`).
 
 >>> reset_seed(0, 1, 7) == reset_seed(0, 1, 7) != reset_seed(0, 2, 7)
 True
@@ -17,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
@@ -25,9 +29,58 @@ from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Trial
 from steer_envs.utils.threads import single_threaded
 
-__all__ = ["check_trial", "episode_means", "reset_seed", "run_protocol", "trial_env"]
+__all__ = [
+    "DwellPushesParams",
+    "ProtocolParams",
+    "PushedEpisodesParams",
+    "check_trial",
+    "episode_means",
+    "reset_seed",
+    "run_protocol",
+    "trial_env",
+]
 
-P = TypeVar("P", bound=SuiteParams)
+
+@dataclass(frozen=True)
+class ProtocolParams(SuiteParams):
+    """What every robot-experiment protocol reads: ``n_pushes`` per episode; the first ``plot_seeds`` record figures."""
+
+    n_pushes: int = 1
+    plot_seeds: int = 1
+
+    def __post_init__(self) -> None:
+        self.require_at_least(0, "n_pushes", "plot_seeds")
+
+
+@dataclass(frozen=True)
+class PushedEpisodesParams(ProtocolParams):
+    """:class:`ProtocolParams` of a protocol that runs ``n_episodes`` per condition of at most ``max_steps`` each.
+
+    >>> PushedEpisodesParams(n_episodes=0)
+    Traceback (most recent call last):
+    ValueError: PushedEpisodesParams: parameter 'n_episodes' must be >= 1, got 0
+    """
+
+    n_episodes: int = 10
+    max_steps: int = 3000
+
+    def __post_init__(self) -> None:
+        self.require_at_least(1, "n_episodes", "max_steps")
+        super().__post_init__()
+
+
+@dataclass(frozen=True)
+class DwellPushesParams(PushedEpisodesParams):
+    """:class:`PushedEpisodesParams` of a protocol that pushes after a random ``1..max_dwell`` steps in a mode."""
+
+    max_dwell: int = 20
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.require_at_least(1, "max_dwell")
+
+
+P = TypeVar("P", bound=ProtocolParams)
 
 
 def check_trial(
@@ -59,7 +112,7 @@ def run_protocol(
     """
     check_trial(trial, methods=methods)
     params = params_type.from_json(trial.params)
-    record = trial.seed < params.plot_seeds  # type: ignore[attr-defined]
+    record = trial.seed < params.plot_seeds
     with single_threaded():
         result = protocol(trial.seed, str(trial.method), params, record=record)
     return params, result

@@ -30,7 +30,6 @@ from steer_envs.core.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from steer_envs.control.blockstack import (
-        PlanOutcome,
         Skill,
         classify_plan,
         execute_plan,
@@ -51,7 +50,7 @@ if TYPE_CHECKING:
         execute_kitchen_plan,
         kitchen_scene,
     )
-    from steer_envs.control.plans import check_plan, first_index
+    from steer_envs.control.plans import PlanOutcome, check_plan, first_index
     from steer_envs.control.waypoint import (
         WaypointController,
         cell_path,
@@ -59,7 +58,6 @@ if TYPE_CHECKING:
     )
 
 _EXPORTS: dict[str, str] = {
-    "PlanOutcome": "blockstack",
     "Skill": "blockstack",
     "classify_plan": "blockstack",
     "execute_plan": "blockstack",
@@ -77,6 +75,7 @@ _EXPORTS: dict[str, str] = {
     "eef_yaw": "kitchen",
     "execute_kitchen_plan": "kitchen",
     "kitchen_scene": "kitchen",
+    "PlanOutcome": "plans",
     "check_plan": "plans",
     "first_index": "plans",
     "WaypointController": "waypoint",

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, check_plan, first_index
 from steer_envs.core.validation import integer, real_scalar
 from steer_envs.envs.robosuite.blockstack import (
     CUBE_HALF,
@@ -229,31 +229,6 @@ def quarter_turn(home_yaw: float, eef_yaw: float, yaw: float) -> float:
 
 
 # ------------------------------------------------------------------------------- plans
-@dataclass(frozen=True)
-class PlanOutcome:
-    """What executing a plan did.
-
-    Attributes:
-        executed: the skill the world shows happened (``pick_i``, ``place_i_on_table``,
-            ``place_i_on_j``, compared before vs after), or None.
-        violation: some step reported ``constraint_violation``.
-        steps: control steps run.
-        trail: ``(steps + 1, 3)`` eef positions, the start included.
-        obs: the env's observation after the last step (what the next plan is conditioned on).
-    """
-
-    executed: str | None
-    violation: bool
-    steps: int
-    trail: np.ndarray
-    obs: np.ndarray
-
-    @property
-    def success(self) -> bool:
-        """A skill happened and no step violated a constraint."""
-        return self.executed is not None and not self.violation
-
-
 def _closing_cube(env: BlockStackEnv, point: np.ndarray) -> int:
     """The cube a plan closes on at ``point``: the nearest (3-D) of those within the xy tolerance, else xy-nearest."""
     pos = env.cube_pos

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, check_plan, first_index
 from steer_envs.core.validation import integer
 from steer_envs.envs.robosuite.kitchen import (
     DOOR_OPEN_ANGLE,
@@ -248,33 +248,17 @@ def classify_kitchen_plan(env_or_state: Any, plan: Any) -> str | None:
 
 
 # ------------------------------------------------------------------------------ execution
-@dataclass(frozen=True)
-class KitchenPlanOutcome:
-    """What executing a plan did.
+@dataclass(frozen=True, kw_only=True)
+class KitchenPlanOutcome(PlanOutcome):
+    """What executing a plan did (:class:`~steer_envs.control.plans.PlanOutcome`) and the modes it ran between.
 
-    Attributes:
-        executed: the skill the world shows happened (the skill leading from
-            ``mode_before`` to ``mode_after``), or None (no mode change, or one no skill makes).
-        mode_before: the mode name at the start.
-        mode_after: the mode name after the last step.
-        violation: some step reported ``constraint_violation``.
-        steps: control steps run.
-        trail: ``(steps + 1, 3)`` eef positions, the start included.
-        obs: the env's observation after the last step (what the next plan is conditioned on).
+    ``executed`` is the skill leading from ``mode_before`` (the mode name at
+    the start) to ``mode_after`` (after the last step), or None (no mode
+    change, or one no skill makes).
     """
 
-    executed: str | None
     mode_before: str
     mode_after: str
-    violation: bool
-    steps: int
-    trail: np.ndarray
-    obs: np.ndarray
-
-    @property
-    def success(self) -> bool:
-        """A skill happened and no step violated a constraint."""
-        return self.executed is not None and not self.violation
 
 
 def _executed(before: str, after: str) -> str | None:
@@ -335,6 +319,6 @@ def execute_kitchen_plan(env: Any, plan: Any, *, stride: int = PLAN_STRIDE) -> K
         prev_pos, prev_yaw = pos, yaw
     after = base.task.modes[base._mode]
     trail_arr = np.stack(trail).astype(np.float64)
-    return KitchenPlanOutcome(
-        _executed(before, after), before, after, violation, steps, trail_arr, np.asarray(last_obs)
-    )
+    executed = _executed(before, after)
+    obs = np.asarray(last_obs)
+    return KitchenPlanOutcome(executed, violation, steps, trail_arr, obs, mode_before=before, mode_after=after)

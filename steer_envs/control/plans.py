@@ -1,9 +1,10 @@
-"""What the skill-plan trackers of BlockStack and Kitchen share: checking a plan, finding a waypoint.
+"""What the skill-plan trackers of BlockStack and Kitchen share: checking a plan, finding a waypoint, the outcome.
 
 A plan is ``(H, d)`` waypoints (the end-effector position, the domain's
 extras and last the gripper command); :func:`check_plan` refuses anything
 else, :func:`first_index` finds the first waypoint where a condition holds
-(e.g. where the gripper closes).
+(e.g. where the gripper closes). Executing a plan gives a
+:class:`PlanOutcome` (the Kitchen's adds the modes before and after).
 
 >>> first_index(check_plan([[0.0, 0.0, 0.3, -1.0], [0.0, 0.0, 0.2, 1.0]], 4, 10, "demo")[:, 3] > 0)
 1
@@ -11,13 +12,42 @@ else, :func:`first_index` finds the first waypoint where a condition holds
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from steer_envs.core.validation import real_array
 
-__all__ = ["check_plan", "first_index"]
+__all__ = ["PlanOutcome", "check_plan", "first_index"]
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What executing a plan did.
+
+    Attributes:
+        executed: the skill the world shows happened (the domain reads it off
+            the state before vs after), or None.
+        violation: some step reported ``constraint_violation``.
+        steps: control steps run.
+        trail: ``(steps + 1, 3)`` eef positions, the start included.
+        obs: the env's observation after the last step (what the next plan is conditioned on).
+
+    >>> PlanOutcome("pick_1", False, 3, np.zeros((4, 3)), np.zeros(33)).success
+    True
+    """
+
+    executed: str | None
+    violation: bool
+    steps: int
+    trail: np.ndarray
+    obs: np.ndarray
+
+    @property
+    def success(self) -> bool:
+        """A skill happened and no step violated a constraint."""
+        return self.executed is not None and not self.violation
 
 
 def check_plan(plan: Any, width: int, max_waypoints: int, owner: str) -> np.ndarray:

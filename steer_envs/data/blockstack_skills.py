@@ -26,6 +26,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +35,13 @@ import numpy as np
 from steer_envs.control.blockstack import Skill, free_table_spot, towers
 from steer_envs.core.validation import boolean, integer
 from steer_envs.data.experts.blockstack import BlockStackSkills, RandomTowerPlanner
-from steer_envs.data.skill_records import SkillFileLayout, check_records, npz_output, replay_actions, run_skill
+from steer_envs.data.skill_records import (
+    SkillFileLayout,
+    check_records,
+    npz_output,
+    record_skill_run,
+    replay_actions,
+)
 from steer_envs.data.trajectories import TrajectoryDataset
 from steer_envs.envs.robosuite.blockstack import CUBE_HALF, NUM_CUBES, SKILLS, BlockStackEnv, unwrap_blockstack
 from steer_envs.io import DatasetError
@@ -116,12 +123,15 @@ def make_env() -> BlockStackEnv:
 
 
 def _target(env: BlockStackEnv, skill: Skill) -> np.ndarray:
+    """:attr:`SkillRecord.target` of ``skill`` started now (float64)."""
     if skill.kind == "pick":
-        return env.cube_pos[skill.cube]
-    if skill.onto is None:
+        target = env.cube_pos[skill.cube]
+    elif skill.onto is None:
         assert skill.xy is not None
-        return np.array([skill.xy[0], skill.xy[1], env.table_z + CUBE_HALF])
-    return env.cube_pos[skill.onto] + np.array([0.0, 0.0, 2 * CUBE_HALF])
+        target = np.array([skill.xy[0], skill.xy[1], env.table_z + CUBE_HALF])
+    else:
+        target = env.cube_pos[skill.onto] + np.array([0.0, 0.0, 2 * CUBE_HALF])
+    return np.asarray(target, dtype=np.float64)
 
 
 def record_episode(env: Any, seed: int, n_skills: int) -> list[SkillRecord]:
@@ -151,20 +161,10 @@ def record_skill(
     base: BlockStackEnv, skills: BlockStackSkills, skill: Skill, obs: Any, info: dict[str, Any], seed: int, index: int
 ) -> tuple[SkillRecord, Any, dict[str, Any]]:
     """Run ``skill`` to its end from the current state; the record and the last observation and info."""
-    skills.start(skill)
-    target = _target(base, skill)
-    steps, obs, info = run_skill(base, skills, obs, info)
-    record = SkillRecord(
-        name=skill.name,
-        cube=skill.cube,
-        onto=ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto),
-        target=np.asarray(target, dtype=np.float64),
-        success=skills.succeeded(),
-        seed=seed,
-        index=index,
-        **steps.record_fields(),
-    )
-    return record, obs, info
+    onto = ONTO_NONE if skill.kind == "pick" else (ONTO_TABLE if skill.onto is None else skill.onto)
+    record = partial(SkillRecord, name=skill.name, cube=skill.cube, onto=onto, seed=seed, index=index)
+    target = partial(_target, base, skill)
+    return record_skill_run(base, skills, skill, obs, info, record, at_start=lambda: {"target": target()})
 
 
 def alternative_skills(env: Any, skill: Skill, rng: np.random.Generator) -> list[Skill]:

@@ -2,14 +2,18 @@
 
 A :class:`Demonstration` is one expert episode: states, actions and the mode
 sensors at every state. TLI fits mode policies from 1-3 of them, GLiDE uses
-fewer than 10.
+fewer than 10. A collector tries episodes until it has enough
+(:func:`first_demos`).
+
+>>> first_demos(iter(["a", None, "b", "c"]), 2)
+['a', 'b']
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -21,6 +25,8 @@ from steer_envs.data.experts import make_expert
 
 #: steps an expert episode may take before success when neither ``max_steps`` nor the env sets a limit.
 DEFAULT_MAX_STEPS = 10_000
+
+D = TypeVar("D")
 
 
 @dataclass(frozen=True)
@@ -160,20 +166,35 @@ def collect_demonstrations(
     if not isinstance(env_id, str):
         raise TypeError(f"collect_demonstrations: env_id must be a str, got {describe(env_id)}")
     env = gym.make(env_id, **make_kwargs)
-    demos: list[Demonstration] = []
     try:
-        for s in range(int(seed), int(seed) + 10 * int(n)):
-            demo = rollout_expert(env, s, steps_after_success=steps_after_success, expert_kwargs=expert_kwargs)
-            if demo.success or not only_successful:
-                demos.append(demo)
-            if len(demos) == n:
-                return demos
+        episodes = (
+            rollout_expert(env, s, steps_after_success=steps_after_success, expert_kwargs=expert_kwargs)
+            for s in range(int(seed), int(seed) + 10 * int(n))
+        )
+        demos = first_demos((d if d.success or not only_successful else None for d in episodes), n)
     finally:
         env.close()
+    if len(demos) == n:
+        return demos
     raise BoundExceeded(
         f"collect_demonstrations: the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes "
         f"(the bound: 10 * n episodes of at most max_steps={_episode_limit(env)} steps each)"
     )
+
+
+def first_demos(attempts: Iterable[D | None], n: int) -> list[D]:
+    """The first ``n`` demonstrations ``attempts`` yields (None: an attempt that failed), fewer if it runs out.
+
+    No attempt is drawn after the ``n``-th success, so a seeded stream of
+    attempts is used up to there and no further.
+    """
+    demos: list[D] = []
+    for demo in attempts:
+        if demo is not None:
+            demos.append(demo)
+            if len(demos) == n:
+                break
+    return demos
 
 
 def _episode_limit(env: gym.Env) -> int:

@@ -47,7 +47,13 @@ import numpy as np
 from steer_envs.control.kitchen import KitchenScene, eef_yaw
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.data.experts.kitchen import KitchenPlanner, KitchenSkills
-from steer_envs.data.skill_records import SkillFileLayout, check_records, npz_output, replay_actions, run_skill
+from steer_envs.data.skill_records import (
+    SkillFileLayout,
+    check_records,
+    npz_output,
+    record_skill_run,
+    replay_actions,
+)
 from steer_envs.envs.robosuite.kitchen import (
     KITCHEN_TASKS,
     SKILLS,
@@ -221,20 +227,16 @@ def _run_skill(
     base: KitchenEnv, skills: KitchenSkills, skill: str, obs: Any, info: dict[str, Any], seed: int, index: int
 ) -> tuple[SkillRecord, Any, dict[str, Any]]:
     """Run ``skill`` to its end from the current state; the record and the last observation and info."""
-    skills.start(skill)
-    handle = base.handle_pos
-    steps, obs, info = run_skill(base, skills, obs, info, {"yaw": lambda: eef_yaw(base)})
-    record = SkillRecord(
-        name=skill,
-        task=base.kitchen_task,
-        success=skills.succeeded(),
-        seed=seed,
-        index=index,
-        **steps.record_fields(),
-        handle=np.asarray(handle, dtype=np.float64),
-        hinge=base.hinge_pos,
+
+    def record(**fields: Any) -> SkillRecord:
+        return SkillRecord(name=skill, task=base.kitchen_task, seed=seed, index=index, hinge=base.hinge_pos, **fields)
+
+    def at_start() -> dict[str, Any]:
+        return {"handle": np.asarray(base.handle_pos, dtype=np.float64)}
+
+    return record_skill_run(
+        base, skills, skill, obs, info, record, at_start=at_start, extras={"yaw": lambda: eef_yaw(base)}
     )
-    return record, obs, info
 
 
 def replay_to_start(env: Any, records: Sequence[SkillRecord], index: int) -> tuple[np.ndarray, dict[str, Any]]:

@@ -6,7 +6,8 @@ record one :class:`SkillRecord`-like object per skill of a scripted expert:
 per-state arrays (observations, end-effector position, gripper command, mode,
 and domain extras such as the Kitchen wrist yaw) with the skill's first state
 included, and per-step 7-D delta-OSC actions. :func:`run_skill` steps one
-skill to its end and returns those arrays (:class:`SteppedSkill`).
+skill to its end and returns those arrays (:class:`SteppedSkill`);
+:func:`record_skill_run` starts a skill, runs it and builds its record.
 
 Files keep many skills in one ragged archive: the states of skill ``i`` are
 rows ``offsets[i]:offsets[i+1]`` of every per-state array, its actions rows
@@ -26,7 +27,7 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -40,6 +41,7 @@ __all__ = [
     "action_rows",
     "check_records",
     "npz_output",
+    "record_skill_run",
     "replay_actions",
     "run_skill",
     "state_rows",
@@ -47,6 +49,8 @@ __all__ = [
 
 #: the delta-OSC action size of both arms (xyz, rotation, gripper).
 ACTION_DIM = 7
+
+R = TypeVar("R")
 
 
 @dataclass(frozen=True)
@@ -117,6 +121,29 @@ def run_skill(
         extras={name: np.asarray(values, dtype=np.float64) for name, values in more.items()},
     )
     return stepped, obs, dict(info)
+
+
+def record_skill_run(
+    base: Any,
+    skills: Any,
+    skill: Any,
+    obs: Any,
+    info: Mapping[str, Any],
+    record: Callable[..., R],
+    *,
+    at_start: Callable[[], Mapping[str, Any]],
+    extras: Mapping[str, Callable[[], Any]] | None = None,
+) -> tuple[R, Any, dict[str, Any]]:
+    """Start ``skill`` on ``skills``, run it to its end (:func:`run_skill`); its record, the last obs and info.
+
+    ``at_start()``: the record's fields read once the skill has started (e.g.
+    its target); ``record(**those, success=..., **the run's fields)`` builds
+    the record after the run, so what it reads of ``base`` is the end state.
+    """
+    skills.start(skill)
+    start = at_start()
+    steps, obs, info = run_skill(base, skills, obs, info, extras)
+    return record(**start, success=skills.succeeded(), **steps.record_fields()), obs, info
 
 
 def replay_actions(base: Any, records: Sequence[Any], obs: Any, info: Any) -> tuple[Any, Any]:

@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 
 from steer_envs.core.validation import BoundExceeded, integer
-from steer_envs.data.demos import Demonstration, collect_demonstrations, rollout_expert
+from steer_envs.data.demos import Demonstration, collect_demonstrations, first_demos, rollout_expert
 
 __all__ = [
     "COOKING_DEMO_PLANS",
@@ -272,17 +272,13 @@ def drawn_scoop_demos(seed: int, n: int, *, max_tries: int = 200) -> list[Demons
     env = gym.make(SCOOP_ENV)
     base: Any = env.unwrapped
     rng = np.random.default_rng([int(seed), 4409])
-    demos: list[Demonstration] = []
     try:
-        for _ in range(max_tries * n):
-            demo = _replay_drawn(base, _drawn_path(rng, base.model, base.dt, base.max_speed), seed)
-            if demo is None:
-                continue
-            demos.append(demo)
-            if len(demos) == n:
-                return demos
+        paths = (_drawn_path(rng, base.model, base.dt, base.max_speed) for _ in range(max_tries * n))
+        demos = first_demos((_replay_drawn(base, path, seed) for path in paths), n)
     finally:
         env.close()
+    if len(demos) == n:
+        return demos
     raise BoundExceeded(
         f"drawn_scoop_demos: drew only {len(demos)} of {n} valid soup-scooping demonstrations in "
         f"max_tries * n = {max_tries * n} tries"

@@ -45,6 +45,7 @@ import numpy as np
 from shapely.geometry import MultiPoint, Polygon
 from shapely.geometry.polygon import orient
 
+from steer_envs.core.rejection import rejection_sample
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import BoundExceeded, integer, real_scalar
 from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, TaskReading, ViolationLatchModel
@@ -202,27 +203,21 @@ class ConvexModeModel(ViolationLatchModel):
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``n`` starts inside the mode (see the class docstring); :class:`BoundExceeded` if sampling stalls."""
         n = integer(n, "n", low=0, owner="ConvexMode.sample_start")
-        out = np.empty((n, 2))
-        todo = np.arange(n)
-        for _ in range(MAX_START_ROUNDS):
-            if len(todo) == 0:
-                return out
-            m = len(todo)
+
+        def draw(m: int) -> np.ndarray:
             if self.start_noise is None:
-                cand = rng.uniform(self._bounds[0], self._bounds[1], size=(m, 2))
-            else:
-                t = rng.uniform(0.0, 1.0, size=(m, 1))
-                cand = self.demo_start + t * (self.attractor - self.demo_start)
-                cand = cand + rng.normal(0.0, self.start_noise, size=(m, 2))
-            ok = self.inside(cand)
-            out[todo[ok]] = cand[ok]
-            todo = todo[~ok]
-        if len(todo) == 0:
-            return out
-        raise BoundExceeded(
-            f"ConvexMode: {len(todo)} of {n} start states still outside the mode after "
-            f"MAX_START_ROUNDS={MAX_START_ROUNDS} rounds of rejection sampling (start_noise={self.start_noise})"
-        )
+                return rng.uniform(self._bounds[0], self._bounds[1], size=(m, 2))
+            t = rng.uniform(0.0, 1.0, size=(m, 1))
+            cand = self.demo_start + t * (self.attractor - self.demo_start)
+            return cand + rng.normal(0.0, self.start_noise, size=(m, 2))
+
+        def failure(missing: int) -> str:
+            return (
+                f"ConvexMode: {missing} of {n} start states still outside the mode after "
+                f"MAX_START_ROUNDS={MAX_START_ROUNDS} rounds of rejection sampling (start_noise={self.start_noise})"
+            )
+
+        return rejection_sample(draw, self.inside, n, 2, MAX_START_ROUNDS, failure)
 
     # ---------------------------------------------------------------- task
     def violates(self, prev_pos: np.ndarray, pos: np.ndarray) -> np.ndarray:

@@ -102,6 +102,7 @@ from typing import Unpack
 
 import numpy as np
 
+from steer_envs.core.cooking_aps import COOKING_MODE_FORMULAS, COOKING_SENSORS
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import one_of
 from steer_envs.envs.kinematic import EnvOptions, Kinematic2DEnv, RectRegionsModel, TaskReading
@@ -143,20 +144,9 @@ TRANSITION_ATTRACTORS: MappingProxyType[str, tuple[float, float]] = MappingProxy
 START_BOX = ((-1.5, -6.0), (1.5, -4.0))
 
 #: the thesis's mode APs as Spot formulas over the sensor APs.
-MODE_AP_FORMULAS: MappingProxyType[str, str] = MappingProxyType(
-    {
-        "w": "!hc & !hb & !p",
-        "y": "hc",
-        "g": "hb",
-        "d": "p",
-        "w1": "!hc & !hb & !p & !ch & !br",
-        "w2": "!hc & !hb & !p & (ch | br)",
-        "d1": "p & ((ch & !br) | (!ch & br))",
-        "d2": "p & ch & br",
-    }
-)
+MODE_AP_FORMULAS = COOKING_MODE_FORMULAS
 
-SENSORS: tuple[str, ...] = ("hc", "hb", "p", "ch", "br")
+SENSORS = COOKING_SENSORS
 _SPOON_LETTERS = ("w", "y", "g", "d")
 _POT_SUFFIXES = ("0", "c", "b")
 MODES: tuple[str, ...] = (*(s + p for p in _POT_SUFFIXES for s in _SPOON_LETTERS), "done")

@@ -555,9 +555,28 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         return np.array([v / self.cell_px - 0.5, u / self.cell_px - 0.5])
 
 
+def _wall_boxes(grid: MazeGrid) -> Boxes:
+    """The wall cells as unit boxes; those on the grid's border reach far outward.
+
+    :meth:`MazeGrid.is_wall` clips a point to the grid first, so everything
+    beyond the border is wall: a box that stopped at the border would let a
+    safety cost push a waypoint out of the maze instead of back in.
+    """
+    cells = np.argwhere(grid.walls).astype(np.float64)
+    low, high = cells - 0.5, cells + 0.5
+    top = np.asarray(grid.walls.shape, dtype=np.float64) - 1
+    low[cells == 0] -= _BEYOND
+    high[cells == top] += _BEYOND
+    return Boxes(low, high)
+
+
+#: how far border wall boxes reach beyond the grid (cells)
+_BEYOND = 1e3
+
+
 def _maze_task(maze_name: str) -> TaskSpec:
     """The one-mode task of a maze: ``navigate``, whatever the sensors read; its wall cells are forbidden."""
-    walls = np.argwhere(MazeGrid(maze_map(maze_name)).walls).astype(np.float64)
+    grid = MazeGrid(maze_map(maze_name))
     return TaskSpec(
         name=f"maze2d-{maze_name}",
         modes=("navigate",),
@@ -568,7 +587,7 @@ def _maze_task(maze_name: str) -> TaskSpec:
             frozenset({"in_wall_contact"}): "navigate",
             frozenset({"at_goal", "in_wall_contact"}): "navigate",
         },
-        regions={"walls": Boxes.cells(walls)},
+        regions={"walls": _wall_boxes(grid)},
         forbidden=("walls",),
     )
 

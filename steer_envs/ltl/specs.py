@@ -39,6 +39,7 @@ from functools import partial
 from types import MappingProxyType
 from typing import Any
 
+from steer_envs.core.cooking_aps import COOKING_MODE_FORMULAS, COOKING_SENSORS
 from steer_envs.core.task import TaskSpec
 from steer_envs.ltl.gr1 import GR1Spec
 
@@ -94,20 +95,6 @@ def soup_scoop(convention: str = "thesis") -> GR1Spec:
 
 
 # ------------------------------------------------------------------ cooking
-COOKING_SENSORS = ("hc", "hb", "p", "ch", "br")
-#: thesis mode APs as formulas over the Cooking-v0 sensors (the env documents the same map)
-COOKING_MODE_FORMULAS: MappingProxyType[str, str] = MappingProxyType(
-    {
-        "w": "!hc & !hb & !p",
-        "y": "hc",
-        "g": "hb",
-        "d": "p",
-        "w1": "!hc & !hb & !p & !ch & !br",
-        "w2": "!hc & !hb & !p & (ch | br)",
-        "d1": "p & ((ch & !br) | (!ch & br))",
-        "d2": "p & ch & br",
-    }
-)
 _COOKING_SYS_SAFETY = MappingProxyType(
     {
         "phi_cb": "G((w1 -> X y) & (y -> (X w1 | X d1)) & (d1 -> (X w2 | X g)) & (w2 -> X g) "

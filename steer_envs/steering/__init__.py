@@ -11,16 +11,16 @@ the wall time (and network evaluations of the diffusion samplers).
 :class:`~steer_envs.wrappers.SteeringWrapper` turns an env into one driven
 by interactions with a sampler inside.
 
-=====  ============================  ===============================  ======================
-name   class                         needs                            interactions
-=====  ============================  ===============================  ======================
-RS     :class:`RandomSampling`       ``TrajectoryPolicy.sample``      any (or ``None``)
-PR     :class:`PostHocRanking`       ``TrajectoryPolicy.sample``      Point, Sketch
-OP     :class:`OutputPerturbation`   ``TrajectoryPolicy.sample``      Sketch, Nudge
-BI     :class:`BiasedInitialization` ``DiffusionPolicyLike``          Point, Sketch
-GD     :class:`GuidedDiffusion`      ``DiffusionPolicyLike``          Point, Sketch
-SS     :class:`StochasticSampling`   ``DiffusionPolicyLike``          Point, Sketch
-=====  ============================  ===============================  ======================
+=====  ============================  =============================================  ======================
+name   class                         needs                                          interactions
+=====  ============================  =============================================  ======================
+RS     :class:`RandomSampling`       ``TrajectoryPolicy.sample``                    any (or ``None``)
+PR     :class:`PostHocRanking`       ``TrajectoryPolicy.sample``                    Point, Sketch
+OP     :class:`OutputPerturbation`   ``TrajectoryPolicy.sample``                    Sketch, Nudge
+BI     :class:`BiasedInitialization` ``DiffusionPolicyLike`` / ``FlowPolicyLike``   Point, Sketch
+GD     :class:`GuidedDiffusion`      ``DiffusionPolicyLike`` / ``FlowPolicyLike``   Point, Sketch
+SS     :class:`StochasticSampling`   ``DiffusionPolicyLike`` / ``FlowPolicyLike``   Point, Sketch
+=====  ============================  =============================================  ======================
 
 Hyperparameters default to the public ITPS code:
 GD adds ``20 * grad xi`` to the noise estimate at every step ``t > 0``; SS runs
@@ -32,7 +32,11 @@ guidance; OP moves the agent onto the sketch's 20th point (or the last point
 before the sketch's first collision) and ranks fresh samples from there like PR;
 PR ranks by the mean L2 to the sketch; RS takes a random plan of the same batch
 PR ranks (same generator state -> same batch). Guidance gradients are taken in
-the policy's normalized space; ranking costs in env units.
+the policy's normalized space; ranking costs in env units. Given a
+flow-matching policy (``FlowPolicyLike``), BI, GD and SS take the same
+arguments and run the flow's own form (:mod:`~steer_envs.steering.flow`: the
+guided velocity ``v - (beta / tau) grad xi``, SS re-noising to the same flow
+time, BI starting at ``tau = 1 - start_t / T``).
 
 Every sampler except RS (and OP given a Nudge, whose fresh plans all satisfy
 it) returns the batch's minimum-cost plan as ``chosen``, so "the chosen plan's
@@ -57,6 +61,8 @@ Modules:
 * :mod:`~steer_envs.steering.observations` - what a policy observes (stacked histories, a moved agent);
 * :mod:`~steer_envs.steering.ranking` - RS, PR, OP;
 * :mod:`~steer_envs.steering.diffusion` - BI, GD, SS;
+* :mod:`~steer_envs.steering.flow` - their flow-matching forms and the unguided Euler loop
+  :func:`~steer_envs.steering.flow.integrate_plans`;
 * :mod:`~steer_envs.steering.registry` - :data:`SAMPLERS`, :func:`make_sampler`;
 * :mod:`~steer_envs.steering.objectives` - the alignment costs ``xi(tau, z)`` (torch, differentiable);
 * :mod:`~steer_envs.steering.latency` - :func:`benchmark_latency`;

@@ -19,8 +19,9 @@ import numpy as np
 import torch
 
 from steer_envs.core.interaction import Interaction, Nudge, Point, Sketch
-from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
+from steer_envs.core.policy import DiffusionPolicyLike, FlowPolicyLike, TrajectoryPolicy
 from steer_envs.core.validation import describe
+from steer_envs.steering.costs import WeightedCosts
 from steer_envs.steering.objectives import alignment_cost_np
 
 __all__ = [
@@ -33,6 +34,8 @@ __all__ = [
     "check_batch",
     "check_generator",
     "check_plans",
+    "finish_plans",
+    "initial_noise",
     "interaction_dims",
     "plan_costs",
 ]
@@ -47,10 +50,12 @@ class SteeringResult:
         costs: ``(n,)`` alignment cost of every plan (env units; NaN without an interaction).
         chosen: index of the plan the sampler selects.
         sampler: short name of the sampler (``"RS"``, ``"SS"``, ...).
-        timings: ``total_ms`` (wall time of the call) and, for diffusion samplers,
-            ``network_evals`` (calls of ``predict_noise``).
+        timings: ``total_ms`` (wall time of the call) and, for BI/GD/SS,
+            ``network_evals`` (calls of ``predict_noise``, or of a flow's ``predict_velocity``).
         perturbed_state: where OP moved the agent before sampling (``None`` otherwise);
             :class:`~steer_envs.wrappers.steering.SteeringWrapper` moves the real agent there.
+        plan_costs: ``(n,)`` weighted extra costs of every plan (:meth:`Sampler.with_costs`;
+            ``None`` without): the plan chosen minimises ``costs + plan_costs``.
     """
 
     plans: np.ndarray
@@ -59,6 +64,7 @@ class SteeringResult:
     sampler: str
     timings: Mapping[str, float] = field(default_factory=dict)
     perturbed_state: np.ndarray | None = None
+    plan_costs: np.ndarray | None = None
 
     @property
     def plan(self) -> np.ndarray:
@@ -103,6 +109,28 @@ def check_plans(plans: Any, n: int, policy: Any, who: str) -> np.ndarray:
     return arr
 
 
+def initial_noise(rng: np.random.Generator, shape: tuple[int, ...], dtype: torch.dtype, device: Any) -> torch.Tensor:
+    """A standard normal ``shape`` tensor from ``rng``: float32 draws for float32 policies, float64 otherwise.
+
+    The same stream a policy's own sampler draws when it calls
+    ``rng.standard_normal(shape, dtype=np.float32)``, so the samplers that
+    denoise or integrate start from RS's initial noise for one generator state.
+    """
+    np_dtype = np.float32 if dtype == torch.float32 else np.float64
+    return torch.as_tensor(rng.standard_normal(shape, dtype=np_dtype), dtype=dtype, device=device)
+
+
+def finish_plans(policy: Any, x: torch.Tensor, n: int) -> np.ndarray:
+    """Normalized ``x`` as checked plans in env units: ``policy.unnormalize``, then ``policy.extract_plan`` if any."""
+    traj = policy.unnormalize(x.detach())
+    traj = traj.detach().cpu().numpy() if isinstance(traj, torch.Tensor) else np.asarray(traj)
+    extract = getattr(policy, "extract_plan", None)
+    if callable(extract):
+        traj = extract(traj)
+    process = "denoising" if isinstance(policy, DiffusionPolicyLike) else "integration"
+    return check_plans(traj, n, policy, f"{type(policy).__name__} {process} (+ extract_plan)")
+
+
 def interaction_dims(policy: Any) -> tuple[int, ...]:
     """The plan entries an interaction constrains: ``policy.interaction_dims`` if set, else all.
 
@@ -145,6 +173,25 @@ class Sampler(ABC):
     accepts_none: ClassVar[bool] = False
     #: interaction types the sampler accepts
     interactions: ClassVar[tuple[type[Point] | type[Sketch] | type[Nudge], ...]] = (Point, Sketch)
+    #: whether extra plan costs can change what it returns (:meth:`with_costs`; RS picks at random)
+    takes_costs: ClassVar[bool] = True
+    #: the extra plan costs (none until :meth:`with_costs`)
+    _costs: WeightedCosts = WeightedCosts(None)
+
+    def with_costs(self, costs: Any) -> Sampler:
+        """Add plan costs to the user's alignment; returns the sampler.
+
+        ``costs``: plan costs (:mod:`steer_envs.steering.costs`: any
+        differentiable ``cost(plans (n, H, d) in env units) -> (n,)``, e.g.
+        :func:`~steer_envs.steering.costs.safety_cost`) or ``(cost, weight)``
+        pairs. Every sampler then picks the plan minimising alignment plus the
+        weighted costs; GD and SS also shift each step's clean-plan estimate
+        down the costs' gradient. ``ValueError`` for RS (it picks at random).
+        """
+        if not self.takes_costs:
+            raise ValueError(f"{type(self).__name__} ({self.name}) picks a random plan: costs cannot change it")
+        self._costs = WeightedCosts(costs)
+        return self
 
     def __call__(
         self,
@@ -164,19 +211,31 @@ class Sampler(ABC):
         plans, chosen, extra, perturbed = self._run(policy, obs, interaction, n, rng)
         timings = {"total_ms": (time.perf_counter() - t0) * 1e3, **extra}
         costs = plan_costs(plans, interaction, interaction_dims(policy))
-        return SteeringResult(plans, costs, int(chosen(costs)), self.name, timings, perturbed)
+        if not self._costs:
+            return SteeringResult(plans, costs, int(chosen(costs)), self.name, timings, perturbed)
+        added = self._costs.values(plans)
+        total = added if interaction is None else costs + added
+        return SteeringResult(plans, costs, int(chosen(total)), self.name, timings, perturbed, added)
 
     def check_policy(self, policy: Any) -> None:
-        """``TypeError`` unless ``policy`` is what this sampler needs (a ``DiffusionPolicyLike`` for BI/GD/SS)."""
-        proto = DiffusionPolicyLike if self.requires_diffusion else TrajectoryPolicy
-        if not isinstance(policy, proto):
+        """``TypeError`` unless ``policy`` is what this sampler needs.
+
+        BI/GD/SS (``requires_diffusion``) need a ``DiffusionPolicyLike`` or a
+        ``FlowPolicyLike``; the others a ``TrajectoryPolicy``.
+        """
+        if self.requires_diffusion:
+            if isinstance(policy, (DiffusionPolicyLike, FlowPolicyLike)):
+                return
             need = (
                 "a DiffusionPolicyLike (sample, scheduler, num_inference_steps, device, encode_obs, "
-                "predict_noise, normalize, unnormalize)"
-                if self.requires_diffusion
-                else "a TrajectoryPolicy (horizon, action_dim, sample)"
+                "predict_noise, normalize, unnormalize) or a FlowPolicyLike (sample, num_inference_steps, "
+                "device, encode_obs, predict_velocity, normalize, unnormalize)"
             )
-            raise TypeError(f"{type(self).__name__} needs `policy` to be {need}, got {type(policy).__name__}")
+        elif isinstance(policy, TrajectoryPolicy):
+            return
+        else:
+            need = "a TrajectoryPolicy (horizon, action_dim, sample)"
+        raise TypeError(f"{type(self).__name__} needs `policy` to be {need}, got {type(policy).__name__}")
 
     def _check_interaction(self, interaction: Any, policy: TrajectoryPolicy) -> None:
         if interaction is None and self.accepts_none:
@@ -194,6 +253,8 @@ class Sampler(ABC):
 
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
+        if self._costs:
+            params += f"{', ' if params else ''}costs={len(self._costs.terms)}"
         return f"{type(self).__name__}({params})"
 
 

@@ -3,7 +3,11 @@
 They need a :class:`~steer_envs.core.policy.DiffusionPolicyLike` with a
 DDPM/DDIM-style scheduler; the network may predict the noise, the clean plan
 or ``v`` (:mod:`~steer_envs.steering.schedulers` converts, and refuses
-schedulers it cannot be correct for). Guidance gradients are taken in the
+schedulers it cannot be correct for). Given a
+:class:`~steer_envs.core.policy.FlowPolicyLike` instead (and no
+``DiffusionPolicyLike``: a policy that is both is denoised), the same classes,
+with the same arguments, run the flow's own form of BI, GD and SS
+(:mod:`~steer_envs.steering.flow`). Guidance gradients are taken in the
 policy's normalized space (:class:`NormalizedObjective`); the initial noise
 comes from the numpy generator and a stochastic scheduler step's noise from a
 torch generator seeded by it, so with zero guidance they reproduce
@@ -20,16 +24,19 @@ import numpy as np
 import torch
 
 from steer_envs.core.interaction import Point, Sketch
-from steer_envs.core.policy import DiffusionPolicyLike
+from steer_envs.core.policy import DiffusionPolicyLike, FlowPolicyLike
 from steer_envs.core.validation import describe, integer, real_scalar
 from steer_envs.steering.base import (
     MAX_DENOISING_STEPS,
     MAX_MCMC_STEPS,
     Sampler,
     argmin_choice,
-    check_plans,
+    finish_plans,
+    initial_noise,
     interaction_dims,
 )
+from steer_envs.steering.costs import WeightedCosts
+from steer_envs.steering.flow import biased_plans, guided_plans, is_flow_policy, plan_dtype
 from steer_envs.steering.objectives import point_cost, resample_path_torch, sketch_cost
 from steer_envs.steering.schedulers import check_scheduler, from_epsilon, step_generator, to_epsilon
 
@@ -39,7 +46,9 @@ __all__ = ["BiasedInitialization", "GuidedDiffusion", "NormalizedObjective", "St
 class NormalizedObjective:
     """``xi`` of a Point/Sketch mapped into the policy's normalized space, with its gradient."""
 
-    def __init__(self, policy: DiffusionPolicyLike, interaction: Point | Sketch, dtype: torch.dtype) -> None:
+    def __init__(
+        self, policy: DiffusionPolicyLike | FlowPolicyLike, interaction: Point | Sketch, dtype: torch.dtype
+    ) -> None:
         data = interaction.target if isinstance(interaction, Point) else interaction.points
         self.dims = interaction_dims(policy)
         self.action_dim = int(policy.action_dim)
@@ -108,24 +117,18 @@ class _DiffusionSampler(Sampler):
         _set_timesteps(policy, type(self).__name__)
         return objective, cond, horizon, dtype
 
-    @staticmethod
-    def _noise(rng: np.random.Generator, shape: tuple[int, ...], dtype: torch.dtype, device: Any) -> torch.Tensor:
-        # float32 draws for float32 policies: the same stream a policy's own sampler draws (same initial noise as RS)
-        np_dtype = np.float32 if dtype == torch.float32 else np.float64
-        return torch.as_tensor(rng.standard_normal(shape, dtype=np_dtype), dtype=dtype, device=device)
+    # float32 draws for float32 policies: the same stream a policy's own sampler draws (same initial noise as RS)
+    _noise = staticmethod(initial_noise)
+    _finish = staticmethod(finish_plans)
 
     @staticmethod
     def _eps(policy: Any, x: torch.Tensor, t: Any, cond: Any) -> torch.Tensor:
         return _noise_estimate(policy, x, t, cond)
 
     @staticmethod
-    def _finish(policy: Any, x: torch.Tensor, n: int) -> np.ndarray:
-        traj = policy.unnormalize(x.detach())
-        traj = traj.detach().cpu().numpy() if isinstance(traj, torch.Tensor) else np.asarray(traj)
-        extract = getattr(policy, "extract_plan", None)
-        if callable(extract):
-            traj = extract(traj)
-        return check_plans(traj, n, policy, f"{type(policy).__name__} denoising (+ extract_plan)")
+    def _objective(policy: Any, interaction: Any) -> NormalizedObjective:
+        """The guidance objective of a flow policy (in its dtype)."""
+        return NormalizedObjective(policy, interaction, plan_dtype(policy))
 
 
 def _check_ratio(value: Any, name: str) -> float:
@@ -147,6 +150,10 @@ class GuidedDiffusion(_DiffusionSampler):
             clip range, reusing ``eps_hat`` moves ``x_t`` *along* the cost gradient,
             away from the user's input; re-deriving it keeps the step consistent.
             Needs a scheduler whose ``step`` takes that argument (DDIM does).
+
+    For a flow policy (:mod:`~steer_envs.steering.flow`): every Euler step with
+    ``T (1 - tau) > min_guided_t`` integrates ``v - guide_ratio / max(tau, 1 / K) * grad xi(x)``,
+    the velocity implying the guided noise; ``use_clipped_model_output`` changes nothing (no clipping).
     """
 
     name = "GD"
@@ -166,9 +173,25 @@ class GuidedDiffusion(_DiffusionSampler):
         eps = self._eps(policy, x, t, cond)
         if self.guide_ratio > 0 and int(t) > self.min_guided_t:
             eps = eps + self.guide_ratio * objective.grad(x).to(eps.dtype)
+        if self._costs:
+            eps = _cost_shifted(self._costs, policy, x, eps, t)
         return eps
 
     def _run(self, policy: Any, obs: Any, interaction: Any, n: int, rng: np.random.Generator) -> Any:
+        if is_flow_policy(policy):
+            # no clipping in a flow: use_clipped_model_output changes nothing there
+            plans, evals = guided_plans(
+                policy,
+                obs,
+                self._objective(policy, interaction),
+                n,
+                rng,
+                guide_ratio=self.guide_ratio,
+                mcmc_steps=self.mcmc_steps,
+                min_guided_t=self.min_guided_t,
+                costs=self._costs,
+            )
+            return plans, argmin_choice, {"network_evals": float(evals)}, None
         objective, cond, horizon, dtype = self._setup(policy, obs, interaction)
         scheduler = policy.scheduler
         shape = (n, horizon, int(policy.action_dim))
@@ -226,6 +249,9 @@ class StochasticSampling(GuidedDiffusion):
         guide_ratio: ``beta`` (ITPS maze: 60).
         mcmc_steps: ``M`` (ITPS: 4).
         min_guided_t, use_clipped_model_output: as in :class:`GuidedDiffusion`.
+
+    For a flow policy the ``M - 1`` iterations re-noise the guided clean plan
+    ``x + (1 - tau) v_hat`` to the same flow time ``tau`` (:mod:`~steer_envs.steering.flow`).
     """
 
     name = "SS"
@@ -246,7 +272,9 @@ class BiasedInitialization(_DiffusionSampler):
 
     The interaction (a sketch resampled to the horizon uniformly in index, or a
     point repeated) is mapped to normalized space; steps with ``t > start_t`` are
-    skipped (ITPS: ``start_t = 50``, ``init_std = 0.5``: 6 of 10 DDIM steps).
+    skipped (ITPS: ``start_t = 50``, ``init_std = 0.5``: 6 of 10 DDIM steps). A flow
+    policy starts at ``tau = 1 - start_t / T`` (``T``: its ``num_train_timesteps``, else
+    100) and takes the Euler steps from there (:mod:`~steer_envs.steering.flow`; 5 of 10).
     """
 
     name = "BI"
@@ -256,6 +284,10 @@ class BiasedInitialization(_DiffusionSampler):
         self.init_std = _check_ratio(init_std, "init_std")
 
     def _run(self, policy: Any, obs: Any, interaction: Any, n: int, rng: np.random.Generator) -> Any:
+        if is_flow_policy(policy):
+            objective = self._objective(policy, interaction)
+            plans, evals = biased_plans(policy, obs, objective, n, rng, start_t=self.start_t, init_std=self.init_std)
+            return plans, argmin_choice, {"network_evals": float(evals)}, None
         objective, cond, horizon, dtype = self._setup(policy, obs, interaction)
         scheduler = policy.scheduler
         shape = (n, horizon, int(policy.action_dim))
@@ -270,6 +302,26 @@ class BiasedInitialization(_DiffusionSampler):
             x = scheduler.step(from_epsilon(eps, x, t, scheduler), t, x, **step_kwargs).prev_sample
             evals += 1
         return self._finish(policy, x, n), argmin_choice, {"network_evals": float(evals)}, None
+
+
+def _cost_shifted(costs: WeightedCosts, policy: Any, x: torch.Tensor, eps: torch.Tensor, t: Any) -> torch.Tensor:
+    """``eps`` changed so that the clean plan it implies moves by ``-grad costs`` (taken at that plan).
+
+    A plan cost (a wall, a region) is a function of the *plan*: on the noisy
+    ``x_t`` it says little (at high noise every sample crosses walls), so it is
+    evaluated on the clean estimate ``x0 = (x_t - sqrt(1 - abar) eps) /
+    sqrt(abar)`` (clipped as the scheduler clips) and ``x0`` is shifted by
+    ``delta = -grad``: ``eps + sqrt(abar) / sqrt(1 - abar) * grad`` implies ``x0 + delta``.
+    """
+    scheduler = policy.scheduler
+    abar = torch.as_tensor(scheduler.alphas_cumprod)[int(t)].to(device=x.device, dtype=x.dtype)
+    a, s = abar.sqrt(), (1 - abar).sqrt().clamp_min(torch.finfo(x.dtype).eps)
+    x0 = (x - s * eps) / a
+    config = getattr(scheduler, "config", None)
+    if config is not None and getattr(config, "clip_sample", False):
+        bound = float(getattr(config, "clip_sample_range", 1.0))
+        x0 = x0.clamp(-bound, bound)
+    return eps + (a / s) * costs.grad(policy, x0).to(eps.dtype)
 
 
 def _set_timesteps(policy: Any, who: str) -> None:

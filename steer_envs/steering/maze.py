@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.steering.base import Sampler, SteeringResult
+from steer_envs.steering.costs import safety_cost
 from steer_envs.steering.diffusion import GuidedDiffusion
 from steer_envs.steering.latency import benchmark_latency
 from steer_envs.steering.observations import policy_observation
@@ -27,9 +28,16 @@ __all__ = ["method_sampler", "steering_trial", "warm_up"]
 _warm: set[tuple[int, str, int]] = set()
 
 
-def method_sampler(name: str, env: Any) -> Sampler:
-    """The sampler ``name`` for ``env``'s maze: OP stops before the sketch's first wall (``env.is_wall``)."""
-    return OutputPerturbation(collides=env.is_wall) if name == "OP" else make_sampler(name)
+def method_sampler(name: str, env: Any, *, safety_weight: float = 0.0) -> Sampler:
+    """The sampler ``name`` for ``env``'s maze: OP stops before the sketch's first wall (``env.is_wall``).
+
+    ``safety_weight > 0`` adds the maze's safety cost (its walls,
+    :func:`~steer_envs.steering.costs.safety_cost`) with that weight.
+    """
+    sampler = OutputPerturbation(collides=env.is_wall) if name == "OP" else make_sampler(name)
+    if safety_weight > 0:
+        sampler.with_costs([(safety_cost(env.task), safety_weight)])
+    return sampler
 
 
 def warm_up(policy: Any, sampler: Sampler, obs: Any, sketch: Any, batch: int) -> None:
@@ -85,6 +93,7 @@ def steering_trial(
     through_wall: float = 0.3,
     latency_repeats: int = 1,
     keep_plans: bool = False,
+    safety_weight: float = 0.0,
 ) -> tuple[dict[str, float | None], dict[str, Any]]:
     """One start location (``seed``) steered by ``sampler_name`` (``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ...).
 
@@ -96,6 +105,7 @@ def steering_trial(
     of ``latency_repeats`` interleaved calls). ``through_wall`` is the share of
     sketches the user draws through walls. ``extra`` holds the start and the
     sketch kind, plus the plans, sketch and distances with ``keep_plans``.
+    ``safety_weight > 0`` adds the walls' safety cost to the sampler (:func:`method_sampler`).
     """
     import gymnasium as gym
 
@@ -107,7 +117,7 @@ def steering_trial(
     try:
         obs, _ = env.reset(seed=seed)
         drawn = SketchUser(env.grid, through_wall=through_wall, seed=seed).draw(env.state)
-        sampler = method_sampler(sampler_name, env)
+        sampler = method_sampler(sampler_name, env, safety_weight=safety_weight)
         obs_in = policy_observation(policy, [obs])
         warm_up(policy, sampler, obs_in, drawn.sketch, batch)
         generator = np.random.default_rng(np.random.SeedSequence([seed, 0x1795]))

@@ -50,6 +50,7 @@ class RandomSampling(Sampler):
 
     name = "RS"
     accepts_none = True
+    takes_costs = False
     interactions = (Point, Sketch, Nudge)
 
     def _run(self, policy: Any, obs: Any, interaction: Any, n: int, rng: np.random.Generator) -> Any:

@@ -27,7 +27,8 @@ SAMPLERS: dict[str, type[Sampler]] = {
 def make_sampler(name: str, **kwargs: Any) -> Sampler:
     """The sampler called ``name`` (``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ``"GD"``, ``"SS"``, any case).
 
-    ``kwargs`` go to the sampler's constructor.
+    ``kwargs`` go to the sampler's constructor, but ``costs``: plan costs
+    added to the alignment (:meth:`~steer_envs.steering.base.Sampler.with_costs`).
 
     >>> import numpy as np
     >>> from steer_envs.core.interaction import Sketch
@@ -48,6 +49,9 @@ def make_sampler(name: str, **kwargs: Any) -> Sampler:
     if name.upper() not in SAMPLERS:
         raise ValueError(f"make_sampler: `name` must be one of {sorted(SAMPLERS)}, got {name!r}")
     cls = SAMPLERS[name.upper()]
+    if "costs" in kwargs:
+        costs = kwargs.pop("costs")
+        return make_sampler(name, **kwargs).with_costs(costs)
     accepted = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
     unknown = sorted(set(kwargs) - set(accepted))
     if unknown:

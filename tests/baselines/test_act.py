@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 from samples import maze_walk_fixture
+from tiny_policies import MAZE_XY, same_stats, tiny_policy
 
 from steer_envs.baselines.act import ACTConfig, ACTModel, ACTPolicy
 from steer_envs.baselines.common.torch_policy import write_checkpoint
@@ -26,16 +27,16 @@ ARCH = {
     "latent_dim": 8,
 }
 #: a tiny Maze-like ACT: the xy of the env observation, chunks of positions
-TINY = {**ARCH, "obs_dim": 2, "action_dim": 2, "obs_indices": (0, 1), "action_obs_indices": (0, 1)}
+TINY = {**ARCH, **MAZE_XY}
 MOMENTS = {"mean": (4.0, 5.0), "std": (2.0, 3.0)}
-STATS = {"observation": MOMENTS, "action": MOMENTS}
+STATS = same_stats(MOMENTS)
 
 
 walk = maze_walk_fixture(seed=4)
 
 
 def _tiny(seed: int = 0, **changes) -> ACTPolicy:
-    return ACTPolicy(ACTConfig(**{**TINY, **changes}), STATS, seed=seed)
+    return tiny_policy(ACTPolicy, ACTConfig, TINY, STATS, seed, **changes)
 
 
 def test_protocol_and_layout() -> None:

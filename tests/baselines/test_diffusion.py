@@ -6,6 +6,9 @@ import numpy as np
 import pytest
 import torch
 from samples import maze_walk_fixture
+from tiny_policies import TINY_UNET as TINY
+from tiny_policies import UNET_ARCH as ARCH
+from tiny_policies import same_stats, tiny_policy
 
 from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.common import TrainSettings
@@ -17,26 +20,15 @@ from steer_envs.baselines.training import train_policy
 from steer_envs.core import DiffusionPolicyLike, NoiseSchedulerLike, TrajectoryPolicy
 from steer_envs.envs.maze_grid import MazeGrid, maze_map
 
-#: a tiny network
-ARCH = {
-    "horizon": 16,
-    "down_dims": (8, 16),
-    "step_embed_dim": 16,
-    "kernel_size": 3,
-    "obs_embed_dim": 16,
-    "obs_octaves": 2,
-}
-#: ... as a Maze-like DP: the xy of the env observation, plans relative to the agent
-TINY = {**ARCH, "obs_dim": 2, "action_dim": 2, "obs_indices": (0, 1), "action_obs_indices": (0, 1), "relative": True}
 BOX = {"min": (0.5, 0.5), "max": (7.5, 10.5)}
-STATS = {"observation": BOX, "action": BOX}
+STATS = same_stats(BOX)
 
 
 walk = maze_walk_fixture(seed=3)
 
 
 def _tiny(seed: int = 0, **changes) -> DiffusionPolicy:
-    return DiffusionPolicy(DiffusionConfig(**{**TINY, **changes}), STATS, seed=seed)
+    return tiny_policy(DiffusionPolicy, DiffusionConfig, TINY, STATS, seed, **changes)
 
 
 def test_protocol_and_itps_scheduler() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from tiny_policies import UNET_ARCH
 from torch import nn
 
 from steer_envs.baselines.diffusion import DiffusionConfig
@@ -14,14 +15,7 @@ from steer_envs.baselines.diffusion.network import DiffusionNet
 
 #: networks unlike the shipped one: two or four levels, kernel 3 or 7, no time channel, no observation encoder
 CONFIGS = [
-    {
-        "horizon": 16,
-        "down_dims": (8, 16),
-        "kernel_size": 3,
-        "step_embed_dim": 16,
-        "obs_embed_dim": 16,
-        "obs_octaves": 2,
-    },
+    UNET_ARCH,
     {"horizon": 32, "down_dims": (8, 16, 16, 32), "kernel_size": 7, "n_groups": 4, "time_channel": False},
     {"horizon": 8, "down_dims": (8,), "obs_embed_dim": 0, "n_obs_steps": 1, "prediction": "epsilon"},
 ]

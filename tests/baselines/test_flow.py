@@ -10,6 +10,9 @@ import numpy as np
 import pytest
 import torch
 from samples import maze_walk_fixture
+from tiny_policies import TINY_UNET as TINY
+from tiny_policies import UNET_ARCH as ARCH
+from tiny_policies import same_stats, tiny_policy
 
 from steer_envs.baselines.diffusion import DiffusionConfig
 from steer_envs.baselines.factory import get_preset, load_policy, make_policy
@@ -18,23 +21,13 @@ from steer_envs.baselines.training import train_policy
 from steer_envs.core import DiffusionPolicyLike, TrajectoryPolicy
 from steer_envs.core.policy import FlowPolicyLike
 
-ARCH = {
-    "horizon": 16,
-    "down_dims": (8, 16),
-    "step_embed_dim": 16,
-    "kernel_size": 3,
-    "obs_embed_dim": 16,
-    "obs_octaves": 2,
-}
-TINY = {**ARCH, "obs_dim": 2, "action_dim": 2, "obs_indices": (0, 1), "action_obs_indices": (0, 1), "relative": True}
-BOX = {"min": (0.0, 0.0), "max": (8.0, 11.0)}
-STATS = {"observation": BOX, "action": BOX}
+STATS = same_stats({"min": (0.0, 0.0), "max": (8.0, 11.0)})
 
 walk = maze_walk_fixture(seed=3)
 
 
 def _tiny(seed: int = 0, **changes) -> FlowPolicy:
-    return FlowPolicy(FlowConfig(**{**TINY, **changes}), STATS, seed=seed)
+    return tiny_policy(FlowPolicy, FlowConfig, TINY, STATS, seed, **changes)
 
 
 def test_protocols_and_matched_size() -> None:

@@ -1,5 +1,5 @@
 """Helpers of the steer-bench tests: run ``python -m steer_envs.bench`` in a subprocess, find its processes;
-a suite's trial; check saved figures."""
+a suite's trial; check saved figures; a data suite's count and cache parameters."""
 
 from __future__ import annotations
 
@@ -110,6 +110,20 @@ def suite_trial(suite_name: str, method: str | None, seed: int, **overrides: Any
 
     suite = get_suite(suite_name)
     return suite.trial(suite.env_list()[0], method, seed, suite.resolve_params(overrides))
+
+
+def check_data_params(params_type: Any, count: str, cache_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A data suite's parameters refuse a ``count`` of 0 or of text and a ``cache_dir`` not text; the cache
+    defaults to ``$XDG_CACHE_HOME/steer-envs/<cache_name>`` and takes ``cache_dir`` as given."""
+    with pytest.raises(ValueError, match=count):
+        params_type(**{count: 0})
+    with pytest.raises(ValueError, match=count):
+        params_type.from_json({count: "many"})
+    with pytest.raises(ValueError, match="cache_dir"):
+        params_type.from_json({"cache_dir": 3})
+    monkeypatch.setenv("XDG_CACHE_HOME", "/tmp/xdg")
+    assert params_type().cache == f"/tmp/xdg/steer-envs/{cache_name}"
+    assert params_type(cache_dir="/x").cache == "/x"
 
 
 def check_figures(figures: list[Any], count: int) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bench_helpers import needs_robosuite
+from bench_helpers import check_data_params, needs_robosuite
 
 from steer_envs.bench.suites.itps_blockstack.suite import DATA_SUITE, ENV_ID, DataParams
 
@@ -13,15 +13,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::U
 
 
 def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
-    with pytest.raises(ValueError, match="skills_per_episode"):
-        DataParams(skills_per_episode=0)
-    with pytest.raises(ValueError, match="skills_per_episode"):
-        DataParams.from_json({"skills_per_episode": "many"})
-    with pytest.raises(ValueError, match="cache_dir"):
-        DataParams.from_json({"cache_dir": 3})
-    monkeypatch.setenv("XDG_CACHE_HOME", "/tmp/xdg")
-    assert DataParams().cache == "/tmp/xdg/steer-envs/itps-blockstack"
-    assert DataParams(cache_dir="/x").cache == "/x"
+    check_data_params(DataParams, "skills_per_episode", "itps-blockstack", monkeypatch)
 
 
 def test_suite_is_registered() -> None:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from bench_helpers import needs_robosuite
+from bench_helpers import check_data_params, needs_robosuite
 
 from steer_envs.bench.suites.itps_kitchen.suite import DATA_SUITE, ENV_ID, TASKS, DataParams
 
@@ -20,21 +20,13 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning", "ignore::U
 
 
 def test_params_refuse_bad_values(monkeypatch: pytest.MonkeyPatch) -> None:
-    with pytest.raises(ValueError, match="max_skills"):
-        DataParams(max_skills=0)
-    with pytest.raises(ValueError, match="max_skills"):
-        DataParams.from_json({"max_skills": "many"})
+    check_data_params(DataParams, "max_skills", "itps-kitchen", monkeypatch)
     with pytest.raises(ValueError, match="tasks"):
         DataParams(tasks=("oven",))
     with pytest.raises(ValueError, match="tasks"):
         DataParams(tasks=())
     with pytest.raises(ValueError, match="tasks"):
         DataParams.from_json({"tasks": 3})
-    with pytest.raises(ValueError, match="cache_dir"):
-        DataParams.from_json({"cache_dir": 3})
-    monkeypatch.setenv("XDG_CACHE_HOME", "/tmp/xdg")
-    assert DataParams().cache == "/tmp/xdg/steer-envs/itps-kitchen"
-    assert DataParams(cache_dir="/x").cache == "/x"
 
 
 def test_suite_is_registered_and_seeds_alternate_tasks() -> None:

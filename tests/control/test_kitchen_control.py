@@ -142,8 +142,9 @@ def test_a_plan_that_does_nothing_executes_nothing(env: Any) -> None:
     out = execute_kitchen_plan(env, plan, stride=2)
     assert out.executed is None and not out.success and out.steps == 8 and out.trail.shape == (9, 3)
     assert out.mode_before == out.mode_after == "closed_table"
-    assert not KitchenPlanOutcome("pick_bowl", "a", "b", True, 3, np.zeros((4, 3)), np.zeros(17)).success
-    assert KitchenPlanOutcome("pick_bowl", "a", "b", False, 3, np.zeros((4, 3)), np.zeros(17)).success
+    modes = {"mode_before": "a", "mode_after": "b"}
+    assert not KitchenPlanOutcome("pick_bowl", True, 3, np.zeros((4, 3)), np.zeros(17), **modes).success
+    assert KitchenPlanOutcome("pick_bowl", False, 3, np.zeros((4, 3)), np.zeros(17), **modes).success
 
 
 def test_the_handle_turns_about_the_hinge_and_eef_yaw_is_the_experts(env: Any) -> None:

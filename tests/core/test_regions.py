@@ -56,6 +56,7 @@ def test_the_maze_task_forbids_exactly_its_wall_cells() -> None:
     env = gym.make("steer_envs/Maze2D-Large-v0").unwrapped
     walls = env.task.regions["walls"]
     assert env.task.forbidden == ("walls",)
-    pts = np.random.default_rng(0).uniform(env.grid.low, env.grid.high, (4000, 2))
+    # beyond the border too: is_wall clips to the grid, so outside is wall (a safety cost must push back in)
+    pts = np.random.default_rng(0).uniform(env.grid.low - 3, env.grid.high + 3, (4000, 2))
     np.testing.assert_array_equal(walls.contains(pts), env.is_wall(pts))
     env.close()

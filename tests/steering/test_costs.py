@@ -56,7 +56,7 @@ def test_safety_cost_of_the_maze_penalises_plans_through_walls() -> None:
 def test_bad_costs_are_named() -> None:
     with pytest.raises(TypeError, match="sequence of plan costs"):
         check_costs(region_cost([]))
-    with pytest.raises(TypeError, match="plan costs or .cost, weight. pairs"):
+    with pytest.raises(TypeError, match=r"plan costs or \(cost, weight\) pairs"):
         check_costs([(1, 2)])
     with pytest.raises(ValueError, match="weight"):
         check_costs([(region_cost([]), -1.0)])
@@ -64,3 +64,46 @@ def test_bad_costs_are_named() -> None:
         safety_cost(TaskSpec("t", ("a",)))
     with pytest.raises(ValueError, match="must return a tensor of shape"):
         WeightedCosts([lambda p: p.sum()]).values(np.zeros((2, 3, 2)))
+
+
+# --- samplers with costs --------------------------------------------------------------------------
+from test_flow_samplers import FlowMixture  # noqa: E402
+from test_samplers import OBS, MixturePolicy, sketch_at  # noqa: E402
+
+from steer_envs.steering import make_sampler  # noqa: E402
+
+#: a wall over the far half of the 90-degree mode (plans straight up from the origin, 3 long)
+WALL = Boxes([[-0.6, 1.2]], [[0.6, 3.6]])
+
+
+def in_wall(plans: np.ndarray) -> float:
+    return float(WALL.contains(plans).any(axis=-1).mean())
+
+
+@pytest.mark.parametrize("policy_class", [MixturePolicy, FlowMixture])
+@pytest.mark.parametrize("name", ["GD", "SS"])
+def test_a_region_cost_keeps_guided_plans_out_of_the_wall(policy_class: type, name: str) -> None:
+    policy = policy_class(angles_deg=(0.0, 90.0))
+    sketch = sketch_at(45.0)  # both modes align equally well: about half the plans take the walled one
+    plain, walled = [], []
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        plain.append(in_wall(make_sampler(name)(policy, OBS, sketch, 16, generator=rng).plans))
+        safe = make_sampler(name, costs=[(region_cost([WALL]), 2.0)])
+        walled.append(in_wall(safe(policy, OBS, sketch, 16, generator=np.random.default_rng(seed)).plans))
+    assert np.mean(plain) > 0.3 and np.mean(walled) < 0.5 * np.mean(plain)
+
+
+def test_rankers_pick_by_alignment_plus_costs_and_rs_refuses_costs() -> None:
+    policy = MixturePolicy()
+    sketch = sketch_at(45.0)  # the 0- and 90-degree modes align equally well
+    heavy = make_sampler("PR", costs=[(region_cost([WALL]), 100.0)])
+    result = heavy(policy, OBS, sketch, 32, generator=np.random.default_rng(0))
+    assert result.plan_costs is not None and result.plan_costs.shape == (32,)
+    assert result.chosen == int(np.argmin(result.costs + result.plan_costs))
+    assert not WALL.contains(result.plan).any()
+    plain = make_sampler("PR")(policy, OBS, sketch, 32, generator=np.random.default_rng(0))
+    assert plain.plan_costs is None and np.array_equal(plain.plans, result.plans)  # same batch, other pick
+    with pytest.raises(ValueError, match="picks a random plan"):
+        make_sampler("RS", costs=[region_cost([WALL])])
+    assert "costs=1" in repr(make_sampler("GD", costs=[region_cost([WALL])]))

@@ -64,10 +64,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from steer_envs.bench.findings import listing
-from steer_envs.bench.metrics import table_references
+from steer_envs.bench.metrics import MAZE_STEERING_METRICS, table_references
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER
-from steer_envs.bench.suite import Finding, Metric, Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.bench.suite import Finding, Suite, TrialPlan, TrialResult, register_suite
 from steer_envs.utils.threads import limit_threads
 
 if TYPE_CHECKING:
@@ -271,28 +271,7 @@ ITPS_MAZE2D = register_suite(
     Suite(
         name=SUITE_NAME,
         description="ITPS Maze2D (thesis Table 2.1): sketch steering of DP (6 samplers) and ACT (RS/PR/OP), batch 32.",
-        metrics=(
-            Metric("min_l2", "L2 of the picked plan to the sketch / maze extent", higher_is_better=False, fmt=".3f"),
-            Metric("avg_l2", "batch-mean L2 to the sketch / maze extent", higher_is_better=False, fmt=".3f"),
-            Metric("collision", "fraction of the batch with a waypoint in a wall", higher_is_better=False, fmt=".3f"),
-            Metric(
-                "latency_ms",
-                "ms per steering call (batch 32)",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".1f",
-                goal=250.0,
-            ),
-            Metric(
-                "ss_gd_latency",
-                "SS / GD time per call, back to back",
-                kind="timing",
-                higher_is_better=False,
-                fmt=".2f",
-                goal=4.5,
-            ),
-            Metric("network_evals", "denoiser calls per steering call", higher_is_better=False, fmt=".0f"),
-        ),
+        metrics=MAZE_STEERING_METRICS,
         run_trial=run_itps_trial,
         envs=(ENV_ID,),
         methods=METHODS,

@@ -43,10 +43,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Settings, method_fits, train_and_evaluate
+from steer_envs.baselines.sb3 import GOAL_ENVS, METHODS, Sb3Options, Sb3Settings, method_fits, train_and_evaluate
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, TrialPlan, TrialResult, register_suite
 from steer_envs.io import default_cache_dir
+from steer_envs.utils.fields import build_from
 
 if TYPE_CHECKING:
     from steer_envs.bench.suite import Trial, TrialRequest
@@ -73,33 +74,19 @@ def _all_envs() -> list[str]:
 
 
 @dataclass(frozen=True)
-class Sb3Params(SuiteParams):
-    """Parameters of ``sb3``.
+class Sb3Params(Sb3Options, SuiteParams):
+    """Parameters of ``sb3``: the library's :class:`~steer_envs.baselines.sb3.Sb3Options`, the budget, the cache.
 
     ``timesteps``: training steps per trial (``None``: 100k for ``sac``, 50k for
-    ``sac-her``); ``eval_episodes`` deterministic episodes per evaluation,
-    every ``eval_every`` steps (and at step 0); ``normalize_actions``,
-    ``observe_sensors``, ``maze_goal_obs``, ``maze_relative_actions``, ``max_episode_steps``: the env options
-    (module docstring);
-    ``threads`` torch / BLAS threads of the trial; ``checkpoint``: save model,
-    replay buffer and curve at every evaluation under ``cache_dir`` (default
-    :func:`~steer_envs.io.default_cache_dir` ``("sb3")``) and resume from there; ``stop_success``: end
-    training once an evaluation reaches this success (%; 0 = never).
+    ``sac-her``); the env options are described in the module docstring;
+    ``threads`` are the trial's; ``checkpoint`` saves model, replay buffer and
+    curve at every evaluation under ``cache_dir`` (default
+    :func:`~steer_envs.io.default_cache_dir` ``("sb3")``) and resumes from there.
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
     timesteps: int | None = None
-    eval_episodes: int = 20
-    eval_every: int = 10_000
-    normalize_actions: bool = True
-    observe_sensors: bool = True
-    maze_goal_obs: bool = True
-    maze_relative_actions: bool = False
-    max_episode_steps: int = 0
-    threads: int = 1
-    checkpoint: bool = True
     cache_dir: str = ""
-    stop_success: float = 0.0
 
     def __post_init__(self) -> None:
         ok = self.timesteps is None or 1 <= self.timesteps <= MAX_TIMESTEPS
@@ -120,9 +107,7 @@ class Sb3Params(SuiteParams):
     def settings(self, method: str) -> Sb3Settings:
         """The library's :class:`~steer_envs.baselines.sb3.Sb3Settings` of a ``method`` trial (the same fields)."""
         cache = Path(self.cache_dir) if self.cache_dir else default_cache_dir(SUITE_NAME)
-        return Sb3Settings(
-            timesteps=self.budget(method), cache=cache, **self.kwargs(without=("timesteps", "cache_dir"))
-        )
+        return build_from(Sb3Settings, self, timesteps=self.budget(method), cache=cache)
 
 
 def generate_sb3(suite: Suite, request: TrialRequest) -> TrialPlan:

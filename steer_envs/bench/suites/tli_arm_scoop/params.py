@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.trials import DwellPushesParams
 
 __all__ = ["ENV_ID", "METHODS", "ArmScoopParams"]
 
@@ -14,7 +14,7 @@ METHODS: tuple[str, ...] = ("ltl-ds", "ltl-ds+mod")
 
 
 @dataclass(frozen=True)
-class ArmScoopParams(SuiteParams):
+class ArmScoopParams(DwellPushesParams):
     """Parameters of ``tli-arm-scoop``.
 
     ``n_episodes`` pushed episodes per trial (cuts persist across them);
@@ -27,10 +27,5 @@ class ArmScoopParams(SuiteParams):
     suite_name: ClassVar[str] = "tli-arm-scoop"
     n_episodes: int = 30
     n_pushes: int = 3
-    max_dwell: int = 20
     max_steps: int = 600
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_dwell", "max_steps")
-        self.require_at_least(0, "n_pushes", "plot_seeds")
+    max_dwell: int = 20

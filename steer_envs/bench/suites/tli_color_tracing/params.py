@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.trials import DwellPushesParams
 
 __all__ = ["AUTOMATA", "ENV_ID", "ColorTracingParams"]
 
@@ -14,7 +14,7 @@ AUTOMATA: tuple[str, ...] = ("a", "b", "c")
 
 
 @dataclass(frozen=True)
-class ColorTracingParams(SuiteParams):
+class ColorTracingParams(DwellPushesParams):
     """Parameters of ``tli-color-tracing``.
 
     ``n_episodes`` per condition (no pushes / pushes); ``n_pushes`` pushes into
@@ -25,13 +25,7 @@ class ColorTracingParams(SuiteParams):
     """
 
     suite_name: ClassVar[str] = "tli-color-tracing"
-    n_episodes: int = 10
     n_pushes: int = 3
-    max_dwell: int = 15
     max_steps: int = 2500
+    max_dwell: int = 15
     modulation: bool = True
-    plot_seeds: int = 1
-
-    def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_dwell", "max_steps")
-        self.require_at_least(0, "n_pushes", "plot_seeds")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.trials import ProtocolParams
 
 __all__ = ["ENV_ID", "VARIANTS", "CookingParams"]
 
@@ -14,7 +14,7 @@ VARIANTS: tuple[str, ...] = ("phi_cb", "phi_bc", "phi_c", "phi_cc")
 
 
 @dataclass(frozen=True)
-class CookingParams(SuiteParams):
+class CookingParams(ProtocolParams):
     """Parameters of ``tli-cooking``.
 
     ``n_starts`` episodes per condition (no pushes / pushes); ``n_pushes``
@@ -25,15 +25,15 @@ class CookingParams(SuiteParams):
     """
 
     suite_name: ClassVar[str] = "tli-cooking"
-    n_starts: int = 10
     n_pushes: int = 2
+    n_starts: int = 10
     push_window: int = 400
     magnitude: float = 8.0
     horizon: int = 3000
     deliveries: int = 3
     modulation: bool = True
-    plot_seeds: int = 1
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         self.require_at_least(1, "n_starts", "horizon", "deliveries", "push_window")
-        self.require_at_least(0, "n_pushes", "plot_seeds", "magnitude")
+        self.require_at_least(0, "magnitude")

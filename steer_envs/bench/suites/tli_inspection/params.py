@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.trials import PushedEpisodesParams
 
 __all__ = ["ENV_ID", "METHODS", "InspectionParams"]
 
@@ -14,18 +14,18 @@ METHODS: tuple[str, ...] = ("vanilla-ds", "ltl-ds", "ltl-ds+mod")
 
 
 @dataclass(frozen=True)
-class InspectionParams(SuiteParams):
-    """Parameters of ``tli-inspection``: episodes per condition, pushes per episode, push lengths, step cap."""
+class InspectionParams(PushedEpisodesParams):
+    """Parameters of ``tli-inspection``: episodes per condition, pushes per episode, push lengths, step cap.
+
+    The counts keep :class:`~steer_envs.bench.trials.PushedEpisodesParams`'s
+    defaults (10 episodes, one push each, 3000 steps).
+    """
 
     suite_name: ClassVar[str] = "tli-inspection"
-    n_episodes: int = 10
-    n_pushes: int = 1
     min_push: float = 4.0
     max_push: float = 10.0
-    max_steps: int = 3000
-    plot_seeds: int = 1
 
     def __post_init__(self) -> None:
-        self.require_at_least(1, "n_episodes", "max_steps")
-        self.require_at_least(0, "n_pushes", "min_push", "plot_seeds")
+        super().__post_init__()
+        self.require_at_least(0, "min_push")
         self.require("max_push", self.max_push >= self.min_push, ">= min_push")
