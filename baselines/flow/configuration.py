@@ -11,7 +11,7 @@ only the target (a velocity) and the sampler (Euler steps) differ.
 >>> cfg.parameter_count() == DiffusionConfig(obs_dim=2, action_dim=2).parameter_count()
 True
 >>> sorted(PRESETS)
-['cpu']
+['cpu', 'itps']
 """
 
 from __future__ import annotations
@@ -37,5 +37,6 @@ def _like_dp(name: str) -> Preset[FlowConfig]:
     return Preset(FlowConfig.from_dict(fields), dp.train, f"DP's {name!r} preset as a flow ({dp.description})")
 
 
-#: named (config, training) presets; ``cpu`` matches DP's ``cpu`` (the shipped Maze2D DP) field for field
-PRESETS: dict[str, Preset[FlowConfig]] = {"cpu": _like_dp("cpu")}
+#: named (config, training) presets, each DP's preset of that name field for field: ``cpu`` (the shipped
+#: Maze2D DP's recipe) and ``itps`` (ITPS's full-size network, a GPU job)
+PRESETS: dict[str, Preset[FlowConfig]] = {name: _like_dp(name) for name in ("cpu", "itps")}

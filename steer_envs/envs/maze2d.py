@@ -239,7 +239,7 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         self.grid = MazeGrid(layout)
         self.physics = MazePhysics(self.grid, name=f"maze2d_{self.maze_name}")
         self.dt = TIMESTEP * self.frame_skip
-        self.task = _maze_task(self.maze_name)
+        self.task = _maze_task(self.maze_name, self.grid)
         self.observation_space: spaces.Space[Any] = self._make_observation_space()
         self.action_space = self._make_action_space()
         self.goal_cell: tuple[int, int] | None = None
@@ -574,9 +574,8 @@ def _wall_boxes(grid: MazeGrid) -> Boxes:
 _BEYOND = 1e3
 
 
-def _maze_task(maze_name: str) -> TaskSpec:
+def _maze_task(maze_name: str, grid: MazeGrid) -> TaskSpec:
     """The one-mode task of a maze: ``navigate``, whatever the sensors read; its wall cells are forbidden."""
-    grid = MazeGrid(maze_map(maze_name))
     return TaskSpec(
         name=f"maze2d-{maze_name}",
         modes=("navigate",),

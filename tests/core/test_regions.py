@@ -23,7 +23,7 @@ def test_boxes_depth_and_contains() -> None:
 def test_boxes_refuse_bad_input() -> None:
     with pytest.raises(ValueError, match="both be"):
         Boxes([0.0, 0.0], [1.0, 1.0])
-    with pytest.raises(ValueError, match="high. must be >="):
+    with pytest.raises(ValueError, match=r"every `high` must be >="):
         Boxes([[1.0]], [[0.0]])
     with pytest.raises(ValueError, match="distinct plan entries"):
         Boxes([[0.0, 0.0]], [[1.0, 1.0]], dims=(0, 0))
