@@ -1,4 +1,8 @@
-"""Synthetic BlockStack and Kitchen skill records (no simulator) for the skill-plan and skill-file tests."""
+"""Synthetic BlockStack and Kitchen skill records (no simulator) for the skill-plan and skill-file tests.
+
+Both records descend (:func:`blockstack_record`, :func:`kitchen_record`);
+:func:`check_descent_plan` checks the plan a domain's ``skill_plan`` makes of one.
+"""
 
 from __future__ import annotations
 
@@ -70,3 +74,32 @@ def kitchen_record(
         hinge=np.array([-0.02, 0.54, 1.03]),
         **_descent(steps, kitchen_skills.OBS_DIM, 7, steps + 1 if close_at is None else close_at),
     )
+
+
+def check_descent_plan(
+    made: tuple[np.ndarray, np.ndarray] | None,
+    steps: int,
+    close_at: int,
+    *,
+    horizon: int,
+    stride: int,
+    width: int,
+    obs_dim: int,
+    marker: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Check ``skill_plan``'s ``(obs, plan)`` of a descending record of ``steps`` steps; return them.
+
+    Waypoint ``k`` is the state at step ``stride * (k + 1)`` (the eef's z, the
+    gripper in the plan's last of ``width`` columns), the plan is padded with
+    its last waypoint, and observation ``k`` is the state at step ``stride * k``
+    (its column ``marker`` holds the step).
+    """
+    assert made is not None
+    obs, plan = made
+    assert plan.shape == (horizon, width) and obs.shape == (horizon, obs_dim)
+    ends = np.minimum(stride * (np.arange(horizon) + 1), steps)
+    assert np.allclose(plan[:, 2], 0.2 - 1e-3 * ends)
+    assert np.array_equal(plan[:, -1], np.where(ends >= close_at, 1.0, -1.0))
+    assert obs[0, marker] == 0 and obs[1, marker] == stride  # the first observation is the skill's start
+    assert np.all(plan[ends == steps] == plan[-1])  # padding repeats the last waypoint
+    return obs, plan

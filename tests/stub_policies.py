@@ -36,6 +36,53 @@ class RandomLines:
         return xy + np.arange(1, self.horizon + 1)[None, :, None] * self.step * direction
 
 
+class LineModes:
+    """The modes of the mixture test doubles: straight-line plans from the agent's xy in ``K`` headings.
+
+    Mode ``k`` is ``xy + s * length * u_k`` at ``s = 1/steps, 2/steps, ..., 1``
+    (heading ``u_k`` at ``angles_deg[k]``, ``steps`` the ``horizon`` given); plans are normalized min-max to
+    ``[-1, 1]`` over the box ``low``..``high``. The policy's condition is its
+    modes, normalized (:meth:`encode_obs`); ``std`` is the modes' spread.
+    """
+
+    def __init__(
+        self,
+        angles_deg: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0),
+        *,
+        horizon: int = 16,
+        length: float = 3.0,
+        std: float = 0.02,
+        low: tuple[float, float] = (-5.0, -5.0),
+        high: tuple[float, float] = (5.0, 5.0),
+    ) -> None:
+        a = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
+        self.dirs = np.stack([np.cos(a), np.sin(a)], axis=1)
+        self.horizon = self.steps = horizon  # a subclass may plan fewer states than its modes have
+        self.length, self.std = length, std
+        self.low, self.high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
+
+    def modes(self, xy: Any) -> np.ndarray:
+        """The ``(K, steps, 2)`` mode plans from ``xy`` (env units)."""
+        steps = np.linspace(1.0 / self.steps, 1.0, self.steps)[None, :, None] * self.length
+        return np.asarray(xy, dtype=np.float64)[None, None, :2] + steps * self.dirs[:, None, :]
+
+    def encode_obs(self, obs: Any) -> torch.Tensor:
+        arr = np.asarray(obs, dtype=np.float64)
+        return torch.as_tensor(self.normalize(self.modes(arr.reshape(-1, arr.shape[-1])[-1, :2])))
+
+    def normalize(self, traj: Any) -> Any:
+        lo, hi = (torch.as_tensor(v) for v in (self.low, self.high)) if torch.is_tensor(traj) else (self.low, self.high)
+        return 2 * (traj - lo) / (hi - lo) - 1
+
+    def unnormalize(self, traj: Any) -> Any:
+        lo, hi = (torch.as_tensor(v) for v in (self.low, self.high)) if torch.is_tensor(traj) else (self.low, self.high)
+        return (traj + 1) / 2 * (hi - lo) + lo
+
+    def off_manifold(self, plans: np.ndarray, obs: Any) -> np.ndarray:
+        """Mean per-step distance of every plan to its nearest mode (env units)."""
+        return np.linalg.norm(plans[:, None] - self.modes(obs)[None], axis=-1).mean(-1).min(axis=1)
+
+
 class ExactDiffusion:
     """DDIM sampling of a diffusion stand-in whose noise prediction is exact (a known distribution of plans).
 

@@ -96,6 +96,15 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
     def _sensors(self, info: dict[str, Any]) -> dict[str, bool]:
         return sensor_reading(info, self.replanner.automaton.sensors, owner="LTLReplanWrapper")
 
+    def _update(self, obs: Any, info: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Feed ``info``'s reading to the replanner (an unknown one keeps the plan) and augment ``obs`` / ``info``."""
+        unknown = False
+        try:
+            self.replanner.update(self._sensors(info))
+        except UnknownSensorReading:
+            unknown = True
+        return self._augment(obs, info, unknown)
+
     def _augment(self, obs: Any, info: dict[str, Any], unknown: bool) -> tuple[dict[str, Any], dict[str, Any]]:
         rp = self.replanner
         if not unknown or not self._plan:
@@ -120,12 +129,7 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
 
     def step(self, action: Any) -> tuple[dict[str, Any], SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        unknown = False
-        try:
-            self.replanner.update(self._sensors(info))
-        except UnknownSensorReading:
-            unknown = True
-        obs_out, info = self._augment(obs, info, unknown)
+        obs_out, info = self._update(obs, info)
         return obs_out, reward, terminated, truncated, info
 
     def sync(self, info: dict[str, Any]) -> dict[str, Any]:
@@ -134,11 +138,6 @@ class LTLReplanWrapper(gym.Wrapper[dict[str, Any], Any, Any, Any], gym.utils.Rec
         ``step`` would catch the jump at the next step anyway; this updates the
         plan at once. Returns ``{"next_mode": int}`` plus the LTL keys of ``info``.
         """
-        unknown = False
-        try:
-            self.replanner.update(self._sensors(info))
-        except UnknownSensorReading:
-            unknown = True
-        obs, out = self._augment(None, info, unknown)
+        obs, out = self._update(None, info)
         keys = ("plan", "ltl_mode", "next_mode_name", "ltl_unexpected", "ltl_unknown_reading", "ltl_stuck")
         return {"next_mode": obs["next_mode"], **{k: out[k] for k in keys}}

@@ -1,6 +1,7 @@
 """Metrics (and their references) that several suites declare alike.
 
-* data suites (one trial builds one shard): :data:`BUILT`;
+* data suites (one trial builds one shard): :data:`BUILT`; skill-data suites also
+  :data:`SKILL_OUTCOME_METRICS` (:func:`skill_outcomes` computes them);
 * skill-steering suites (thesis Tables 2.2, 2.3): the alignment / success quadrants :data:`QUADRANT_METRICS`;
 * robot-experiment suites (thesis ch. 3): :data:`NUM_CUTS`;
 * Maze2D steering suites (thesis Table 2.1 and beyond): :data:`MAZE_STEERING_METRICS`;
@@ -17,7 +18,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from steer_envs.bench.suite import Metric, Reference
@@ -29,7 +30,9 @@ __all__ = [
     "NUM_CUTS",
     "QUADRANT_METRICS",
     "SHARE",
+    "SKILL_OUTCOME_METRICS",
     "evaluation_metrics",
+    "skill_outcomes",
     "success_references",
     "table_references",
     "train_seconds",
@@ -37,6 +40,11 @@ __all__ = [
 
 #: a data suite's trial built its shard (0: found on disk)
 BUILT = Metric("built", "the shard was built by this trial (0: found on disk)", kind="timing", fmt=".0f")
+#: a skill-data suite's shard: how its recorded skills ended (:func:`skill_outcomes`)
+SKILL_OUTCOME_METRICS: tuple[Metric, ...] = (
+    Metric("skill_success", "skills whose outcome the world shows at their end", fmt=".2f"),
+    Metric("violations", "skills that reported a constraint violation", higher_is_better=False, fmt=".2f"),
+)
 #: cuts a robot experiment learned from invariance failures
 NUM_CUTS = Metric("num_cuts", "cuts learned over the trial", higher_is_better=False, fmt=".1f")
 #: what a skill-steering suite's TA and CS are a share of
@@ -75,6 +83,20 @@ EVAL_SECONDS = Metric(
 def train_seconds(description: str, goal: float | None = None) -> Metric:
     """The ``train_seconds`` metric (a timing, lower is better) described as ``description``."""
     return Metric("train_seconds", description, kind="timing", higher_is_better=False, fmt=".1f", goal=goal)
+
+
+def skill_outcomes(records: Sequence[Any]) -> dict[str, float]:
+    """The :data:`SKILL_OUTCOME_METRICS` of skill records (each with ``success`` and ``violation``; none: 0).
+
+    >>> from types import SimpleNamespace as R
+    >>> skill_outcomes([R(success=True, violation=False), R(success=False, violation=False)])
+    {'skill_success': 0.5, 'violations': 0.0}
+    """
+    n = max(len(records), 1)
+    return {
+        "skill_success": sum(r.success for r in records) / n,
+        "violations": sum(r.violation for r in records) / n,
+    }
 
 
 def evaluation_metrics(clean: Mapping[str, Any], perturbed: Mapping[str, Any]) -> dict[str, float]:

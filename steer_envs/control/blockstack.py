@@ -258,6 +258,19 @@ def _opening_centre(env: BlockStackEnv, plan: np.ndarray, held: int) -> np.ndarr
     return None if k is None else _held_centre(env, plan, k, held)
 
 
+def _read_plan(env: Any, plan: Any, owner: str) -> tuple[BlockStackEnv, np.ndarray, int | None, int | None]:
+    """The BlockStack under ``env``, the checked plan, the held cube and the plan's gripper switch.
+
+    The switch is the first waypoint that closes the gripper (hand empty) or
+    opens it (holding a cube); None if the plan never switches.
+    """
+    base = unwrap_blockstack(env, owner)
+    arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
+    held = base.held_cube
+    k = first_index(arr[:, 3] > 0 if held is None else arr[:, 3] <= 0)
+    return base, arr, held, k
+
+
 def classify_plan(env: Any, plan: Any) -> str | None:
     """The skill ``plan`` would perform from ``env``'s current state, read off the plan; None if none.
 
@@ -267,22 +280,16 @@ def classify_plan(env: Any, plan: Any) -> str | None:
     the held cube is over the top cube j of a tower, else ``place_i_on_table``
     when it is low near the table. ``env``: a BlockStackEnv or a wrapper of one.
     """
-    owner = "classify_plan"
-    base = unwrap_blockstack(env, owner)
-    arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
-    held = base.held_cube
+    base, arr, held, k = _read_plan(env, plan, "classify_plan")
+    if k is None:
+        return None
     if held is None:
-        k = first_index(arr[:, 3] > 0)
-        if k is None:
-            return None
         wp = arr[k, :3]
         cube = _closing_cube(base, wp)
         pos = base.cube_pos[cube]
         near = np.linalg.norm(pos[:2] - wp[:2]) < CLASSIFY_XY_TOL and abs(wp[2] - pos[2]) < GRASP_Z_TOL
         return f"pick_{cube}" if near else None
-    centre = _opening_centre(base, arr, held)
-    if centre is None:
-        return None
+    centre = _held_centre(base, arr, k, held)
     onto = _over_tower(base, centre, held)
     rest = base.table_z + CUBE_HALF if onto is None else base.cube_pos[onto, 2] + 2 * CUBE_HALF
     if not -CUBE_HALF < centre[2] - rest < PLACE_Z_TOL:
@@ -302,15 +309,11 @@ def plan_target(env: Any, plan: Any) -> str:
     waypoint (else the last) over a tower top j gives ``place_i_on_j``,
     anywhere else ``place_i_on_table``.
     """
-    owner = "plan_target"
-    base = unwrap_blockstack(env, owner)
-    arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
-    held = base.held_cube
+    base, arr, held, k = _read_plan(env, plan, "plan_target")
+    k = -1 if k is None else k
     if held is None:
-        k = first_index(arr[:, 3] > 0)
-        return f"pick_{_closing_cube(base, arr[-1 if k is None else k, :3])}"
-    k = first_index(arr[:, 3] <= 0)
-    onto = _over_tower(base, _held_centre(base, arr, -1 if k is None else k, held), held)
+        return f"pick_{_closing_cube(base, arr[k, :3])}"
+    onto = _over_tower(base, _held_centre(base, arr, k, held), held)
     return f"place_{held}_on_{'table' if onto is None else onto}"
 
 

@@ -53,6 +53,23 @@ __all__ = [
 FORMAT = "steer_envs.trajectories/1"
 
 
+def _raw_array(value: Any, name: str, kind: str, shape: str) -> np.ndarray:
+    """``value`` as a numpy array of the dtype numpy gives it (a torch tensor moved to the CPU first).
+
+    ``TypeError`` (``name`` must be ``kind``) for None, strings, bytes, dicts and
+    sets; ``ValueError`` (``name`` must be ``shape``) where numpy cannot make an
+    array of it (ragged input).
+    """
+    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):  # a torch tensor
+        value = value.detach().cpu().numpy()
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise TypeError(f"{name} must be {kind}, got {describe(value)}")
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be {shape} ({err})") from None
+
+
 def real_matrix(value: Any, name: str, dtype: type = np.float32) -> np.ndarray:
     """``value`` (a 2-D array, nested sequence or tensor of real numbers) as a ``dtype`` array, not coerced.
 
@@ -60,14 +77,7 @@ def real_matrix(value: Any, name: str, dtype: type = np.float32) -> np.ndarray:
     parse ``"1.5"`` and drop imaginary parts); ``ValueError`` for ragged input.
     Shapes and finiteness are the caller's checks.
     """
-    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):  # a torch tensor
-        value = value.detach().cpu().numpy()
-    if value is None or isinstance(value, (str, bytes, dict, set)):
-        raise TypeError(f"{name} must be an array of real numbers, got {describe(value)}")
-    try:
-        raw = np.asarray(value)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a rectangular array of real numbers ({err})") from None
+    raw = _raw_array(value, name, "an array of real numbers", "a rectangular array of real numbers")
     if raw.dtype.kind not in "iuf":
         raise TypeError(f"{name} must hold real numbers, got dtype {raw.dtype}")
     return np.asarray(raw, dtype=dtype)
@@ -75,14 +85,7 @@ def real_matrix(value: Any, name: str, dtype: type = np.float32) -> np.ndarray:
 
 def index_array(value: Any, name: str) -> np.ndarray:
     """``value`` as a 1-D int64 array of integers (floats, bools and strings are a ``TypeError``)."""
-    if hasattr(value, "detach") and callable(value.detach) and hasattr(value, "cpu"):
-        value = value.detach().cpu().numpy()
-    if value is None or isinstance(value, (str, bytes, dict, set)):
-        raise TypeError(f"{name} must be a sequence of ints, got {describe(value)}")
-    try:
-        raw = np.asarray(value)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a 1-D sequence of ints ({err})") from None
+    raw = _raw_array(value, name, "a sequence of ints", "a 1-D sequence of ints")
     if raw.size == 0:
         raw = raw.astype(np.int64)
     if raw.dtype.kind not in "iu":

@@ -27,6 +27,7 @@ beyond that raises :class:`LTLParseError` naming the limit, never a
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
@@ -242,25 +243,23 @@ class _Parser:
         return left
 
     def disjunction(self) -> _Rule:
-        args = [(yield self.exclusive)]
-        while self.tok.kind == "or":
-            self.pos += 1
-            args.append((yield self.exclusive))
-        return s.Or(*args)
+        return s.Or(*(yield from self._operands("or", self.exclusive)))
 
     def exclusive(self) -> _Rule:
-        left = yield self.conjunction
-        while self.tok.kind == "xor":
-            self.pos += 1
-            left = s.Xor(left, (yield self.conjunction))
-        return left
+        return functools.reduce(s.Xor, (yield from self._operands("xor", self.conjunction)))  # left-associative
 
     def conjunction(self) -> _Rule:
-        args = [(yield self.temporal)]
-        while self.tok.kind == "and":
+        return s.And(*(yield from self._operands("and", self.temporal)))
+
+    def _operands(
+        self, op: str, operand: Callable[[], _Rule]
+    ) -> Generator[Callable[[], _Rule], Formula, list[Formula]]:
+        """The operands of ``operand (op operand)*``, in order."""
+        args = [(yield operand)]
+        while self.tok.kind == op:
             self.pos += 1
-            args.append((yield self.temporal))
-        return s.And(*args)
+            args.append((yield operand))
+        return args
 
     def temporal(self) -> _Rule:
         left = yield self.unary

@@ -4,8 +4,11 @@
     steer-ui --policy act --port 9000 --open
     steer-ui --domain blockstack  # the robot arm: click a cube in the camera image
 
-Binds to 127.0.0.1 unless ``--host`` says otherwise (then it warns: anyone who
-can reach the port can drive the server's CPU).
+Binds to 127.0.0.1. Another interface needs ``--allow-remote`` (and warns:
+anyone who can reach the port can drive the server); the server answers only
+requests that name it by this machine's names, the bound address or an
+``--allowed-host``, and only WebSockets from its own page
+(:mod:`steer_envs.ui.access`).
 """
 
 from __future__ import annotations
@@ -17,10 +20,9 @@ from collections.abc import Sequence
 
 from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 from steer_envs.core.extras import MissingExtraError, require
+from steer_envs.ui.access import ANY_INTERFACE, allowed_hosts, is_local
 from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
 from steer_envs.utils.fields import build_from
-
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,6 +31,18 @@ def build_parser() -> argparse.ArgumentParser:
         prog="steer-ui", description="Steer a frozen robot policy by hand in the browser: sketch, point, nudge."
     )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default: 127.0.0.1, this machine only)")
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="let --host be an interface other than this machine's (anyone who can reach the port can steer)",
+    )
+    parser.add_argument(
+        "--allowed-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="another Host name clients may use (repeatable; e.g. the machine's name on the network)",
+    )
     parser.add_argument("--port", type=int, default=8765, help="TCP port (default: 8765; 0 picks a free one)")
     parser.add_argument("--domain", choices=sorted(DOMAINS), default="maze2d", help="what to steer (default: maze2d)")
     parser.add_argument("--env", default=None, help=f"another env id of the domain (maze2d default: {DEFAULT_ENV})")
@@ -60,6 +74,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--port must be in [0, 65535], got {args.port}")
     if args.workers < 1 or args.threads < 1 or args.seed < 0:
         parser.error("--workers and --threads must be >= 1 and --seed >= 0")
+    if not is_local(args.host) and not args.allow_remote:
+        parser.error(f"--host {args.host} serves beyond this machine: add --allow-remote to mean it")
+    if args.host in ANY_INTERFACE and not args.allowed_host:
+        parser.error(f"--host {args.host} has no name to check requests against: add --allowed-host NAME")
     try:
         for module in ("fastapi", "uvicorn", "websockets"):
             require(module, "ui", "steer-ui")
@@ -72,12 +90,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from steer_envs.ui.server import UIConfig, create_app
 
     torch.set_num_threads(args.threads)
-    if args.host not in LOCAL_HOSTS:
+    if not is_local(args.host):
         print(
-            f"warning: binding to {args.host}: anyone who can reach port {args.port} can use this server's CPU",
+            f"warning: binding to {args.host}: anyone who can reach port {args.port} can steer this server's robot",
             file=sys.stderr,
         )
-    config = build_from(UIConfig, args)
+    config = build_from(UIConfig, args, allowed_hosts=allowed_hosts(args.host, args.allowed_host))
     try:
         app = create_app(config)
     except (ValueError, TypeError) as exc:

@@ -6,6 +6,10 @@ thread pool, so a slow SS call never blocks the event loop or another tab;
 messages are validated on the event loop first (:func:`parse_message`), so a
 bad message is answered at once with an ``error`` and changes nothing.
 Closing the tab closes its env.
+
+Requests whose ``Host`` is not one of :attr:`UIConfig.allowed_hosts` are
+refused, and so is a WebSocket whose ``Origin`` is not the page's own
+(:mod:`steer_envs.ui.access`).
 """
 
 from __future__ import annotations
@@ -28,9 +32,11 @@ import numpy as np
 from fastapi import FastAPI, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 from steer_envs.core.validation import integer, one_of
 from steer_envs.steering import SAMPLERS
+from steer_envs.ui.access import LOCAL_HOSTS, same_origin
 from steer_envs.ui.messages import Message, MessageError, parse_message
 from steer_envs.ui.session import DOMAINS, MAX_BATCH, Session, SteerOutcome, shared_policy
 from steer_envs.ui.views import SessionError
@@ -60,6 +66,8 @@ class UIConfig:
     workers: int = 2
     #: open connections at once; more are refused with a message
     max_sessions: int = 32
+    #: the ``Host`` names requests may carry (this machine's by default; add the name a remote client uses)
+    allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
 
 
 def _pixels(arr: np.ndarray) -> list[Any]:
@@ -97,6 +105,11 @@ class _Connection:
 
     # ---------------------------------------------------------------- serve
     async def serve(self) -> None:
+        origin, host = self.ws.headers.get("origin"), self.ws.headers.get("host")
+        if not same_origin(origin, host):
+            log.warning("refused a WebSocket from origin %r (the page is served as %r)", origin, host)
+            await self.ws.close(code=1008)  # before accept: the browser sees a refused handshake (HTTP 403)
+            return
         await self.ws.accept()
         if len(self.app.active) >= self.app.config.max_sessions:
             await self.error(f"the server is full ({self.app.config.max_sessions} sessions); try again later")
@@ -326,6 +339,8 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
             state.pool.shutdown(wait=False, cancel_futures=True)
 
     app = FastAPI(title="steer-ui", lifespan=lifespan, docs_url=None, redoc_url=None)
+    hosts = [h.strip("[]") for h in config.allowed_hosts]
+    app.add_middleware(TrustedHostMiddleware, allowed_hosts=[*hosts, *(f"[{h}]" for h in hosts if ":" in h)])
     static = resources.files("steer_envs.ui") / "static"
     app.mount("/static", StaticFiles(directory=str(static)), name="static")
     index = (static / "index.html").read_text(encoding="utf-8")

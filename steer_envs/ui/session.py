@@ -377,12 +377,17 @@ class Session:
         return self._done
 
     def configure(self, **knobs: Any) -> SteerSettings:
-        """Change sampler / knobs (``SteerSettings`` fields); unknown names give ``TypeError``."""
+        """Change sampler / knobs (``SteerSettings`` fields; ``None``: the domain's default for that knob).
+
+        Unknown names give ``TypeError``.
+        """
         unknown = sorted(set(knobs) - set(SteerSettings.__dataclass_fields__))
         if unknown:
             raise TypeError(
                 f"Session.configure: unknown knob(s) {unknown}; known: {list(SteerSettings.__dataclass_fields__)}"
             )
+        defaults = self.domain.settings
+        knobs = {name: getattr(defaults, name) if value is None else value for name, value in knobs.items()}
         settings = replace(self.settings, **knobs).checked()
         sampler = settings.make_sampler()
         sampler.check_policy(self.policy)  # BI/GD/SS need a diffusion policy: refuse here, not at the next call

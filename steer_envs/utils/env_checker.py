@@ -100,6 +100,30 @@ class _Checker:
         except Exception as err:
             raise self.fail(convention, f"raised {type(err).__name__}: {err}") from err
 
+    def refused(
+        self,
+        convention: str,
+        call: str,
+        fn: Callable[[], Any],
+        expected: tuple[type[Exception], ...],
+        argument: str | None,
+        accepted: str,
+    ) -> None:
+        """``fn()`` (written ``call``) must raise one of ``expected``, naming ``argument`` where given.
+
+        ``accepted``: the failure's detail when it raises nothing.
+        """
+        try:
+            fn()
+        except expected as err:
+            if argument is not None and not re.search(rf"\b{argument}\b", str(err)):
+                raise self.fail(convention, f"{call} raised {err!r}, which does not name `{argument}`") from err
+        except Exception as err:
+            names = " or ".join(e.__name__ for e in expected)
+            raise self.fail(convention, f"{call} raised {type(err).__name__} (expected {names}): {err}") from err
+        else:
+            raise self.fail(convention, accepted)
+
     # ------------------------------------------------------------ static members
     def interaction_kinds(self) -> None:
         kinds = self.base.interaction_kinds
@@ -255,19 +279,7 @@ class _Checker:
             ("perturb(to='left')", lambda: base.perturb(to="left"), TypeError, "to"),
         ]
         for call, fn, expected, argument in bad:
-            try:
-                fn()
-            except expected as err:
-                if argument is not None and not re.search(rf"\b{argument}\b", str(err)):
-                    raise self.fail(
-                        "perturb_arguments", f"{call} raised {err!r}, which does not name `{argument}`"
-                    ) from err
-            except Exception as err:
-                raise self.fail(
-                    "perturb_arguments", f"{call} raised {type(err).__name__}, not {expected.__name__}"
-                ) from err
-            else:
-                raise self.fail("perturb_arguments", f"{call} raised no {expected.__name__}")
+            self.refused("perturb_arguments", call, fn, (expected,), argument, f"{call} raised no {expected.__name__}")
             if not np.array_equal(self.state(), before):
                 raise self.fail("perturb_arguments", f"the rejected {call} moved the agent")
 
@@ -277,32 +289,13 @@ class _Checker:
             return
         before = self.state()
         bad = np.zeros(space.shape[0] + 1, dtype=space.dtype)
-        try:
-            self.env.step(bad)
-        except ValueError as err:
-            if not re.search(r"\baction\b", str(err)):
-                raise self.fail(
-                    "action_arguments", f"step(<{bad.size} numbers>) raised {err!r}, which does not name `action`"
-                ) from err
-        except Exception as err:
-            raise self.fail(
-                "action_arguments", f"step(<{bad.size} numbers>) raised {type(err).__name__}: {err}"
-            ) from err
-        else:
-            raise self.fail("action_arguments", f"step accepted an action of shape {bad.shape} for {space}")
+        call, accepted = f"step(<{bad.size} numbers>)", f"step accepted an action of shape {bad.shape} for {space}"
+        self.refused("action_arguments", call, lambda: self.env.step(bad), (ValueError,), "action", accepted)
         # words, not numbers: any clean refusal will do (envs may word it their way), silence will not
         words = np.array(["left"] * space.shape[0])
         call = f"step({words.tolist()!r})"
-        try:
-            self.env.step(words)
-        except (TypeError, ValueError):
-            pass
-        except Exception as err:
-            raise self.fail(
-                "action_arguments", f"{call} raised {type(err).__name__} (expected TypeError or ValueError): {err}"
-            ) from err
-        else:
-            raise self.fail("action_arguments", f"{call} was accepted as an action for {space}")
+        accepted = f"{call} was accepted as an action for {space}"
+        self.refused("action_arguments", call, lambda: self.env.step(words), (TypeError, ValueError), None, accepted)
         if not np.array_equal(self.state(), before):
             raise self.fail("action_arguments", "a rejected action moved the agent")
 

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 from skill_samples import blockstack_record as record
+from skill_samples import check_descent_plan
 
 from steer_envs.data.blockstack_plans import PLAN_HORIZON, PLAN_STRIDE, skill_plan, to_plan_dataset
 from steer_envs.data.blockstack_skills import OBS_DIM
@@ -14,17 +15,8 @@ from steer_envs.data.trajectories import PlanWindows, load_trajectories
 
 
 def test_waypoints_are_the_eef_every_stride_steps_padded_with_the_last() -> None:
-    r = record(50, close_at=20)
-    made = skill_plan(r)
-    assert made is not None
-    obs, plan = made
-    assert plan.shape == (PLAN_HORIZON, 4) and obs.shape == (PLAN_HORIZON, OBS_DIM)
-    k = np.arange(PLAN_HORIZON)
-    ends = np.minimum(PLAN_STRIDE * (k + 1), 50)
-    assert np.allclose(plan[:, 2], 0.2 - 1e-3 * ends)
-    assert np.array_equal(plan[:, 3], np.where(ends >= 20, 1.0, -1.0))
-    assert obs[0, 5] == 0 and obs[1, 5] == PLAN_STRIDE  # the first observation is the skill's start
-    assert np.all(plan[ends == 50] == plan[-1])  # padding repeats the last waypoint
+    made = skill_plan(record(50, close_at=20))
+    check_descent_plan(made, 50, 20, horizon=PLAN_HORIZON, stride=PLAN_STRIDE, width=4, obs_dim=OBS_DIM, marker=5)
 
 
 def test_too_long_or_empty_skills_make_no_plan() -> None:

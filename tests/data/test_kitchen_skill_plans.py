@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from skill_samples import check_descent_plan
 from skill_samples import kitchen_record as record
 
 from steer_envs.data.kitchen_plans import PLAN_DIM, PLAN_HORIZON, PLAN_STRIDE, plan_yaw, skill_plan, to_plan_dataset
@@ -20,17 +21,11 @@ from steer_envs.io import DatasetError
 
 
 def test_waypoints_are_the_state_every_stride_steps_padded_with_the_last() -> None:
-    r = record(100, close_at=40)
-    made = skill_plan(r)
-    assert made is not None
-    obs, plan = made
-    assert plan.shape == (PLAN_HORIZON, PLAN_DIM) == (PLAN_HORIZON, 5) and obs.shape == (PLAN_HORIZON, OBS_DIM)
-    k = np.arange(PLAN_HORIZON)
-    ends = np.minimum(PLAN_STRIDE * (k + 1), 100)
-    assert np.allclose(plan[:, 2], 0.2 - 1e-3 * ends)
-    assert np.array_equal(plan[:, 4], np.where(ends >= 40, 1.0, -1.0))
-    assert obs[0, 7] == 0 and obs[1, 7] == PLAN_STRIDE  # the first observation is the skill's start
-    assert np.all(plan[ends == 100] == plan[-1])  # padding repeats the last waypoint
+    assert PLAN_DIM == 5
+    made = skill_plan(record(100, close_at=40))
+    obs, plan = check_descent_plan(
+        made, 100, 40, horizon=PLAN_HORIZON, stride=PLAN_STRIDE, width=PLAN_DIM, obs_dim=OBS_DIM, marker=7
+    )
     again = skill_plan(record(100, close_at=40))
     assert again is not None and np.array_equal(again[1], plan) and np.array_equal(again[0], obs)  # deterministic
 

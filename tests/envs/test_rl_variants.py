@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from kinematic_helpers import step_singles_like_vector
 
 import steer_envs
 from steer_envs.data.experts import make_expert
@@ -223,14 +224,8 @@ def test_vector_env_matches_single_envs_with_every_option(env_id: str) -> None:
     done = np.zeros(num, dtype=bool)
     for _ in range(25):
         actions = rng.uniform(-1, 1, size=(num, 2)).astype(np.float32)
-        vobs, vrew, vterm, _, _ = venv.step(actions)
-        for k, env in enumerate(singles):
-            if done[k]:
-                continue
-            sobs, srew, sterm, _, _ = env.step(actions[k])
-            np.testing.assert_allclose(vobs[k], sobs, atol=1e-5)
-            assert vrew[k] == pytest.approx(srew, abs=1e-6) and vterm[k] == sterm
-            done[k] = sterm
+        for k, terminated, _, _ in step_singles_like_vector(venv, singles, actions, done):
+            done[k] = terminated
     venv.close()
 
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from stub_policies import RandomLines
-from test_samplers import MixturePolicy
+from stub_policies import LineModes, RandomLines
+from test_samplers import counted_samplers, network_evals
 
 torch = pytest.importorskip("torch")
 
@@ -27,11 +27,12 @@ from steer_envs.steering.flow import integrate_plans, is_flow_policy, train_time
 OBS = np.zeros(2)
 
 
-class FlowMixture:
+class FlowMixture(LineModes):
     """Exact rectified-flow velocity of a Gaussian mixture of straight-line plans from the agent (K headings).
 
     Data: ``x1 ~ N(m_k, std^2 I)`` with ``m_k = normalize(obs + s * L * u_k)`` for
-    ``s`` in ``(0, 1]``, heading ``u_k``, equal weights. At ``(x, tau)``,
+    ``s`` in ``(0, 1]``, heading ``u_k``, equal weights: the diffusion test double's
+    modes (:class:`LineModes`, ``geometry`` its arguments). At ``(x, tau)``,
     ``x ~ N(tau m_k, (tau^2 std^2 + (1 - tau)^2) I)`` under component ``k`` and
     ``E[x1 - x0 | x, k] = m_k + (tau std^2 - (1 - tau)) / var * (x - tau m_k)``;
     the velocity is their posterior-weighted mean. ``sample`` is
@@ -44,32 +45,13 @@ class FlowMixture:
     device = torch.device("cpu")
     dtype = torch.float64
 
-    def __init__(
-        self,
-        angles_deg: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0),
-        *,
-        horizon: int = 16,
-        length: float = 3.0,
-        std: float = 0.02,
-    ) -> None:
-        self.horizon = horizon
-        a = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
-        self.dirs = np.stack([np.cos(a), np.sin(a)], axis=1)
-        self.length, self.std = length, std
-        self.low, self.high = np.array([-5.0, -5.0]), np.array([5.0, 5.0])
+    def __init__(self, **geometry: Any) -> None:
+        super().__init__(**geometry)
         self.inputs: list[tuple[torch.Tensor, float]] = []
 
     @property
     def calls(self) -> int:
         return len(self.inputs)
-
-    def modes(self, xy: Any) -> np.ndarray:
-        steps = np.linspace(1.0 / self.horizon, 1.0, self.horizon)[None, :, None] * self.length
-        return np.asarray(xy, dtype=np.float64)[None, None, :2] + steps * self.dirs[:, None, :]
-
-    def encode_obs(self, obs: Any) -> torch.Tensor:
-        arr = np.asarray(obs, dtype=np.float64)
-        return torch.as_tensor(self.normalize(self.modes(arr.reshape(-1, arr.shape[-1])[-1, :2])))
 
     def predict_velocity(self, x: torch.Tensor, tau: Any, cond: torch.Tensor) -> torch.Tensor:
         assert isinstance(tau, float) and 0.0 <= tau < 1.0, tau
@@ -82,16 +64,8 @@ class FlowMixture:
         velocity = cond[None] + (tau * s2 - (1 - tau)) / var * diff
         return (weights * velocity).sum(1).to(x.dtype)
 
-    # the same min-max box as the diffusion test double's
-    normalize = MixturePolicy.normalize
-    unnormalize = MixturePolicy.unnormalize
-
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         return integrate_plans(self, obs, n, generator)
-
-    def off_manifold(self, plans: np.ndarray, obs: Any) -> np.ndarray:
-        """Mean per-step distance of every plan to its nearest mode (env units)."""
-        return np.linalg.norm(plans[:, None] - self.modes(obs)[None], axis=-1).mean(-1).min(axis=1)
 
 
 class StandStill(FlowMixture):
@@ -225,20 +199,12 @@ def test_ss_stays_nearer_the_data_than_gd_at_the_same_guide_ratio(policy: FlowMi
 
 
 def test_network_evaluations_of_the_flow_forms(policy: FlowMixture) -> None:
-    sketch = sketch_at(45.0)
-    counts = {}
-    for name, sampler in {
-        "GD": GuidedDiffusion(),
-        "SS": StochasticSampling(),
-        "SS2": StochasticSampling(mcmc_steps=2),
-        "BI": BiasedInitialization(),
+    samplers = {
+        **counted_samplers(),
         "BI0": BiasedInitialization(start_t=0),
         "BI100": BiasedInitialization(start_t=100),
-    }.items():
-        policy.inputs.clear()
-        result = sampler(policy, OBS, sketch, 4, generator=np.random.default_rng(0))
-        counts[name] = policy.calls
-        assert result.timings["network_evals"] == policy.calls and result.timings["total_ms"] > 0
+    }
+    counts = network_evals(policy, samplers)
     assert counts == {"GD": 10, "SS": 40, "SS2": 20, "BI": 5, "BI0": 0, "BI100": 10}
 
 

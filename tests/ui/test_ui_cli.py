@@ -24,7 +24,16 @@ def test_help(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 @pytest.mark.parametrize(
-    "argv", [["--port", "70000"], ["--policy", "gpt"], ["--workers", "0"], ["--seed", "-1"], ["--bogus"]]
+    "argv",
+    [
+        ["--port", "70000"],
+        ["--policy", "gpt"],
+        ["--workers", "0"],
+        ["--seed", "-1"],
+        ["--bogus"],
+        ["--host", "0.0.0.0"],  # beyond this machine without --allow-remote
+        ["--host", "0.0.0.0", "--allow-remote"],  # every interface: no name to check a Host against
+    ],
 )
 def test_usage_errors_exit_2(argv: list[str]) -> None:
     with pytest.raises(SystemExit) as exit_info:
@@ -40,7 +49,8 @@ def _free_port() -> int:
 
 def test_the_console_script_serves_the_page_and_warns_when_exposed() -> None:
     port = _free_port()
-    cmd = [sys.executable, "-m", "steer_envs.ui", "--port", str(port), "--host", "0.0.0.0"]
+    cmd = [sys.executable, "-m", "steer_envs.ui", "--port", str(port), "--host", "0.0.0.0", "--allow-remote"]
+    cmd += ["--allowed-host", "robot-pc.lan"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120

@@ -118,3 +118,48 @@ def test_page_and_health(server: RunningServer) -> None:
         assert b"steer-ui" in page.read()
     with urlopen(server.url + "/api/health", timeout=TIMEOUT) as health:
         assert json.loads(health.read())["status"] == "ok"
+
+
+def test_foreign_origins_are_refused_and_the_own_page_is_accepted(server: RunningServer) -> None:
+    from websockets.exceptions import InvalidStatus
+
+    host = server.url.removeprefix("http://")
+    for origin in ("http://evil.example.com", "null", f"http://{host}.evil.example.com"):
+        with pytest.raises(InvalidStatus) as refused, connect(server.ws_url, origin=origin):  # type: ignore[arg-type]
+            pass
+        assert refused.value.response.status_code == 403, origin
+    with connect(server.ws_url, origin=f"http://{host}") as ws:  # type: ignore[arg-type]
+        assert ask(ws, {"type": "hello"})["type"] == "ready"
+
+
+def test_a_foreign_host_header_is_refused(server: RunningServer) -> None:
+    """DNS rebinding: a page of evil.example.com whose name now points at 127.0.0.1."""
+    import http.client
+
+    from websockets.exceptions import InvalidStatus
+
+    for path in ("/", "/api/health"):
+        conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=TIMEOUT)
+        conn.request("GET", path, headers={"Host": f"evil.example.com:{server.port}"})
+        assert conn.getresponse().status == 400, path
+        conn.close()
+    conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=TIMEOUT)
+    conn.request("GET", "/api/health", headers={"Host": f"localhost:{server.port}"})
+    assert conn.getresponse().status == 200
+    conn.close()
+    with (
+        pytest.raises(InvalidStatus) as refused,
+        connect(server.ws_url, additional_headers={"Host": "evil.example.com"}),
+    ):
+        pass
+    assert refused.value.response.status_code == 400
+
+
+def test_configure_null_means_the_default(server: RunningServer) -> None:
+    with connect(server.ws_url) as ws:
+        ask(ws, {"type": "hello"})
+        changed = ask(ws, {"type": "configure", "sampler": "GD", "batch": 4}, until="settings")
+        assert changed["settings"]["sampler"] == "GD" and changed["settings"]["batch"] == 4
+        back = ask(ws, {"type": "configure", "sampler": None, "batch": None}, until="settings")
+        assert back["type"] == "settings", back
+        assert back["settings"]["sampler"] == "SS" and back["settings"]["batch"] == 32  # Maze2D's defaults

@@ -37,7 +37,14 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from steer_envs.bench.findings import judge, listing
-from steer_envs.bench.metrics import BUILT, QUADRANT_METRICS, SHARE, table_references
+from steer_envs.bench.metrics import (
+    BUILT,
+    QUADRANT_METRICS,
+    SHARE,
+    SKILL_OUTCOME_METRICS,
+    skill_outcomes,
+    table_references,
+)
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
@@ -82,12 +89,7 @@ def run_data_trial(trial: Trial) -> TrialResult:
     with single_threaded():
         settings = ShardSettings(trial.seed, params.skills_per_episode, params.branches)
         records, path, built = ensure_shard(params.cache, settings)
-    metrics = {
-        "skills": len(records),
-        "skill_success": sum(r.success for r in records) / len(records),
-        "violations": sum(r.violation for r in records) / len(records),
-        "built": built,
-    }
+    metrics = {"skills": len(records), **skill_outcomes(records), "built": built}
     extra = {"shard": str(path), "skills": [r.name for r in records], "steps": [len(r) for r in records]}
     return TrialResult(metrics, extra)
 
@@ -101,8 +103,7 @@ register_suite(
         ),
         metrics=(
             Metric("skills", "skills in the shard", fmt=".0f"),
-            Metric("skill_success", "skills whose outcome the world shows at their end", fmt=".2f"),
-            Metric("violations", "skills that reported a constraint violation", higher_is_better=False, fmt=".2f"),
+            *SKILL_OUTCOME_METRICS,
             BUILT,
         ),
         run_trial=run_data_trial,

@@ -46,7 +46,14 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from steer_envs.bench.findings import judge
-from steer_envs.bench.metrics import BUILT, QUADRANT_METRICS, SHARE, table_references
+from steer_envs.bench.metrics import (
+    BUILT,
+    QUADRANT_METRICS,
+    SHARE,
+    SKILL_OUTCOME_METRICS,
+    skill_outcomes,
+    table_references,
+)
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
@@ -135,8 +142,7 @@ def run_data_trial(trial: Trial) -> TrialResult:
     n = max(len(records), 1)
     metrics = {
         "skills": len(records),
-        "skill_success": sum(r.success for r in records) / n,
-        "violations": sum(r.violation for r in records) / n,
+        **skill_outcomes(records),
         "goal": sum(goals) / len(goals),
         "steps": sum(len(r) for r in records) / n,
         "built": built,
@@ -162,8 +168,7 @@ register_suite(
         ),
         metrics=(
             Metric("skills", "skills in the shard", fmt=".1f"),
-            Metric("skill_success", "skills whose outcome the world shows at their end", fmt=".2f"),
-            Metric("violations", "skills that reported a constraint violation", higher_is_better=False, fmt=".2f"),
+            *SKILL_OUTCOME_METRICS,
             Metric("goal", "the episode reached its task's goal", fmt=".2f"),
             Metric("steps", "control steps per skill", fmt=".0f"),
             BUILT,
