@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import sys
 from collections.abc import Callable, Iterator
 from types import ModuleType
 from typing import Any, TypedDict, Unpack
@@ -40,6 +41,7 @@ from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
 from steer_envs.envs.checks import check_action, check_options, check_render_mode, check_seed
 from steer_envs.envs.robosuite import camera as cam
+from steer_envs.envs.robosuite.gl_backend import ensure_gl_backend
 from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
 
 __all__ = [
@@ -77,8 +79,11 @@ def require_robosuite() -> ModuleType:
     """The ``robosuite`` module; without it an ``ImportError`` naming ``pip install "steer-envs[arm]"``.
 
     Every arm env calls it before it builds its sim, so ``gymnasium.make("steer_envs/Lift-v0")``
-    without robosuite fails with that message rather than deep inside.
+    without robosuite fails with that message rather than deep inside. It first picks an
+    offscreen GL backend that works here when ``MUJOCO_GL`` is unset (:func:`ensure_gl_backend`).
     """
+    if "robosuite" not in sys.modules:  # robosuite reads MUJOCO_GL once, at its import
+        ensure_gl_backend()
     with _quiet_robosuite():
         return require("robosuite", "arm", ARM_FEATURE)
 
