@@ -182,14 +182,20 @@ class _Connection:
         try:
             await fn(*args)
         except (SessionError, MessageError, ValueError, TypeError) as exc:
-            self.playing = False
+            await self.stop_playing()
             await self.error(str(exc))
         except WebSocketDisconnect:
             raise
         except Exception as exc:  # a bug must not take the server down: log it and tell the page
             log.exception("steer-ui request failed")
-            self.playing = False
+            await self.stop_playing()
             await self.error(f"internal error ({type(exc).__name__}: {exc})")
+
+    async def stop_playing(self) -> None:
+        """Stop the play loop and tell the page (its button turns back to Play)."""
+        if self.playing:
+            self.playing = False
+            await self.send({"type": "playing", "playing": False})
 
     # -------------------------------------------------------------- requests
     async def handle(self, message: Message) -> None:
@@ -202,7 +208,7 @@ class _Connection:
             settings = await self.call(session.configure, **fields)
             await self.send({"type": "settings", "settings": settings.as_dict()})
         elif message.type == "reset":
-            self.playing = False
+            await self.stop_playing()
             seed = fields.get("seed")
             await self.call(session.reset, None if seed is None else integer(seed, "`seed`", low=0, high=2**31 - 1))
             await self.send(await self.call(self.frame_payload, None, "reset"))
@@ -234,8 +240,7 @@ class _Connection:
         payload = await self.call(self.step_payload)
         await self.send(payload)
         if payload["done"]:
-            self.playing = False
-            await self.send({"type": "playing", "playing": False})
+            await self.stop_playing()
 
     # -------------------------------------------------------------- payloads
     def ready_payload(self) -> dict[str, Any]:
@@ -318,6 +323,27 @@ class _AppState:
     config: UIConfig
     pool: ThreadPoolExecutor
     active: set[_Connection]
+    #: how long the start-up steering call took (the network's compilation happens there, not at a user's first call)
+    warm_up_ms: float = 0.0
+
+
+def _warm_up(config: UIConfig) -> float:
+    """One unsteered call of a throw-away session: per-shape compilation and caches happen before serving."""
+    started = time.perf_counter()
+    session = Session(
+        config.domain,
+        env=config.env,
+        policy=config.policy,
+        checkpoint=config.checkpoint,
+        accelerate=config.accelerate,
+        seed=config.seed,
+        threads=None,
+    )
+    try:
+        session.steer(None)
+    finally:
+        session.close()
+    return (time.perf_counter() - started) * 1e3
 
 
 def create_app(config: UIConfig | None = None) -> FastAPI:
@@ -333,6 +359,7 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
         loop = asyncio.get_running_loop()
         policy = config.policy or DOMAINS[config.domain].policies[0]
         await loop.run_in_executor(state.pool, shared_policy, policy, config.checkpoint, config.accelerate)
+        state.warm_up_ms = await loop.run_in_executor(state.pool, _warm_up, config)
         try:
             yield
         finally:
@@ -351,7 +378,9 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
 
     @app.get("/api/health")
     async def health() -> JSONResponse:
-        return JSONResponse({"status": "ok", "sessions": len(state.active), "domain": config.domain})
+        return JSONResponse(
+            {"status": "ok", "sessions": len(state.active), "domain": config.domain, "warm_up_ms": state.warm_up_ms}
+        )
 
     @app.websocket("/ws")
     async def steer_socket(websocket: WebSocket) -> None:

@@ -100,12 +100,18 @@ class CameraView:
         return np.asarray(out)
 
     def to_pixels(self, points: Any) -> np.ndarray:
-        """``(..., 3)`` world points -> ``(..., 2)`` pixels (not clipped to the frame)."""
+        """``(..., k >= 3)`` points whose first three entries are world xyz -> ``(..., 2)`` pixels (not clipped).
+
+        Skill plans carry more per waypoint (``[x, y, z, gripper]``); only the position is drawn.
+        """
         from steer_envs.envs.robosuite import camera as cam
 
         arr = np.asarray(points, dtype=np.float64)
-        flat = cam.world_to_pixel(arr.reshape(-1, 3), self.base.camera_matrix())
-        return np.asarray(flat, dtype=np.float64).reshape(-1, 3)[:, :2].reshape(*arr.shape[:-1], 2)
+        if arr.ndim < 1 or arr.shape[-1] < 3:
+            raise SessionError(f"CameraView.to_pixels needs points with x, y, z on the last axis, got {arr.shape}")
+        xyz = arr[..., :3]
+        flat = cam.world_to_pixel(xyz.reshape(-1, 3), self.base.camera_matrix())
+        return np.asarray(flat, dtype=np.float64)[:, :2].reshape(*xyz.shape[:-1], 2)
 
     def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
         """As :meth:`PixelMap.check_pixels`."""

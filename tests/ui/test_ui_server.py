@@ -117,7 +117,8 @@ def test_page_and_health(server: RunningServer) -> None:
     with urlopen(server.url, timeout=TIMEOUT) as page:
         assert b"steer-ui" in page.read()
     with urlopen(server.url + "/api/health", timeout=TIMEOUT) as health:
-        assert json.loads(health.read())["status"] == "ok"
+        status = json.loads(health.read())
+    assert status["status"] == "ok" and status["warm_up_ms"] > 0  # a steering call ran before serving
 
 
 def test_foreign_origins_are_refused_and_the_own_page_is_accepted(server: RunningServer) -> None:
@@ -163,3 +164,28 @@ def test_configure_null_means_the_default(server: RunningServer) -> None:
         back = ask(ws, {"type": "configure", "sampler": None, "batch": None}, until="settings")
         assert back["type"] == "settings", back
         assert back["settings"]["sampler"] == "SS" and back["settings"]["batch"] == 32  # Maze2D's defaults
+
+
+def test_play_stops_when_the_episode_ends_and_reset_starts_afresh(server: RunningServer) -> None:
+    with connect(server.ws_url) as ws:
+        ask(ws, {"type": "hello"})
+        ask(ws, {"type": "configure", "sampler": "RS", "batch": 2}, until="settings")  # a whole plan per tick
+        assert ask(ws, {"type": "play"}, until="playing")["playing"] is True
+        ended = False
+        for _ in range(2000):
+            reply = json.loads(ws.recv(timeout=TIMEOUT))
+            assert reply["type"] != "error", reply
+            ended = ended or (reply["type"] == "frame" and reply["done"])
+            if reply["type"] == "playing":
+                assert reply["playing"] is False and ended
+                break
+        else:
+            pytest.fail("play did not stop at the end of the episode")
+        # Play on an ended episode: refused, and the page is told that play stopped (its button reads Play)
+        assert ask(ws, {"type": "play"}, until="playing")["playing"] is True
+        replies = [json.loads(ws.recv(timeout=TIMEOUT)) for _ in range(2)]
+        assert {r["type"] for r in replies} == {"playing", "error"}, replies
+        assert next(r for r in replies if r["type"] == "playing")["playing"] is False
+        frame = ask(ws, {"type": "reset", "seed": 1}, until="frame")
+        assert frame["done"] is False
+        assert ask(ws, {"type": "step"}, until="frame")["type"] == "frame"  # steering works again

@@ -168,6 +168,8 @@ def test_blockstack_clicks_land_on_surfaces_and_skills_run() -> None:
         with limit_threads(1, 1):
             outcome = arm.steer_pixels("point", [pixel])
             assert outcome.plans.shape == (2, 32, 4) and outcome.collides is None
+            # what the server sends the page: the plans' positions in the camera (the gripper is not drawn)
+            assert arm.pixels.to_pixels(outcome.plans).shape == (2, 32, 2)
             step = arm.execute()
         assert step.executed.shape[1] == 3 and len(step.executed) > 10  # the end effector's trail
         assert "skill" in step.info and arm.last is None

@@ -101,7 +101,7 @@ const HANDLERS = {
     ui.frames += 1;
     ui.agent = msg.agent;
     if (msg.why !== "ready") { ui.plans = []; ui.chosen = -1; ui.collides = null; }
-    if (msg.why === "reset") { ui.interaction = []; ui.lastInteraction = null; }
+    if (msg.why === "reset") { ui.interaction = []; ui.lastInteraction = null; $("error").hidden = true; }
     $("seed").value = msg.seed;
     const state = msg.done ? "ended — press Reset" : "running";
     const extra = [msg.mode && `mode ${msg.mode}`, msg.success && "success", msg.violation && "constraint violated"].filter(Boolean);
