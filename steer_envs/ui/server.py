@@ -118,17 +118,7 @@ class _Connection:
         self.app.active.add(self)
         worker: asyncio.Task[None] | None = None
         try:
-            config = self.app.config
-            self.session = await self.call(
-                Session,
-                config.domain,
-                env=config.env,
-                policy=config.policy,
-                checkpoint=config.checkpoint,
-                accelerate=config.accelerate,
-                seed=config.seed,
-                threads=None,  # set once per process (steer-ui --threads); not per call from many threads
-            )
+            self.session = await self.call(_open_session, self.app.config)
             worker = asyncio.create_task(self.work())
             await self.read()
         except WebSocketDisconnect:
@@ -327,18 +317,23 @@ class _AppState:
     warm_up_ms: float = 0.0
 
 
-def _warm_up(config: UIConfig) -> float:
-    """One unsteered call of a throw-away session: per-shape compilation and caches happen before serving."""
-    started = time.perf_counter()
-    session = Session(
+def _open_session(config: UIConfig) -> Session:
+    """A session of the served domain, env and policy (the weights are shared across sessions)."""
+    return Session(
         config.domain,
         env=config.env,
         policy=config.policy,
         checkpoint=config.checkpoint,
         accelerate=config.accelerate,
         seed=config.seed,
-        threads=None,
+        threads=None,  # set once per process (steer-ui --threads); not per call from many threads
     )
+
+
+def _warm_up(config: UIConfig) -> float:
+    """One unsteered call of a throw-away session: per-shape compilation and caches happen before serving."""
+    started = time.perf_counter()
+    session = _open_session(config)
     try:
         session.steer(None)
     finally:

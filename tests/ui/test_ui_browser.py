@@ -16,27 +16,16 @@ import pytest
 pytest.importorskip("fastapi")
 pytest.importorskip("selenium")
 
+from ui_pages import served_page
+
 from steer_envs.core.metrics import sketch_distances
-from steer_envs.ui.browser import BrowserUnavailable, Page, RunningServer, chromium_paths, open_page
+from steer_envs.ui.browser import Page
 from steer_envs.ui.server import UIConfig
-from steer_envs.utils.threads import limit_threads
 
 
 @pytest.fixture(scope="module")
 def page() -> Iterator[Page]:
-    try:
-        chromium_paths()
-    except BrowserUnavailable as exc:
-        if os.environ.get("STEER_REQUIRE_BROWSER") == "1":
-            pytest.fail(str(exc))
-        pytest.skip(str(exc))
-    with limit_threads(1, 1), RunningServer(UIConfig(seed=2)) as server:
-        browser = open_page(server.url)
-        try:
-            browser.wait_ready()
-            yield browser
-        finally:
-            browser.close()
+    yield from served_page(UIConfig(seed=2))
 
 
 def _plans(page: Page, count: int, sampler: str) -> tuple[np.ndarray, np.ndarray]:

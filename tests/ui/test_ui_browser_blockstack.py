@@ -5,7 +5,6 @@ Skipped where chromium / chromedriver are missing, unless ``STEER_REQUIRE_BROWSE
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 
 import numpy as np
@@ -15,8 +14,10 @@ pytest.importorskip("fastapi")
 pytest.importorskip("selenium")
 pytest.importorskip("robosuite")
 
+from ui_pages import served_page
+
 from steer_envs.ui import Session
-from steer_envs.ui.browser import BrowserUnavailable, Page, RunningServer, chromium_paths, open_page
+from steer_envs.ui.browser import Page
 from steer_envs.ui.server import UIConfig
 from steer_envs.utils.threads import limit_threads
 
@@ -25,19 +26,7 @@ SEED = 0
 
 @pytest.fixture(scope="module")
 def page() -> Iterator[Page]:
-    try:
-        chromium_paths()
-    except BrowserUnavailable as exc:
-        if os.environ.get("STEER_REQUIRE_BROWSER") == "1":
-            pytest.fail(str(exc))
-        pytest.skip(str(exc))
-    with limit_threads(1, 1), RunningServer(UIConfig(domain="blockstack", seed=SEED, workers=1)) as server:
-        browser = open_page(server.url)
-        try:
-            browser.wait_ready(180)
-            yield browser
-        finally:
-            browser.close()
+    yield from served_page(UIConfig(domain="blockstack", seed=SEED, workers=1), 180)
 
 
 def cube_pixel(cube: int) -> np.ndarray:
