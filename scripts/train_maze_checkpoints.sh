@@ -1,6 +1,5 @@
 #!/usr/bin/env bash
-# Reproduce the Maze2D-Large checkpoints (baselines/checkpoints/maze2d_large/{dp,act,flow}.*); the flow
-# policy (DP's recipe as a rectified flow, resumable from DATA_DIR/flow-run) is what itps-flow-safety compares.
+# Reproduce the shipped Maze2D-Large checkpoints (baselines/checkpoints/maze2d_large/{dp,act}.*).
 #
 # 1. the D4RL-style random walk: 1M raw steps (x4 subsampled -> 250k samples), seed 0;
 # 2. the Diffusion Policy (preset `cpu`: 1.7M parameters, 40k steps at batch 256, compiled), resumable:
@@ -40,11 +39,3 @@ else
 fi
 "$PY" -m steer_envs.baselines.training --policy act --preset cpu --dataset "$DATA" --out "$OUT/act.safetensors" \
     --steps 3000 --seed 0 --threads 1
-# the flow-matching policy of the same recipe (DP's cpu preset: same network, steps and batch)
-FLOW_RUN="$DATA_DIR/flow-run"
-if [ -e "$FLOW_RUN/run.json" ]; then
-  "$PY" -m steer_envs.baselines.training --resume "$FLOW_RUN" --out "$PWD/$OUT/flow.safetensors"
-else
-  "$PY" -m steer_envs.baselines.training --policy flow --preset cpu --dataset "$DATA" --run-dir "$FLOW_RUN" \
-      --out "$PWD/$OUT/flow.safetensors" --compile --seed 0 --threads 1
-fi

@@ -44,6 +44,7 @@ import numpy as np
 import torch
 
 from steer_envs.core.validation import describe, integer
+from steer_envs.steering.base import check_generator
 from steer_envs.steering.diffusion import denoise_plans
 from steer_envs.steering.schedulers import check_scheduler
 
@@ -230,9 +231,5 @@ class LeRobotDiffusion:
 
     def sample(self, obs: Any, n: int, *, generator: np.random.Generator | None = None) -> np.ndarray:
         """``n`` unsteered action chunks ``(n, horizon, action_dim)`` in env units (see the module docstring)."""
-        rng = generator if generator is not None else np.random.default_rng()
-        if not isinstance(rng, np.random.Generator):
-            raise TypeError(
-                f"LeRobotDiffusion.sample: `generator` must be a numpy Generator or None, got {describe(rng)}"
-            )
+        rng = check_generator(generator)
         return denoise_plans(self, obs, integer(n, "n", low=1, owner="LeRobotDiffusion.sample"), rng)

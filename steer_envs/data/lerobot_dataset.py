@@ -106,12 +106,7 @@ def to_lerobot(
                 out.add_frame(frame)
             out.save_episode()
         out.finalize()
-        side = {
-            "repo_id": repo_id,
-            "obs_indices": dataset.obs_indices,
-            "action_obs_indices": dataset.action_obs_indices,
-            "meta": dataset.meta,
-        }
+        side = {"repo_id": repo_id, **dataset.declarations()}
         atomic_write_text(folder / _SIDE_FILE, json.dumps(side, indent=1))
         for item in folder.iterdir():
             item.rename(tmp / item.name)
@@ -150,15 +145,5 @@ def from_lerobot(
         raise DatasetError(f"{folder}: frames are not grouped by episode")
     starts = np.flatnonzero(np.r_[True, episodes[1:] != episodes[:-1]]) if len(episodes) else np.zeros(0, int)
 
-    def indices(key: str) -> tuple[int, ...] | None:
-        value = side.get(key)
-        return None if value is None else tuple(int(i) for i in value)
-
-    return TrajectoryDataset(
-        _column(data, observation, folder),
-        _column(data, "action", folder),
-        starts.astype(np.int64),
-        obs_indices=indices("obs_indices"),
-        action_obs_indices=indices("action_obs_indices"),
-        meta=dict(side.get("meta") or {}),
-    )
+    observations, actions = _column(data, observation, folder), _column(data, "action", folder)
+    return TrajectoryDataset.with_declarations(observations, actions, starts.astype(np.int64), side)

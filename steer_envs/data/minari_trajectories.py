@@ -67,7 +67,7 @@ def trajectories_to_minari(
                 "infos": {},
             }
         )
-    side = {"obs_indices": dataset.obs_indices, "action_obs_indices": dataset.action_obs_indices, "meta": dataset.meta}
+    side = dataset.declarations()
     return store_minari_dataset(
         dataset_id,
         episodes,
@@ -110,27 +110,14 @@ def from_minari(dataset: Any, *, root: str | os.PathLike[str] | None = None) -> 
             if not os.path.isdir(folder):
                 raise DatasetError(f"no Minari dataset {dataset_id!r} under {os.fspath(root)!r}")
             dataset = minari.MinariDataset(MinariStorage.read(folder))
-    observations, actions, lengths = [], [], []
+    observations, actions = [], []
     for episode in dataset.iterate_episodes():
         obs, act = np.asarray(episode.observations), np.asarray(episode.actions)
         if obs.dtype == object or obs.ndim != 2 or act.ndim != 2:
             raise DatasetError(f"from_minari: episode {episode.id} is not vector observations and actions")
         observations.append(obs[: len(act)])
         actions.append(act)
-        lengths.append(len(act))
-    if not lengths:
+    if not actions:
         raise DatasetError("from_minari: the dataset has no episodes")
     side = _side(getattr(dataset.storage, "metadata", {}).get("description"))
-
-    def indices(key: str) -> tuple[int, ...] | None:
-        value = side.get(key)
-        return None if value is None else tuple(int(i) for i in value)
-
-    return TrajectoryDataset(
-        np.concatenate(observations),
-        np.concatenate(actions),
-        np.cumsum([0, *lengths[:-1]]).astype(np.int64),
-        obs_indices=indices("obs_indices"),
-        action_obs_indices=indices("action_obs_indices"),
-        meta=dict(side.get("meta") or {}),
-    )
+    return TrajectoryDataset.from_episodes(observations, actions, side)

@@ -67,11 +67,7 @@ def to_robomimic(
         "env_name": env_name,
         "type": 4,  # robomimic's EnvType.GYM_TYPE: a Gym(nasium) env
         "env_kwargs": {},
-        "steer_envs": {
-            "obs_indices": dataset.obs_indices,
-            "action_obs_indices": dataset.action_obs_indices,
-            "meta": dataset.meta,
-        },
+        "steer_envs": dataset.declarations(),
     }
     target = Path(path)
     with atomic_open(target, "wb") as fh, h5py.File(fh, "w") as f:
@@ -130,18 +126,5 @@ def from_robomimic(path: str | os.PathLike[str], *, obs_keys: Sequence[str] | No
         keys = list(obs_keys) if obs_keys is not None else sorted(f["data"][names[0]]["obs"])
         pieces = [_read_demo(f["data"][name], keys, src) for name in names]
         env_args = json.loads(f["data"].attrs.get("env_args", "{}"))
-    side = env_args.get("steer_envs") or {}
-    lengths = [len(obs) for obs, _ in pieces]
-
-    def indices(key: str) -> tuple[int, ...] | None:
-        value = side.get(key)
-        return None if value is None else tuple(int(i) for i in value)
-
-    return TrajectoryDataset(
-        np.concatenate([obs for obs, _ in pieces]),
-        np.concatenate([act for _, act in pieces]),
-        np.cumsum([0, *lengths[:-1]]).astype(np.int64),
-        obs_indices=indices("obs_indices"),
-        action_obs_indices=indices("action_obs_indices"),
-        meta=dict(side.get("meta") or {}),
-    )
+    observations, actions = zip(*pieces, strict=True)
+    return TrajectoryDataset.from_episodes(observations, actions, env_args.get("steer_envs"))

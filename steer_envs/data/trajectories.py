@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -188,6 +188,51 @@ class TrajectoryDataset:
                 out["observation"][key][idx] = value
         return out
 
+    def declarations(self) -> dict[str, Any]:
+        """``obs_indices``, ``action_obs_indices`` (lists or ``None``) and ``meta`` as JSON-ready values.
+
+        What a file keeps beside the arrays (this module's header; the
+        LeRobotDataset, robomimic and Minari bridges, whose formats have no field
+        for them); :meth:`from_episodes` takes them back.
+        """
+        return {
+            "obs_indices": None if self.obs_indices is None else list(self.obs_indices),
+            "action_obs_indices": None if self.action_obs_indices is None else list(self.action_obs_indices),
+            "meta": self.meta,
+        }
+
+    @classmethod
+    def with_declarations(
+        cls, observations: Any, actions: Any, episode_starts: Any, declarations: Mapping[str, Any] | None
+    ) -> TrajectoryDataset:
+        """A dataset of these arrays and the :meth:`declarations` a file kept beside them (``None``: none)."""
+        side = declarations or {}
+        return cls(
+            observations,
+            actions,
+            episode_starts,
+            obs_indices=side.get("obs_indices"),
+            action_obs_indices=side.get("action_obs_indices"),
+            meta=dict(side.get("meta") or {}),
+        )
+
+    @classmethod
+    def from_episodes(
+        cls, observations: Sequence[Any], actions: Sequence[Any], declarations: Mapping[str, Any] | None = None
+    ) -> TrajectoryDataset:
+        """The episodes ``observations[i]``, ``actions[i]`` one after another, with :meth:`declarations`.
+
+        >>> import numpy as np
+        >>> episodes = [np.zeros((3, 2)), np.ones((2, 2))]
+        >>> TrajectoryDataset.from_episodes(episodes, [np.zeros((3, 1)), np.zeros((2, 1))]).episode_starts.tolist()
+        [0, 3]
+        """
+        lengths = [len(obs) for obs in observations]
+        starts = np.cumsum([0, *lengths[:-1]]).astype(np.int64)
+        return cls.with_declarations(
+            np.concatenate(list(observations)), np.concatenate(list(actions)), starts, declarations
+        )
+
     def provenance(self) -> dict[str, Any]:
         """The scalar entries of :attr:`meta` (what a training record keeps to recognise the data)."""
         return {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool)) or v is None}
@@ -276,12 +321,7 @@ def save_trajectories(dataset: TrajectoryDataset, path: str | os.PathLike[str]) 
     out = Path(path)
     if out.suffix != ".npz":
         raise ValueError(f"path must end with .npz, got {str(out)!r}")
-    header = {
-        "format": FORMAT,
-        "obs_indices": None if dataset.obs_indices is None else list(dataset.obs_indices),
-        "action_obs_indices": None if dataset.action_obs_indices is None else list(dataset.action_obs_indices),
-        "meta": dataset.meta,
-    }
+    header = {"format": FORMAT, **dataset.declarations()}
     try:
         text = json.dumps(header)
     except (TypeError, ValueError) as err:
@@ -320,13 +360,8 @@ def trajectories_from_arrays(src: Path, arrays: Mapping[str, np.ndarray]) -> Tra
     if not isinstance(meta, dict):
         raise DatasetError(f"{src}: the header's meta must be a JSON object, got {type(meta).__name__}")
     try:
-        return TrajectoryDataset(
-            arrays["observations"],
-            arrays["actions"],
-            arrays["episode_starts"],
-            obs_indices=header.get("obs_indices"),
-            action_obs_indices=header.get("action_obs_indices"),
-            meta=dict(meta),
+        return TrajectoryDataset.with_declarations(
+            arrays["observations"], arrays["actions"], arrays["episode_starts"], header
         )
     except (TypeError, ValueError) as err:
         raise DatasetError(f"{src}: {err}") from None

@@ -108,13 +108,8 @@ class _DiffusionSampler(Sampler):
 
     def _setup(self, policy: Any, obs: Any, interaction: Any) -> tuple[Any, Any, int, torch.dtype]:
         check_scheduler(policy.scheduler, type(self).__name__)
-        horizon = int(getattr(policy, "diffusion_horizon", policy.horizon))
-        dtype = getattr(policy, "dtype", torch.float32)
-        dtype = dtype if isinstance(dtype, torch.dtype) and dtype.is_floating_point else torch.float32
-        objective = NormalizedObjective(policy, interaction, dtype)
-        with torch.no_grad():
-            cond = policy.encode_obs(obs)
-        _set_timesteps(policy, type(self).__name__)
+        objective = NormalizedObjective(policy, interaction, plan_dtype(policy))
+        cond, horizon, dtype = _prepare(policy, obs, type(self).__name__)
         return objective, cond, horizon, dtype
 
     # float32 draws for float32 policies: the same stream a policy's own sampler draws (same initial noise as RS)
@@ -225,12 +220,7 @@ class GuidedDiffusion(_DiffusionSampler):
     @staticmethod
     def _renoise(scheduler: Any, x: torch.Tensor, eps: torch.Tensor, t: Any, z: torch.Tensor) -> torch.Tensor:
         """Predict ``x0`` from ``(x_t, eps_hat)`` (clipped as the scheduler clips); noise it back to level ``t``."""
-        abar = torch.as_tensor(scheduler.alphas_cumprod[int(t)], dtype=x.dtype, device=x.device)
-        x0 = (x - (1 - abar).sqrt() * eps) / abar.sqrt()
-        config = getattr(scheduler, "config", None)
-        if config is not None and getattr(config, "clip_sample", False):
-            bound = float(getattr(config, "clip_sample_range", 1.0))
-            x0 = x0.clamp(-bound, bound)
+        abar, x0 = _clean_estimate(scheduler, x, eps, t)
         if hasattr(scheduler, "add_noise"):
             level = torch.full((x.shape[0],), int(t), dtype=torch.long, device=x.device)
             return scheduler.add_noise(x0, z, level).to(x.dtype)
@@ -313,15 +303,29 @@ def _cost_shifted(costs: WeightedCosts, policy: Any, x: torch.Tensor, eps: torch
     sqrt(abar)`` (clipped as the scheduler clips) and ``x0`` is shifted by
     ``delta = -grad``: ``eps + sqrt(abar) / sqrt(1 - abar) * grad`` implies ``x0 + delta``.
     """
-    scheduler = policy.scheduler
-    abar = torch.as_tensor(scheduler.alphas_cumprod)[int(t)].to(device=x.device, dtype=x.dtype)
+    abar, x0 = _clean_estimate(policy.scheduler, x, eps, t)
     a, s = abar.sqrt(), (1 - abar).sqrt().clamp_min(torch.finfo(x.dtype).eps)
-    x0 = (x - s * eps) / a
+    return eps + (a / s) * costs.grad(policy, x0).to(eps.dtype)
+
+
+def _clean_estimate(scheduler: Any, x: torch.Tensor, eps: torch.Tensor, t: Any) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(abar_t, x0)``: the clean plan ``(x_t - sqrt(1 - abar) eps) / sqrt(abar)``, clipped as the scheduler clips."""
+    abar = torch.as_tensor(scheduler.alphas_cumprod[int(t)], dtype=x.dtype, device=x.device)
+    x0 = (x - (1 - abar).sqrt() * eps) / abar.sqrt()
     config = getattr(scheduler, "config", None)
     if config is not None and getattr(config, "clip_sample", False):
         bound = float(getattr(config, "clip_sample_range", 1.0))
         x0 = x0.clamp(-bound, bound)
-    return eps + (a / s) * costs.grad(policy, x0).to(eps.dtype)
+    return abar, x0
+
+
+def _prepare(policy: Any, obs: Any, who: str) -> tuple[Any, int, torch.dtype]:
+    """``(condition, diffusion horizon, dtype)`` of a denoising loop, the scheduler's timesteps set."""
+    horizon = int(getattr(policy, "diffusion_horizon", policy.horizon))
+    with torch.no_grad():
+        cond = policy.encode_obs(obs)
+    _set_timesteps(policy, who)
+    return cond, horizon, plan_dtype(policy)
 
 
 def _set_timesteps(policy: Any, who: str) -> None:
@@ -356,12 +360,7 @@ def denoise_plans(policy: DiffusionPolicyLike, obs: Any, n: int, generator: np.r
     An adapter for a third-party diffusion policy uses it as its ``sample``.
     """
     check_scheduler(policy.scheduler, "denoise_plans")
-    horizon = int(getattr(policy, "diffusion_horizon", policy.horizon))
-    dtype = getattr(policy, "dtype", torch.float32)
-    dtype = dtype if isinstance(dtype, torch.dtype) and dtype.is_floating_point else torch.float32
-    with torch.no_grad():
-        cond = policy.encode_obs(obs)
-    _set_timesteps(policy, "denoise_plans")
+    cond, horizon, dtype = _prepare(policy, obs, "denoise_plans")
     scheduler = policy.scheduler
     x = _DiffusionSampler._noise(generator, (n, horizon, int(policy.action_dim)), dtype, policy.device)
     step_kwargs = step_generator(scheduler, generator, x.device)

@@ -5,7 +5,7 @@ start and one sketch per seed, a batch of 32 plans, distances over the maze
 extent, wall collisions, latency) on two policies of the same network and
 training budget, Diffusion Policy (``DP-*``, the shipped checkpoint) and the
 flow-matching policy (``FLOW-*``, :class:`~steer_envs.baselines.flow.FlowPolicy`
-trained by ``scripts/train_maze_checkpoints.sh``, or ``flow_checkpoint``),
+trained by ``scripts/train_maze_flow_checkpoint.sh``, or ``flow_checkpoint``),
 each sampler with and without the maze's safety cost (``+safe``: the walls of
 the env's ``TaskSpec`` through :func:`~steer_envs.steering.costs.safety_cost`,
 weight ``safety_weight``). Both policies run eagerly (no acceleration), so
@@ -82,7 +82,7 @@ def _shipped_flow() -> str:
 
     path = resources.files("steer_envs.baselines") / "checkpoints" / "maze2d_large" / "flow.safetensors"
     if not path.is_file():
-        raise FileNotFoundError(f"no flow checkpoint at {DEFAULT_FLOW}: run scripts/train_maze_checkpoints.sh")
+        raise FileNotFoundError(f"no flow checkpoint at {DEFAULT_FLOW}: run scripts/train_maze_flow_checkpoint.sh")
     return str(path)
 
 
