@@ -29,6 +29,11 @@ are shares of its interactions (TA, CS and the AS/AF/MS/MF quadrants), the
 share of the batch that performs the intended skill (``batch_aligned``: how
 often the intended mode is in the batch at all), whether the tower was built,
 and the mean latency of the steering calls.
+
+A method ending in ``+safe`` adds the task's safety cost of the current
+state (:func:`tower_safety_cost`, weight ``safety_weight``) to its sampler:
+the gripper may close only at a free cube and open only where the held cube
+can rest, and the hand stays above the table.
 """
 
 from __future__ import annotations
@@ -37,12 +42,24 @@ import itertools
 from typing import Any
 
 import numpy as np
+import torch
 
+from steer_envs.core.regions import Boxes
+from steer_envs.core.validation import real_scalar
 from steer_envs.steering.base import Sampler
+from steer_envs.steering.costs import PlanCost, region_cost, switch_cost
 from steer_envs.steering.registry import make_sampler
 from steer_envs.steering.study import SCENE_SEED_OFFSET, quadrant_shares
 
-__all__ = ["METHOD_SAMPLERS", "TABLE_BETA_METHODS", "make_method_sampler", "tower_stands", "tower_trial"]
+__all__ = [
+    "METHOD_SAMPLERS",
+    "SAFE_SUFFIX",
+    "TABLE_BETA_METHODS",
+    "make_method_sampler",
+    "tower_safety_cost",
+    "tower_stands",
+    "tower_trial",
+]
 
 #: method -> (sampler name, keyword arguments): thesis Table 2.2's columns (its header's beta 100) plus RS, SS
 #: and GD at the beta 25 that the thesis's text names for the same table (``DP-GD-B25``).
@@ -56,6 +73,10 @@ METHOD_SAMPLERS: dict[str, tuple[str, dict[str, Any]]] = {
 }
 #: the methods whose beta a study's ``guide_ratio`` replaces (the table header's beta 100)
 TABLE_BETA_METHODS: tuple[str, ...] = ("DP-GD", "DP-GD-I50")
+#: a method name ending in this adds :func:`tower_safety_cost` to its sampler (``"DP-GD+safe"``)
+SAFE_SUFFIX = "+safe"
+#: the guards sit this far inside the skill classifier's tolerances: a plan the cost is happy with classifies
+_GUARD_MARGIN = 0.7
 
 
 def make_method_sampler(
@@ -71,14 +92,66 @@ def make_method_sampler(
     >>> make_method_sampler("DP-GD-I50", guide_ratio=25.0)
     GuidedDiffusion(guide_ratio=25.0, min_guided_t=50, use_clipped_model_output=True)
     """
-    if method not in METHOD_SAMPLERS:
-        raise ValueError(f"unknown method {method!r}; methods: {', '.join(METHOD_SAMPLERS)}")
+    base = method.removesuffix(SAFE_SUFFIX)
+    if base not in METHOD_SAMPLERS or (base != method and METHOD_SAMPLERS[base][0] == "RS"):
+        known = [*METHOD_SAMPLERS, *(f"{m}{SAFE_SUFFIX}" for m, (n, _) in METHOD_SAMPLERS.items() if n != "RS")]
+        raise ValueError(f"unknown method {method!r}; methods: {', '.join(known)}")
+    method = base
     name, kwargs = METHOD_SAMPLERS[method]
     if guide_ratio is not None and method in TABLE_BETA_METHODS:
         kwargs = {**kwargs, "guide_ratio": float(guide_ratio)}
     if use_clipped_model_output and name in ("GD", "SS"):
         kwargs = {**kwargs, "use_clipped_model_output": True}
     return make_sampler(name, **kwargs)
+
+
+def tower_safety_cost(env: Any) -> PlanCost:
+    """BlockStack's safety cost in ``env``'s current state, for plans ``[x, y, z, gripper]`` of the end effector.
+
+    The task's transitions as guards on the gripper command
+    (:func:`~steer_envs.steering.costs.switch_cost`): with the hand empty it
+    may close (``free -> holding_i``) only at a free cube's centre (a tower's
+    top); holding cube ``i`` it may open (``holding_i -> free``) only where the
+    cube rests: just above the table within the placement range, or on a
+    tower's top. Each guard sits inside the tolerances of
+    :func:`~steer_envs.control.blockstack.classify_plan`, so a plan that
+    satisfies them performs a skill. Plus the table as a forbidden region
+    (the hand below its top, :func:`~steer_envs.steering.costs.region_cost`).
+    The guards depend on where the cubes are: build the cost again after the
+    world changes.
+    """
+    from steer_envs.control.blockstack import CLASSIFY_XY_TOL, GRASP_Z_TOL, PLACE_Z_TOL, towers
+    from steer_envs.envs.robosuite.blockstack import CUBE_HALF, PLACE_RANGE, unwrap_blockstack
+
+    base = unwrap_blockstack(env, "tower_safety_cost")
+    pos, held, xyz = base.cube_pos, base.held_cube, (0, 1, 2)
+    xy_tol = _GUARD_MARGIN * CLASSIFY_XY_TOL
+    far = 10.0  # boxes that stand for half-spaces reach this far (m)
+    table = Boxes(np.array([[-far, -far, base.table_z - far]]), np.array([[far, far, base.table_z]]), xyz)
+    tops = [t[-1] for t in towers(base) if held not in t]
+    if held is None:
+        half = np.array([xy_tol, xy_tol, _GUARD_MARGIN * GRASP_Z_TOL])
+        guard = switch_cost(3, on_at=[Boxes(pos[tops] - half, pos[tops] + half, xyz)])
+    else:
+        lift = pos[held, 2] - base.state[2]  # the held cube's centre relative to the hand
+        band = (0.0, _GUARD_MARGIN * PLACE_Z_TOL)
+        centre = np.asarray(base.rs_env.table_offset[:2], dtype=np.float64)
+        spread = PLACE_RANGE + xy_tol
+        rest = base.table_z + CUBE_HALF - lift
+        low = [[*(centre - spread), rest + band[0]]]
+        high = [[*(centre + spread), rest + band[1]]]
+        for j in tops:
+            on_top = pos[j, 2] + 2 * CUBE_HALF - lift
+            low.append([pos[j, 0] - xy_tol, pos[j, 1] - xy_tol, on_top + band[0]])
+            high.append([pos[j, 0] + xy_tol, pos[j, 1] + xy_tol, on_top + band[1]])
+        guard = switch_cost(3, off_at=[Boxes(np.array(low), np.array(high), xyz)])
+    below_table = region_cost([table])
+
+    def cost(plans: torch.Tensor) -> torch.Tensor:
+        return guard(plans) + below_table(plans)
+
+    cost.__name__ = "tower_safety_cost"
+    return cost
 
 
 def tower_stands(env: Any, order: tuple[int, ...]) -> bool:
@@ -155,8 +228,11 @@ def tower_trial(
     guide_ratio: float | None = None,
     keep_plans: bool = False,
     use_clipped_model_output: bool = True,
+    safety_weight: float = 5.0,
 ) -> tuple[dict[str, float | None], dict[str, Any]]:
     """One tower-building trial of ``method`` from evaluation scene ``seed``: ``(metrics, extra)`` (module docstring).
+
+    ``safety_weight``: the weight of :func:`tower_safety_cost` in a ``+safe`` method.
 
     ``extra``: the tower ``order``, one row per interaction and, with
     ``keep_plans``, every interaction's scene, sketch and plans.
@@ -166,6 +242,8 @@ def tower_trial(
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     sampler = make_method_sampler(method, guide_ratio, use_clipped_model_output)
+    safe = method.endswith(SAFE_SUFFIX)
+    weight = real_scalar(safety_weight, "`safety_weight`", low=0.0)
     rng = np.random.default_rng([seed, 7])
     order = tuple(int(c) for c in rng.permutation(4))
     env = make_env()
@@ -179,6 +257,8 @@ def tower_trial(
             if tower_stands(env, order):
                 break
             generator = np.random.default_rng([seed, len(rows)])
+            if safe:
+                sampler.with_costs([(tower_safety_cost(env), weight)])
             row, plans, obs = _steer_skill(env, user, policy, sampler, obs, batch, generator, home_yaw)
             rows.append(row)
             if keep_plans:

@@ -12,7 +12,10 @@ weighted costs, so PR, OP and BI pick the plan they like best too.
 into a cost: the mean depth of a plan's waypoints inside its unsafe regions
 (forbidden regions, and the regions of modes the current mode may not move
 to: :meth:`~steer_envs.core.task.TaskSpec.unsafe_regions`), so TLI's
-constraints guide any policy's plans.
+constraints guide any policy's plans. :func:`switch_cost` guards a task's
+transitions where a plan carries a discrete command (a gripper): the
+command may switch on only inside some regions and off only inside others
+(a grasp only at a cube, a release only where the cube can rest).
 
 >>> import torch
 >>> from steer_envs.core.regions import Boxes
@@ -36,7 +39,7 @@ from steer_envs.core.regions import Boxes
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import describe, real_scalar
 
-__all__ = ["PlanCost", "WeightedCosts", "check_costs", "region_cost", "safety_cost"]
+__all__ = ["PlanCost", "WeightedCosts", "check_costs", "region_cost", "safety_cost", "switch_cost"]
 
 #: a differentiable plan cost: plans ``(n, H, d)`` in env units -> costs ``(n,)``
 PlanCost = Callable[[torch.Tensor], torch.Tensor]
@@ -66,6 +69,83 @@ def region_cost(regions: Sequence[Boxes]) -> PlanCost:
         return total
 
     cost.__name__ = "region_cost"
+    return cost
+
+
+def _check_boxes(regions: Sequence[Boxes] | None, what: str) -> list[Boxes]:
+    boxes = list(regions or ())
+    for box in boxes:
+        if not isinstance(box, Boxes):
+            raise TypeError(f"switch_cost: `{what}` must hold Boxes, got {describe(box)}")
+    return boxes
+
+
+def _distance_outside(plans: torch.Tensor, regions: list[Boxes]) -> torch.Tensor:
+    """``(n, H)``: each waypoint's Euclidean distance to the nearest box of ``regions`` (0 inside one)."""
+    nearest: torch.Tensor | None = None
+    for box in regions:
+        if len(box) == 0:
+            continue
+        p = plans[..., list(box.dims)].unsqueeze(-2)  # (n, H, 1, m)
+        low = torch.as_tensor(box.low, dtype=plans.dtype, device=plans.device)
+        high = torch.as_tensor(box.high, dtype=plans.dtype, device=plans.device)
+        gap = torch.maximum(low - p, p - high).clamp_min(0.0)
+        # the norm's gradient is undefined at 0 (inside a box): a tiny floor keeps it finite there
+        dist = (gap.square().sum(dim=-1) + 1e-12).sqrt().amin(dim=-1)
+        nearest = dist if nearest is None else torch.minimum(nearest, dist)
+    if nearest is None:
+        raise ValueError("switch_cost: a guarded switch needs at least one non-empty region it may happen in")
+    return nearest
+
+
+def switch_cost(
+    dim: int,
+    *,
+    on_at: Sequence[Boxes] | None = None,
+    off_at: Sequence[Boxes] | None = None,
+    sharpness: float = 8.0,
+) -> PlanCost:
+    """Guards on where a plan's binary command (entry ``dim``, on when > 0) may switch.
+
+    A switch on between waypoints ``k - 1`` and ``k`` (a gripper closing)
+    costs waypoint ``k``'s distance to the nearest box of ``on_at``; a switch
+    off costs its distance to ``off_at`` (``None``: that switch is not
+    guarded). The switch is read softly, ``s_k = sigmoid(sharpness * c_k)``,
+    a switch on weighing ``s_k (1 - s_{k-1})``, so the gradient moves both
+    where the switch happens and the waypoints around it. The cost of a plan
+    is the sum over its switches (a plan that never switches costs 0).
+
+    >>> import torch
+    >>> at_cube = Boxes([[0.0, 0.0]], [[0.1, 0.1]])
+    >>> grasp = switch_cost(2, on_at=[at_cube])
+    >>> plans = torch.tensor([[[0.05, 0.05, -1.0], [0.05, 0.05, 1.0]],   # closes at the cube
+    ...                       [[0.50, 0.05, -1.0], [0.50, 0.05, 1.0]]])  # closes 0.4 away from it
+    >>> [round(value, 2) for value in grasp(plans).tolist()]
+    [0.0, 0.4]
+    """
+    if isinstance(dim, bool) or not isinstance(dim, int) or dim < 0:
+        raise ValueError(f"switch_cost: `dim` must be a plan entry index >= 0, got {dim!r}")
+    sharp = real_scalar(sharpness, "`sharpness`", low=0.0)
+    guards = [(True, _check_boxes(on_at, "on_at")), (False, _check_boxes(off_at, "off_at"))]
+    guards = [(on, boxes) for on, boxes in guards if boxes]
+    if not guards:
+        raise ValueError("switch_cost: give `on_at` or `off_at` (the regions a switch may happen in)")
+    for _, boxes in guards:
+        if dim in {d for box in boxes for d in box.dims}:
+            raise ValueError(f"switch_cost: the regions must not constrain the command's own entry {dim}")
+
+    def cost(plans: torch.Tensor) -> torch.Tensor:
+        if plans.shape[-1] <= dim:
+            raise ValueError(f"switch_cost: plans have {plans.shape[-1]} entries, the command is entry {dim}")
+        on = torch.sigmoid(sharp * plans[..., dim])  # (n, H)
+        total = plans.new_zeros(plans.shape[0])
+        for switch_on, boxes in guards:
+            now, before = (on, 1 - on) if switch_on else (1 - on, on)
+            weight = now[:, 1:] * before[:, :-1]
+            total = total + (weight * _distance_outside(plans[:, 1:], boxes)).sum(dim=1)
+        return total
+
+    cost.__name__ = "switch_cost"
     return cost
 
 

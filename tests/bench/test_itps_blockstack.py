@@ -23,11 +23,25 @@ def _record(method: str, seed: int, values: dict[str, float]) -> dict[str, Any]:
     return {"config": config, "seed": seed, "metrics": dict(values), "key": f"{method}-{seed}"}
 
 
-def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
+def _all_verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
     from steer_envs.bench.report import summarize
 
     (table,) = summarize([_record(m, s, v) for m, v in cells.items() for s in (0, 1)])
     return [f.holds for f in table.findings]
+
+
+def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
+    """Table 2.2's six findings (the safety cost's come after them)."""
+    return _all_verdicts(cells)[:6]
+
+
+def test_findings_check_the_safety_cost_raises_cs() -> None:
+    plain = {m: {"TA": 0.8, "CS": 0.2, "AS": 0.2} for m in ("DP-GD", "DP-GD-B25", "DP-SS")}
+    safer = {f"{m}+safe": {"TA": 0.8, "CS": 0.5, "AS": 0.4} for m in plain}
+    assert _all_verdicts({**TABLE_2_2, **plain, **safer})[6:] == [True, True, True]
+    worse = {**safer, "DP-SS+safe": {"TA": 0.8, "CS": 0.2, "AS": 0.2}}
+    assert _all_verdicts({**TABLE_2_2, **plain, **worse})[6:] == [True, True, False]
+    assert _all_verdicts({**TABLE_2_2, **plain})[6:] == [None, None, None]
 
 
 def test_findings_check_table_2_2s_trade_off() -> None:
@@ -96,3 +110,61 @@ def test_one_trial_scores_its_interactions() -> None:
     kept = extra["plans"][0]
     assert np.asarray(kept["plans"]).shape == (4, 32, 4) and len(kept["sketch"]) == 32
     assert sorted(extra["order"]) == [0, 1, 2, 3]
+
+
+def test_safe_methods_name_their_sampler_and_refuse_rs() -> None:
+    from steer_envs.steering.blockstack import make_method_sampler
+
+    assert make_method_sampler("DP-GD+safe").guide_ratio == 100.0
+    with pytest.raises(ValueError, match=r"unknown method 'DP-RS\+safe'.*DP-SS\+safe"):
+        make_method_sampler("DP-RS+safe")
+    with pytest.raises(ValueError, match="safety_weight"):
+        SteerParams.from_json({"safety_weight": 0.0})
+
+
+def _line_plan(start: np.ndarray, end: np.ndarray, switch_at: int, gripper: float) -> np.ndarray:
+    """32 waypoints from ``start`` to ``end`` (reached at waypoint 20), the gripper ``-gripper`` then ``gripper``."""
+    t = np.clip(np.arange(32) / 20, 0.0, 1.0)[:, None]
+    plan = np.zeros((32, 4))
+    plan[:, :3] = start + t * (end - start)
+    plan[:, 3] = np.where(np.arange(32) >= switch_at, gripper, -gripper)
+    return plan
+
+
+@needs_robosuite
+def test_the_safety_cost_guards_grasps_and_releases_in_the_scene() -> None:
+    import torch
+
+    from steer_envs.control.blockstack import classify_plan, execute_plan
+    from steer_envs.data.blockstack_skills import make_env
+    from steer_envs.steering.blockstack import tower_safety_cost
+
+    env = make_env()
+    try:
+        env.reset(seed=1000)
+        base = env.unwrapped
+        cube = base.cube_pos[0].copy()
+        grasp = _line_plan(base.state[:3], cube, 22, 1.0)
+        assert classify_plan(env, grasp) == "pick_0"
+        cost = tower_safety_cost(env)
+        astray = grasp + np.array([0.1, 0.0, 0.0, 0.0])  # closes 10 cm beside the cube
+        values = cost(torch.as_tensor(np.stack([grasp, astray])))
+        assert values[0] < 1e-3 and values[1] > 0.05
+        below = grasp - np.array([0.0, 0.0, 0.1, 0.0])  # the hand 8 cm into the table
+        assert cost(torch.as_tensor(below[None]))[0] > 0.01
+        # gradient: the guard pulls the stray grasp back toward the cube
+        x = torch.as_tensor(astray[None]).requires_grad_(True)
+        cost(x).sum().backward()
+        assert x.grad is not None and x.grad[0, 22, 0] > 0
+
+        assert execute_plan(env, grasp, home_yaw=0.0).success and base.held_cube == 0
+        holding = tower_safety_cost(env)
+        lift = cube[2] - base.table_z  # the hand is at the cube's centre when it holds it
+        spot = np.array([*cube[:2], base.table_z + lift + 0.005])
+        place = _line_plan(base.state[:3], spot, 22, -1.0)
+        assert classify_plan(env, place) == "place_0_on_table"
+        drop = place + np.array([0.0, 0.0, 0.15, 0.0])  # opens 15 cm up: the cube would fall
+        values = holding(torch.as_tensor(np.stack([place, drop])))
+        assert values[0] < 1e-3 and values[1] > 0.05
+    finally:
+        env.close()

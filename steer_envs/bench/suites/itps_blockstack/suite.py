@@ -22,8 +22,10 @@
   from the clipped plan estimate (``use_clipped_model_output``). The policy comes from ``loader`` (the
   committed checkpoint, ``load_pretrained("blockstack")`` of :mod:`steer_envs.baselines.pretrained`)
   or a ``checkpoint`` file; while it is missing the suite runs nothing and says
-  so. The ``plot`` hook draws steered plans like thesis Fig. 2.6
-  (:mod:`~steer_envs.bench.suites.itps_blockstack.plots`).
+  so. Each steered method also runs with BlockStack's safety cost (``+safe``:
+  :func:`~steer_envs.steering.blockstack.tower_safety_cost`, weight ``safety_weight``: the gripper closes
+  only at a free cube and opens only where the held cube can rest). The ``plot`` hook draws steered plans
+  like thesis Fig. 2.6 (:mod:`~steer_envs.bench.suites.itps_blockstack.plots`).
 
 >>> DataParams(skills_per_episode=0)
 Traceback (most recent call last):
@@ -45,7 +47,7 @@ from steer_envs.bench.metrics import (
     skill_outcomes,
     table_references,
 )
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
@@ -53,6 +55,10 @@ from steer_envs.io import default_cache_dir
 from steer_envs.utils.threads import single_threaded
 
 DATA_SUITE = "itps-blockstack-data"
+#: Table 2.2's methods, then each steered one with the safety cost (``+safe``)
+TABLE_METHODS = ("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS")
+SAFE_METHODS = tuple(f"{m}+safe" for m in TABLE_METHODS if m != "DP-RS")
+METHODS = TABLE_METHODS + SAFE_METHODS
 ENV_ID = "steer_envs/BlockStack-v0"
 
 
@@ -138,9 +144,11 @@ class SteerParams(SkillPolicyParams):
     guidance push clips the clean-plan estimate from the first step on, and
     ITPS's step then drives the plans away from the sketch; see
     :class:`~steer_envs.steering.GuidedDiffusion`);
+    ``safety_weight`` the weight of the safety cost in the ``+safe`` methods;
     ``plot_seeds`` seeds that keep their plans for the figure; ``torch_threads``
-    per trial process (0: torch's default); ``loader`` a ``module:function``
-    returning the policy (called with ``"blockstack"``), ``checkpoint`` a checkpoint file that replaces it.
+    per trial process (0: torch's default); ``loader`` the policy's loader (called with ``"blockstack"``):
+    ``pretrained`` or, with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that
+    replaces it.
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -149,16 +157,18 @@ class SteerParams(SkillPolicyParams):
     max_interactions: int = 8
     guide_ratio: float = 100.0
     use_clipped_model_output: bool = True
+    safety_weight: float = 5.0
     plot_seeds: int = 2
     torch_threads: int = 1
     #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
     accelerate: str = "auto"
-    loader: str = PRETRAINED_LOADER
+    loader: PolicyLoader = PRETRAINED_LOADER
     checkpoint: str = ""
 
     def __post_init__(self) -> None:
         self.require_steering()
         self.require("guide_ratio", self.guide_ratio >= 0, ">= 0")
+        self.require("safety_weight", self.safety_weight > 0, "> 0")
 
 
 def run_steer_trial(trial: Trial) -> TrialResult:
@@ -177,8 +187,24 @@ def run_steer_trial(trial: Trial) -> TrialResult:
             guide_ratio=params.guide_ratio,
             keep_plans=trial.seed < params.plot_seeds,
             use_clipped_model_output=params.use_clipped_model_output,
+            safety_weight=params.safety_weight,
         )
     return TrialResult(metrics, extra)
+
+
+def safety_findings(table: Any) -> list[Finding]:
+    """GD and SS with the safety cost keep more plans within the task's constraints (CS) than without."""
+
+    def raises_cs(method: str) -> Finding:
+        safe = f"{method}+safe"
+        return judge(
+            f"{safe} succeeds more often (CS) than {method}",
+            table.means("CS", [method, safe]),
+            lambda v: v[safe] > v[method],
+            lambda v: f"CS {v[safe]:.2f} vs {v[method]:.2f}",
+        )
+
+    return [raises_cs(method) for method in ("DP-GD", "DP-GD-B25", "DP-SS")]
 
 
 def steer_findings(table: Any) -> list[Finding]:
@@ -234,6 +260,11 @@ def steer_findings(table: Any) -> list[Finding]:
     ]
 
 
+def table_findings(table: Any) -> list[Finding]:
+    """Table 2.2's findings, then the safety cost's."""
+    return [*steer_findings(table), *safety_findings(table)]
+
+
 register_suite(
     Suite(
         name=SUITE_NAME,
@@ -262,7 +293,7 @@ register_suite(
         ),
         run_trial=run_steer_trial,
         envs=(ENV_ID,),
-        methods=("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS"),
+        methods=METHODS,
         params=SteerParams(),
         default_seeds=20,
         generate=policy_planner("the BlockStack policy", "train it with scripts/train_blockstack_checkpoint.sh"),
@@ -270,6 +301,6 @@ register_suite(
         quick={"batch": 8, "max_interactions": 1, "plot_seeds": 1},
         quick_seeds=1,
         plot="steer_envs.bench.suites.itps_blockstack.plots:plot_blockstack",
-        findings=steer_findings,
+        findings=table_findings,
     )
 )
