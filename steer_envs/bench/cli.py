@@ -9,8 +9,9 @@ plugin that fails to import, more than
 ``--out`` / ``DIR`` / ``--plots-dir`` that is empty, a file, under a file,
 unwritable, or not a steer-bench directory (a ``manifest.json`` that is not
 a manifest, a ``results.jsonl`` that is a folder), a directory locked by
-another run, a missing optional dependency or an executor that cannot start;
-130 interrupted (finished trials are on disk). Bad lines of
+another run, a missing optional dependency or an executor that cannot start,
+a ``--param`` that names code (a loader) other than a registered one
+without ``--allow-import``; 130 interrupted (finished trials are on disk). Bad lines of
 ``results.jsonl`` never stop ``run`` or ``report``: they are skipped with a
 note (``run`` moves them to ``discarded.jsonl``).
 Set ``STEER_BENCH_DEBUG=1`` to get tracebacks instead of one-line errors.
@@ -37,6 +38,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from steer_envs.bench.executors import EXECUTORS, ExecutorStartError
+from steer_envs.bench.params import check_callable_params
 from steer_envs.bench.report import FORMATS, render, render_markdown, summarize
 from steer_envs.bench.store import (
     DISCARDED_FILE,
@@ -157,6 +159,12 @@ def _add_run_parser(sub: Any, plugin: argparse.ArgumentParser) -> None:
         help="set a suite parameter (VALUE parsed as JSON if it is JSON); see `steer-bench list SUITE`",
     )
     p_run.add_argument(
+        "--allow-import",
+        action="store_true",
+        help="let --param values that name code (e.g. loader=module:function) import and run any module, "
+        "not only the registered loaders (e.g. loader=pretrained); it runs that code",
+    )
+    p_run.add_argument(
         "--workers",
         type=_positive_int,
         metavar="N",
@@ -246,8 +254,13 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
     load_plugins(args.plugin)
     suite = get_suite(args.suite)
+    params = dict(args.param)
+    imports = check_callable_params(type(suite.defaults), params, suite=suite.name, allow_import=args.allow_import)
+    if args.allow_import:
+        named = ", ".join(f"{k}={v}" for k, v in imports.items()) or "none of the given --param values needs it"
+        print(f"steer-bench: warning: --allow-import imports and runs arbitrary code: {named}", file=sys.stderr)
     out = args.out if args.out is not None else Path("runs") / suite.name
-    given = same_named(run_suite, args, envs=args.env, methods=args.method, params=dict(args.param), argv=list(argv))
+    given = same_named(run_suite, args, envs=args.env, methods=args.method, params=params, argv=list(argv))
     summary = run_suite(suite, out, **given)
     tables = summarize(summary.records)
     title = f"steer-bench {suite.name}: {len(summary.records)} trials in {out}"

@@ -14,6 +14,13 @@ defaults. The class does three jobs, so a suite author writes it once:
 * :meth:`SuiteParams.to_json` gives the JSON stored in ``Trial.params``
   (tuples become lists), whose hash is part of the trial key.
 
+A parameter that names code, such as a policy loader, is typed
+:data:`PolicyLoader` (``Annotated[str, NamesCallable(kind)]``): its value is a
+registered name (``"pretrained"``) or the path it stands for, stored as the
+path (:func:`steer_envs.utils.imports.named_callable`). ``steer-bench run``
+takes no other value from ``--param`` unless ``--allow-import`` is given
+(:func:`check_callable_params`).
+
 >>> from dataclasses import dataclass
 >>> @dataclass(frozen=True)
 ... class PiParams(SuiteParams):
@@ -41,9 +48,35 @@ import math
 import types
 import typing
 from collections.abc import Collection, Mapping
-from typing import Any, ClassVar, Self
+from typing import Annotated, Any, ClassVar, Self
 
-__all__ = ["NoParams", "SuiteParams", "check_suite_params", "params_from_defaults"]
+from steer_envs.utils.imports import POLICY_LOADER, named_callable, registered_callables
+
+__all__ = [
+    "NamesCallable",
+    "NoParams",
+    "PolicyLoader",
+    "SuiteParams",
+    "check_callable_params",
+    "check_suite_params",
+    "params_from_defaults",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class NamesCallable:
+    """Marks a ``str`` parameter that names a registered callable of ``kind``: ``Annotated[str, NamesCallable(kind)]``.
+
+    Coercion turns a registered name into its ``"module:qualname"`` path
+    (so ``loader="pretrained"`` and the default path hash equally);
+    :func:`check_callable_params` refuses unregistered paths from the command line.
+    """
+
+    kind: str
+
+
+#: the type of a policy-loader parameter: ``"pretrained"``, a registered loader's path, or (opted in) any path
+PolicyLoader = Annotated[str, NamesCallable(POLICY_LOADER)]
 
 
 class SuiteParams:
@@ -70,6 +103,16 @@ class SuiteParams:
     def field_names(cls) -> tuple[str, ...]:
         """The parameter names, in declaration order."""
         return tuple(_field_types(cls))
+
+    @classmethod
+    def callable_params(cls) -> dict[str, str]:
+        """Parameter name -> the kind of callable it names, for the parameters typed ``NamesCallable``.
+
+        >>> from steer_envs.bench.suites.itps_kitchen.suite import SteerParams
+        >>> SteerParams.callable_params()
+        {'loader': 'policy loader'}
+        """
+        return {name: marker.kind for name, hint in _field_types(cls).items() if (marker := _names(hint)) is not None}
 
     @classmethod
     def from_json(cls, values: Mapping[str, Any], *, suite: str | None = None) -> Self:
@@ -166,6 +209,37 @@ def params_from_defaults(suite: str, defaults: Mapping[str, Any]) -> SuiteParams
     return instance
 
 
+def check_callable_params(
+    params_type: type[SuiteParams], values: Mapping[str, Any], *, suite: str, allow_import: bool
+) -> dict[str, str]:
+    """Check the ``values`` a user gave for parameters that name code (``--param``); returns those it lets import.
+
+    A value of a :meth:`~SuiteParams.callable_params` parameter must be a
+    registered name or path (:func:`~steer_envs.utils.imports.named_callable`);
+    any other ``"module:function"`` is refused with a ``ValueError`` naming the
+    suite and parameter and listing the registered choices, unless
+    ``allow_import``. Returns parameter -> path for the values that import
+    unregistered code (empty without ``allow_import``). Values of the wrong
+    type are left to :meth:`SuiteParams.from_json`.
+
+    >>> from steer_envs.bench.suites.itps_kitchen.suite import SteerParams
+    >>> check_callable_params(SteerParams, {"loader": "pretrained"}, suite="itps-kitchen", allow_import=False)
+    {}
+    >>> check_callable_params(SteerParams, {"loader": "builtins:print"}, suite="itps-kitchen", allow_import=True)
+    {'loader': 'builtins:print'}
+    """
+    kinds = params_type.callable_params()
+    imports: dict[str, str] = {}
+    for name, value in values.items():
+        if name not in kinds or not isinstance(value, str):
+            continue
+        what = f"suite {suite!r}: parameter {name!r}"
+        path = named_callable(value, kinds[name], what=what, allow_import=allow_import, opt_in="--allow-import")
+        if path not in registered_callables(kinds[name]).values():
+            imports[name] = path
+    return imports
+
+
 def check_suite_params(suite: str, params: SuiteParams | Mapping[str, Any]) -> SuiteParams:
     """A suite's default parameters: a frozen :class:`SuiteParams` dataclass instance (a mapping of defaults is
     converted by :func:`params_from_defaults`), its fields typed and its values JSON with finite numbers.
@@ -199,7 +273,7 @@ def _field_types(cls: type) -> dict[str, Any]:
     if cls not in _FIELD_TYPES:
         if not dataclasses.is_dataclass(cls):
             raise TypeError(f"{cls.__name__} must be a dataclass (decorate it with @dataclass(frozen=True))")
-        hints = typing.get_type_hints(cls)
+        hints = typing.get_type_hints(cls, include_extras=True)
         for f in dataclasses.fields(cls):
             if hasattr(SuiteParams, f.name):
                 raise TypeError(f"{cls.__name__}: parameter {f.name!r} shadows SuiteParams.{f.name}; rename it")
@@ -207,8 +281,20 @@ def _field_types(cls: type) -> dict[str, Any]:
     return _FIELD_TYPES[cls]
 
 
+def _names(annotation: Any) -> NamesCallable | None:
+    """The :class:`NamesCallable` marker of an ``Annotated`` type, else None."""
+    if typing.get_origin(annotation) is not Annotated:
+        return None
+    return next((m for m in annotation.__metadata__ if isinstance(m, NamesCallable)), None)
+
+
 def _type_name(annotation: Any) -> str:
+    marker = _names(annotation)
+    if marker is not None:
+        return f"a registered {marker.kind} or a 'module:function' path"
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is Annotated:
+        return _type_name(args[0])
     if origin in (typing.Union, types.UnionType):
         return " or ".join("null" if a is type(None) else _type_name(a) for a in args)
     if origin in (tuple, list):
@@ -241,6 +327,13 @@ def _convert(value: Any, annotation: Any) -> Any:
     if annotation is Any:
         return value
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is Annotated:
+        value = _convert(value, args[0])
+        marker = _names(annotation)
+        if marker is None:
+            return value
+        # a registered name stands for its path; which paths may be imported is the caller's check
+        return named_callable(value, marker.kind, what="value", allow_import=True)
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None

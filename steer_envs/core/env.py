@@ -16,6 +16,9 @@ class to inherit), and gives library code a typed way in:
   is missing instead of an ``AttributeError`` deep inside a wrapper.
 * The ``info`` keys every ``reset``/``step``/``perturb`` returns, as constants
   (:data:`INFO_KEYS`, :data:`PERTURBED`).
+* :class:`ClosableEnv` - the base of the steer envs' classes: after ``close()``
+  their ``reset``/``step``/``perturb``/``render`` raise :class:`EnvClosedError`
+  naming the env, not an ``AttributeError`` from a simulator that is gone.
 
 The protocols are ``runtime_checkable``: ``isinstance`` checks that the
 members exist, not their types or behaviour. :func:`steer_envs.utils.env_checker.check_steer_env`
@@ -36,9 +39,14 @@ True
 
 from __future__ import annotations
 
-from typing import Any, Protocol, cast, get_args, runtime_checkable
+import functools
+import inspect
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol, TypeVar, cast, get_args, runtime_checkable
 
+import gymnasium as gym
 import numpy as np
+from gymnasium.error import ClosedEnvironmentError
 
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
@@ -54,6 +62,8 @@ __all__ = [
     "SENSORS",
     "STEER_ENV_MEMBERS",
     "SUCCESS",
+    "ClosableEnv",
+    "EnvClosedError",
     "HasInteractionKinds",
     "HasTask",
     "PerturbableEnv",
@@ -206,3 +216,89 @@ def task_of(env: Any, *, who: str = "task_of") -> TaskSpec:
     ('r', 's', 't')
     """
     return cast(HasTask, _unwrap(env, ("task",), who)).task
+
+
+# ------------------------------------------------------------------ lifecycle
+ObsT = TypeVar("ObsT")
+ActT = TypeVar("ActT")
+
+
+class EnvClosedError(ClosedEnvironmentError, RuntimeError):
+    """A call on a steer env after its ``close()``: its simulator and renderer are gone, make a new env.
+
+    A ``RuntimeError`` and Gymnasium's ``ClosedEnvironmentError``, so either ``except`` catches it.
+    """
+
+
+def _refuse_when_closed(method: Callable[..., Any], call: str) -> Callable[..., Any]:
+    @functools.wraps(method)
+    def guarded(self: ClosableEnv[Any, Any], *args: Any, **kwargs: Any) -> Any:
+        if self._is_closed:
+            name = env_name(self)
+            raise EnvClosedError(f"{name} is closed: {call}() after close(); make a new env")
+        return method(self, *args, **kwargs)
+
+    guarded._closed_guard = True  # type: ignore[attr-defined]
+    return guarded
+
+
+def _close_once(close: Callable[..., Any]) -> Callable[..., Any]:
+    @functools.wraps(close)
+    def once(self: ClosableEnv[Any, Any], *args: Any, **kwargs: Any) -> Any:
+        if self._is_closed:
+            return None
+        try:
+            return close(self, *args, **kwargs)
+        finally:
+            self._is_closed = True
+
+    once._closed_guard = True  # type: ignore[attr-defined]
+    return once
+
+
+class ClosableEnv(gym.Env[ObsT, ActT]):
+    """A Gymnasium env that refuses to be used once closed: the base class of the steer envs.
+
+    After ``close()``, the methods named in :attr:`closed_calls` (``reset``,
+    ``step``, ``perturb``, ``render``) raise :class:`EnvClosedError` naming the
+    env (its registered id), instead of failing inside a simulator whose
+    handles are gone. ``close()`` may be called again (Gymnasium's convention):
+    it then does nothing. A subclass's own ``close`` and its own definitions of
+    the :attr:`closed_calls` are wrapped when the class is created, so an
+    override is checked before its first line runs; a subclass adds methods to
+    the check by extending :attr:`closed_calls`.
+
+    >>> import gymnasium as gym
+    >>> import steer_envs
+    >>> env = gym.make("steer_envs/ConvexMode-v0")
+    >>> _ = env.reset(seed=0)
+    >>> env.close(); env.close()
+    >>> env.unwrapped.closed
+    True
+    >>> env.step([0.0, 0.0])
+    Traceback (most recent call last):
+    ...
+    steer_envs.core.env.EnvClosedError: steer_envs/ConvexMode-v0 is closed: step() after close(); make a new env
+    """
+
+    #: the methods that raise :class:`EnvClosedError` once the env is closed
+    closed_calls: ClassVar[tuple[str, ...]] = ("reset", "step", "perturb", "render")
+    _is_closed: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        for name in (*cls.closed_calls, "close"):
+            method = cls.__dict__.get(name)
+            if not inspect.isfunction(method) or getattr(method, "_closed_guard", False):
+                continue
+            setattr(cls, name, _close_once(method) if name == "close" else _refuse_when_closed(method, name))
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called (the env then refuses :attr:`closed_calls`)."""
+        return self._is_closed
+
+    def close(self) -> None:
+        """Release the env's resources; later calls of :attr:`closed_calls` raise :class:`EnvClosedError`."""
+        self._is_closed = True
+        super().close()

@@ -18,10 +18,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypedDict
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.env import ClosableEnv
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import boolean, describe, integer, real_scalar
@@ -241,7 +241,7 @@ class PotentialMemo:
         return value
 
 
-class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
+class Kinematic2DEnv(ClosableEnv[np.ndarray, np.ndarray]):
     """Gymnasium env around a :class:`KinematicTaskModel` (one agent).
 
     Observation: the agent's xy (float32); with ``observe_sensors=True`` followed
@@ -369,11 +369,12 @@ class Kinematic2DEnv(gym.Env[np.ndarray, np.ndarray]):
         ``seed`` is None or an int >= 0; ``options`` None or a dict whose only key is ``"state"``.
         """
         owner = f"{type(self).__name__}.reset"
-        super().reset(seed=check_seed(seed, owner))
+        seed = check_seed(seed, owner)
         options = check_options(options, RESET_OPTIONS, owner)
-        if options.get("state") is not None:
-            self._pos = check_xy(options["state"], "options['state']", owner)[None, :]
-            self._pos = np.clip(self._pos, self.model.low, self.model.high)
+        start = None if options.get("state") is None else check_xy(options["state"], "options['state']", owner)
+        super().reset(seed=seed)  # every argument is checked first: a refused reset leaves the episode as it was
+        if start is not None:
+            self._pos = np.clip(start[None, :], self.model.low, self.model.high)
         else:
             self._pos = self.model.sample_start(self.np_random, 1).astype(np.float64)
         self._memory = self.model.reset_memory(self._pos)

@@ -79,10 +79,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.env import ClosableEnv
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.regions import Boxes
 from steer_envs.core.task import TaskSpec
@@ -111,7 +111,7 @@ _GRID_RGB = (225, 225, 232)
 _GOAL_RGB = (170, 230, 170)
 
 
-class Maze2DEnv(gym.Env[Any, np.ndarray]):
+class Maze2DEnv(ClosableEnv[Any, np.ndarray]):
     """MuJoCo point mass in a D4RL maze; the action is the next absolute xy waypoint.
 
     Args:
@@ -391,25 +391,32 @@ class Maze2DEnv(gym.Env[Any, np.ndarray]):
         ints of a free cell, or None for no goal); other keys are refused.
         """
         owner = f"{type(self).__name__}.reset"
-        super().reset(seed=check_seed(seed, owner))
+        # every argument is checked before anything changes: a refused reset leaves the episode as it was
+        seed = check_seed(seed, owner)
         options = check_options(options, self._OPTION_KEYS, owner)
-        rng = self.np_random
+        given = None
         if options.get("state") is not None:
-            start = check_xy(options["state"], "options['state']", owner)
-            if bool(self.grid.is_wall(start)):
-                raise ValueError(f"options['state'] {start.tolist()} lies in a wall cell")
-            start = self.grid.project_free(start)
+            given = check_xy(options["state"], "options['state']", owner)
+            if bool(self.grid.is_wall(given)):
+                raise ValueError(f"{owner}: options['state'] {given.tolist()} lies in a wall cell")
+        goal: tuple[int, int] | None = None
+        if "goal_cell" in options:
+            if options["goal_cell"] is None and self.goal_conditioned:
+                raise ValueError(
+                    f"{owner}: options['goal_cell'] must be a (row, col) cell, not None, when goal_conditioned"
+                )
+            if options["goal_cell"] is not None:
+                goal = self._check_cell(options["goal_cell"], "options['goal_cell']")
+        super().reset(seed=seed)
+        rng = self.np_random
+        if given is not None:
+            start = self.grid.project_free(given)
         else:
             cell = self.grid.free_cells[rng.integers(len(self.grid.free_cells))]
             start = self.grid.project_free(cell + rng.uniform(-0.1, 0.1, size=2))
         self.physics.set_state(start)
         if "goal_cell" in options:
-            goal = options["goal_cell"]
-            if goal is None and self.goal_conditioned:
-                raise ValueError(
-                    f"{owner}: options['goal_cell'] must be a (row, col) cell, not None, when goal_conditioned"
-                )
-            self.goal_cell = None if goal is None else self._check_cell(goal, "options['goal_cell']")
+            self.goal_cell = goal
         elif self.sample_goal:
             start_cell = tuple(self.grid.xy_to_cell(start).tolist())
             choices = [tuple(c) for c in self.grid.free_cells.tolist() if tuple(c) != start_cell]

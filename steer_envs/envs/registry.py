@@ -237,11 +237,17 @@ def entry(env_id: str) -> EnvEntry:
 def register_all() -> None:
     """Register every entry with Gymnasium (idempotent; ``import steer_envs`` calls it).
 
+    It also makes the wrappers of ``gymnasium.make`` leave a refused ``reset``
+    without effect (:func:`steer_envs.envs.refused_reset.install`), as the envs do.
+
     >>> import gymnasium as gym
     >>> register_all()
     >>> "steer_envs/Cooking-v0" in gym.registry
     True
     """
+    from steer_envs.envs.refused_reset import install
+
+    install()
     for e in ENTRIES:
         if e.id in gym.registry:
             continue

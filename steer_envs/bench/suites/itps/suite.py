@@ -42,8 +42,9 @@ Policies come from :func:`steer_envs.baselines.pretrained.load_pretrained`
 (``kind`` = ``"dp"`` / ``"act"``, the committed checkpoints); the
 ``dp_checkpoint`` / ``act_checkpoint`` parameters take another checkpoint
 file of ``python -m steer_envs.baselines.training`` (e.g. ``--preset itps``
-trained on a GPU), and the ``dp_loader`` / ``act_loader`` parameters hold
-``module:function`` paths, so other policies plug in. While a loader's
+trained on a GPU), and the ``dp_loader`` / ``act_loader`` parameters name a
+registered loader (``pretrained``) or, with ``steer-bench run --allow-import``,
+any ``module:function``, so other policies plug in. While a loader's
 module, the function or its checkpoint does not exist, the methods of that
 policy are skipped with a note. The ``plot`` hook
 (:func:`~steer_envs.bench.suites.itps.plots.plot_itps`) draws the
@@ -65,7 +66,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from steer_envs.bench.findings import listing
 from steer_envs.bench.metrics import MAZE_STEERING_METRICS, table_references
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER
 from steer_envs.bench.suite import Finding, Suite, TrialPlan, TrialResult, register_suite
 from steer_envs.utils.threads import limit_threads
@@ -101,10 +102,11 @@ class ItpsParams(SuiteParams):
     ``batch`` plans per steering call; ``through_wall`` the share of sketches
     drawn through walls; the first ``plot_seeds`` seeds keep their plans;
     ``torch_threads`` per trial process (0: torch's default);
-    ``latency_repeats`` interleaved SS/GD calls; ``{dp,act}_loader`` a
-    ``module:function`` returning the policy and ``{dp,act}_checkpoint`` a
-    checkpoint file that replaces it; ``dp_accelerate`` the DP's inference
-    acceleration (``"fastest"``, the default, or another mode of
+    ``latency_repeats`` interleaved SS/GD calls; ``{dp,act}_loader`` the
+    policy's loader (``pretrained`` or, with ``--allow-import``, any
+    ``module:function``) and ``{dp,act}_checkpoint`` a checkpoint file that
+    replaces it; ``dp_accelerate`` the DP's inference acceleration
+    (``"fastest"``, the default, or another mode of
     :meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`).
     """
 
@@ -114,8 +116,8 @@ class ItpsParams(SuiteParams):
     plot_seeds: int = 3
     torch_threads: int = 1
     latency_repeats: int = 1
-    dp_loader: str = PRETRAINED_LOADER
-    act_loader: str = PRETRAINED_LOADER
+    dp_loader: PolicyLoader = PRETRAINED_LOADER
+    act_loader: PolicyLoader = PRETRAINED_LOADER
     dp_checkpoint: str = ""
     act_checkpoint: str = ""
     dp_accelerate: str = "fastest"
@@ -166,7 +168,7 @@ def _plan_itps(suite: Suite, request: TrialRequest) -> TrialPlan:
             notes.append(
                 f"skipped {kind.upper()} methods: policy not available ({type(exc).__name__}: {exc}); "
                 f"train the checkpoint (python -m steer_envs.baselines.training) "
-                f"or set --param {kind}_loader=module:function"
+                f"or set --param {kind}_loader=module:function --allow-import"
             )
     trials: list[Trial] = []
     for env in request.envs:

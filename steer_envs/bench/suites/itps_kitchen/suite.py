@@ -54,7 +54,7 @@ from steer_envs.bench.metrics import (
     skill_outcomes,
     table_references,
 )
-from steer_envs.bench.params import SuiteParams
+from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
@@ -211,8 +211,8 @@ class SteerParams(SkillPolicyParams):
     skills at most; ``gd_ratio`` / ``ss_ratio`` GD's and SS's beta (thesis: 5 and
     100); ``op_distance`` OP's push (m); ``plot_seeds`` seeds that keep camera
     frames for the rollout strip; ``torch_threads`` per trial process (0:
-    torch's default); ``loader`` a ``module:function`` returning the policy
-    (called with ``"kitchen"``), ``checkpoint`` a checkpoint file that replaces it.
+    torch's default); ``loader`` the policy's loader (called with ``"kitchen"``): ``pretrained`` or,
+    with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that replaces it.
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -228,7 +228,7 @@ class SteerParams(SkillPolicyParams):
     torch_threads: int = 1
     #: the denoiser's inference mode (``DiffusionPolicy.accelerate``; auto: ONNX Runtime where installed)
     accelerate: str = "auto"
-    loader: str = PRETRAINED_LOADER
+    loader: PolicyLoader = PRETRAINED_LOADER
     checkpoint: str = ""
 
     def __post_init__(self) -> None:
