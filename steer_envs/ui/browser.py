@@ -143,16 +143,22 @@ class Page:
         from selenium.webdriver.common.by import By
 
         canvas = self.driver.find_element(By.ID, "overlay")
-        width, height, scale = self.state("width"), self.state("height"), self.state("scale")
-        rect = canvas.rect
-        pts = np.asarray(pixels, dtype=np.float64)
-        # ActionChains offsets are from the element's centre, in CSS pixels
-        offsets = np.rint((pts - [width / 2.0, height / 2.0]) * scale).astype(int)
-        offsets = np.clip(
-            offsets,
-            [-rect["width"] // 2 + 1, -rect["height"] // 2 + 1],
-            [rect["width"] // 2 - 1, rect["height"] // 2 - 1],
+        self.driver.execute_script("arguments[0].scrollIntoView({block: 'nearest'});", canvas)
+        scale = self.state("scale")
+        # ActionChains offsets are from the element's in-view centre: the middle of its part inside the viewport
+        left, top, right, bottom, view_w, view_h = self.driver.execute_script(
+            "const r = arguments[0].getBoundingClientRect();"
+            "return [r.left, r.top, r.right, r.bottom, window.innerWidth, window.innerHeight];",
+            canvas,
         )
+        lo = np.array([max(left, 0.0), max(top, 0.0)])
+        hi = np.array([min(right, view_w), min(bottom, view_h)])
+        centre = (lo + hi) / 2.0
+        pts = np.asarray(pixels, dtype=np.float64)
+        css = np.array([left, top]) + pts * scale
+        if np.any(css < lo) or np.any(css > hi):
+            raise ValueError(f"Page.drag: image pixels {pixels!r} are outside the visible canvas (enlarge the window)")
+        offsets = np.rint(np.clip(css, lo + 1, hi - 1) - centre).astype(int)
         chain = ActionChains(self.driver, duration=10)
         chain.move_to_element_with_offset(canvas, int(offsets[0][0]), int(offsets[0][1])).click_and_hold()
         previous = offsets[0]
@@ -166,6 +172,18 @@ class Page:
         from selenium.webdriver.common.by import By
 
         self.driver.find_element(By.ID, element_id).click()
+
+    def panel(self) -> dict[str, str]:
+        """The domain's panel rows shown beside the view, label -> value."""
+        return {str(label): str(value) for label, value in self.state("panel") or []}
+
+    def console_errors(self) -> list[str]:
+        """Errors the browser's console logged since the last call (uncaught exceptions, failed loads)."""
+        try:
+            entries = self.driver.get_log("browser")
+        except Exception:  # a driver without log access: nothing to read
+            return []
+        return [str(e.get("message", "")) for e in entries if e.get("level") == "SEVERE"]
 
     def plan_pixels_drawn(self) -> int:
         """Opaque overlay pixels in the plan colours (teal, orange, dark blue): the plans really are on the canvas."""
@@ -182,12 +200,24 @@ class Page:
             return n;"""
         return int(self.driver.execute_script(script))
 
-    def screenshot(self, path: str | os.PathLike[str]) -> Path:
-        """Save a PNG of the window (atomically)."""
+    def screenshot(self, path: str | os.PathLike[str], colors: int | None = None) -> Path:
+        """Save a PNG of the window (atomically); ``colors``: reduce to that many (a small file for the docs)."""
         from steer_envs.io import atomic_write_bytes
 
         out = Path(path)
-        atomic_write_bytes(out, self.driver.get_screenshot_as_png())
+        png = self.driver.get_screenshot_as_png()
+        if colors is not None:
+            import io
+
+            from PIL import Image
+
+            # octree keeps the small, saturated overlay colours (median cut merges them into the greys)
+            rgb = Image.open(io.BytesIO(png)).convert("RGB")
+            image = rgb.quantize(colors=colors, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+            buffer = io.BytesIO()
+            image.save(buffer, format="PNG", optimize=True)
+            png = buffer.getvalue()
+        atomic_write_bytes(out, png)
         return out
 
     def close(self) -> None:
@@ -195,7 +225,7 @@ class Page:
         self.driver.quit()
 
 
-def open_page(url: str, *, width: int = 1280, height: int = 900) -> Page:
+def open_page(url: str, *, width: int = 1280, height: int = 1000) -> Page:
     """A headless chromium showing ``url`` (``BrowserUnavailable`` without chromium / chromedriver)."""
     browser, driver_path = chromium_paths()
     try:
@@ -213,6 +243,7 @@ def open_page(url: str, *, width: int = 1280, height: int = 900) -> Page:
         f"--window-size={width},{height}",
     ):
         options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})  # Page.console_errors reads the console
     driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
     driver.set_page_load_timeout(60)
     driver.get(url)

@@ -3,6 +3,7 @@
     steer-ui                    # http://127.0.0.1:8765, Maze2D-Large, the shipped DP
     steer-ui --policy act --port 9000 --open
     steer-ui --domain blockstack  # the robot arm: click a cube in the camera image
+    steer-ui --domain soup-scoop  # TLI: push the spoon, watch LTL-DS recover
 
 Binds to 127.0.0.1. Another interface needs ``--allow-remote`` (and warns:
 anyone who can reach the port can drive the server); the server answers only
@@ -21,14 +22,16 @@ from collections.abc import Sequence
 from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS
 from steer_envs.core.extras import MissingExtraError, require
 from steer_envs.ui.access import ANY_INTERFACE, allowed_hosts, is_local
-from steer_envs.ui.session import DEFAULT_ENV, DOMAINS
+from steer_envs.ui.domains import DEFAULT_ENV, DOMAINS
+from steer_envs.ui.session import POLICY_KINDS
 from steer_envs.utils.fields import build_from
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``steer-ui`` argument parser."""
     parser = argparse.ArgumentParser(
-        prog="steer-ui", description="Steer a frozen robot policy by hand in the browser: sketch, point, nudge."
+        prog="steer-ui",
+        description="Steer a robot policy by hand in the browser: sketch, point, nudge; or push a controller.",
     )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default: 127.0.0.1, this machine only)")
     parser.add_argument(
@@ -48,9 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env", default=None, help=f"another env id of the domain (maze2d default: {DEFAULT_ENV})")
     parser.add_argument(
         "--policy",
-        choices=("dp", "act", "blockstack"),
+        choices=POLICY_KINDS,
         default=None,
-        help="shipped policy kind (default: the domain's: dp for maze2d, blockstack for blockstack)",
+        help="shipped policy kind of a steered domain (default: the domain's: dp for maze2d, blockstack, kitchen)",
     )
     parser.add_argument("--checkpoint", default=None, help="a checkpoint of --policy (default: the shipped one)")
     parser.add_argument(
@@ -58,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
         choices=ACCELERATIONS,
         default="fastest",
         help="the DP network's inference mode (default: fastest, OpenVINO where installed, else ONNX Runtime or trace)",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        default=None,
+        help="where a push domain keeps what it trains (GLiDE's classifier; default: ~/.cache/steer-envs/ui)",
     )
     parser.add_argument("--seed", type=int, default=0, help="first start state and noise seed (default: 0)")
     parser.add_argument("--workers", type=int, default=2, help="steering calls run at once (default: 2)")
@@ -103,6 +111,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     server = uvicorn.Server(uvicorn.Config(app, host=args.host, port=args.port, log_level="warning"))
     url = f"http://{'127.0.0.1' if args.host in ('0.0.0.0', '::') else args.host}:{args.port}"
+    if DOMAINS[args.domain].controller == "glide-planning":
+        print("steer-ui: GLiDE's mode classifier is trained on first use (2-3 minutes on one core), then cached")
     print(f"steer-ui: loading the policy, then serving {url} (Ctrl-C stops)", flush=True)
     if args.open:
         webbrowser.open(url)

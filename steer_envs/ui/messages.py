@@ -10,13 +10,16 @@ Page -> server (one JSON object per WebSocket text message, ``type`` first):
 ``step``       execute the chosen plan of the last steer (unsteered if none)
 ``play``       keep steering with the last interaction and executing, at the policy's rate
 ``pause``      stop playing
-``nudge``      ``to``: ``[u, v]``: move the agent there (a physical correction)
+``nudge``      ``to``: ``[u, v]``: move the agent there (a physical correction; steered domains)
+``push``       ``to``: ``[u, v]``: drag the agent there; the controller recovers (push domains)
 =============  ==========================================================================
 
-Server -> page: ``ready`` (settings, image size, samplers, frame), ``plans`` (a
-steering result in pixels), ``frame`` (a PNG of the view after a step / nudge /
-reset), ``settings``, ``playing``, ``error`` (``message``: what was wrong). A bad
-message only ever produces an ``error`` reply.
+Server -> page: ``ready`` (the domain's declaration: its interactions and
+overlays; settings, image size, samplers, frame), ``plans`` (a steering result
+in pixels), ``frame`` (a PNG of the view after a step / nudge / push / reset,
+with the domain's ``overlays`` and ``panel`` rows), ``settings``, ``playing``,
+``error`` (``message``: what was wrong). A bad message only ever produces an
+``error`` reply.
 """
 
 from __future__ import annotations
@@ -40,9 +43,14 @@ MESSAGE_TYPES: dict[str, frozenset[str]] = {
     "play": frozenset(),
     "pause": frozenset(),
     "nudge": frozenset({"to"}),
+    "push": frozenset({"to"}),
 }
 #: the fields ``type`` requires
-_REQUIRED: dict[str, frozenset[str]] = {"steer": frozenset({"kind"}), "nudge": frozenset({"to"})}
+_REQUIRED: dict[str, frozenset[str]] = {
+    "steer": frozenset({"kind"}),
+    "nudge": frozenset({"to"}),
+    "push": frozenset({"to"}),
+}
 
 
 class MessageError(ValueError):

@@ -1,7 +1,12 @@
-"""steer-ui's web server: FastAPI serves the page, a WebSocket per tab drives one :class:`Session`.
+"""steer-ui's web server: FastAPI serves the page, a WebSocket per tab drives one session.
 
-Each connection gets its own session (env, sampler state, noise generator);
-the policy's weights are loaded once and shared. Session calls run in a
+Each connection gets its own session: a :class:`~steer_envs.ui.session.Session`
+(env, sampler state, noise generator) for a domain that steers a policy, a
+:class:`~steer_envs.ui.push_session.PushSession` (env, controller) for one
+that pushes a controller; the policy's weights (or the fitted controller) are
+loaded once and shared. The ``ready`` message carries the domain's
+declaration (:mod:`steer_envs.ui.domains`), from which the page builds its
+controls. Session calls run in a
 thread pool, so a slow SS call never blocks the event loop or another tab;
 messages are validated on the event loop first (:func:`parse_message`), so a
 bad message is answered at once with an ``error`` and changes nothing.
@@ -22,7 +27,7 @@ import functools
 import logging
 import math
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
@@ -37,8 +42,12 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from steer_envs.core.validation import integer, one_of
 from steer_envs.steering import SAMPLERS
 from steer_envs.ui.access import LOCAL_HOSTS, same_origin
+from steer_envs.ui.domains import DOMAINS
 from steer_envs.ui.messages import Message, MessageError, parse_message
-from steer_envs.ui.session import DOMAINS, MAX_BATCH, Session, SteerOutcome, shared_policy
+from steer_envs.ui.outcomes import SteerOutcome
+from steer_envs.ui.push_session import PushSession, PushSettings
+from steer_envs.ui.session import Session, shared_policy
+from steer_envs.ui.settings import MAX_BATCH, SteerSettings
 from steer_envs.ui.views import SessionError
 
 __all__ = ["MAX_PENDING", "UIConfig", "create_app"]
@@ -68,6 +77,10 @@ class UIConfig:
     max_sessions: int = 32
     #: the ``Host`` names requests may carry (this machine's by default; add the name a remote client uses)
     allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
+    #: where a push domain keeps what it trains (GLiDE's classifier; ``None``: ``~/.cache/steer-envs/ui``)
+    cache_dir: str | None = None
+    #: passed to a push domain's controller (:data:`~steer_envs.ui.controllers.CONTROLLERS`), e.g. GLiDE's ``setup``
+    controller_options: Mapping[str, Any] | None = None
 
 
 def _pixels(arr: np.ndarray) -> list[Any]:
@@ -84,7 +97,7 @@ class _Connection:
     def __init__(self, websocket: WebSocket, app_state: _AppState) -> None:
         self.ws = websocket
         self.app = app_state
-        self.session: Session | None = None
+        self.session: Session | PushSession | None = None
         self.pending: collections.deque[Message] = collections.deque()
         self.wake = asyncio.Event()
         self.send_lock = asyncio.Lock()
@@ -195,7 +208,8 @@ class _Connection:
         if message.type == "hello":
             await self.send(await self.call(self.ready_payload))
         elif message.type == "configure":
-            settings = await self.call(session.configure, **fields)
+            configure: Callable[..., SteerSettings | PushSettings] = session.configure
+            settings = await self.call(configure, **fields)
             await self.send({"type": "settings", "settings": settings.as_dict()})
         elif message.type == "reset":
             await self.stop_playing()
@@ -203,6 +217,8 @@ class _Connection:
             await self.call(session.reset, None if seed is None else integer(seed, "`seed`", low=0, high=2**31 - 1))
             await self.send(await self.call(self.frame_payload, None, "reset"))
         elif message.type == "steer":
+            if not isinstance(session, Session):
+                raise SessionError(f"{self.app.config.domain} is steered by pushing the agent (Push mode), not plans")
             started = time.perf_counter()
             kind, points = fields["kind"], fields.get("points")
             outcome = await self.call(session.steer_pixels, kind, points)
@@ -213,16 +229,28 @@ class _Connection:
         elif message.type == "play":
             self.playing = True
             await self.send({"type": "playing", "playing": True})
-        elif message.type == "nudge":
+        elif message.type in ("nudge", "push"):
             to = fields["to"]
             if not isinstance(to, list) or len(to) != 2:
                 raise MessageError(f"'to' must be a [u, v] pixel pair, got {str(to)[:80]}")
-            info = await self.call(session.nudge_pixel, to[0], to[1])
-            await self.send(await self.call(self.frame_payload, info, "nudge"))
+            if message.type == "nudge" and isinstance(session, Session):
+                info = await self.call(session.nudge_pixel, to[0], to[1])
+            elif message.type == "push" and isinstance(session, PushSession):
+                info = await self.call(session.push_pixel, to[0], to[1])
+            else:
+                offered = ", ".join(session.kinds) or "none"
+                raise SessionError(f"{self.app.config.domain} takes no {message.type} (its interactions: {offered})")
+            await self.send(await self.call(self.frame_payload, info, message.type))
 
     async def tick(self) -> None:
         session = self.session
         assert session is not None
+        if isinstance(session, PushSession):  # the controller runs on; no plans to sample
+            payload = await self.call(self.step_payload)
+            await self.send(payload)
+            if payload["done"]:
+                await self.stop_playing()
+            return
         started = time.perf_counter()
         kind, points = self.interaction
         outcome = await self.call(session.steer_pixels, kind, points)
@@ -236,21 +264,30 @@ class _Connection:
     def ready_payload(self) -> dict[str, Any]:
         session = self.session
         assert session is not None
-        policy = session.policy
-        return {
+        name = self.app.config.domain
+        payload = {
             **self.frame_payload(None, "ready"),
             "type": "ready",
-            "domain": self.app.config.domain,
+            "domain": name,
+            "declaration": session.domain.declaration(name, session.kinds),
             "env": str(getattr(session.env.spec, "id", "")),
-            "policy": self.app.config.policy or session.domain.policies[0],
             "kinds": list(session.kinds),
-            "samplers": list(SAMPLERS),
-            "diffusion": bool(hasattr(policy, "predict_noise")),
             "max_batch": MAX_BATCH,
-            "horizon": int(policy.horizon) - int(getattr(policy, "exec_start", 0)),
             "width": session.pixels.width,
             "height": session.pixels.height,
             "settings": session.settings.as_dict(),
+        }
+        if isinstance(session, PushSession):
+            return {**payload, "policy": session.domain.controller, "samplers": [], "diffusion": False, "horizon": 0}
+        policy = session.policy
+        collide = callable(getattr(session.env.unwrapped, "plan_collides", None)) and len(session.dims) == 2
+        return {
+            **payload,
+            "collisions": collide,
+            "policy": self.app.config.policy or session.domain.policies[0],
+            "samplers": list(SAMPLERS),
+            "diffusion": bool(hasattr(policy, "predict_noise")),
+            "horizon": int(policy.horizon) - int(getattr(policy, "exec_start", 0)),
         }
 
     def frame_payload(self, info: dict[str, Any] | None, why: str, executed: Any = None) -> dict[str, Any]:
@@ -259,11 +296,16 @@ class _Connection:
         encode = time.perf_counter()
         png = base64.b64encode(session.frame_png()).decode("ascii")
         info = info or {}
+        extra: dict[str, Any] = {"panel": [list(row) for row in session.panel()]}
+        if isinstance(session, PushSession):
+            extra["overlays"] = session.overlays(full=why in ("ready", "reset"))
         return {
+            **extra,
             "type": "frame",
             "why": why,
             "image": "data:image/png;base64," + png,
             "agent": _pixels(session.pixels.to_pixels(session.state)),
+            "steps": session.steps if isinstance(session, PushSession) else None,
             "executed": [] if executed is None or len(executed) == 0 else _pixels(session.pixels.to_pixels(executed)),
             "seed": session.seed,
             "success": bool(info.get("success", False)),
@@ -283,7 +325,7 @@ class _Connection:
 
     def plans_payload(self, outcome: SteerOutcome, started: float) -> dict[str, Any]:
         session = self.session
-        assert session is not None
+        assert isinstance(session, Session)
         self.counter += 1
         interaction = outcome.interaction
         drawn: list[Any] = []
@@ -305,6 +347,9 @@ class _Connection:
             "interaction": drawn,
             "timings": {**outcome.timings, "server_ms": (time.perf_counter() - started) * 1e3},
         }
+        rows = session.panel(outcome)
+        if rows:
+            payload["panel"] = [list(row) for row in rows]
         return payload
 
 
@@ -317,8 +362,16 @@ class _AppState:
     warm_up_ms: float = 0.0
 
 
-def _open_session(config: UIConfig) -> Session:
+def _open_session(config: UIConfig) -> Session | PushSession:
     """A session of the served domain, env and policy (the weights are shared across sessions)."""
+    domain = DOMAINS[config.domain]
+    if not domain.steering:
+        if config.env is not None or config.policy is not None or config.checkpoint is not None:
+            raise ValueError(f"steer-ui: the {config.domain!r} domain takes no --env, --policy or --checkpoint")
+        options = dict(config.controller_options or {})
+        if domain.controller == "glide-planning" and config.cache_dir:
+            options.setdefault("cache_dir", config.cache_dir)
+        return PushSession(config.domain, seed=config.seed, controller_options=options)
     return Session(
         config.domain,
         env=config.env,
@@ -335,7 +388,11 @@ def _warm_up(config: UIConfig) -> float:
     started = time.perf_counter()
     session = _open_session(config)
     try:
-        session.steer(None)
+        if isinstance(session, PushSession):
+            session.execute()
+            session.overlays(full=True)
+        else:
+            session.steer(None)
     finally:
         session.close()
     return (time.perf_counter() - started) * 1e3
@@ -352,8 +409,10 @@ def create_app(config: UIConfig | None = None) -> FastAPI:
     @contextlib.asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         loop = asyncio.get_running_loop()
-        policy = config.policy or DOMAINS[config.domain].policies[0]
-        await loop.run_in_executor(state.pool, shared_policy, policy, config.checkpoint, config.accelerate)
+        domain = DOMAINS[config.domain]
+        if domain.steering:
+            policy = config.policy or domain.policies[0]
+            await loop.run_in_executor(state.pool, shared_policy, policy, config.checkpoint, config.accelerate)
         state.warm_up_ms = await loop.run_in_executor(state.pool, _warm_up, config)
         try:
             yield

@@ -12,8 +12,9 @@ the rendered view (:meth:`Session.steer_pixels`, :meth:`Session.nudge_pixel`).
 A view converts between the two: :class:`PixelMap` for an env with an affine
 ``pixel_to_xy`` (Maze2D's top-down image), :class:`CameraView` for a camera
 with depth (BlockStack: a click lands on the first surface the pixel sees).
-:data:`DOMAINS` names what steer-ui can open. A session is not thread-safe: one
-call at a time.
+:data:`DOMAINS` names what steer-ui can open (the domains that push a
+controller instead are :class:`~steer_envs.ui.push_session.PushSession`'s). A
+session is not thread-safe: one call at a time.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import copy
 import io
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -31,24 +32,25 @@ import numpy as np
 from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.interaction import Point, Sketch
 from steer_envs.core.policy import DiffusionPolicyLike, TrajectoryPolicy
-from steer_envs.core.validation import describe, integer, one_of, real_array, real_scalar
+from steer_envs.core.validation import describe, integer, one_of, real_array
 from steer_envs.steering import (
-    MAX_MCMC_STEPS,
-    SAMPLERS,
     OutputPerturbation,
-    Sampler,
     interaction_dims,
     make_sampler,
     place_observation,
     policy_observation,
 )
-from steer_envs.ui.views import CameraView, PixelMap, SessionError, resample_by_arclength
+from steer_envs.ui.domains import DEFAULT_ENV, DOMAINS, Domain, domain_named
+from steer_envs.ui.outcomes import SteerOutcome, StepOutcome
+from steer_envs.ui.settings import MAX_BATCH, SteerSettings
+from steer_envs.ui.views import CameraView, PixelMap, SessionError, make_view, resample_by_arclength
 from steer_envs.utils.threads import limit_threads
 
 __all__ = [
     "DEFAULT_ENV",
     "DOMAINS",
     "MAX_BATCH",
+    "POLICY_KINDS",
     "Domain",
     "Session",
     "SteerOutcome",
@@ -57,118 +59,17 @@ __all__ = [
     "shared_policy",
 ]
 
-#: the env steer-ui opens by default (the one the shipped checkpoints plan in)
-DEFAULT_ENV = "steer_envs/Maze2D-Large-v0"
-#: the most plans one call may sample in the UI (a batch is drawn on the page)
-MAX_BATCH = 256
 #: the sketch the samplers get: this many points, evenly spaced along the drawn path
 SKETCH_POINTS = 64
-#: guide ratios beyond this only saturate the plans (ITPS uses 20-60)
-MAX_GUIDE_RATIO = 10_000.0
-
-
-# ----------------------------------------------------------------- settings
-@dataclass(frozen=True)
-class SteerSettings:
-    """The sampler and its knobs (thesis Table 2.1 defaults; ``None``: the sampler's own default).
-
-    Attributes:
-        sampler: ``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ``"GD"`` or ``"SS"``.
-        batch: plans sampled per call (ITPS: 32).
-        guide_ratio: ``beta`` of GD / SS (defaults 20 / 60).
-        mcmc_steps: SS's iterations per noise level (default 4).
-        execute: waypoints of the chosen plan one :meth:`Session.execute` runs (``None``: all).
-        use_clipped_model_output: GD's / SS's DDIM step re-derives the noise from the clipped plan
-            estimate (:class:`~steer_envs.steering.GuidedDiffusion`); a domain default, not a knob.
-    """
-
-    sampler: str = "SS"
-    batch: int = 32
-    guide_ratio: float | None = None
-    mcmc_steps: int | None = None
-    execute: int | None = None
-    use_clipped_model_output: bool = False
-
-    def checked(self) -> SteerSettings:
-        """These settings validated (``TypeError``/``ValueError`` naming the knob)."""
-        owner = "SteerSettings"
-        sampler = one_of(self.sampler, "sampler", tuple(SAMPLERS), owner=owner)
-        batch = integer(self.batch, "`batch`", low=1, high=MAX_BATCH)
-        ratio = None
-        if self.guide_ratio is not None:
-            ratio = real_scalar(self.guide_ratio, "guide_ratio", owner=owner)
-            if not 0.0 <= ratio <= MAX_GUIDE_RATIO:
-                raise ValueError(f"{owner}: `guide_ratio` must be in [0, {MAX_GUIDE_RATIO:g}], got {ratio!r}")
-        mcmc = None if self.mcmc_steps is None else integer(self.mcmc_steps, "`mcmc_steps`", low=1, high=MAX_MCMC_STEPS)
-        execute = None if self.execute is None else integer(self.execute, "`execute`", low=1)
-        clipped = self.use_clipped_model_output
-        if not isinstance(clipped, bool):
-            raise TypeError(f"{owner}: `use_clipped_model_output` must be a bool, got {type(clipped).__name__}")
-        return SteerSettings(sampler, batch, ratio, mcmc, execute, self.use_clipped_model_output)
-
-    def make_sampler(self) -> Sampler:
-        """A fresh sampler of these settings (knobs a sampler does not have are ignored)."""
-        kwargs: dict[str, Any] = {}
-        if self.sampler in ("GD", "SS") and self.guide_ratio is not None:
-            kwargs["guide_ratio"] = self.guide_ratio
-        if self.sampler == "SS" and self.mcmc_steps is not None:
-            kwargs["mcmc_steps"] = self.mcmc_steps
-        if self.sampler in ("GD", "SS") and self.use_clipped_model_output:
-            kwargs["use_clipped_model_output"] = True
-        return make_sampler(self.sampler, **kwargs)
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready settings."""
-        return {
-            "sampler": self.sampler,
-            "batch": self.batch,
-            "guide_ratio": self.guide_ratio,
-            "mcmc_steps": self.mcmc_steps,
-            "execute": self.execute,
-        }
-
-
-@dataclass(frozen=True)
-class Domain:
-    """What steer-ui opens: an env, the policies that plan in it, default settings, its view and executor.
-
-    Attributes:
-        env_id / env_kwargs: the env (made with ``render_mode="rgb_array"``).
-        policies: the policy kinds :func:`shared_policy` loads for it (the first is the default).
-        settings: the default sampler and knobs.
-        view: ``"pixels"`` (an affine 2D view) or ``"camera"`` (depth camera).
-        execute: ``"waypoints"`` (each plan waypoint is an env action) or ``"skill"``
-            (a whole pick / place skill run by ``plan_execution.execute_plan``).
-    """
-
-    env_id: str
-    env_kwargs: Mapping[str, Any]
-    policies: tuple[str, ...]
-    settings: SteerSettings
-    view: str = "pixels"
-    execute: str = "waypoints"
-
-
-#: the domains steer-ui can open (``--domain``)
-DOMAINS: dict[str, Domain] = {
-    "maze2d": Domain(DEFAULT_ENV, {"sample_goal": False}, ("dp", "act"), SteerSettings()),
-    # this DP runs 100 DDIM steps: GD with the clipped-output step at beta 25 aligns best (docs/results.md)
-    "blockstack": Domain(
-        "steer_envs/BlockStack-v0",
-        {"fast_render": True, "render_size": 256},
-        ("blockstack",),
-        SteerSettings(sampler="GD", batch=16, guide_ratio=25.0, use_clipped_model_output=True),
-        view="camera",
-        execute="skill",
-    ),
-}
+#: the shipped policies a session can load by name
+POLICY_KINDS: tuple[str, ...] = ("dp", "act", "blockstack", "kitchen")
 
 
 # ----------------------------------------------------------------- policies
 def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: str = "fastest") -> TrajectoryPolicy:
     """A shipped policy (or ``checkpoint``), loaded once per process and shared.
 
-    ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large) or ``"blockstack"`` (the BlockStack skill DP).
+    ``kind``: ``"dp"`` / ``"act"`` (Maze2D-Large), ``"blockstack"`` or ``"kitchen"`` (the skill DPs).
     ``accelerate`` is :meth:`DiffusionPolicy.accelerate`'s mode (``"fastest"``:
     OpenVINO where installed, else ONNX Runtime or a trace); ACT ignores it.
     The cache is :func:`steer_envs.baselines.pretrained.shared_policy`'s.
@@ -176,7 +77,7 @@ def shared_policy(kind: str = "dp", checkpoint: str | None = None, accelerate: s
     from steer_envs.baselines.diffusion.acceleration import resolve_acceleration
     from steer_envs.baselines.pretrained import shared_policy as load_shared
 
-    kind = one_of(kind, "policy", ("dp", "act", "blockstack"), owner="steer-ui")
+    kind = one_of(kind, "policy", POLICY_KINDS, owner="steer-ui")
     mode = "none" if kind == "act" else resolve_acceleration(accelerate, owner="steer-ui")
     policy: TrajectoryPolicy = load_shared(kind, checkpoint or "", mode, owner="steer-ui")
     return policy
@@ -213,49 +114,6 @@ def _session_view(policy: TrajectoryPolicy, clock: _NetworkClock) -> TrajectoryP
     return view
 
 
-# ----------------------------------------------------------------- outcomes
-@dataclass
-class SteerOutcome:
-    """One steering call: the batch of plans and how it was made.
-
-    Attributes:
-        plans: ``(B, H, 2)`` plans in world units (the executed part: from the policy's ``exec_start``).
-        chosen: index of the plan the sampler selects.
-        costs: ``(B,)`` alignment cost of every plan (NaN unsteered).
-        collides: ``(B,)`` bool, a plan crosses a wall (``None`` when the env cannot tell).
-        interaction: the interaction in world units (a sketch resampled by arc length), or ``None``.
-        timings: ``network_ms`` (the policy's network), ``sampler_ms`` (the rest of the call),
-            ``total_ms``, ``network_evals``.
-        settings: the settings of the call.
-        perturbed_state: where OP moves the agent before the plan runs (``None`` for the other samplers).
-    """
-
-    plans: np.ndarray
-    chosen: int
-    costs: np.ndarray
-    collides: np.ndarray | None
-    interaction: Point | Sketch | None
-    timings: dict[str, float]
-    settings: SteerSettings
-    perturbed_state: np.ndarray | None = None
-
-    @property
-    def plan(self) -> np.ndarray:
-        """The chosen plan ``(H, 2)``."""
-        return self.plans[self.chosen]
-
-
-@dataclass
-class StepOutcome:
-    """What executing (part of) the chosen plan did."""
-
-    executed: np.ndarray
-    reward: float
-    terminated: bool
-    truncated: bool
-    info: dict[str, Any] = field(default_factory=dict)
-
-
 # ------------------------------------------------------------------ session
 def _session_policy(policy: str | TrajectoryPolicy, checkpoint: str | None, accelerate: str) -> TrajectoryPolicy:
     """The policy a :class:`Session` steers: a kind's shared policy (:func:`shared_policy`) or ``policy`` itself."""
@@ -288,7 +146,7 @@ class Session:
     """An env, a frozen policy and steering settings: steer, look at the plans, execute, nudge.
 
     Args:
-        domain: a name of :data:`DOMAINS` (``"maze2d"``, ``"blockstack"``): the env,
+        domain: a steered domain of :data:`DOMAINS` (``"maze2d"``, ``"blockstack"``, ``"kitchen"``): the env,
             policy, default settings, view and executor below default to its.
         env: an env id, or an env made with ``render_mode="rgb_array"``.
         policy: a policy kind of :func:`shared_policy` (shared by all sessions of the
@@ -316,7 +174,10 @@ class Session:
         accelerate: str = "fastest",
         threads: int | None = 1,
     ) -> None:
-        self.domain = DOMAINS[one_of(domain, "domain", tuple(DOMAINS), owner="Session")]
+        self.name = one_of(domain, "domain", tuple(DOMAINS), owner="Session")
+        self.domain = domain_named(domain, owner="Session")
+        if not self.domain.steering:
+            raise SessionError(f"the {domain!r} domain pushes a controller: open it with PushSession, not Session")
         self.threads = None if threads is None else integer(threads, "`threads`", low=1)
         shared = _session_policy(self.domain.policies[0] if policy is None else policy, checkpoint, accelerate)
         if settings is not None and not isinstance(settings, SteerSettings):
@@ -337,7 +198,8 @@ class Session:
         self._box: Any = box
         base = self.env.unwrapped
         kinds = getattr(base, "interaction_kinds", ("point", "sketch", "nudge"))
-        self.kinds: tuple[str, ...] = tuple(k for k in kinds if k in ("point", "sketch", "nudge"))
+        #: the interactions offered: the domain's that the env takes
+        self.kinds: tuple[str, ...] = tuple(k for k in self.domain.interactions if k in kinds)
         self._sampler = self.settings.make_sampler()
         self._sampler.check_policy(self.policy)
         self._history: list[Any] = []
@@ -348,11 +210,7 @@ class Session:
         self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
         self.reset(seed=self._seed)
         image = self.frame()
-        self.pixels: PixelMap | CameraView = (
-            CameraView(base)
-            if self.domain.view == "camera"
-            else PixelMap.from_env(base, image.shape[1], image.shape[0])
-        )
+        self.pixels: PixelMap | CameraView = make_view(self.domain.view, base, image)
 
     # -------------------------------------------------------------- state
     @property
@@ -435,7 +293,7 @@ class Session:
             raise SessionError(str(exc)) from exc
         start = int(getattr(self.policy, "exec_start", 0))
         plans = np.asarray(result.plans, dtype=np.float64)[:, start:]
-        plans = plans if self.domain.execute == "skill" else plans[..., list(self.dims)]
+        plans = plans if self._skills else plans[..., list(self.dims)]
         collide = getattr(self.env.unwrapped, "plan_collides", None)
         total = float(result.timings.get("total_ms", float("nan")))
         network = self._clock.seconds * 1e3
@@ -483,6 +341,8 @@ class Session:
             self._history.append(place_observation(self._history[-1], self.state))
         if self.domain.execute == "skill":
             return self._execute_skill(outcome.plan)
+        if self.domain.execute == "kitchen-skill":
+            return self._execute_kitchen_skill(outcome.plan)
         plan = outcome.plan
         if self.settings.execute is not None:
             plan = plan[: self.settings.execute]
@@ -516,6 +376,35 @@ class Session:
         info["skill"] = result.executed
         info["constraint_violation"] = bool(result.violation or info.get("constraint_violation", False))
         return StepOutcome(result.trail, 0.0, False, False, info)
+
+    def _execute_kitchen_skill(self, plan: np.ndarray) -> StepOutcome:
+        """A whole door / bowl skill plan, run open-loop on the Kitchen arm; the episode ends at the goal or a loss."""
+        from steer_envs.control.kitchen import execute_kitchen_plan
+
+        base: Any = self.env.unwrapped
+        result = execute_kitchen_plan(base, plan)
+        self._history.append(result.obs)
+        self._history = self._history[-max(2, int(getattr(self.policy, "n_obs_steps", 1))) :]
+        self._last = None
+        goal = result.mode_after in base.task.goal
+        self._done = bool(goal or result.mode_after == "lost")
+        info = dict(base._info())
+        info["skill"] = result.executed
+        info["constraint_violation"] = bool(result.violation or info.get("constraint_violation", False))
+        return StepOutcome(result.trail, 0.0, bool(goal), False, info)
+
+    @property
+    def _skills(self) -> bool:
+        """Plans are whole skills (positions, yaw, gripper: kept whole, drawn by their xyz)."""
+        return self.domain.execute in ("skill", "kitchen-skill")
+
+    def panel(self, outcome: SteerOutcome | None = None) -> list[tuple[str, str]]:
+        """Rows the page shows beside the view: the task's modes (Kitchen), and what the chosen plan would do."""
+        if self.domain.execute != "kitchen-skill":
+            return []
+        from steer_envs.ui.kitchen_panel import kitchen_rows
+
+        return kitchen_rows(self.env.unwrapped, None if outcome is None else outcome.plan)
 
     def nudge(self, to: Any) -> dict[str, Any]:
         """Move the agent to world point ``to`` (a physical correction through ``perturb``); plans expire."""

@@ -17,7 +17,7 @@ import numpy as np
 
 from steer_envs.core.validation import integer, real_array
 
-__all__ = ["MAX_INPUT_POINTS", "CameraView", "PixelMap", "SessionError", "resample_by_arclength"]
+__all__ = ["MAX_INPUT_POINTS", "CameraView", "PixelMap", "SessionError", "make_view", "resample_by_arclength"]
 
 #: the most mouse points one sketch may have before resampling
 MAX_INPUT_POINTS = 4096
@@ -58,6 +58,24 @@ class PixelMap:
         if not np.allclose(matrix @ np.array([width, height]) + origin, probe, atol=1e-6):
             raise SessionError(f"{type(base).__name__}.pixel_to_xy is not affine; steer-ui maps 2D views only")
         return cls(int(width), int(height), matrix, origin)
+
+    @classmethod
+    def from_box(cls, low: Any, high: Any, width: int, height: int) -> PixelMap:
+        """The top-down view of the world box ``[low, high]`` drawn ``width x height`` (x right, y up).
+
+        The convention of the kinematic envs' frames (:class:`~steer_envs.envs.render.Canvas`).
+
+        >>> view = PixelMap.from_box([-8.0, -8.0], [8.0, 8.0], 256, 256)
+        >>> view.to_world([[0.0, 0.0], [128.0, 128.0]]).tolist()
+        [[-8.0, 8.0], [0.0, 0.0]]
+        """
+        lo = real_array(low, "low", shape=(2,), owner="PixelMap.from_box")
+        hi = real_array(high, "high", shape=(2,), owner="PixelMap.from_box")
+        if not np.all(hi > lo):
+            raise SessionError(f"PixelMap.from_box: need low < high, got {lo.tolist()}, {hi.tolist()}")
+        width, height = integer(width, "`width`", low=1), integer(height, "`height`", low=1)
+        matrix = np.diag([(hi[0] - lo[0]) / width, -(hi[1] - lo[1]) / height])
+        return cls(width, height, matrix, np.array([lo[0], hi[1]]))
 
     def to_world(self, pixels: Any) -> np.ndarray:
         """``(..., 2)`` pixels -> world points."""
@@ -116,6 +134,20 @@ class CameraView:
     def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
         """As :meth:`PixelMap.check_pixels`."""
         return _check_pixels(pixels, name, self.width, self.height)
+
+
+def make_view(kind: str, base: Any, image: np.ndarray) -> PixelMap | CameraView:
+    """The view of a domain (``"pixels"``, ``"box"`` or ``"camera"``) for the unwrapped env ``base`` and its frame."""
+    if kind == "camera":
+        return CameraView(base)
+    if kind == "box":
+        model = getattr(base, "model", None)
+        if model is None or not hasattr(model, "low"):
+            raise SessionError(f"{type(base).__name__} has no workspace box (model.low / model.high) to draw")
+        return PixelMap.from_box(model.low, model.high, image.shape[1], image.shape[0])
+    if kind == "pixels":
+        return PixelMap.from_env(base, image.shape[1], image.shape[0])
+    raise SessionError(f"unknown view {kind!r}: 'pixels', 'box' or 'camera'")
 
 
 def _check_pixels(pixels: Any, name: str, width: int, height: int) -> np.ndarray:

@@ -8,12 +8,24 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 from steer_envs.ui.browser import BrowserUnavailable, Page, RunningServer, chromium_paths, open_page
 from steer_envs.ui.server import UIConfig
 from steer_envs.utils.threads import limit_threads
+
+
+def screenshot(page: Page, domain: str, tmp_path: Path) -> Path:
+    """Save ``ui-<domain>.png`` (small: 256 colours) in ``$STEER_UI_SCREENSHOT_DIR`` (e.g. docs/img) or ``tmp_path``."""
+    return page.screenshot(Path(os.environ.get("STEER_UI_SCREENSHOT_DIR", tmp_path)) / f"ui-{domain}.png", colors=256)
+
+
+def assert_no_errors(page: Page) -> None:
+    """Nothing went wrong on the page: no error shown or thrown, none in the browser's console."""
+    assert page.state("errors") == [], page.state("errors")
+    assert page.console_errors() == []
 
 
 def served_page(config: UIConfig, ready_timeout: float = 60.0) -> Iterator[Page]:

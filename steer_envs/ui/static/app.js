@@ -1,5 +1,6 @@
-// steer-ui page: draws the env's view, sends sketches / points / nudges over a WebSocket,
-// draws the steered plans that come back. State for tests and the benchmark: window.steerUI.
+// steer-ui page: draws the env's view, sends the domain's interactions (sketches, points, nudges, pushes) over a
+// WebSocket and draws what comes back (steered plans, a controller's overlays). The controls are built from the
+// domain's declaration in the server's `ready` message. State for tests and the benchmark: window.steerUI.
 "use strict";
 
 const COLORS = { sketch: "#c81ec8", plan: "#149f9f", collide: "#f08c1e", chosen: "#1b2a8f", agent: "#dc1e1e" };
@@ -7,19 +8,23 @@ const MAX_DISPLAY = 760; // CSS pixels of the longest image side
 const HISTORY = 200; // round trips kept in window.steerUI.history
 
 const ui = {
-  ready: false, connected: false, width: 0, height: 0, scale: 1, settings: {}, playing: false,
-  plans: [], chosen: -1, collides: null, interaction: [], interactionKind: "none",
-  agent: null, lastInteraction: null, history: [], errors: [], plansReceived: 0, drawnPlans: 0, frames: 0,
+  ready: false, connected: false, width: 0, height: 0, scale: 1, settings: {}, playing: false, declaration: null,
+  plans: [], chosen: -1, collides: null, interaction: [], interactionKind: "none", overlays: {}, drawn: {}, panel: [],
+  agent: null, lastInteraction: null, history: [], errors: [], plansReceived: 0, drawnPlans: 0, frames: 0, done: false,
+  steps: null,
 };
 window.steerUI = ui;
+window.addEventListener("error", (event) => ui.errors.push(`page error: ${event.message}`));
+window.addEventListener("unhandledrejection", (event) => ui.errors.push(`page error: ${event.reason}`));
 
 const $ = (id) => document.getElementById(id);
 const frame = $("frame");
 const overlay = $("overlay");
 const ctx = overlay.getContext("2d");
+const images = {}; // overlay name -> {src, img} of image overlays
 let socket = null;
 let sentAt = null; // performance.now() of the latest steer request
-let drag = null; // points of the sketch or nudge being drawn (image pixels)
+let drag = null; // {interaction, points} of the gesture in progress (image pixels)
 
 // ------------------------------------------------------------------ socket
 function connect() {
@@ -53,6 +58,48 @@ function showError(message) {
   showError.timer = setTimeout(() => { box.hidden = true; }, 8000);
 }
 
+function el(tag, props = {}, children = []) {
+  const node = Object.assign(document.createElement(tag), props);
+  for (const child of children) node.append(child);
+  return node;
+}
+
+// ------------------------------------------------------ controls from the declaration
+function buildControls(msg) {
+  const decl = msg.declaration;
+  ui.declaration = decl;
+  $("env-name").textContent = `${decl.title} · ${msg.env} · ${msg.policy}`;
+  const modes = $("modes");
+  modes.replaceChildren();
+  decl.interactions.forEach((it, i) => {
+    const input = el("input", { type: "radio", name: "mode", value: it.kind, checked: i === 0 });
+    input.addEventListener("change", () => { $("hint").textContent = it.hint; });
+    modes.append(el("label", {}, [input, ` ${it.label}`]));
+  });
+  $("hint").textContent = decl.interactions.length ? decl.interactions[0].hint : "This domain takes no input.";
+  $("sampler-box").hidden = !decl.steering;
+  for (const row of document.querySelectorAll(".steer-only")) row.hidden = !decl.steering;
+  $("execute-label").firstChild.textContent = decl.steering ? "Waypoints per step " : "Env steps per Step ";
+  const legend = $("legend");
+  legend.replaceChildren();
+  const row = (label, color, cls = "") => {
+    const swatch = el("span", { className: `swatch ${cls}` });
+    swatch.style.background = color;
+    legend.append(el("li", {}, [swatch, label]));
+  };
+  for (const ov of decl.overlays) {
+    if (ov.kind === "plans") {
+      row("your sketch / point", COLORS.sketch, "thick");
+      row("sampled plan", COLORS.plan);
+      if (msg.collisions) row("plan through a wall", COLORS.collide);
+      row("chosen plan (executed by Step)", COLORS.chosen, "thick");
+    }
+    for (const [label, color] of ov.legend) row(label, color, ov.kind === "markers" ? "dot" : "");
+  }
+  const dragger = decl.interactions.find((it) => it.gesture === "drag-agent");
+  row(dragger ? `agent (drag it in ${dragger.label} mode)` : "agent", COLORS.agent, "dot");
+}
+
 // ---------------------------------------------------------------- handlers
 const HANDLERS = {
   ready(msg) {
@@ -60,11 +107,7 @@ const HANDLERS = {
     ui.scale = Math.min(4, MAX_DISPLAY / Math.max(msg.width, msg.height));
     frame.width = Math.round(msg.width * ui.scale); frame.height = Math.round(msg.height * ui.scale);
     overlay.width = frame.width; overlay.height = frame.height;
-    $("env-name").textContent = `${msg.env} · policy ${msg.policy}`;
-    for (const input of document.querySelectorAll("input[name=mode]")) {
-      input.disabled = !msg.kinds.includes(input.value);
-      input.parentElement.title = input.disabled ? "this env takes no such input" : "";
-    }
+    buildControls(msg);
     const select = $("sampler");
     select.innerHTML = "";
     for (const name of msg.samplers) {
@@ -80,13 +123,16 @@ const HANDLERS = {
   },
   settings(msg) {
     applySettings(msg.settings);
-    if (ui.lastInteraction) steer(ui.lastInteraction.kind, ui.lastInteraction.points); // show the new sampler's plans
+    if (ui.declaration && ui.declaration.steering && ui.lastInteraction) {
+      steer(ui.lastInteraction.kind, ui.lastInteraction.points); // show the new sampler's plans
+    }
   },
   plans(msg) {
     const t0 = performance.now();
     ui.plans = msg.plans; ui.chosen = msg.chosen; ui.collides = msg.collides;
     ui.interaction = msg.interaction; ui.interactionKind = msg.kind;
     ui.plansReceived += 1;
+    if (msg.panel) showPanel(msg.panel);
     draw();
     const drawMs = performance.now() - t0;
     const roundTrip = sentAt === null ? null : performance.now() - sentAt;
@@ -100,11 +146,17 @@ const HANDLERS = {
     frame.src = msg.image;
     ui.frames += 1;
     ui.agent = msg.agent;
+    ui.done = msg.done;
+    ui.steps = msg.steps;
     if (msg.why !== "ready") { ui.plans = []; ui.chosen = -1; ui.collides = null; }
     if (msg.why === "reset") { ui.interaction = []; ui.lastInteraction = null; $("error").hidden = true; }
+    if (msg.why === "ready" || msg.why === "reset") ui.overlays = {};
+    Object.assign(ui.overlays, msg.overlays || {});
+    showPanel(msg.panel || []);
     $("seed").value = msg.seed;
     const state = msg.done ? "ended — press Reset" : "running";
-    const extra = [msg.mode && `mode ${msg.mode}`, msg.success && "success", msg.violation && "constraint violated"].filter(Boolean);
+    const extra = [msg.mode && `mode ${msg.mode}`, msg.success && "success", msg.violation && "constraint violated",
+      msg.steps !== null && msg.steps !== undefined && `${msg.steps} steps`].filter(Boolean);
     $("s-episode").textContent = [state, ...extra].join(", ");
     draw();
   },
@@ -114,11 +166,20 @@ const HANDLERS = {
 
 function applySettings(settings) {
   ui.settings = settings;
-  $("sampler").value = settings.sampler;
-  $("batch").value = settings.batch;
-  $("guide_ratio").value = settings.guide_ratio ?? "";
-  $("mcmc_steps").value = settings.mcmc_steps ?? "";
+  if ("sampler" in settings) {
+    $("sampler").value = settings.sampler;
+    $("batch").value = settings.batch;
+    $("guide_ratio").value = settings.guide_ratio ?? "";
+    $("mcmc_steps").value = settings.mcmc_steps ?? "";
+  }
   $("execute").value = settings.execute ?? "";
+}
+
+function showPanel(rows) {
+  ui.panel = rows;
+  const table = $("panel");
+  table.replaceChildren(...rows.map(([label, value]) => el("tr", {}, [el("th", { textContent: label }), el("td", { textContent: value })])));
+  table.hidden = rows.length === 0;
 }
 
 function stats(msg, entry) {
@@ -148,27 +209,77 @@ function dot(p, color, radius) {
   ctx.beginPath(); ctx.arc(p[0] * ui.scale, p[1] * ui.scale, radius, 0, 2 * Math.PI); ctx.fill();
 }
 
+function arrow(u, v, du, dv, color) {
+  const len = Math.hypot(du, dv) * ui.scale;
+  if (len < 0.5) { dot([u, v], color, 1.5); return; }
+  polyline([[u, v], [u + du, v + dv]], color, 1.5);
+  const a = Math.atan2(dv, du), head = Math.min(6, 0.4 * len), x = (u + du) * ui.scale, y = (v + dv) * ui.scale;
+  ctx.fillStyle = color;
+  ctx.beginPath(); ctx.moveTo(x, y);
+  ctx.lineTo(x - head * Math.cos(a - 0.45), y - head * Math.sin(a - 0.45));
+  ctx.lineTo(x - head * Math.cos(a + 0.45), y - head * Math.sin(a + 0.45));
+  ctx.closePath(); ctx.fill();
+}
+
+function overlayColor(ov) { return ov.legend.length ? ov.legend[0][1] : COLORS.plan; }
+
+// overlay kind -> how it is drawn; returns how many things it drew (window.steerUI.drawn, for tests)
+const DRAWERS = {
+  plans() {
+    ctx.globalAlpha = 0.75;
+    ui.plans.forEach((plan, i) => {
+      if (i !== ui.chosen) polyline(plan, ui.collides && ui.collides[i] ? COLORS.collide : COLORS.plan, 1.5);
+    });
+    ctx.globalAlpha = 1;
+    if (ui.chosen >= 0 && ui.plans[ui.chosen]) polyline(ui.plans[ui.chosen], COLORS.chosen, 3.5);
+    ui.drawnPlans = ui.plans.length;
+    const shown = drag && drag.interaction.gesture === "path" ? drag.points : ui.interaction;
+    if (shown.length === 1) {
+      dot(shown[0], COLORS.sketch, 7);
+    } else if (shown.length > 1) {
+      polyline(shown, COLORS.sketch, 4);
+      dot(shown[0], COLORS.sketch, 5);
+    }
+    return ui.plans.length;
+  },
+  image(ov, data) {
+    if (!data) return 0;
+    let entry = images[ov.name];
+    if (!entry || entry.src !== data.src) {
+      entry = images[ov.name] = { src: data.src, img: new Image(), loaded: false };
+      entry.img.onload = () => { entry.loaded = true; draw(); };
+      entry.img.src = data.src;
+    }
+    if (!entry.loaded) return 0;
+    ctx.imageSmoothingEnabled = false;
+    ctx.drawImage(entry.img, 0, 0, overlay.width, overlay.height);
+    return 1;
+  },
+  arrows(ov, data) {
+    for (const [u, v, du, dv] of data || []) arrow(u, v, du, dv, overlayColor(ov));
+    return (data || []).length;
+  },
+  lines(ov, data) {
+    for (const line of data || []) polyline(line, overlayColor(ov), 2.5);
+    return (data || []).length;
+  },
+  markers(ov, data) {
+    for (const p of data || []) dot(p, overlayColor(ov), 6);
+    return (data || []).length;
+  },
+};
+
 function draw() {
   ctx.clearRect(0, 0, overlay.width, overlay.height);
-  ctx.globalAlpha = 0.75;
-  ui.plans.forEach((plan, i) => {
-    if (i !== ui.chosen) polyline(plan, ui.collides && ui.collides[i] ? COLORS.collide : COLORS.plan, 1.5);
-  });
-  ctx.globalAlpha = 1;
-  if (ui.chosen >= 0 && ui.plans[ui.chosen]) polyline(ui.plans[ui.chosen], COLORS.chosen, 3.5);
-  ui.drawnPlans = ui.plans.length;
-  const shown = drag && drag.mode === "sketch" ? drag.points : ui.interaction;
-  if (shown.length === 1) {
-    dot(shown[0], COLORS.sketch, 7);
-  } else if (shown.length > 1) {
-    polyline(shown, COLORS.sketch, 4);
-    dot(shown[0], COLORS.sketch, 5);
+  for (const ov of ui.declaration ? ui.declaration.overlays : []) {
+    ui.drawn[ov.name] = DRAWERS[ov.kind](ov, ui.overlays[ov.name]);
   }
-  if (drag && drag.mode === "nudge" && ui.agent) {
+  if (drag && drag.interaction.gesture === "drag-agent" && ui.agent) {
+    const end = drag.points[drag.points.length - 1];
     ctx.setLineDash([6, 4]);
-    polyline([ui.agent, drag.points[drag.points.length - 1]], COLORS.agent, 2);
+    polyline([ui.agent, end], COLORS.agent, 2);
     ctx.setLineDash([]);
-    dot(drag.points[drag.points.length - 1], COLORS.agent, 6);
+    dot(end, COLORS.agent, 6);
   }
 }
 
@@ -180,7 +291,10 @@ function imagePixel(event) {
   return [Math.min(ui.width, Math.max(0, u)), Math.min(ui.height, Math.max(0, v))];
 }
 
-function mode() { return document.querySelector("input[name=mode]:checked").value; }
+function currentInteraction() {
+  const checked = document.querySelector("input[name=mode]:checked");
+  return checked && ui.declaration ? ui.declaration.interactions.find((it) => it.kind === checked.value) : null;
+}
 
 function steer(kind, points) {
   ui.lastInteraction = { kind, points };
@@ -188,15 +302,16 @@ function steer(kind, points) {
 }
 
 overlay.addEventListener("pointerdown", (event) => {
-  if (!ui.ready) return;
+  const interaction = currentInteraction();
+  if (!ui.ready || !interaction) return;
   overlay.setPointerCapture(event.pointerId);
-  drag = { mode: mode(), points: [imagePixel(event)] };
+  drag = { interaction, points: [imagePixel(event)] };
   draw();
 });
 overlay.addEventListener("pointermove", (event) => {
   if (!drag) return;
   const p = imagePixel(event);
-  if (drag.mode === "sketch") {
+  if (drag.interaction.gesture === "path") {
     const last = drag.points[drag.points.length - 1];
     if (Math.hypot(p[0] - last[0], p[1] - last[1]) >= 0.5 && drag.points.length < 4096) drag.points.push(p);
   } else {
@@ -206,12 +321,12 @@ overlay.addEventListener("pointermove", (event) => {
 });
 overlay.addEventListener("pointerup", (event) => {
   if (!drag) return;
-  const { mode: m, points } = drag;
+  const { interaction, points } = drag;
   const end = imagePixel(event);
   drag = null;
-  if (m === "nudge") {
-    send({ type: "nudge", to: end });
-  } else if (m === "point" || points.length < 2) {
+  if (interaction.gesture === "drag-agent") {
+    send({ type: interaction.message, to: end });
+  } else if (interaction.gesture === "click" || points.length < 2) {
     steer("point", [end]);
   } else {
     steer("sketch", points);
@@ -227,15 +342,6 @@ function configure(key) {
   send({ type: "configure", [key]: value });
 }
 for (const key of ["sampler", "batch", "guide_ratio", "mcmc_steps", "execute"]) $(key).addEventListener("change", () => configure(key));
-for (const input of document.querySelectorAll("input[name=mode]")) {
-  input.addEventListener("change", () => {
-    $("hint").textContent = {
-      sketch: "Sketch mode: press and drag on the maze to draw a path; the steered plans follow.",
-      point: "Point mode: click where the plans should go.",
-      nudge: "Nudge mode: drag from anywhere to where the agent should be pushed (a physical correction).",
-    }[mode()];
-  });
-}
 $("resteer").addEventListener("click", () => {
   if (ui.lastInteraction) steer(ui.lastInteraction.kind, ui.lastInteraction.points); else steer("none", null);
 });
