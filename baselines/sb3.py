@@ -14,7 +14,9 @@ Checkpoints: with ``checkpoint`` on, the run's folder
 atomically (:func:`steer_envs.io.atomic_directory`) after every evaluation
 with the SB3 model (``model.zip``), its replay buffer (``replay_buffer.pkl``,
 SB3's pickle: a private cache, not a shipped file) and ``state.json``
-(steps, curve, times). A run whose folder holds a checkpoint continues from
+(steps, curve, times, and the sha256 of the other two files, checked before
+SB3 reads them: a damaged file is a :class:`~steer_envs.io.CheckpointError`
+naming it, never unpickled). A run whose folder holds a checkpoint continues from
 it, so a killed run loses at most one evaluation interval. The recipe hash
 covers what changes the training or the curve (env, method, seed, the env's
 registered and passed options, evaluation settings), not the budget: a
@@ -47,7 +49,7 @@ from typing import Any
 from steer_envs.core.extras import require
 from steer_envs.core.validation import boolean, integer, real_scalar
 from steer_envs.envs.registry import entry
-from steer_envs.io import atomic_directory, default_cache_dir
+from steer_envs.io import CheckpointError, atomic_directory, default_cache_dir, file_sha256
 from steer_envs.utils.threads import limit_threads
 
 __all__ = [
@@ -74,6 +76,8 @@ MAX_EVAL_ENVS = 10
 #: evaluation seeds start here (away from the training seeds)
 EVAL_SEED_OFFSET = 1_000_000
 CHECKPOINT = "checkpoint"
+#: the files of a checkpoint whose sha256 its ``state.json`` records
+_CHECKED_FILES = ("model.zip", "replay_buffer.pkl")
 #: what needs the ``rl`` extra here, as the missing-extra message names it.
 RL_FEATURE = "training stable-baselines3 agents (SAC, SAC + HER)"
 
@@ -256,13 +260,18 @@ def _new_model(env: Any, method: str, seed: int) -> Any:
 
 
 def _load_checkpoint(folder: Path, env: Any, seed: int, total: int) -> tuple[Any, dict[str, Any]] | None:
-    """The model (with its replay buffer) and state saved in ``folder``; ``None`` without a usable one."""
+    """The model (with its replay buffer) and state saved in ``folder``; ``None`` without a usable one.
+
+    ``CheckpointError`` naming the file for a ``state.json`` that is not a JSON
+    object and for a model or replay buffer whose bytes differ from the
+    sha256 the state records (checkpoints written before it was kept are not checked).
+    """
     from stable_baselines3 import SAC
 
     path = folder / CHECKPOINT
-    if not (path / "state.json").is_file():
+    state = _read_state(path / "state.json")
+    if state is None:
         return None
-    state = json.loads((path / "state.json").read_text())
     if int(state["timesteps"]) > total:  # trained past this budget: start over rather than report a longer run
         return None
     model = SAC.load(path / "model.zip", env=env, device="cpu")
@@ -271,11 +280,38 @@ def _load_checkpoint(folder: Path, env: Any, seed: int, total: int) -> tuple[Any
     return model, state
 
 
+def _read_state(src: Path) -> dict[str, Any] | None:
+    """A checkpoint's ``state.json`` (``None``: none yet), its files checked against the sha256 it records."""
+    if not src.is_file():
+        return None
+    try:
+        state = json.loads(src.read_text(encoding="utf-8"))
+        if not isinstance(state, dict):
+            raise ValueError(f"a JSON object was expected, got {type(state).__name__}")
+        int(state["timesteps"])
+        digests = state.get("sha256", {})  # absent in checkpoints written before it was kept
+        if not (isinstance(digests, dict) and set(digests) <= set(_CHECKED_FILES)):
+            raise ValueError(f"'sha256' must map {list(_CHECKED_FILES)} to checksums, got {digests!r}")
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as err:
+        raise CheckpointError(
+            f"{src}: not a checkpoint state ({type(err).__name__}: {err}); delete "
+            f"{src.parent} to train this run again from the start"
+        ) from None
+    for name, digest in digests.items():
+        if not (src.parent / name).is_file() or file_sha256(src.parent / name) != digest:
+            raise CheckpointError(
+                f"{src.parent / name}: damaged or missing: its bytes do not match the sha256 in {src.name}, so it "
+                f"changed after it was written; delete {src.parent} to train this run again from the start"
+            )
+    return state
+
+
 def _save_checkpoint(folder: Path, model: Any, state: dict[str, Any]) -> None:
     with atomic_directory(folder / CHECKPOINT, overwrite=True) as tmp:
         model.save(tmp / "model.zip")
         model.save_replay_buffer(tmp / "replay_buffer.pkl")
-        (tmp / "state.json").write_text(json.dumps(state))
+        digests = {name: file_sha256(tmp / name) for name in _CHECKED_FILES}
+        (tmp / "state.json").write_text(json.dumps({**state, "sha256": digests}))
 
 
 def _start(env: Any, method: str, seed: int, settings: Sb3Settings, folder: Path) -> tuple[Any, dict[str, Any]]:

@@ -20,7 +20,9 @@ through here, so a reader never sees a half-written file and a crash (even a
   :data:`STALE_AFTER_S`, for a reused process id).
 
 Reading: :func:`read_npz` loads an ``.npz`` archive without pickle and checks
-every array's header (dtype, shape, size) before allocating it.
+every array's header (dtype, shape, size) before allocating it, then the
+CRC-32 checksum the zip format stores for every member (so a file whose bytes
+changed after it was written is refused).
 :class:`CheckpointError` and :class:`DatasetError` are the one error type of
 each kind of file (both are ``ValueError``\\ s); their message names the file
 and what is wrong.
@@ -38,6 +40,7 @@ and what is wrong.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -73,6 +76,7 @@ __all__ = [
     "atomic_write_text",
     "clean_stale_temps",
     "default_cache_dir",
+    "file_sha256",
     "fsync_dir",
     "npz_json",
     "read_npz",
@@ -107,8 +111,9 @@ class CheckpointError(ValueError):
     Raised before any network is built for: a missing or truncated file, a
     file that is not a safetensors checkpoint of this library, a header or
     config that is malformed or implies an unreasonably large network, tensors
-    whose names, shapes or dtypes differ from the network's, and NaN or
-    infinite weights.
+    whose names, shapes or dtypes differ from the network's, tensors whose
+    bytes do not match the checksum written with them, and NaN or infinite
+    weights.
     """
 
 
@@ -116,9 +121,10 @@ class DatasetError(ValueError):
     """A dataset file that cannot be loaded; the message names the file and why.
 
     Raised for a missing file, a file that is not an ``.npz`` archive (or holds
-    pickled objects), a foreign or malformed header, missing arrays, arrays of
-    the wrong dtype or shape, sizes beyond :data:`MAX_NPZ_BYTES`, and
-    non-finite values where the data must be finite.
+    pickled objects), bytes that do not match the archive's CRC-32
+    checksums, a foreign or malformed header, missing arrays, arrays of the
+    wrong dtype or shape, sizes beyond :data:`MAX_NPZ_BYTES`, and non-finite
+    values where the data must be finite.
     """
 
 
@@ -426,6 +432,22 @@ def atomic_directory(path: str | os.PathLike[str], *, overwrite: bool = False) -
 
 
 # ---------------------------------------------------------------------------- readers
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """The hex sha256 of a file's bytes, read in 1 MiB pieces: the checksum a sidecar records for a file.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     atomic_write_bytes(f"{tmp}/a.bin", b"abc")
+    ...     file_sha256(f"{tmp}/a.bin")[:16]
+    'ba7816bf8f01cfea'
+    """
+    digest = hashlib.sha256()
+    with open(_target(path), "rb") as fh:
+        while chunk := fh.read(2**20):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
 def _read_exact(fh: IO[bytes], n: int) -> bytearray:
     buf = bytearray(n)
     view = memoryview(buf)
@@ -450,13 +472,15 @@ def read_npz(
     not a zip archive of ``.npy`` arrays, object or structured arrays (which
     would need pickle), headers that claim more data than the member can hold
     (a corrupt or crafted file), archives whose arrays total more than
-    ``max_bytes``, and truncated or corrupt data.
+    ``max_bytes``, truncated or corrupt data, and members whose bytes do
+    not match their CRC-32 checksum (damaged after they were written).
     """
     src = _target(path)
     if not src.is_file():
         raise error(f"{src}: no such file")
     arrays: dict[str, np.ndarray] = {}
     total = 0
+    name = ""
     try:
         with zipfile.ZipFile(src) as archive:
             members = archive.infolist()
@@ -488,11 +512,21 @@ def read_npz(
                     if total > max_bytes:
                         raise error(f"{src}: arrays total more than {max_bytes} bytes (the limit)")
                     buf = _read_exact(fh, nbytes)
+                    if fh.read(1):  # reading to the member's end also makes zipfile check its CRC-32
+                        raise error(f"{src}: array {name!r} is followed by stray bytes in its member (corrupt file)")
                 arr = np.frombuffer(buf, dtype=dtype, count=count)
                 arrays[name] = arr.reshape(shape[::-1]).T if fortran else arr.reshape(shape)
     except error:
         raise
-    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, NotImplementedError, KeyError) as err:
+    except zipfile.BadZipFile as err:
+        if not str(err).startswith("Bad CRC-32"):  # zipfile's words for a member whose bytes changed
+            raise error(f"{src}: not a readable .npz archive (BadZipFile: {err})") from None
+        raise error(
+            f"{src}: damaged: array {name!r} does not match the CRC-32 checksum written with it, so the file "
+            "changed after it was written; write it again or restore it from a good copy (a cached shard is "
+            "rebuilt once it is deleted)"
+        ) from None
+    except (zlib.error, EOFError, OSError, ValueError, NotImplementedError, KeyError) as err:
         raise error(f"{src}: not a readable .npz archive ({type(err).__name__}: {err})") from None
     return arrays
 

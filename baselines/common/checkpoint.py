@@ -16,6 +16,17 @@ the file holds, so a config claiming a huge network is refused before that
 network is built. Every problem is a
 :class:`~steer_envs.io.CheckpointError` naming the file.
 
+Checked bytes: :func:`write_safetensors` stores the sha256 of the tensors
+(:func:`tensors_digest`: each tensor's name, dtype and shape, then its raw
+bytes, in name order) in the metadata entry :data:`CHECKSUM_KEY`;
+:func:`read_safetensors` recomputes it, so a file whose tensor bytes changed
+after it was written (a flipped bit on disk, a bad copy) is refused even when
+its header is intact. A training record (:func:`write_record`) carries the
+sha256 of its JSON content under :data:`RECORD_CHECKSUM_KEY` and is checked
+the same way. Files written without a checksum (before it was kept) load as
+before; :func:`add_checksum` gives such a file its checksum without changing
+its tensors or content (every checkpoint shipped in the package has one).
+
 >>> import tempfile, torch
 >>> with tempfile.TemporaryDirectory() as tmp:
 ...     path = write_safetensors(f"{tmp}/w.safetensors", {"w": torch.ones(2)}, "config", {"format": "demo"})
@@ -26,9 +37,11 @@ network is built. Every problem is a
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -37,16 +50,21 @@ import torch
 from safetensors.torch import load as st_load
 from safetensors.torch import save as st_save
 
-from steer_envs.io import CheckpointError, atomic_write_bytes
+from steer_envs.io import CheckpointError, atomic_open, atomic_write_text
 
 __all__ = [
+    "CHECKSUM_KEY",
     "MAX_CHECKPOINT_BYTES",
     "MAX_PARAMETERS",
+    "RECORD_CHECKSUM_KEY",
     "CheckpointError",
+    "add_checksum",
     "check_parameter_count",
     "check_state",
     "read_record",
     "read_safetensors",
+    "tensors_digest",
+    "write_record",
     "write_safetensors",
 ]
 
@@ -58,6 +76,13 @@ MAX_PARAMETERS = 1_000_000_000
 MAX_RECORD_BYTES = 64 * 2**20
 #: safetensors' own header limit is 100 MB; ours are a few kB
 _MAX_HEADER_BYTES = 16 * 2**20
+#: the safetensors metadata entry holding the hex sha256 of a file's tensors (:func:`tensors_digest`)
+CHECKSUM_KEY = "tensors_sha256"
+#: the entry of a training record (a JSON object) holding the hex sha256 of its other entries
+RECORD_CHECKSUM_KEY = "sha256"
+_HEX_SHA256 = re.compile(r"[0-9a-f]{64}")
+#: what to do about a damaged file, unless the caller knows better
+_REMEDY = "restore it from a good copy or write it again (a shipped checkpoint: reinstall steer-envs)"
 #: safetensors dtype -> bytes per element
 _DTYPE_BYTES = {
     "F64": 8,
@@ -89,7 +114,8 @@ def write_safetensors(
     *,
     sort_keys: bool = False,
 ) -> Path:
-    """Write ``tensors`` and the JSON object ``meta`` (under metadata ``meta_key``) atomically; returns the path.
+    """Write ``tensors``, the JSON object ``meta`` (under metadata ``meta_key``) and the tensors' checksum
+    (under :data:`CHECKSUM_KEY`) atomically; returns the path.
 
     ``ValueError`` for a path not ending in ``.safetensors`` and for tensors
     holding NaN or infinite values (such a file could not be loaded again).
@@ -97,6 +123,8 @@ def write_safetensors(
     out = _source(path)
     if out.suffix != ".safetensors":
         raise ValueError(f"path must end with .safetensors, got {str(out)!r}")
+    if meta_key == CHECKSUM_KEY:
+        raise ValueError(f"meta_key {CHECKSUM_KEY!r} is reserved for the tensors' checksum")
     cpu = {}
     for name, value in tensors.items():
         if not isinstance(value, torch.Tensor):
@@ -109,19 +137,53 @@ def write_safetensors(
         text = json.dumps(dict(meta), sort_keys=sort_keys)
     except (TypeError, ValueError) as err:
         raise TypeError(f"the checkpoint metadata must be JSON-serializable ({err})") from None
-    data = st_save(cpu, metadata={meta_key: text})
-    atomic_write_bytes(out, data)
+    raw = st_save(cpu, metadata={meta_key: text})
+    n = int.from_bytes(raw[:8], "little")
+    header = json.loads(raw[8 : 8 + n])
+    data = memoryview(raw)[8 + n :]
+    header["__metadata__"][CHECKSUM_KEY] = tensors_digest(header, data)
+    _write(out, header, data)
     return out
 
 
-def read_safetensors(path: str | os.PathLike[str], meta_key: str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """Tensors and the JSON object stored under metadata ``meta_key`` of a checked safetensors file.
+def tensors_digest(header: Mapping[str, Any], data: bytes | memoryview) -> str:
+    """The hex sha256 of a safetensors file's tensors: for each tensor in name order, its name, dtype and
+    shape (as JSON), then its raw bytes.
 
-    :class:`~steer_envs.io.CheckpointError` (naming the file) for a missing,
-    oversized, truncated or corrupt file, a foreign file without ``meta_key``,
-    and non-finite floating-point tensors.
+    ``header`` is the file's parsed JSON header (its ``__metadata__`` is
+    skipped) and ``data`` the bytes after it. The digest does not depend on
+    the metadata or on where the tensors lie in the file.
+
+    >>> header = {"w": {"dtype": "U8", "shape": [2], "data_offsets": [0, 2]}}
+    >>> tensors_digest(header, b"ab")[:16]
+    '1a30121a6bb8c155'
     """
-    src = _source(path)
+    h = hashlib.sha256()
+    view = memoryview(data)
+    for name in sorted(k for k in header if k != "__metadata__"):
+        entry = header[name]
+        begin, stop = entry["data_offsets"]
+        h.update(json.dumps([name, entry["dtype"], entry["shape"]]).encode() + b"\n")
+        h.update(view[begin:stop])
+    return h.hexdigest()
+
+
+def _write(path: Path, header: Mapping[str, Any], data: bytes | memoryview) -> None:
+    """Write a safetensors file of ``header`` and ``data`` atomically, the header padded to 8 bytes."""
+    text = json.dumps(header, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 8)
+    with atomic_open(path, "wb") as fh:
+        fh.write(len(text).to_bytes(8, "little"))
+        fh.write(text)
+        fh.write(data)
+
+
+def _parse(src: Path) -> tuple[bytes, dict[str, Any], dict[str, Any], memoryview]:
+    """``(file bytes, tensor entries, metadata, data)`` of a safetensors file whose header has been checked.
+
+    Checked: size, header length and JSON, each entry's dtype, shape and byte
+    range, and that the ranges tile the data. ``CheckpointError`` naming the file otherwise.
+    """
     if not src.is_file():
         raise CheckpointError(f"no checkpoint file at {str(src)!r}")
     size = src.stat().st_size
@@ -145,7 +207,48 @@ def read_safetensors(path: str | os.PathLike[str], meta_key: str) -> tuple[dict[
     if not isinstance(header, dict):
         raise CheckpointError(f"{src}: not a safetensors checkpoint (its header is not a JSON object)")
     metadata = header.pop("__metadata__", None)
-    if not isinstance(metadata, dict) or not isinstance(metadata.get(meta_key), str):
+    if metadata is not None and not isinstance(metadata, dict):
+        raise CheckpointError(f"{src}: not a safetensors checkpoint (its __metadata__ is not a JSON object)")
+    data = memoryview(raw)[8 + n :]
+    spans = []
+    for name, entry in header.items():
+        spans.append((*_check_entry(src, name, entry, len(data)), name))
+    spans.sort()
+    end = 0
+    for begin, stop, name in spans:
+        if begin != end:
+            raise CheckpointError(f"{src}: tensor {name!r} starts at byte {begin}, expected {end} (corrupt file)")
+        end = stop
+    if end != len(data):
+        raise CheckpointError(f"{src}: {len(data) - end} bytes after the last tensor (corrupt file)")
+    return raw, header, metadata or {}, data
+
+
+def _stored_digest(src: Path, metadata: Mapping[str, Any]) -> str | None:
+    """The checksum a file's metadata holds (``None``: written without one)."""
+    stored = metadata.get(CHECKSUM_KEY)
+    if stored is None:
+        return None
+    if not (isinstance(stored, str) and _HEX_SHA256.fullmatch(stored)):
+        raise CheckpointError(f"{src}: its {CHECKSUM_KEY!r} metadata is not a sha256 hex digest (corrupt file)")
+    return stored
+
+
+def read_safetensors(
+    path: str | os.PathLike[str], meta_key: str, *, remedy: str = _REMEDY
+) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """Tensors and the JSON object stored under metadata ``meta_key`` of a checked safetensors file.
+
+    :class:`~steer_envs.io.CheckpointError` (naming the file) for a missing,
+    oversized, truncated or corrupt file, a foreign file without ``meta_key``,
+    tensors whose bytes do not match the file's checksum (:data:`CHECKSUM_KEY`;
+    the message ends with ``remedy``, what to do about it), and non-finite
+    floating-point tensors. A file without a checksum (written before it was
+    kept) loads as before.
+    """
+    src = _source(path)
+    raw, header, metadata, data = _parse(src)
+    if not isinstance(metadata.get(meta_key), str):
         raise CheckpointError(f"{src} is not a steer-envs safetensors checkpoint (no {meta_key!r} metadata)")
     try:
         meta = json.loads(metadata[meta_key])
@@ -153,26 +256,53 @@ def read_safetensors(path: str | os.PathLike[str], meta_key: str) -> tuple[dict[
         raise CheckpointError(f"{src}: its {meta_key!r} metadata is not JSON") from None
     if not isinstance(meta, dict):
         raise CheckpointError(f"{src} is not a steer-envs safetensors checkpoint ({meta_key!r} is not a JSON object)")
-    data_len = len(raw) - 8 - n
-    spans = []
-    for name, entry in header.items():
-        spans.append((*_check_entry(src, name, entry, data_len), name))
-    spans.sort()
-    end = 0
-    for begin, stop, name in spans:
-        if begin != end:
-            raise CheckpointError(f"{src}: tensor {name!r} starts at byte {begin}, expected {end} (corrupt file)")
-        end = stop
-    if end != data_len:
-        raise CheckpointError(f"{src}: {data_len - end} bytes after the last tensor (corrupt file)")
+    stored = _stored_digest(src, metadata)
+    damaged = stored is not None and tensors_digest(header, data) != stored
     try:
         tensors = st_load(raw)
     except Exception as err:  # safetensors' own error type; the header checks above leave little for it
         raise CheckpointError(f"{src}: safetensors could not read it ({err})") from None
-    for name, t in tensors.items():
-        if t.is_floating_point() and not bool(torch.isfinite(t).all()):
-            raise CheckpointError(f"{src}: tensor {name!r} holds NaN or infinite values")
+    nonfinite = next(
+        (name for name, t in tensors.items() if t.is_floating_point() and not bool(torch.isfinite(t).all())), None
+    )
+    if damaged:
+        seen = f" (tensor {nonfinite!r} now holds NaN or infinite values)" if nonfinite else ""
+        raise CheckpointError(
+            f"{src}: damaged: its tensors' bytes do not match the sha256 checksum written with them{seen}, so the "
+            f"file changed after it was written; {remedy}"
+        )
+    if nonfinite is not None:
+        raise CheckpointError(f"{src}: tensor {nonfinite!r} holds NaN or infinite values")
     return tensors, meta
+
+
+def add_checksum(path: str | os.PathLike[str]) -> bool:
+    """Give a checkpoint (``.safetensors``) or training record (``.json``) written without a checksum its checksum.
+
+    A checkpoint gets :data:`CHECKSUM_KEY` in its header, its tensors' bytes
+    staying as they are; a record is rewritten by :func:`write_record` with
+    the same content. Atomic. Returns ``False`` when the file already has a
+    checksum (which is then verified: ``CheckpointError`` on a mismatch). The
+    new checksum vouches for the file as it is now: check an old file first.
+    """
+    src = _source(path)
+    if src.suffix == ".json":
+        record = read_record(src)
+        if RECORD_CHECKSUM_KEY in json.loads(src.read_text(encoding="utf-8")):
+            return False
+        write_record(src, record)
+        return True
+    if src.suffix != ".safetensors":
+        raise ValueError(f"path must end with .safetensors or .json, got {str(src)!r}")
+    _, header, metadata, data = _parse(src)
+    digest = tensors_digest(header, data)
+    stored = _stored_digest(src, metadata)
+    if stored is not None:
+        if stored != digest:
+            raise CheckpointError(f"{src}: damaged: its tensors' bytes do not match its sha256 checksum; {_REMEDY}")
+        return False
+    _write(src, {"__metadata__": {**metadata, CHECKSUM_KEY: digest}, **header}, data)
+    return True
 
 
 def _check_entry(src: Path, name: str, entry: Any, data_len: int) -> tuple[int, int]:
@@ -247,11 +377,41 @@ def _short(names: list[str]) -> str:
     return ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
 
 
+def write_record(path: str | os.PathLike[str], record: Mapping[str, Any]) -> Path:
+    """Write the JSON object ``record`` (indented) with the sha256 of its content under :data:`RECORD_CHECKSUM_KEY`,
+    atomically; returns the path.
+
+    The digest covers the record's canonical JSON (sorted keys, no spaces), so
+    :func:`read_record` can tell an intact record from one whose bytes changed.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     read_record(write_record(f"{tmp}/r.json", {"steps": 3}))
+    {'steps': 3}
+    """
+    out = _source(path)
+    body = {k: v for k, v in record.items() if k != RECORD_CHECKSUM_KEY}
+    try:
+        body = json.loads(json.dumps(body))  # as a reader will see it (tuples as lists, keys as strings)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"the training record must be JSON-serializable ({err})") from None
+    atomic_write_text(out, json.dumps({**body, RECORD_CHECKSUM_KEY: _record_digest(body)}, indent=1) + "\n")
+    return out
+
+
+def _record_digest(body: Mapping[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 def read_record(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The JSON object of a checkpoint's training record; ``CheckpointError`` naming the file otherwise.
+    """The JSON object of a checkpoint's training record (without its checksum); ``CheckpointError`` naming the
+    file otherwise.
 
     Refused: a missing file, one larger than :data:`MAX_RECORD_BYTES`, text
-    that is not JSON, and JSON that is not an object.
+    that is not JSON, JSON that is not an object, and a record whose content
+    does not match its :data:`RECORD_CHECKSUM_KEY` (changed after
+    :func:`write_record` wrote it). A record without a checksum (written
+    before it was kept) loads as before.
     """
     src = _source(path)
     if not src.is_file():
@@ -264,4 +424,11 @@ def read_record(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise CheckpointError(f"{src}: cannot be read as a JSON training record ({err})") from None
     if not isinstance(value, dict):
         raise CheckpointError(f"{src}: a training record is a JSON object, got {type(value).__name__}")
+    stored = value.pop(RECORD_CHECKSUM_KEY, None)
+    intact = isinstance(stored, str) and _HEX_SHA256.fullmatch(stored) and _record_digest(value) == stored
+    if stored is not None and not intact:
+        raise CheckpointError(
+            f"{src}: damaged or edited: its content does not match the {RECORD_CHECKSUM_KEY!r} checksum written "
+            f"with it; restore it from a good copy, or delete the {RECORD_CHECKSUM_KEY!r} entry to accept an edit"
+        )
     return value

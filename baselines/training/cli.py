@@ -25,7 +25,6 @@ losses (a cheap check that a recorded command reproduces a checkpoint).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from dataclasses import dataclass
@@ -35,6 +34,7 @@ from typing import Any
 import torch
 
 from steer_envs.baselines.common.checkpoint import read_record as read_record_file
+from steer_envs.baselines.common.checkpoint import write_record
 from steer_envs.baselines.common.configuration import PRECISIONS, TrainSettings
 from steer_envs.baselines.common.torch_policy import TorchPolicy
 from steer_envs.baselines.factory import get_policy_class, get_preset, make_policy, policy_names
@@ -51,7 +51,7 @@ from steer_envs.baselines.training.trainer import (
 )
 from steer_envs.data.datasets import canonical_dataset, load_dataset
 from steer_envs.data.trajectories import TrajectoryDataset
-from steer_envs.io import CheckpointError, atomic_write_text
+from steer_envs.io import CheckpointError
 from steer_envs.utils.cli import parse_key_value
 from steer_envs.utils.threads import MAX_THREADS
 
@@ -360,7 +360,7 @@ def main(argv: list[str] | None = None) -> int:
         run["config"] = policy.config.to_dict()
         run["data"] = dataset.provenance()
         try:
-            atomic_write_text(Path(run_dir) / RUN_FILE, json.dumps(run, indent=1) + "\n")
+            write_record(Path(run_dir) / RUN_FILE, run)
         except OSError as err:
             parser.error(f"cannot write --run-dir {run_dir!r}: {err}")
     job = _Job(parser, args, run, policy, dataset, settings)

@@ -6,8 +6,9 @@ the loss log, and the three random streams (numpy's batch order, the torch
 generator of the diffusion noise, torch's global RNG for dropout). It is one
 file, replaced atomically, read back only after every tensor has been checked
 against the network and optimizer it is loaded into (:class:`CheckpointError`
-naming the file otherwise). Loading runs no code: tensors through
-safetensors, the rest as JSON in its header.
+naming the file otherwise), and after the sha256 of its tensors has been
+checked (a state damaged on disk is refused, not trained on). Loading runs
+no code: tensors through safetensors, the rest as JSON in its header.
 
 A *run folder* (``--run-dir`` of :mod:`steer_envs.baselines.training`) holds
 :data:`RUN_FILE`, what is trained on what, and :data:`STATE_FILE`.
@@ -53,6 +54,11 @@ STATE_FORMAT = "steer_envs.training_state/1"
 _GENERATOR_KIND_BY_SIZE = {5056: "cpu", 16: "cuda"}
 #: the most logged loss points a training record may hold
 MAX_LOSSES = 10**7
+#: what to do about a state whose bytes changed after it was saved
+_DAMAGED_STATE = (
+    "the run cannot continue from it: restore it from a copy, or delete it and `--resume` the run folder to "
+    "train again from step 0"
+)
 
 
 @dataclass
@@ -178,7 +184,7 @@ def load_state(path: str | os.PathLike[str], *, settings: TrainSettings, parts: 
     RNGs; nothing is changed then except what the error names.
     """
     src = Path(path)
-    tensors, meta = read_safetensors(src, "training_state")
+    tensors, meta = read_safetensors(src, "training_state", remedy=_DAMAGED_STATE)
     try:
         progress = _saved_progress(meta, settings, has_ema=parts.ema is not None)
     except (KeyError, TypeError, ValueError) as err:

@@ -10,7 +10,9 @@ alone). Optimizer: AdamW with a linear warm-up and cosine decay to 0
 (``diffusers.optimization``), gradient-norm clipping. The checkpoint is a
 safetensors file; a JSON record beside it (same stem) holds the policy, the
 preset, the config, the training settings, the data's provenance, the loss
-curve and the wall time. Both are written atomically.
+curve and the wall time. Both are written atomically, each with a sha256 of
+its content that loading checks
+(:mod:`~steer_envs.baselines.common.checkpoint`).
 
 >>> import numpy as np
 >>> from steer_envs.baselines.factory import make_policy, make_policy_config
@@ -24,7 +26,6 @@ curve and the wall time. Both are written atomically.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import threading
@@ -36,7 +37,7 @@ from typing import Any, cast
 import numpy as np
 import torch
 
-from steer_envs.baselines.common.checkpoint import MAX_PARAMETERS
+from steer_envs.baselines.common.checkpoint import MAX_PARAMETERS, write_record
 from steer_envs.baselines.common.checkpoint import read_record as read_record_file
 from steer_envs.baselines.common.configuration import PolicyConfig, TrainSettings
 from steer_envs.baselines.common.torch_policy import TorchPolicy
@@ -58,7 +59,7 @@ from steer_envs.core.progress import check_progress, progress_bar
 from steer_envs.core.validation import integer, real_scalar
 from steer_envs.data.datasets import load_dataset
 from steer_envs.data.trajectories import PlanWindows, TrajectoryDataset
-from steer_envs.io import CheckpointError, atomic_write_text
+from steer_envs.io import CheckpointError
 from steer_envs.utils.threads import MAX_THREADS
 
 __all__ = [
@@ -352,7 +353,8 @@ def save_trained(policy: TorchPolicy, out: str | os.PathLike[str], name: str, re
     """Write a trained policy's checkpoint and, beside it, its JSON record (policy ``name``, config, stats, training).
 
     ``record`` is :func:`train_policy`'s (plus anything the caller adds, e.g. the command); both files are written
-    atomically. Returns the checkpoint path.
+    atomically, with their checksums (:func:`~steer_envs.baselines.common.checkpoint.write_record`). Returns the
+    checkpoint path.
     """
     settings = record["settings"]
     extra = {"final_loss": record["final_loss"], "steps": settings["steps"], "seed": settings["seed"]}
@@ -363,7 +365,7 @@ def save_trained(policy: TorchPolicy, out: str | os.PathLike[str], name: str, re
         "stats": {k: v.to_dict() for k, v in policy.stats.items()},
         "training": dict(record),
     }
-    atomic_write_text(sidecar_path(path), json.dumps(summary, indent=1) + "\n")
+    write_record(sidecar_path(path), summary)
     return path
 
 

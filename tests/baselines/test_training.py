@@ -177,6 +177,7 @@ def test_check_reruns_a_recorded_run_and_flags_a_difference(
     assert main(["--policy", "dp", *check]) == 0
     assert "dp: reproduced" in capsys.readouterr().out
     summary = json.loads(record.read_text())
+    del summary["sha256"]  # a record edited by hand drops its checksum (else it is refused as damaged)
     summary["training"]["losses"][-1][1] *= 1.01
     record.write_text(json.dumps(summary))
     assert main(check) == 1
@@ -193,6 +194,7 @@ def test_check_of_a_run_begun_on_another_device_checks_the_recipe(
     """A record whose first segment ran on CUDA replays on the CPU within CROSS_DEVICE_RTOL, not 1e-3."""
     record, check = _recorded_tiny_dp(tmp_path, walk_file)
     summary = json.loads(record.read_text())
+    del summary["sha256"]  # a record edited by hand drops its checksum
     assert summary["training"]["first_device"] == "cpu"
     summary["training"]["first_device"] = "cuda"
     summary["training"]["losses"][-1][1] *= 1.05  # another noise stream: a few per cent off
