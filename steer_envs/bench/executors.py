@@ -21,6 +21,7 @@ the Ray executor is created.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import ctypes
 import math
 import multiprocessing
@@ -291,8 +292,18 @@ class RayExecutor(Executor):
 
     ``address=None`` starts a private local Ray instance with ``workers`` CPUs
     (shut down again by :meth:`close`) unless Ray is already initialised or
-    ``RAY_ADDRESS`` is set; ``"auto"`` or ``"ray://host:10001"`` joins a
-    running cluster. Trial functions must be importable on the workers.
+    ``RAY_ADDRESS`` is set; ``"host:port"`` (the head's ``--port``), ``"auto"``
+    or ``"ray://host:10001"`` joins a running cluster. Trial functions (and
+    ``--plugin`` modules) must be importable on every node.
+
+    A trial whose worker process or node dies is re-run by Ray on a live node
+    (up to :data:`RAY_TASK_RETRIES` times); a trial that raises is not re-run
+    (trials are deterministic: it would raise again). Each trial yields one
+    :class:`Outcome`, however often Ray ran it. A cluster that does not answer
+    fails :meth:`start` with :class:`ExecutorStartError` (``steer-bench``:
+    exit 2) within :data:`RAY_CONNECT_TIMEOUT_S` seconds when nothing listens
+    there, or within about a minute (:data:`RAY_GCS_CONNECT_ATTEMPTS` of Ray's
+    attempts) when something that is not a Ray head does; never a hang.
     """
 
     name = "ray"
@@ -317,16 +328,21 @@ class RayExecutor(Executor):
                     "include_dashboard": False,
                     "logging_level": "WARNING",
                 }
-                if self.address is None and not os.environ.get("RAY_ADDRESS"):
+                target = self.address or os.environ.get("RAY_ADDRESS")
+                if not target:
                     kwargs["num_cpus"] = self.workers or os.cpu_count() or 1
-                ray.init(**kwargs)
+                with _bounded_gcs_wait(target not in (None, "", "local")):
+                    ray.init(**kwargs)
                 self._started = True
             if self._remote is None:
-                self._remote = ray.remote(num_cpus=1, max_retries=0)(execute_trial)
+                self._remote = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES, retry_exceptions=False)(
+                    execute_trial
+                )
         except Exception as exc:  # Ray raises ConnectionError, RuntimeError, ValueError, ... when it cannot start
             where = f"the Ray cluster at {self.address}" if self.address else "a local Ray instance"
             detail = " ".join(str(exc).split())[:300] or type(exc).__name__
-            raise ExecutorStartError(f"cannot start {where}: {type(exc).__name__}: {detail}") from exc
+            hint = f"; {_join_hint(self.address)}" if self.address and isinstance(exc, ConnectionError) else ""
+            raise ExecutorStartError(f"cannot start {where}: {type(exc).__name__}: {detail}{hint}") from exc
 
     def map(self, trials: Sequence[Trial]) -> Iterator[Outcome]:
         if not trials:  # nothing to run: no reason to start Ray
@@ -344,9 +360,10 @@ class RayExecutor(Executor):
             for ref in ready:
                 trial = pending.pop(ref)
                 try:
-                    yield ray.get(ref)
-                except ray.exceptions.RayError as exc:  # worker crash, lost node, unpicklable result
-                    yield Outcome(trial, None, f"{type(exc).__name__}: {exc}")
+                    outcome = ray.get(ref)
+                except ray.exceptions.RayError as exc:  # retries used up (worker crash, lost node), unpicklable result
+                    outcome = Outcome(trial, None, f"{type(exc).__name__}: {exc}\n(it is re-run on resume)")
+                yield _with_import_hint(outcome)
 
     def close(self) -> None:
         if self._started:
@@ -355,8 +372,56 @@ class RayExecutor(Executor):
         self._remote = None
 
 
+#: times Ray re-runs a trial whose worker process or node died (system failures only: a trial that raises is final)
+RAY_TASK_RETRIES = 3
 #: seconds to wait for the TCP connection to a Ray cluster's address before giving up
 RAY_CONNECT_TIMEOUT_S = 10.0
+#: attempts ``ray.init`` makes to reach a cluster's GCS (Ray's default is 20, each up to ~40 s: minutes of silence)
+RAY_GCS_CONNECT_ATTEMPTS = 1
+#: Ray's setting for those attempts (read by ``ray.init`` when it joins a cluster)
+_GCS_WAIT_ENV = "RAY_gcs_server_port_wait_time_s"
+
+
+def _join_hint(address: str) -> str:
+    """What to check when ``ray.init(address)`` could not connect."""
+    if address.startswith("ray://"):
+        where = "the head's Ray Client address (`ray start --head --ray-client-server-port`, 10001 by default)"
+    else:
+        where = "the head's GCS address (`ray start --head --port PORT` prints it)"
+    return (
+        f"is it {where}, and, when the cluster uses token authentication, are RAY_AUTH_MODE=token and the "
+        "cluster's token (RAY_AUTH_TOKEN, RAY_AUTH_TOKEN_PATH or ~/.ray/auth_token) set here too?"
+    )
+
+
+@contextlib.contextmanager
+def _bounded_gcs_wait(joining: bool) -> Iterator[None]:
+    """While joining a cluster, cap ``ray.init``'s GCS attempts at :data:`RAY_GCS_CONNECT_ATTEMPTS`.
+
+    The setting is an environment variable that Ray reads at connect time; it
+    is restored afterwards, so a later local Ray start in this process keeps
+    Ray's own patience. A value the user set is left alone.
+    """
+    if not joining or _GCS_WAIT_ENV in os.environ:
+        yield
+        return
+    os.environ[_GCS_WAIT_ENV] = str(RAY_GCS_CONNECT_ATTEMPTS)
+    try:
+        yield
+    finally:
+        os.environ.pop(_GCS_WAIT_ENV, None)
+
+
+def _with_import_hint(outcome: Outcome) -> Outcome:
+    """A trial whose module is missing on a Ray worker: say that it must be importable on every node."""
+    if outcome.error is None or not outcome.error.startswith("ModuleNotFoundError"):
+        return outcome
+    first, _, rest = outcome.error.partition("\n")
+    hint = (
+        " (on a Ray worker: the trial's module and --plugin modules must be importable on every node; "
+        "install them there, or start the node with their folder on PYTHONPATH)"
+    )
+    return Outcome(outcome.trial, None, f"{first}{hint}\n{rest}")
 
 
 def _check_reachable(address: str | None, timeout: float = RAY_CONNECT_TIMEOUT_S) -> None:
