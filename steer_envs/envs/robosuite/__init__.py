@@ -1,14 +1,18 @@
 """robosuite tasks (Lift, Can, Square; BlockStack; ArmScoop; Kitchen) as steer-envs envs: an adapter + true modes.
 
 Nothing here imports robosuite at import time: the adapter imports it when an
-env is made (``gymnasium.make("steer_envs/Lift-v0")``).
+env is made (``gymnasium.make("steer_envs/Lift-v0")``). :class:`SimulationUnstableError`
+is what the arm envs raise when MuJoCo finds their simulation unstable;
+:class:`Workspace` is the region their pushes may reach (``env.unwrapped.perturb_workspace``).
 
 >>> from steer_envs.envs.robosuite import TASK_NAMES
 >>> TASK_NAMES
 ('lift', 'can', 'square')
 """
 
+from steer_envs.envs.robosuite.stability import SimulationUnstableError
 from steer_envs.envs.robosuite.tasks import TASK_NAMES, TASKS, RobosuiteTask, task_spec
+from steer_envs.envs.robosuite.workspace import Workspace
 
 __all__ = [
     "TASKS",
@@ -18,6 +22,8 @@ __all__ = [
     "KitchenEnv",
     "RobosuiteEnv",
     "RobosuiteTask",
+    "SimulationUnstableError",
+    "Workspace",
     "task_spec",
 ]
 

@@ -17,6 +17,14 @@ Reward: 1 on success (robosuite's sparse reward), which also terminates the
 episode; the step limit is the registry's TimeLimit (robosuite's own
 ``horizon`` is off: ``ignore_done=True``).
 
+Pushes (``perturb``) stay inside the arm's workspace (``perturb_workspace``,
+:mod:`steer_envs.envs.robosuite.workspace`): a target outside it, or one the arm
+cannot take within its joint limits, is refused with a ``ValueError`` naming the
+argument, before the sim moves. An unstable simulation (MuJoCo's NaN/Inf
+warnings, after which MuJoCo resets the sim) raises
+:class:`~steer_envs.envs.robosuite.stability.SimulationUnstableError` from
+``step`` or ``perturb``, and the env refuses both until ``reset``.
+
 Cameras: ``render`` gives RGB frames, :meth:`RobosuiteEnv.render_rgbd` RGB and a
 metric depth map from any camera of the model; :meth:`RobosuiteEnv.world_to_pixel`
 and :meth:`RobosuiteEnv.pixel_to_world` map between world points and pixels of
@@ -30,19 +38,22 @@ import logging
 import sys
 from collections.abc import Callable, Iterator
 from types import ModuleType
-from typing import Any, TypedDict, Unpack
+from typing import Any, ClassVar, TypedDict, Unpack
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from steer_envs.core.env import ClosableEnv
 from steer_envs.core.extras import require
 from steer_envs.core.interaction import InteractionKind
 from steer_envs.core.validation import boolean, describe, integer, one_of, real_array, real_scalar
 from steer_envs.envs.checks import check_action, check_options, check_render_mode, check_seed
 from steer_envs.envs.robosuite import camera as cam
 from steer_envs.envs.robosuite.gl_backend import ensure_gl_backend
+from steer_envs.envs.robosuite.ik import IK_TOLERANCE, ArmIK, Residual
+from steer_envs.envs.robosuite.stability import SimulationUnstableError, StepWatch
 from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
+from steer_envs.envs.robosuite.workspace import Workspace, arm_workspace
 
 __all__ = [
     "ARM_FEATURE",
@@ -71,6 +82,8 @@ _REST_SPEED = 0.01
 #: while the fingers close on an object resting on the table is no grasp); 1 sets it at the first touch.
 GRASP_HOLD_STEPS = 2
 _SNAP_ITERS = 100
+_PLAN_ITERS = 200  # updates per start of the reachability check before a push
+_RAISED = np.array([0.0, -0.2, 0.0, 1.1, 0.0, -1.4, 0.0])  # added to the home joints: a start with the elbow up
 #: bound of every observation entry (positions in m lie within ~2 m of the origin; quats, gripper qpos within 1).
 OBS_BOUND = 10.0
 
@@ -117,7 +130,7 @@ class ViewOptions(TypedDict, total=False):
     fast_render: bool
 
 
-class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
+class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
     """A robosuite task (``"lift"``, ``"can"``, ``"square"``) with ground-truth modes and perturbations.
 
     Args:
@@ -144,6 +157,11 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     cube size, drawn at construction, is the same everywhere) and a reset seed
     replays across instances.
 
+    Pushes: :meth:`perturb` takes targets inside :attr:`perturb_workspace` only (a
+    ``ValueError`` naming ``delta`` / ``to`` and the bounds otherwise) and sets the
+    joints within their limits; a simulation MuJoCo found unstable raises
+    :class:`~steer_envs.envs.robosuite.stability.SimulationUnstableError`.
+
     ``info``: ``mode`` / ``mode_name`` (ground truth, see :mod:`steer_envs.envs.robosuite.tasks`),
     ``sensors``, ``success`` (robosuite's ``_check_success``; ``is_success`` the same, for
     stable-baselines3), ``constraint_violation``
@@ -153,6 +171,9 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
     >>> RobosuiteEnv.interaction_kinds
     ('point', 'sketch', 'nudge')
     """
+
+    #: also refused after close(): the RGB-D render
+    closed_calls: ClassVar[tuple[str, ...]] = (*ClosableEnv.closed_calls, "render_rgbd")
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 - Env's type
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
@@ -257,12 +278,52 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         self._eef_site = int(self._robot.eef_site_id["right"])
         self._arm_qpos = np.asarray(self._robot._ref_joint_pos_indexes, dtype=int)
         self._arm_qvel = np.asarray(self._robot._ref_joint_vel_indexes, dtype=int)
+        self._arm_joints = np.asarray(self._robot._ref_joint_indexes, dtype=int)
+        self._ik = ArmIK(rs.sim.model._model, self._arm_joints, self._arm_qpos)
+        self._workspace: Workspace | None = None
+        self._unstable: str | None = None  # why the sim went unstable, until the next reset
 
     # ----------------------------------------------------------------- state
     @property
     def state(self) -> np.ndarray:
         """The end effector's position in the world frame (m, a float64 copy)."""
         return np.array(self.rs_env.sim.data.site_xpos[self._eef_site], dtype=np.float64)
+
+    @property
+    def perturb_workspace(self) -> Workspace:
+        """Where :meth:`perturb` may take the end effector (world frame, m; :func:`~.workspace.arm_workspace`).
+
+        Within the arm's reach of its shoulder, above the table's top, clear of
+        the robot's own column; ``perturb_workspace.describe()`` states it.
+        """
+        if self._workspace is None:
+            sim = self.rs_env.sim
+            model, data = sim.model._model, sim.data._data
+            base = np.array(data.xpos[model.body("robot0_base").id], dtype=np.float64)
+            shoulder = np.array(data.xanchor[self._arm_joints[1]], dtype=np.float64)
+            self._workspace = arm_workspace(base, shoulder, self._support_top())
+        return self._workspace
+
+    def _support_top(self) -> float:
+        """Height (m) of the surface the objects rest on: the table's top (robosuite's bins: their floors' tops)."""
+        import mujoco
+
+        sim = self.rs_env.sim
+        model, data = sim.model._model, sim.data._data
+        best: tuple[float, float] | None = None  # (area, top) of the widest candidate box
+        for g in range(model.ngeom):
+            body = model.body(model.geom_bodyid[g]).name
+            if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_BOX or not model.geom_contype[g]:
+                continue
+            if model.geom(g).name != "table_collision" and body not in ("bin1", "bin2"):
+                continue
+            size = model.geom_size[g]
+            area, top = float(size[0] * size[1]), float(data.geom_xpos[g][2] + size[2])
+            if best is None or area > best[0] or (area == best[0] and top > best[1]):
+                best = (area, top)
+        if best is None:  # pragma: no cover - every arm scene has a table or bins
+            raise RuntimeError(f"{type(self).__name__}: no table in the scene to bound the pushes")
+        return best[1]
 
     @property
     def object_pos(self) -> np.ndarray:
@@ -398,48 +459,88 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
         ``seed``: None (continue the stream) or an int >= 0; robosuite's samplers
         draw from ``rs_env.rng``, whose state is replaced in place (the samplers
         share the Generator). ``options``: None or a dict with ``state`` (an eef
-        start position, 3 finite reals, reached as by ``perturb(to=...)``).
+        start position, 3 finite reals inside :attr:`perturb_workspace`, reached as
+        by ``perturb(to=...)``).
         """
         owner = f"{type(self).__name__}.reset"
-        super().reset(seed=check_seed(seed, owner))
+        seed = check_seed(seed, owner)
         options = check_options(options, self._OPTION_KEYS, owner)
         start = options.get("state")
         if start is not None:
             start = real_array(start, "options['state']", shape=(3,), owner=owner)
+            self.perturb_workspace.check(start, "options['state']", owner)
+        super().reset(seed=seed)  # after every check: a refused reset leaves the episode as it was
         if seed is not None:
             self.rs_env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+        self._unstable = None
         self.robosuite_obs = self.rs_env.reset()
         self._gripper = -1.0
         if start is not None:
-            self.perturb(to=start)
+            self._push(start, "options['state']", owner)
         self._begin()
         return self._obs(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One 20 Hz control step of the 7-D delta OSC action (clipped to [-1, 1])."""
-        act = np.clip(check_action(action, self.action_space, f"{type(self).__name__}.step"), -1.0, 1.0)
+        owner = f"{type(self).__name__}.step"
+        act = np.clip(check_action(action, self.action_space, owner), -1.0, 1.0)
+        self._check_stable(owner)
         self._gripper = float(act[6])
-        self.robosuite_obs, reward, _, _ = self.rs_env.step(act)
+        self.robosuite_obs, reward, _, _ = self._sim_step(act, owner)
         info = self._info()
         return self._obs(), float(reward), info["success"], False, info
+
+    def _sim_step(self, action: np.ndarray, owner: str) -> Any:
+        """robosuite's step of ``action``, checked: a simulation MuJoCo found unstable raises (see the module)."""
+        watch = StepWatch.start(self.rs_env.sim.data._data)
+        out = self.rs_env.step(action)
+        problem = watch.problem()
+        if problem is not None:
+            self._unstable = problem
+            raise SimulationUnstableError(f"{owner}: {problem}; the episode cannot go on: call reset()")
+        return out
+
+    def _check_stable(self, owner: str) -> None:
+        """Refuse to go on after the simulation went unstable, until ``reset``."""
+        if self._unstable is not None:
+            raise SimulationUnstableError(
+                f"{owner}: the simulation became unstable earlier ({self._unstable}); call reset() first"
+            )
 
     def perturb(self, delta: np.ndarray | None = None, *, to: np.ndarray | None = None) -> dict[str, Any]:
         """Move the end effector by ``delta`` (or ``to`` a position, 3 finite reals, m): a push from outside.
 
-        Closed-loop OSC steps (the gripper command held) drive the eef toward the
-        target until it is within :data:`PERTURB_TOLERANCE` or for
-        :data:`PERTURB_MAX_STEPS` steps; with ``perturb_exact`` the arm joints are
-        then set so the eef is on the target (a held object follows on the next
-        steps). Sim time advances by the OSC steps; they are not env steps (no
-        TimeLimit count). Returns the new ``info`` (``perturbed=True``).
+        The target must lie in :attr:`perturb_workspace` and be reachable within the
+        arm's joint limits; otherwise a ``ValueError`` naming ``delta`` / ``to`` is
+        raised and nothing moves. Closed-loop OSC steps (the gripper command held)
+        drive the eef toward the target until it is within
+        :data:`PERTURB_TOLERANCE` or for :data:`PERTURB_MAX_STEPS` steps; with
+        ``perturb_exact`` the arm joints are then set (within their limits) so the
+        eef is on the target (a held object follows on the next steps). Sim time
+        advances by the OSC steps; they are not env steps (no TimeLimit count).
+        Returns the new ``info`` (``perturbed=True``).
         """
         owner = f"{type(self).__name__}.perturb"
         if (delta is None) == (to is None):
             raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target position)")
         if to is None:
-            target = self.state + real_array(delta, "delta", shape=(3,), owner=owner)
+            name, target = "delta", self.state + real_array(delta, "delta", shape=(3,), owner=owner)
         else:
-            target = real_array(to, "to", shape=(3,), owner=owner)
+            name, target = "to", real_array(to, "to", shape=(3,), owner=owner)
+        self._check_stable(owner)
+        self.perturb_workspace.check(target, name, owner)
+        return self._push(target, name, owner)
+
+    def _push(self, target: np.ndarray, name: str, owner: str) -> dict[str, Any]:
+        """:meth:`perturb` to ``target`` (in the workspace), refused before any step if the arm cannot reach it."""
+        plan = self._ik.plan(
+            self.rs_env.sim.data._data, self._position_residual(target), self._ik_seeds(target), iters=_PLAN_ITERS
+        )
+        if plan is None:
+            raise ValueError(
+                f"{owner}: `{name}` takes the arm to {np.round(target, 4).tolist()}, which it cannot reach within "
+                f"its joint limits (workspace: {self.perturb_workspace.describe()})"
+            )
         for _ in range(PERTURB_MAX_STEPS):
             d = target - self.state
             if np.linalg.norm(d) <= PERTURB_TOLERANCE:
@@ -447,27 +548,47 @@ class RobosuiteEnv(gym.Env[np.ndarray, np.ndarray]):
             act = np.zeros(7)
             act[:3] = np.clip(d * 10.0, -1.0, 1.0)
             act[6] = self._gripper
-            self.rs_env.step(act)
+            self._sim_step(act, owner)
         if self.perturb_exact:
-            self._snap(target)
+            self._snap(target, plan)
         self._refresh()
         return self._info(perturbed=True)
 
-    def _snap(self, target: np.ndarray) -> None:
-        """Damped least-squares IK on the arm joints (kinematic) until the eef is on ``target``."""
+    def _position_residual(self, target: np.ndarray) -> Residual:
+        """The eef's position error to ``target`` and its Jacobian over the arm joints (for :class:`ArmIK`)."""
+        import mujoco
+
+        model = self.rs_env.sim.model._model
+        jacp = np.zeros((3, model.nv))
+
+        def residual(data: Any) -> tuple[np.ndarray, np.ndarray]:
+            mujoco.mj_jacSite(model, data, jacp, None, self._eef_site)
+            return target - data.site_xpos[self._eef_site], jacp[:, self._arm_qvel]
+
+        return residual
+
+    def _ik_seeds(self, target: np.ndarray) -> list[np.ndarray]:
+        """Start joints of the reachability check besides the current ones: the home pose, turned toward ``target``."""
+        home = np.array(self._robot.init_qpos, dtype=np.float64)
+        base = self.perturb_workspace.centre
+        assert base is not None
+        turned = home.copy()
+        turned[0] = np.arctan2(target[1] - base[1], target[0] - base[0])
+        raised = turned + _RAISED  # the elbow up: targets close beside the robot's own column
+        return [turned, home, raised]
+
+    def _snap(self, target: np.ndarray, plan: np.ndarray) -> None:
+        """Damped least-squares IK on the arm joints (kinematic, within their limits) until the eef is on ``target``.
+
+        From the joints the OSC steps left; where that solve stalls (at a joint
+        limit), the joints ``plan`` found before the push.
+        """
         import mujoco
 
         sim = self.rs_env.sim
         model, data = sim.model._model, sim.data._data
-        jacp = np.zeros((3, model.nv))
-        for _ in range(_SNAP_ITERS):
-            err = target - data.site_xpos[self._eef_site]
-            if np.linalg.norm(err) < 1e-9:
-                break
-            mujoco.mj_jacSite(model, data, jacp, None, self._eef_site)
-            jac = jacp[:, self._arm_qvel]
-            data.qpos[self._arm_qpos] += jac.T @ np.linalg.solve(jac @ jac.T + 1e-8 * np.eye(3), err)
-            mujoco.mj_forward(model, data)
+        if self._ik.solve(data, self._position_residual(target), iters=_SNAP_ITERS) >= IK_TOLERANCE:
+            data.qpos[self._arm_qpos] = plan
         data.qvel[self._arm_qvel] = 0.0
         mujoco.mj_forward(model, data)
 

@@ -44,9 +44,15 @@ automaton's convention: ``d`` reads ``s & t``.
 policy's own motion); a push (``perturb``) never reports one.
 
 **Pushes**: ``perturb(delta=...)`` / ``perturb(to=...)`` move the spoon's
-``(y, z, pitch)`` (clipped to :data:`WORKSPACE`): a few closed-loop OSC steps
-toward the pushed pose (the beads react on the way), then the arm joints are set
-so the spoon is exactly there.
+``(y, z, pitch)`` (clipped to :data:`WORKSPACE`, the env's ``perturb_workspace``):
+a few closed-loop OSC steps toward the pushed pose (the beads react on the way),
+then the arm joints are set, within their limits, so the spoon is exactly
+there. The arm takes nearly all of the box; a clipped pose it cannot take within
+its joint limits (the tipped spoon at the box's far ``y`` corners, e.g.
+``(-0.38, z, 1.2)``) is refused with a ``ValueError`` naming ``delta`` / ``to``
+before anything moves. An unstable simulation raises
+:class:`~steer_envs.envs.robosuite.stability.SimulationUnstableError` as in the
+other arm envs.
 
 >>> ArmScoopEnv.interaction_kinds
 ('nudge',)
@@ -69,7 +75,9 @@ from steer_envs.core.task import TaskSpec
 from steer_envs.core.validation import real_array
 from steer_envs.envs.checks import check_action, check_options, check_seed
 from steer_envs.envs.robosuite.adapter import RobosuiteEnv, ViewOptions
+from steer_envs.envs.robosuite.ik import IK_TOLERANCE, Residual
 from steer_envs.envs.robosuite.table import table_arena
+from steer_envs.envs.robosuite.workspace import Workspace
 from steer_envs.envs.soup_scoop import SOUP_TASK
 
 __all__ = [
@@ -123,6 +131,13 @@ HAND_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 PUSH_STEPS = 8
 _OSC_POS, _OSC_ROT = 0.05, 0.5  # robosuite's delta OSC output scale per unit action (m, rad)
 _IK_ITERS = 200
+#: extra start joints of the reachability check (radians added to the home joints): the far tipped poses need them.
+_SEED_OFFSETS = (
+    np.zeros(7),
+    np.array([0.0, 0.3, 0.0, 0.5, 0.0, -0.5, 0.0]),
+    np.array([0.0, 0.0, 0.0, 0.0, 1.2, 0.0, 0.0]),
+    np.array([0.0, 0.0, 0.0, 0.0, -1.2, 0.0, 0.0]),
+)
 _SOUP_RGBA = "0.75 0.2 0.1 0.6"
 _BOWL_RGBA = "0.85 0.85 0.8 1"
 
@@ -288,6 +303,11 @@ class ArmScoopEnv(RobosuiteEnv):
         """The ``s`` sensor: beads are on the spoon (task memory)."""
         return self._beads
 
+    @property
+    def perturb_workspace(self) -> Workspace:
+        """The ``(y, z, pitch)`` box pushes and reset states are clipped to (:data:`WORKSPACE`)."""
+        return Workspace(WORKSPACE[0].copy(), WORKSPACE[1].copy(), axes=("y", "z", "pitch"))
+
     def _obs(self) -> np.ndarray:
         return self.state.astype(np.float32)
 
@@ -349,23 +369,46 @@ class ArmScoopEnv(RobosuiteEnv):
     def _clip_state(self, x: np.ndarray) -> np.ndarray:
         return np.clip(x, WORKSPACE[0], WORKSPACE[1])
 
-    def _snap_pose(self, target: np.ndarray) -> None:
-        """Damped least-squares IK on the arm joints until the hand is at ``target`` (position and orientation)."""
+    def _pose_residual(self, target: np.ndarray) -> Residual:
+        """The hand's pose error to ``target`` = (y, z, pitch) (position, axis-angle) and its Jacobian over the arm."""
+        import mujoco
+
+        model = self.rs_env.sim.model._model
+        goal_pos = np.array([BOWL_X, target[0], target[1]])
+        goal_rot = pitch_rotation(target[2])
+        jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+
+        def residual(data: Any) -> tuple[np.ndarray, np.ndarray]:
+            hand = np.asarray(data.site_xmat[self._eef_site], dtype=np.float64).reshape(3, 3)
+            err = np.concatenate([goal_pos - data.site_xpos[self._eef_site], _rotvec(goal_rot @ hand.T)])
+            mujoco.mj_jacSite(model, data, jacp, jacr, self._eef_site)
+            return err, np.vstack([jacp, jacr])[:, self._arm_qvel]
+
+        return residual
+
+    def _plan(self, target: np.ndarray, name: str, owner: str) -> np.ndarray:
+        """Arm joints putting the spoon at ``target`` within the joint limits; else a ``ValueError`` naming ``name``."""
+        home = np.array(self._robot.init_qpos, dtype=np.float64)
+        seeds = [home + offset for offset in _SEED_OFFSETS]
+        plan = self._ik.plan(self.rs_env.sim.data._data, self._pose_residual(target), seeds, iters=_IK_ITERS)
+        if plan is None:
+            raise ValueError(
+                f"{owner}: `{name}` takes the spoon to (y, z, pitch) = {np.round(target, 4).tolist()}, a pose the arm "
+                f"cannot take within its joint limits (workspace: {self.perturb_workspace.describe()})"
+            )
+        return plan
+
+    def _snap_pose(self, target: np.ndarray, plan: np.ndarray) -> None:
+        """Damped least-squares IK on the arm joints (within their limits) until the hand is at ``target``.
+
+        From the current joints; where that solve stalls (at a joint limit), the joints ``plan`` found beforehand.
+        """
         import mujoco
 
         sim = self.rs_env.sim
         model, data = sim.model._model, sim.data._data
-        goal_pos = np.array([BOWL_X, target[0], target[1]])
-        goal_rot = pitch_rotation(target[2])
-        jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
-        for _ in range(_IK_ITERS):
-            err = np.concatenate([goal_pos - self.eef_pos, _rotvec(goal_rot @ self._hand().T)])
-            if np.linalg.norm(err) < 1e-10:
-                break
-            mujoco.mj_jacSite(model, data, jacp, jacr, self._eef_site)
-            jac = np.vstack([jacp, jacr])[:, self._arm_qvel]
-            data.qpos[self._arm_qpos] += jac.T @ np.linalg.solve(jac @ jac.T + 1e-8 * np.eye(6), err)
-            mujoco.mj_forward(model, data)
+        if self._ik.solve(data, self._pose_residual(target), iters=_IK_ITERS, tol=1e-10) >= IK_TOLERANCE:
+            data.qpos[self._arm_qpos] = plan
         data.qvel[self._arm_qvel] = 0.0
         mujoco.mj_forward(model, data)
 
@@ -375,29 +418,33 @@ class ArmScoopEnv(RobosuiteEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode with empty spoon at ``options["state"]`` or a start drawn from ``seed``."""
         owner = f"{type(self).__name__}.reset"
-        gym.Env.reset(self, seed=check_seed(seed, owner))
+        seed = check_seed(seed, owner)
         opts = check_options(options, self._OPTION_KEYS, owner)
         start = opts.get("state")
         if start is not None:
             start = self._clip_state(real_array(start, "options['state']", shape=(3,), owner=owner))
-        else:
+        gym.Env.reset(self, seed=seed)  # after every check: a refused reset leaves the episode as it was
+        if start is None:
             start = self.np_random.uniform(START_BOX[0], START_BOX[1])
         if seed is not None:
             self.rs_env.rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+        self._unstable = None
         self.robosuite_obs = self.rs_env.reset()
         self._gripper = 1.0
-        self._snap_pose(start)
+        self._snap_pose(start, self._plan(start, "options['state']", owner))
         self._refresh()
         self._begin()
         return self._obs(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One 20 Hz step: integrate the velocity ``(y', z', pitch')`` into the target pose and track it."""
-        v = np.clip(check_action(action, self.action_space, f"{type(self).__name__}.step"), -MAX_VELOCITY, MAX_VELOCITY)
+        owner = f"{type(self).__name__}.step"
+        v = np.clip(check_action(action, self.action_space, owner), -MAX_VELOCITY, MAX_VELOCITY)
+        self._check_stable(owner)
         state = self.state
         ref = self._clip_state(self._reference + self.dt * v.astype(np.float64))
         self._reference = np.clip(ref, state - MAX_LAG, state + MAX_LAG)
-        self.robosuite_obs, _, _, _ = self.rs_env.step(self._osc_action(self._reference))
+        self.robosuite_obs, _, _, _ = self._sim_step(self._osc_action(self._reference), owner)
         self._update_beads()
         info = self._info()
         return self._obs(), float(info["success"]), info["success"], False, info
@@ -408,17 +455,19 @@ class ArmScoopEnv(RobosuiteEnv):
         if (delta is None) == (to is None):
             raise ValueError(f"{owner}: pass exactly one of `delta` (displacement) or `to` (target state)")
         if to is None:
-            target = self.state + real_array(delta, "delta", shape=(3,), owner=owner)
+            name, target = "delta", self.state + real_array(delta, "delta", shape=(3,), owner=owner)
         else:
-            target = real_array(to, "to", shape=(3,), owner=owner)
+            name, target = "to", real_array(to, "to", shape=(3,), owner=owner)
+        self._check_stable(owner)
         target = self._clip_state(target)
+        plan = self._plan(target, name, owner)
         for _ in range(PUSH_STEPS):
             if np.all(np.abs(target - self.state) <= np.array([0.003, 0.003, 0.02])):
                 break
-            self.rs_env.step(self._osc_action(target))
+            self._sim_step(self._osc_action(target), owner)
             self._update_beads()
         if self.perturb_exact:
-            self._snap_pose(target)
+            self._snap_pose(target, plan)
         self._refresh()
         self._update_beads()
         self._reference = self.state

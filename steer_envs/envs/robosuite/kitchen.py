@@ -180,11 +180,25 @@ def push_toward(env: KitchenEnv, point: np.ndarray, distance: float) -> dict[str
     """Push the end effector straight toward ``point`` by ``distance`` m, less when nearer (``env.perturb``).
 
     OP's physical correction and the pushed starts of the Kitchen data share
-    it. Returns the push's ``info``, or ``None`` (no push) when the end effector is at ``point``.
+    it. A push that would leave the arm's workspace (``env.perturb_workspace``:
+    e.g. toward a point on or below the table's top) stops where the straight
+    line leaves it (to 0.1 mm). Returns the push's ``info``, or ``None`` (no
+    push) when the end effector is at ``point``.
     """
-    delta = np.asarray(point, dtype=np.float64) - env.state
+    start = env.state
+    delta = np.asarray(point, dtype=np.float64) - start
     dist = float(np.linalg.norm(delta))
-    return env.perturb(delta * min(1.0, distance / dist)) if dist > 0 else None
+    if dist == 0:
+        return None
+    delta = delta * min(1.0, distance / dist)
+    workspace = env.perturb_workspace
+    if not workspace.contains(start + delta) and workspace.contains(start):
+        inside, outside = 0.0, 1.0  # fractions of the push: the last known inside, the first known outside
+        while (outside - inside) * float(np.linalg.norm(delta)) > 1e-4:
+            mid = (inside + outside) / 2
+            inside, outside = (mid, outside) if workspace.contains(start + mid * delta) else (inside, mid)
+        delta = delta * inside
+    return env.perturb(delta)
 
 
 def skill_target(mode: str, skill: str) -> str | None:
