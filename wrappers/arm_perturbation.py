@@ -27,7 +27,8 @@ open[s] the gripper":
   steps) right after the step, so the policy sees the pushed state. A push
   that would take the eef below the object's height at reset has its vertical
   part flipped upward: pushing the fingers into the table is not a push the
-  arm could take.
+  arm could take; a push that would leave the arm's workspace
+  (``env.unwrapped.perturb_workspace``) is drawn again.
 - **push**, ``push_style="drive"`` (GLiDE's public evaluation code, robomimic's
   ``EnvPerturber``): for the next ``push_steps`` (10) env steps the position
   part of the policy's action gets a unit vector added, pointing from that
@@ -83,6 +84,8 @@ PUBLIC_CODE_SETTINGS: Mapping[str, Any] = MappingProxyType(
         "gripper_fraction": 0.0,
     }
 )
+#: a displacement outside the arm's workspace is drawn again, at most this many draws in all
+_PUSH_DRAWS = 20
 _DRIVE_MIN_HEIGHT = 0.5  # a drive's target height is at least this (action units), as in the public code
 _OWNER = "ArmPerturbationWrapper"
 
@@ -262,14 +265,33 @@ class ArmPerturbationWrapper(
             self._drive_left = min(self.push_steps, self._steps_before_quiet())  # over before the quiet steps
             self.log.append((self._t, "push", target.copy()))
             return "push"
+        delta = self._displacement()
+        for _ in range(_PUSH_DRAWS - 1):  # a push the arm cannot take is drawn again
+            if self.arm.perturb_workspace.contains(self.arm.state[:3] + delta):
+                break
+            delta = self._displacement()
+        else:
+            # near the workspace's edge no draw fits: the shortest push toward its inside
+            delta = self._inward(delta)
+        self.log.append((self._t, "push", delta))
+        self._push_info = self.arm.perturb(delta=delta)
+        return "push"
+
+    def _displacement(self) -> np.ndarray:
+        """A random displacement: a uniform direction, a length uniform in ``push_range``, never into the floor."""
         direction = self._rng.normal(size=3)
         direction /= max(float(np.linalg.norm(direction)), 1e-12)
         delta = direction * float(self._rng.uniform(*self.push_range))
         if self.arm.state[2] + delta[2] < self._floor:
             delta[2] = abs(delta[2])
-        self.log.append((self._t, "push", delta))
-        self._push_info = self.arm.perturb(delta=delta)
-        return "push"
+        return np.asarray(delta)
+
+    def _inward(self, delta: np.ndarray) -> np.ndarray:
+        """``delta``'s length, pointed from the eef toward the workspace's box centre (inside it for short pushes)."""
+        space = self.arm.perturb_workspace
+        toward = (np.asarray(space.low) + np.asarray(space.high)) / 2 - self.arm.state[:3]
+        toward /= max(float(np.linalg.norm(toward)), 1e-12)
+        return np.asarray(toward * float(np.linalg.norm(delta)))
 
     def _steps_before_quiet(self) -> int:
         """Steps from step ``self._t`` (0-based) up to the quiet steps at the end of the step limit."""

@@ -187,3 +187,20 @@ def test_only_robosuite_envs_and_a_step_limit() -> None:
         assert ArmPerturbationWrapper(raw, max_episode_steps=50).max_episode_steps == 50
     finally:
         raw.close()
+
+
+def test_pushes_near_the_workspace_edge_stay_inside_it(lift: gym.Env[Any, Any]) -> None:
+    env = ArmPerturbationWrapper(
+        lift, probability=1.0, max_perturbations=8, gripper_fraction=0.0, push_range=(0.08, 0.1), quiet_steps=0
+    )
+    space = env.arm.perturb_workspace
+    out = np.array([1.0, 0.0, -0.3]) / np.linalg.norm([1.0, 0.0, -0.3])
+    edge = np.asarray(space.centre) + (space.reach - 0.02) * out  # 2 cm inside the arm's reach
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        env.arm.perturb(to=edge)
+        action = np.zeros(7, dtype=np.float32)
+        for _ in range(8):  # every step starts a push; none may be refused
+            env.step(action)
+            assert space.contains(env.arm.state[:3])
+        assert len(env.log) == 8
