@@ -347,6 +347,28 @@ class GlidePlanningPolicy:
         self._expected: np.ndarray = np.zeros((0, 2))
         self.stats = {"straight": 0, "costmap": 0, "rrt": 0, "field": 0}
 
+    def planned_path(self, agent: int = 0) -> np.ndarray:
+        """The waypoints agent ``agent`` still has to follow, ``(P, 2)`` (a copy; ``(0, 2)``: none, e.g. before
+        the first :meth:`act`, after :meth:`reset`, or while the potential field steers).
+
+        The path is planned on a mode change or a push and shortened as waypoints are reached; a viewer
+        draws it (steer-ui's PolygonNav domain).
+
+        >>> class AllOne:
+        ...     def predict(self, s): return np.ones(len(s), dtype=int)
+        >>> demo = np.stack([np.linspace(-1, 1, 5), np.zeros(5)], axis=1)
+        >>> policy = GlidePlanningPolicy(AllOne(), [demo], 2, low=np.full(2, -2.0), high=np.full(2, 2.0), max_speed=0.1)
+        >>> policy.planned_path().shape
+        (0, 2)
+        >>> _ = policy.act(np.array([[-1.0, 0.5]]))  # in the final mode: straight to where the demos end
+        >>> policy.planned_path().tolist()
+        [[1.0, 0.0]]
+        """
+        agent = integer(agent, "agent", low=0, owner="GlidePlanningPolicy.planned_path")
+        if agent >= len(self._plans) or not self._plans[agent]:
+            return np.zeros((0, 2))
+        return np.array(self._plans[agent], dtype=np.float64).reshape(-1, 2)
+
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Forget the plans of the agents in ``mask`` (all when None)."""
         if mask is None:

@@ -4,6 +4,7 @@
     steer-ui --policy act --port 9000 --open
     steer-ui --domain blockstack  # the robot arm: click a cube in the camera image
     steer-ui --domain soup-scoop  # TLI: push the spoon, watch LTL-DS recover
+    steer-ui replay session.json --video rollout.mp4  # a saved session, again, as a video
 
 Binds to 127.0.0.1. Another interface needs ``--allow-remote`` (and warns:
 anyone who can reach the port can drive the server); the server answers only
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="steer-ui",
         description="Steer a robot policy by hand in the browser: sketch, point, nudge; or push a controller.",
+        epilog="steer-ui replay FILE [--video OUT.mp4]: replay a saved session (steer-ui replay --help).",
     )
     parser.add_argument("--host", default="127.0.0.1", help="interface to bind (default: 127.0.0.1, this machine only)")
     parser.add_argument(
@@ -74,8 +76,65 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def build_replay_parser() -> argparse.ArgumentParser:
+    """The ``steer-ui replay`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="steer-ui replay",
+        description="Replay a session saved by steer-ui (its 'Save session' button, or save_recording) and check "
+        "that it reaches the same frames; optionally write the rollout as a video with the plans drawn.",
+        epilog="Exit status: 0 the frames matched the recording's, 1 some differed, 2 usage or file errors.",
+    )
+    parser.add_argument("recording", metavar="FILE", help="the saved session (.json)")
+    parser.add_argument("--video", default=None, metavar="OUT", help="write the rollout here (.mp4 or .gif)")
+    parser.add_argument("--fps", type=float, default=4.0, help="frames per second of the video (default: 4)")
+    parser.add_argument(
+        "--cache-dir", default=None, help="where a GLiDE domain's classifier is kept (default: ~/.cache/steer-envs/ui)"
+    )
+    return parser
+
+
+def replay_main(argv: Sequence[str]) -> int:
+    """``steer-ui replay``: 0 when the replayed frames match the recording's, 1 when some differ, 2 on errors."""
+    parser = build_replay_parser()
+    args = parser.parse_args(argv)
+    if args.video is not None and not str(args.video).lower().endswith((".mp4", ".gif")):
+        parser.error(f"--video must end in .mp4 or .gif, got {args.video}")
+    if not 0.1 <= args.fps <= 120:
+        parser.error(f"--fps must be in [0.1, 120], got {args.fps}")
+    from steer_envs.ui.recording import RecordingError, load_recording, replay
+
+    try:
+        recording = load_recording(args.recording)
+        glide = DOMAINS[recording.domain].controller in ("glide-planning", "glide-bc-arm")
+        options = {"cache_dir": args.cache_dir} if args.cache_dir and glide else None
+        if args.video is not None:
+            from steer_envs.ui.video import replay_video
+
+            _, replayed = replay_video(recording, args.video, fps=args.fps, controller_options=options)
+        else:
+            replayed = replay(recording, controller_options=options)
+            replayed.session.close()
+    except (RecordingError, MissingExtraError) as exc:
+        print(f"steer-ui replay: {exc}", file=sys.stderr)
+        return 2
+    events = len(recording.events)
+    if args.video is not None:
+        print(f"steer-ui replay: wrote {args.video}")
+    if replayed.identical:
+        print(f"steer-ui replay: {events} events of {recording.domain} replayed; every recorded frame matched")
+        return 0
+    where = ", ".join(
+        "the opening" if i < 0 else f"events[{i}] ({recording.events[i]['op']})" for i in replayed.mismatches[:5]
+    )
+    print(f"steer-ui replay: {events} events replayed; frames differ after {where}", file=sys.stderr)
+    return 1
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the server until Ctrl-C; exit code 2 for usage errors."""
+    """Run the server until Ctrl-C (``replay``: :func:`replay_main`); exit code 2 for usage errors."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["replay"]:
+        return replay_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     if not 0 <= args.port <= 65535:
@@ -111,8 +170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     server = uvicorn.Server(uvicorn.Config(app, host=args.host, port=args.port, log_level="warning"))
     url = f"http://{'127.0.0.1' if args.host in ('0.0.0.0', '::') else args.host}:{args.port}"
-    if DOMAINS[args.domain].controller == "glide-planning":
-        print("steer-ui: GLiDE's mode classifier is trained on first use (2-3 minutes on one core), then cached")
+    if DOMAINS[args.domain].controller in ("glide-planning", "glide-bc-arm"):
+        print("steer-ui: GLiDE's mode classifier is trained on first use (minutes on one core), then cached")
     print(f"steer-ui: loading the policy, then serving {url} (Ctrl-C stops)", flush=True)
     if args.open:
         webbrowser.open(url)

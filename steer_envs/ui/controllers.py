@@ -36,7 +36,10 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.validation import one_of
-from steer_envs.ui.views import PixelMap
+from steer_envs.ui.views import PixelMap, PlaneView
+
+#: the views a push session draws in: a kinematic env's top-down box, or a robosuite camera's drag plane
+PushView = PixelMap | PlaneView
 
 __all__ = [
     "CONTROLLERS",
@@ -108,8 +111,16 @@ class Controller(ABC):
     def observe(self, obs: Any, info: dict[str, Any]) -> None:  # noqa: B027 - optional hook
         """A reading without acting: after a push (``info`` is ``perturb``'s) or at the episode's end."""
 
+    def agent(self, base: Any) -> np.ndarray:
+        """Where the agent is, in the coordinates the view draws (default: a kinematic env's ``state[:2]``)."""
+        return np.asarray(base.state, dtype=np.float64)[:2].copy()
+
+    def push_target(self, base: Any, point: np.ndarray) -> np.ndarray:
+        """The ``perturb(to=...)`` argument that puts the agent at view point ``point`` (default: ``point``)."""
+        return point
+
     @abstractmethod
-    def overlays(self, view: PixelMap, state: np.ndarray, full: bool) -> dict[str, Any]:
+    def overlays(self, view: PushView, state: np.ndarray, full: bool) -> dict[str, Any]:
         """Overlay name -> data in ``view``'s pixels (``full``: also the ones that do not change per step)."""
 
     @abstractmethod
@@ -132,37 +143,74 @@ def _jump(gap: int) -> str:
 
 
 class LTLDSController(Controller):
-    """SoupScoop's LTL-DS (with modulation): the automaton picks the mode, its LPV-DS moves the spoon.
+    """LTL-DS (with modulation): the automaton picks the mode, its LPV-DS moves the agent.
 
-    ``fit_seed``: the experiment whose drawn demonstrations are fitted (3 demos; thesis §3.7.2).
+    SoupScoop: one LPV-DS per mode in ``(x, y)``, fitted to experiment ``fit_seed``'s ``n_demos`` drawn
+    demonstrations (3; thesis §3.7.2). ArmScoop: the same on the Panda arm's ``(y, z, pitch)`` state (the
+    experiment's 2 expert demonstrations, ``n_demos`` ignored); the flow and the cuts are drawn in the
+    ``(y, z)`` plane of the spoon (``x`` held at the bowls' axis) at the spoon's current pitch.
     """
 
     def __init__(self, env: Any, fit_seed: int = 0, n_demos: int = 3) -> None:
-        from steer_envs.baselines.lpv_ds.task_policies import soup_scoop_policy
+        from steer_envs.baselines.lpv_ds.task_policies import arm_scoop_policy, soup_scoop_policy
 
         base = env.unwrapped
-        self.low, self.high = np.asarray(base.model.low), np.asarray(base.model.high)
-        self.policy = _cached(
-            ("ltl-ds", str(base.spec.id if base.spec else ""), fit_seed, n_demos),
-            lambda: soup_scoop_policy(fit_seed, n_demos, env, modulation=True),
-        )
+        env_id = str(base.spec.id if base.spec else "")
+        self.arm = hasattr(base, "perturb_workspace") and hasattr(base, "pitch")  # ArmScoop's spoon
+        if self.arm:
+            box = base.perturb_workspace
+            self.low, self.high = np.asarray(box.low)[:2], np.asarray(box.high)[:2]
+            self.plane_x = float(base.eef_pos[0])
+        else:
+            self.low, self.high = np.asarray(base.model.low), np.asarray(base.model.high)
+
+        def build() -> Any:
+            if self.arm:
+                return arm_scoop_policy(fit_seed, modulation=True)
+            return soup_scoop_policy(fit_seed, n_demos, env, modulation=True)
+
+        self.policy = _cached(("ltl-ds", env_id, fit_seed, n_demos), build)
         self.modes: tuple[str, ...] = tuple(self.policy.modes)
         self.last_change = "–"
         self.replans = 0
+        self._x = np.zeros(self.policy.dim)
 
+    # -------------------------------------------------------- where the agent is
+    def agent(self, base: Any) -> np.ndarray:
+        """SoupScoop: the spoon's ``(x, y)``; ArmScoop: the spoon's tool point in the world."""
+        if self.arm:
+            return np.asarray(base.eef_pos, dtype=np.float64)
+        return super().agent(base)
+
+    def push_target(self, base: Any, point: np.ndarray) -> np.ndarray:
+        """ArmScoop: the spoon's ``(y, z)`` of world ``point``, its pitch kept; SoupScoop: ``point``."""
+        if self.arm:
+            return np.array([point[1], point[2], float(base.state[2])])
+        return point
+
+    def _view_points(self, coords: np.ndarray) -> np.ndarray:
+        """``(N, 2)`` flow-plane coordinates (SoupScoop ``(x, y)``, ArmScoop ``(y, z)``) -> points the view draws."""
+        if self.arm:
+            return np.concatenate([np.full((len(coords), 1), self.plane_x), coords], axis=1)
+        return coords
+
+    # -------------------------------------------------------------- acting
     def reset(self, obs: Any, info: dict[str, Any]) -> None:
         self.policy.reset(obs, info)
         self.last_change, self.replans = "–", 0
+        self._x = np.asarray(obs, dtype=np.float64).reshape(-1)
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         seen = len(self.policy.events)
         action = np.asarray(self.policy.act(obs, info))
+        self._x = np.asarray(obs, dtype=np.float64).reshape(-1)
         self._note(seen)
         return action
 
     def observe(self, obs: Any, info: dict[str, Any]) -> None:
         seen = len(self.policy.events)
         self.policy.observe(obs, info)
+        self._x = np.asarray(obs, dtype=np.float64).reshape(-1)
         self._note(seen)
 
     def _note(self, seen: int) -> None:
@@ -178,37 +226,44 @@ class LTLDSController(Controller):
                 change += ", cut learned"
             self.last_change = change
 
-    def overlays(self, view: PixelMap, state: np.ndarray, full: bool) -> dict[str, Any]:
+    # ------------------------------------------------------------- drawing
+    def overlays(self, view: PushView, state: np.ndarray, full: bool) -> dict[str, Any]:
         mode = self.policy.mode
         xs = np.linspace(self.low[0], self.high[0], FLOW_GRID + 2)[1:-1]
         ys = np.linspace(self.low[1], self.high[1], FLOW_GRID + 2)[1:-1]
-        grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-        velocity = self.policy.flow(grid, mode)
+        plane = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        rest = np.tile(self._x[2:], (len(plane), 1))  # the slice through the agent's other coordinates (pitch)
+        velocity = self.policy.flow(np.concatenate([plane, rest], axis=1), mode)[:, :2]
         speed = np.linalg.norm(velocity, axis=1, keepdims=True)
-        top = float(self.policy.max_speed or speed.max() or 1.0)
-        cell = float(xs[1] - xs[0]) * 0.8
-        tips = grid + velocity / np.maximum(speed, 1e-12) * cell * np.minimum(speed / top, 1.0)
-        start, end = view.to_pixels(grid), view.to_pixels(tips)
+        top = float(speed.max() or 1.0) if self.arm else float(self.policy.max_speed or speed.max() or 1.0)
+        cell = float(min(xs[1] - xs[0], ys[1] - ys[0])) * 0.8
+        tips = plane + velocity / np.maximum(speed, 1e-12) * cell * np.minimum(speed / top, 1.0)
+        start, end = view.to_pixels(self._view_points(plane)), view.to_pixels(self._view_points(tips))
         arrows = np.concatenate([start, end - start], axis=1)
         cuts = [self._cut_line(view, c.point, c.normal) for cs in self.policy.cut_sets.values() for c in cs.cuts]
-        attractor = view.to_pixels(self.policy.dynamics[mode].attractor[None])
+        attractor = view.to_pixels(self._view_points(np.asarray(self.policy.dynamics[mode].attractor)[None, :2]))
         return {"flow": _round(arrows), "cuts": [c for c in cuts if c], "attractor": _round(attractor)}
 
-    def _cut_line(self, view: PixelMap, point: np.ndarray, normal: np.ndarray) -> list[Any]:
-        """A cut's boundary (the line through ``point`` across ``normal``), clipped to the workspace, in pixels."""
-        direction = np.array([-normal[1], normal[0]], dtype=np.float64)
+    def _cut_line(self, view: PushView, point: np.ndarray, normal: np.ndarray) -> list[Any]:
+        """A cut's boundary in the drawn plane (through the agent's other coordinates), clipped, in pixels."""
+        n2 = np.asarray(normal[:2], dtype=np.float64)
+        if float(np.linalg.norm(n2)) < 1e-9:
+            return []  # the cut is parallel to the drawn plane
+        offset = float(np.dot(normal[2:], self._x[2:] - point[2:])) if len(normal) > 2 else 0.0
+        anchor = point[:2] - n2 * offset / float(n2 @ n2)  # n2 . (s - p2) = -offset on the line
+        direction = np.array([-n2[1], n2[0]]) / float(np.linalg.norm(n2))
         span = float(np.linalg.norm(self.high - self.low))
-        ts = np.linspace(-span, span, 401)
-        line = point[None, :] + ts[:, None] * direction[None, :] / max(float(np.linalg.norm(direction)), 1e-12)
+        ts = np.linspace(-2 * span, 2 * span, 801)
+        line = anchor[None, :] + ts[:, None] * direction[None, :]
         inside = np.all((line >= self.low) & (line <= self.high), axis=1)
         if inside.sum() < 2:
             return []
         kept = line[inside]
-        return _round(view.to_pixels(kept[[0, -1]]))
+        return _round(view.to_pixels(self._view_points(kept[[0, -1]])))
 
     def panel(self, state: np.ndarray, info: dict[str, Any]) -> list[tuple[str, str]]:
         sensors = info.get("sensors", {})
-        return [
+        rows = [
             ("automaton mode", self.policy.mode),
             ("plan", " → ".join(self.policy.plan)),
             ("mode sensors", ", ".join(f"{k} {'on' if v else 'off'}" for k, v in sensors.items()) or "–"),
@@ -216,6 +271,10 @@ class LTLDSController(Controller):
             ("replans (pushes, failures)", str(self.replans)),
             ("learned cuts", str(self.policy.num_cuts)),
         ]
+        if self.arm:
+            y, z, pitch = self._x[:3]
+            rows.append(("spoon (y, z, pitch)", f"{y:.3f} m, {z:.3f} m, {pitch:.2f} rad"))
+        return rows
 
 
 # ------------------------------------------------------------------ GLiDE
@@ -253,16 +312,16 @@ class GlideController(Controller):
         """The classifier's mode at ``state``."""
         return int(self.policy.map.mode(np.asarray(state, dtype=np.float64)[None, :2])[0])
 
-    def overlays(self, view: PixelMap, state: np.ndarray, full: bool) -> dict[str, Any]:
+    def overlays(self, view: PushView, state: np.ndarray, full: bool) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if full:
             if self._map is None:
                 modes = np.asarray(self.policy.map.mode(self._centres)).reshape(self.size, self.size)
                 self._map = mode_map_png(modes)
             out["mode_map"] = {"src": self._map}
-        plans = getattr(self.policy, "_plans", None)  # the path being followed (replanned on a mode change or push)
-        path = [np.asarray(state[:2])] + (list(plans[0]) if plans else [])
-        out["plan"] = [_round(view.to_pixels(np.asarray(path)))] if len(path) > 1 else []
+        ahead = self.policy.planned_path()  # the path being followed (replanned on a mode change or a push)
+        path = np.concatenate([np.asarray(state[:2], dtype=np.float64)[None], ahead])
+        out["plan"] = [_round(view.to_pixels(path))] if len(path) > 1 else []
         return out
 
     def panel(self, state: np.ndarray, info: dict[str, Any]) -> list[tuple[str, str]]:
@@ -306,7 +365,14 @@ def _pixel_centres(base: Any) -> np.ndarray:
 CONTROLLERS: dict[str, Callable[..., Controller]] = {
     "ltl-ds": lambda env, **options: LTLDSController(env, **options),
     "glide-planning": lambda env, **options: GlideController(env, **options),
+    "glide-bc-arm": lambda env, **options: _arm_glide(env, **options),
 }
+
+
+def _arm_glide(env: Any, **options: Any) -> Controller:
+    from steer_envs.ui.arm_glide import GlideArmController
+
+    return GlideArmController(env, **options)
 
 
 def make_controller(name: str, env: Any, **options: Any) -> Controller:

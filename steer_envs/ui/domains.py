@@ -43,8 +43,10 @@ DEFAULT_ENV = "steer_envs/Maze2D-Large-v0"
 #: ``"push"``: a closed-loop controller the person pushes (TLI's LTL-DS, GLiDE+Planning)
 SESSION_KINDS: tuple[str, ...] = ("steer", "push")
 #: how the page draws an overlay: ``plans`` (the steered batch), ``image`` (an RGBA picture over the frame),
-#: ``arrows`` (``[u, v, du, dv]`` rows), ``lines`` (polylines of pixels), ``markers`` (``[u, v]`` points)
-OVERLAY_KINDS: tuple[str, ...] = ("plans", "image", "arrows", "lines", "markers")
+#: ``arrows`` (``[u, v, du, dv]`` rows), ``lines`` (polylines of pixels), ``markers`` (``[u, v]`` points),
+#: ``strip`` (rows of mode indices along the run, drawn as coloured bars under the frame; the overlay's legend
+#: gives mode ``k``'s name and colour in row ``k``)
+OVERLAY_KINDS: tuple[str, ...] = ("plans", "image", "arrows", "lines", "markers", "strip")
 
 
 @dataclass(frozen=True)
@@ -122,7 +124,8 @@ class Domain:
             is the default).
         settings: ``"steer"``: the default sampler and knobs.
         view: ``"pixels"`` (the env's affine ``pixel_to_xy``), ``"box"`` (a kinematic env's workspace box
-            drawn top-down) or ``"camera"`` (a robosuite camera with depth).
+            drawn top-down), ``"camera"`` (a robosuite camera with depth: a click lands on a surface) or
+            ``"plane"`` (a robosuite camera; a drag moves the agent in the plane through it facing the camera).
         execute: ``"waypoints"`` (each plan waypoint is an env action), ``"skill"`` (a BlockStack pick /
             place skill), ``"kitchen-skill"`` (a Kitchen door / bowl skill) or ``"controller"`` (``"push"``).
         session: one of :data:`SESSION_KINDS`.
@@ -150,7 +153,7 @@ class Domain:
 
     def __post_init__(self) -> None:
         one_of(self.session, "session", SESSION_KINDS, owner="Domain")
-        one_of(self.view, "view", ("pixels", "box", "camera"), owner="Domain")
+        one_of(self.view, "view", ("pixels", "box", "camera", "plane"), owner="Domain")
         one_of(self.execute, "execute", ("waypoints", "skill", "kitchen-skill", "controller"), owner="Domain")
         for kind in self.interactions:
             one_of(kind, "interactions", tuple(INTERACTIONS), owner="Domain")
@@ -185,6 +188,12 @@ _GLIDE_PATH = Overlay("plan", "lines", (("GLiDE+Planning's path", "#1b2a8f"),))
 _FLOW = Overlay("flow", "arrows", (("LPV-DS flow of the current mode", "#149f9f"),))
 _CUTS = Overlay("cuts", "lines", (("learned cuts (modulation)", "#c81ec8"),))
 _ATTRACTOR = Overlay("attractor", "markers", (("the mode's attractor", "#f08c1e"),))
+_TRAIL = Overlay("trail", "lines", (("the gripper's path", "#1b2a8f"),))
+_TARGET = Overlay("target", "markers", (("the learned mode's attractor", "#f08c1e"),))
+_LIFT_MODES = Overlay(
+    "modes", "strip", (("mode reach", "#1b9e77"), ("mode lift", "#d95f02"), ("mode reach_height", "#7570b3"))
+)
+_ARM_FLOW = Overlay("flow", "arrows", (("LPV-DS flow of the current mode, (y, z) at the spoon's pitch", "#149f9f"),))
 
 #: the domains steer-ui can open (``--domain``)
 DOMAINS: dict[str, Domain] = {
@@ -243,6 +252,39 @@ DOMAINS: dict[str, Domain] = {
         controller="ltl-ds",
         steps=20,
         hints={"push": "Push mode: drag the spoon to push it; a push that skips or undoes a mode makes LTL-DS replan."},
+    ),
+    # the front camera looks along -x: the spoon's (y, z) plane faces it
+    "arm-scoop": Domain(
+        "steer_envs/ArmScoop-v0",
+        {"camera": "frontview", "render_size": 320, "fast_render": True},
+        view="plane",
+        execute="controller",
+        session="push",
+        title="ArmScoop (TLI: LTL-DS on the Panda arm)",
+        interactions=("push",),
+        overlays=(_ARM_FLOW, _CUTS, _ATTRACTOR),
+        controller="ltl-ds",
+        steps=20,
+        hints={
+            "push": "Push mode: drag the spoon (its pitch is kept): into the soup, out of it, past the target bowl; "
+            "a push that skips or undoes a mode makes LTL-DS replan.",
+        },
+    ),
+    "lift-glide": Domain(
+        "steer_envs/Lift-v0",
+        {"camera": "frontview", "render_size": 320, "fast_render": True},
+        view="plane",
+        execute="controller",
+        session="push",
+        title="Lift (GLiDE+BC over learned modes)",
+        interactions=("push",),
+        overlays=(_TRAIL, _TARGET, _LIFT_MODES),
+        controller="glide-bc-arm",
+        steps=10,
+        hints={
+            "push": "Push mode: drag the gripper (in the plane facing the camera); the strip under the image shows "
+            "the learned mode beside the true one along the run.",
+        },
     ),
 }  # fmt: skip
 

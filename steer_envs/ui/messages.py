@@ -12,13 +12,16 @@ Page -> server (one JSON object per WebSocket text message, ``type`` first):
 ``pause``      stop playing
 ``nudge``      ``to``: ``[u, v]``: move the agent there (a physical correction; steered domains)
 ``push``       ``to``: ``[u, v]``: drag the agent there; the controller recovers (push domains)
+``save``       send the session's recording (interactions, seeds, settings) as a download
+``export``     ``format``: ``"mp4"`` (default) | ``"gif"``: replay the session and send the video
 =============  ==========================================================================
 
 Server -> page: ``ready`` (the domain's declaration: its interactions and
 overlays; settings, image size, samplers, frame), ``plans`` (a steering result
 in pixels), ``frame`` (a PNG of the view after a step / nudge / push / reset,
-with the domain's ``overlays`` and ``panel`` rows), ``settings``, ``playing``,
-``error`` (``message``: what was wrong). A bad message only ever produces an
+with the domain's ``overlays`` and ``panel`` rows, and a ``notice``), ``settings``,
+``playing``, ``download`` (``name``, ``mime``, base64 ``data``: a saved recording or
+an exported video), ``error`` (``message``: what was wrong). A bad message only ever produces an
 ``error`` reply.
 """
 
@@ -44,6 +47,8 @@ MESSAGE_TYPES: dict[str, frozenset[str]] = {
     "pause": frozenset(),
     "nudge": frozenset({"to"}),
     "push": frozenset({"to"}),
+    "save": frozenset(),
+    "export": frozenset({"format"}),
 }
 #: the fields ``type`` requires
 _REQUIRED: dict[str, frozenset[str]] = {

@@ -1,7 +1,8 @@
 """Push and watch: a closed-loop controller runs the env, a person drags the agent, the controller recovers.
 
 A :class:`PushSession` is what steer-ui keeps per tab for a ``"push"`` domain
-(TLI's SoupScoop under LTL-DS, GLiDE+Planning on PolygonNav), the counterpart
+(TLI's SoupScoop and ArmScoop under LTL-DS, GLiDE+Planning on PolygonNav,
+GLiDE+BC on the Lift arm), the counterpart
 of :class:`~steer_envs.ui.session.Session` for policies that are steered::
 
     session = PushSession("soup-scoop", seed=1)
@@ -10,7 +11,10 @@ of :class:`~steer_envs.ui.session.Session` for policies that are steered::
     session.execute()                        # the automaton replans; the flow recovers
     session.panel()                          # mode, plan, sensors, the last mode change
 
-A session is not thread-safe: one call at a time.
+A push the env refuses (a pose the arm cannot take: ``perturb`` raises a
+``ValueError`` naming ``to``) moves nothing and is kept as :attr:`PushSession.notice`,
+for the page to show; the session goes on. A session is not thread-safe: one
+call at a time.
 """
 
 from __future__ import annotations
@@ -24,10 +28,11 @@ import numpy as np
 
 from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.validation import integer, real_array
-from steer_envs.ui.controllers import Controller, make_controller
+from steer_envs.ui.controllers import Controller, PushView, make_controller
 from steer_envs.ui.domains import DOMAINS, domain_named
 from steer_envs.ui.outcomes import StepOutcome
-from steer_envs.ui.views import PixelMap, SessionError, make_view
+from steer_envs.ui.recording import Recording, SessionLog, json_options, recording_of
+from steer_envs.ui.views import PixelMap, PlaneView, SessionError, make_view
 
 __all__ = ["MAX_STEPS", "PushSession", "PushSettings"]
 
@@ -51,7 +56,7 @@ class PushSession:
 
     Args:
         domain: a ``"push"`` domain of :data:`~steer_envs.ui.domains.DOMAINS` (``"soup-scoop"``,
-            ``"polygon-nav"``).
+            ``"arm-scoop"``, ``"polygon-nav"``, ``"lift-glide"``).
         seed: the first reset's seed.
         env_kwargs: passed to ``gymnasium.make`` (default: the domain's).
         controller_options: passed to the controller (e.g. ``cache_dir`` for GLiDE's classifier).
@@ -67,6 +72,17 @@ class PushSession:
     ) -> None:
         self.name = domain
         self.domain = domain_named(domain, owner="PushSession")
+        #: the calls that changed the session, for :meth:`recording` (:class:`~steer_envs.ui.recording.SessionLog`)
+        self.log = SessionLog()
+        self._logging = False
+        recorded, unrecorded = json_options(controller_options)
+        self._opened: dict[str, Any] = {
+            "kind": "push",
+            "seed": seed,
+            "env_kwargs": None if env_kwargs is None else dict(env_kwargs),
+            "controller_options": recorded,
+            "unrecorded_options": unrecorded,
+        }
         if self.domain.steering:
             raise SessionError(f"the {domain!r} domain steers a policy: open it with Session, not PushSession")
         kwargs = dict(self.domain.env_kwargs if env_kwargs is None else env_kwargs)
@@ -83,13 +99,15 @@ class PushSession:
         self._done = False
         self._steps = 0
         self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
+        self.notice = ""
         self.reset(seed=self._seed)
-        self.pixels: PixelMap = self._view()
+        self.pixels: PushView = self._view()
+        self._logging = True
 
-    def _view(self) -> PixelMap:
+    def _view(self) -> PushView:
         view = make_view(self.domain.view, self.env.unwrapped, self.frame())
-        if not isinstance(view, PixelMap):
-            raise SessionError("a push session draws a 2D view")
+        if not isinstance(view, PixelMap | PlaneView):
+            raise SessionError("a push session draws a top-down box or a camera's drag plane")
         return view
 
     # -------------------------------------------------------------- state
@@ -100,9 +118,8 @@ class PushSession:
 
     @property
     def state(self) -> np.ndarray:
-        """The agent's position (world units)."""
-        base: Any = self.env.unwrapped
-        return np.asarray(base.state, dtype=np.float64)[:2].copy()
+        """The agent's position as the view draws it (a kinematic env's ``(x, y)``; an arm's tool point, m)."""
+        return self.controller.agent(self.env.unwrapped)
 
     @property
     def done(self) -> bool:
@@ -128,6 +145,7 @@ class PushSession:
             value = knobs["execute"]
             steps = self.domain.steps if value is None else integer(value, "`execute`", low=1, high=MAX_STEPS)
             self.settings = PushSettings(steps)
+        self._record("configure", knobs=self.settings.as_dict())
         return self.settings
 
     def reset(self, seed: int | None = None) -> dict[str, Any]:
@@ -139,6 +157,8 @@ class PushSession:
         self.controller.reset(self._obs, self._info)
         self._done = False
         self._steps = 0
+        self.notice = ""
+        self._record("reset", seed=self._seed)
         return dict(info)
 
     # ------------------------------------------------------------- acting
@@ -146,6 +166,7 @@ class PushSession:
         """Run the controller for ``settings.execute`` env steps (fewer when the episode ends)."""
         if self._done:
             raise SessionError("the episode has ended: reset to go on")
+        self.notice = ""
         trail = [self.state]
         reward, terminated, truncated = 0.0, False, False
         for _ in range(self.settings.execute):
@@ -160,25 +181,39 @@ class PushSession:
         self._done = bool(terminated or truncated)
         if self._done:
             self.controller.observe(self._obs, self._info)  # the final reading (e.g. the goal mode)
+        self._record("step")
         return StepOutcome(np.asarray(trail), reward, bool(terminated), bool(truncated), dict(self._info))
 
     def push(self, to: Any) -> dict[str, Any]:
-        """Drag the agent to world point ``to`` (``env.unwrapped.perturb(to=...)``); the controller sees it at once."""
+        """Drag the agent to point ``to`` of the view's space (``env.unwrapped.perturb(to=...)``).
+
+        The controller sees the push at once. A push the env refuses (``ValueError`` from ``perturb``) moves
+        nothing: its message becomes :attr:`notice` and the env's latest info is returned unchanged.
+        """
+        dim = len(self.state)
         target = real_array(to, "to", owner="PushSession.push")
-        if target.shape != (2,):
-            raise SessionError(f"`to` must be a world point of 2 numbers, got shape {target.shape}")
+        if target.shape != (dim,):
+            raise SessionError(f"`to` must be a point of {dim} numbers, got shape {target.shape}")
         if self._done:
             raise SessionError("the episode has ended: reset to go on")
         base: Any = self.env.unwrapped
-        info = dict(base.perturb(to=target))
+        self._record("push", to=target)
+        try:
+            info = dict(base.perturb(to=self.controller.push_target(base, target)))
+        except ValueError as exc:  # refused before anything moved (e.g. a pose the arm cannot take)
+            self.notice = f"push refused: {exc}"
+            return dict(self._info)
+        self.notice = ""
         self._obs = np.asarray(base._obs()) if callable(getattr(base, "_obs", None)) else self._obs
         self._info = info
         self.controller.observe(self._obs, info)
         return info
 
     def push_pixel(self, u: Any, v: Any) -> dict[str, Any]:
-        """:meth:`push` to the world point under pixel ``(u, v)`` of the view."""
+        """:meth:`push` to the point under pixel ``(u, v)`` (a camera view: on the drag plane through the agent)."""
         pixel = self.pixels.check_pixels([[u, v]], "to")
+        if isinstance(self.pixels, PlaneView):
+            return self.push(self.pixels.to_world(pixel, float(self.state[self.pixels.axis]))[0])
         return self.push(self.pixels.to_world(pixel)[0])
 
     # ------------------------------------------------------------ drawing
@@ -195,7 +230,21 @@ class PushSession:
         image = self.env.render()
         if not isinstance(image, np.ndarray) or image.ndim != 3:
             raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+        self.log.frame(image)
         return image
+
+    # ------------------------------------------------------------ recording
+    def _record(self, op: str, **fields: Any) -> None:
+        if self._logging:
+            self.log.add(op, **fields)
+
+    def recording(self) -> Recording:
+        """This session as a :class:`~steer_envs.ui.recording.Recording` (save it with ``save_recording``).
+
+        Controller options that are not plain JSON (e.g. a GLiDE ``setup``) are named in the recording's
+        ``unrecorded_options``; a replay must be given them.
+        """
+        return recording_of(self, self._opened, self.log)
 
     def frame_png(self) -> bytes:
         """:meth:`frame` as PNG bytes."""

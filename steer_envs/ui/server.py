@@ -46,8 +46,10 @@ from steer_envs.ui.domains import DOMAINS
 from steer_envs.ui.messages import Message, MessageError, parse_message
 from steer_envs.ui.outcomes import SteerOutcome
 from steer_envs.ui.push_session import PushSession, PushSettings
+from steer_envs.ui.recording import Recording, recording_json, replay
 from steer_envs.ui.session import Session, shared_policy
 from steer_envs.ui.settings import MAX_BATCH, SteerSettings
+from steer_envs.ui.video import VIDEO_FORMATS, annotated_frame, encode_video
 from steer_envs.ui.views import SessionError
 
 __all__ = ["MAX_PENDING", "UIConfig", "create_app"]
@@ -59,6 +61,8 @@ T = TypeVar("T")
 MAX_PENDING = 32
 #: seconds between play ticks (on top of the steering call itself)
 PLAY_PAUSE_S = 0.02
+#: the most frames an exported video holds (a frame per interaction or step)
+MAX_VIDEO_FRAMES = 2000
 
 
 @dataclass(frozen=True)
@@ -230,6 +234,7 @@ class _Connection:
             self.playing = True
             await self.send({"type": "playing", "playing": True})
         elif message.type in ("nudge", "push"):
+            started = time.perf_counter()
             to = fields["to"]
             if not isinstance(to, list) or len(to) != 2:
                 raise MessageError(f"'to' must be a [u, v] pixel pair, got {str(to)[:80]}")
@@ -240,7 +245,23 @@ class _Connection:
             else:
                 offered = ", ".join(session.kinds) or "none"
                 raise SessionError(f"{self.app.config.domain} takes no {message.type} (its interactions: {offered})")
-            await self.send(await self.call(self.frame_payload, info, message.type))
+            pushed = (time.perf_counter() - started) * 1e3
+            payload = await self.call(self.frame_payload, info, message.type)
+            payload["timings"] = {"push_ms": pushed, "server_ms": (time.perf_counter() - started) * 1e3}
+            await self.send(payload)
+        elif message.type == "save":
+            recording = session.recording()
+            text = recording_json(recording)
+            name = f"steer-ui-{self.app.config.domain}-seed{recording.seed}-{len(recording.events)}events.json"
+            await self.send(_download(name, "application/json", text.encode("utf-8")))
+        elif message.type == "export":
+            fmt = one_of(fields.get("format") or "mp4", "format", VIDEO_FORMATS, owner="export")
+            recording = session.recording()
+            data, identical = await self.call(_export, recording, fmt, self.app.config)
+            name = f"steer-ui-{self.app.config.domain}-seed{recording.seed}.{fmt}"
+            await self.send(
+                {**_download(name, f"video/{fmt}" if fmt == "mp4" else "image/gif", data), "identical": identical}
+            )
 
     async def tick(self) -> None:
         session = self.session
@@ -299,6 +320,7 @@ class _Connection:
         extra: dict[str, Any] = {"panel": [list(row) for row in session.panel()]}
         if isinstance(session, PushSession):
             extra["overlays"] = session.overlays(full=why in ("ready", "reset"))
+            extra["notice"] = session.notice
         return {
             **extra,
             "type": "frame",
@@ -353,6 +375,28 @@ class _Connection:
         return payload
 
 
+def _download(name: str, mime: str, data: bytes) -> dict[str, Any]:
+    """A ``download`` message: the page saves ``data`` as file ``name``."""
+    return {"type": "download", "name": name, "mime": mime, "size": len(data), "data": base64.b64encode(data).decode()}
+
+
+def _export(recording: Recording, fmt: str, config: UIConfig) -> tuple[bytes, bool]:
+    """Replay ``recording`` in a fresh session and encode its rollout (plans drawn); whether the frames matched."""
+    frames: list[np.ndarray] = []
+
+    def grab(index: int, event: Any, session: Any, outcome: Any) -> None:
+        if len(frames) < MAX_VIDEO_FRAMES:
+            frames.append(annotated_frame(session, outcome))
+
+    replayed = replay(recording, controller_options=_controller_options(config), on_event=grab)
+    try:
+        if not frames:
+            frames.append(annotated_frame(replayed.session))
+        return encode_video(frames, fmt), replayed.identical
+    finally:
+        replayed.session.close()
+
+
 @dataclass
 class _AppState:
     config: UIConfig
@@ -362,16 +406,21 @@ class _AppState:
     warm_up_ms: float = 0.0
 
 
+def _controller_options(config: UIConfig) -> dict[str, Any]:
+    """A push domain's controller options: the config's, with ``cache_dir`` for the GLiDE controllers."""
+    options = dict(config.controller_options or {})
+    if DOMAINS[config.domain].controller in ("glide-planning", "glide-bc-arm") and config.cache_dir:
+        options.setdefault("cache_dir", config.cache_dir)
+    return options
+
+
 def _open_session(config: UIConfig) -> Session | PushSession:
     """A session of the served domain, env and policy (the weights are shared across sessions)."""
     domain = DOMAINS[config.domain]
     if not domain.steering:
         if config.env is not None or config.policy is not None or config.checkpoint is not None:
             raise ValueError(f"steer-ui: the {config.domain!r} domain takes no --env, --policy or --checkpoint")
-        options = dict(config.controller_options or {})
-        if domain.controller == "glide-planning" and config.cache_dir:
-            options.setdefault("cache_dir", config.cache_dir)
-        return PushSession(config.domain, seed=config.seed, controller_options=options)
+        return PushSession(config.domain, seed=config.seed, controller_options=_controller_options(config))
     return Session(
         config.domain,
         env=config.env,

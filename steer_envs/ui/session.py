@@ -13,7 +13,9 @@ A view converts between the two: :class:`PixelMap` for an env with an affine
 ``pixel_to_xy`` (Maze2D's top-down image), :class:`CameraView` for a camera
 with depth (BlockStack: a click lands on the first surface the pixel sees).
 :data:`DOMAINS` names what steer-ui can open (the domains that push a
-controller instead are :class:`~steer_envs.ui.push_session.PushSession`'s). A
+controller instead are :class:`~steer_envs.ui.push_session.PushSession`'s).
+Every call that changes a session is logged: :meth:`Session.recording` saves
+it for a replay to the same frames (:mod:`steer_envs.ui.recording`). A
 session is not thread-safe: one call at a time.
 """
 
@@ -23,7 +25,7 @@ import copy
 import io
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import replace
+from dataclasses import asdict, replace
 from typing import Any
 
 import gymnasium as gym
@@ -42,8 +44,9 @@ from steer_envs.steering import (
 )
 from steer_envs.ui.domains import DEFAULT_ENV, DOMAINS, Domain, domain_named
 from steer_envs.ui.outcomes import SteerOutcome, StepOutcome
+from steer_envs.ui.recording import Recording, SessionLog, interaction_json, recording_of
 from steer_envs.ui.settings import MAX_BATCH, SteerSettings
-from steer_envs.ui.views import CameraView, PixelMap, SessionError, make_view, resample_by_arclength
+from steer_envs.ui.views import CameraView, PixelMap, PlaneView, SessionError, make_view, resample_by_arclength
 from steer_envs.utils.threads import limit_threads
 
 __all__ = [
@@ -175,6 +178,20 @@ class Session:
         threads: int | None = 1,
     ) -> None:
         self.name = one_of(domain, "domain", tuple(DOMAINS), owner="Session")
+        #: the calls that changed the session, for :meth:`recording` (:class:`~steer_envs.ui.recording.SessionLog`)
+        self.log = SessionLog()
+        self._logging = False
+        unrecordable = [n for n, v in (("env", env), ("policy", policy)) if v is not None and not isinstance(v, str)]
+        self._opened: dict[str, Any] = {
+            "kind": "steer",
+            "seed": seed,
+            "env": env if isinstance(env, str) else None,
+            "env_kwargs": None if env_kwargs is None else dict(env_kwargs),
+            "policy": policy if isinstance(policy, str) else None,
+            "checkpoint": checkpoint,
+            "accelerate": accelerate,
+            "unrecordable": unrecordable,
+        }
         self.domain = domain_named(domain, owner="Session")
         if not self.domain.steering:
             raise SessionError(f"the {domain!r} domain pushes a controller: open it with PushSession, not Session")
@@ -210,7 +227,13 @@ class Session:
         self._seed = integer(seed, "`seed`", low=0, high=2**31 - 1)
         self.reset(seed=self._seed)
         image = self.frame()
-        self.pixels: PixelMap | CameraView = make_view(self.domain.view, base, image)
+        view = make_view(self.domain.view, base, image)
+        if isinstance(view, PlaneView):
+            self.env.close()
+            raise SessionError("a steered domain's view is 'pixels', 'box' or 'camera' (clicks land on the scene)")
+        self.pixels: PixelMap | CameraView = view
+        self._opened["settings"] = asdict(self.settings)
+        self._logging = True
 
     # -------------------------------------------------------------- state
     @property
@@ -250,6 +273,7 @@ class Session:
         sampler = settings.make_sampler()
         sampler.check_policy(self.policy)  # BI/GD/SS need a diffusion policy: refuse here, not at the next call
         self.settings, self._sampler = settings, sampler
+        self._record("configure", knobs=knobs)
         return settings
 
     def reset(self, seed: int | None = None) -> dict[str, Any]:
@@ -266,6 +290,7 @@ class Session:
         self._history = [obs]
         self._last = None
         self._done = False
+        self._record("reset", seed=self._seed)
         return dict(info)
 
     # ------------------------------------------------------------ steering
@@ -314,6 +339,7 @@ class Session:
             perturbed_state=result.perturbed_state,
         )
         self._last = outcome
+        self._record("steer", interaction=interaction_json(interaction))
         return outcome
 
     def steer_pixels(self, kind: str, pixels: Any) -> SteerOutcome:
@@ -334,6 +360,11 @@ class Session:
         """Run the chosen plan of the last :meth:`steer` (unsteered if none) in the env; the plans then expire."""
         if self._done:
             raise SessionError("the episode has ended: reset to go on")
+        step = self._execute()
+        self._record("step")
+        return step
+
+    def _execute(self) -> StepOutcome:
         outcome = self._last if self._last is not None else self.steer(None)
         perturbed = outcome.perturbed_state
         if perturbed is not None:  # OP moved the agent onto the sketch before sampling
@@ -420,6 +451,7 @@ class Session:
         info = self._perturbable().perturb(to=target)
         self._history.append(place_observation(self._history[-1], self.state))
         self._last = None
+        self._record("nudge", to=target)
         return dict(info)
 
     def nudge_pixel(self, u: Any, v: Any) -> dict[str, Any]:
@@ -433,12 +465,28 @@ class Session:
             raise SessionError(f"{type(base).__name__} cannot be nudged (it has no perturb())")
         return base
 
+    # ------------------------------------------------------------ recording
+    def _record(self, op: str, **fields: Any) -> None:
+        if self._logging:
+            self.log.add(op, **fields)
+
+    def recording(self) -> Recording:
+        """This session as a :class:`~steer_envs.ui.recording.Recording` (save it with ``save_recording``).
+
+        ``SessionError`` for a session opened with an env or policy object (a recording names them).
+        """
+        opened = dict(self._opened)
+        if opened.pop("unrecordable"):
+            raise SessionError("a session opened with an env or policy object cannot be recorded: open it by name")
+        return recording_of(self, opened, self.log)
+
     # ------------------------------------------------------------- drawing
     def frame(self) -> np.ndarray:
         """The env's rendered view ``(H, W, 3)`` uint8 (walls, trail, agent)."""
         image = self.env.render()
         if not isinstance(image, np.ndarray) or image.ndim != 3:
             raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+        self.log.frame(image)
         return image
 
     def frame_png(self) -> bytes:

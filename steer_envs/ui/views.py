@@ -4,7 +4,9 @@ A view converts between the pixels of the rendered frame and world points:
 :class:`PixelMap` for an env with an affine ``pixel_to_xy`` (Maze2D's top-down
 image), :class:`CameraView` for a camera with depth (BlockStack: a click lands
 on the first surface the pixel sees). :func:`resample_by_arclength` turns a
-mouse path drawn at any speed into evenly spaced sketch points. Requests that
+mouse path drawn at any speed into evenly spaced sketch points. A
+:class:`PlaneView` maps a camera's pixels onto a plane facing it (a robosuite
+arm's agent dragged across the image: ArmScoop's spoon, Lift's gripper). Requests that
 cannot be served raise :class:`SessionError`.
 """
 
@@ -17,7 +19,15 @@ import numpy as np
 
 from steer_envs.core.validation import integer, real_array
 
-__all__ = ["MAX_INPUT_POINTS", "CameraView", "PixelMap", "SessionError", "make_view", "resample_by_arclength"]
+__all__ = [
+    "MAX_INPUT_POINTS",
+    "CameraView",
+    "PixelMap",
+    "PlaneView",
+    "SessionError",
+    "make_view",
+    "resample_by_arclength",
+]
 
 #: the most mouse points one sketch may have before resampling
 MAX_INPUT_POINTS = 4096
@@ -136,10 +146,65 @@ class CameraView:
         return _check_pixels(pixels, name, self.width, self.height)
 
 
-def make_view(kind: str, base: Any, image: np.ndarray) -> PixelMap | CameraView:
-    """The view of a domain (``"pixels"``, ``"box"`` or ``"camera"``) for the unwrapped env ``base`` and its frame."""
+class PlaneView:
+    """Pixels of a robosuite camera frame <-> world points on the plane ``world[axis] = level`` (a drag's plane).
+
+    A pixel is lifted onto the plane through the agent that faces the camera
+    (``axis`` 0, world ``x``, for the ``frontview`` camera, which looks along
+    ``-x``): dragging the agent across the image moves it in that plane, the
+    way a person expects. :meth:`to_pixels` projects world points (flows,
+    trails, targets).
+    """
+
+    def __init__(self, base: Any, axis: int = 0) -> None:
+        for name in ("camera_matrix", "render_size"):
+            if not hasattr(base, name):
+                raise SessionError(f"{type(base).__name__} has no {name}: PlaneView needs a robosuite camera env")
+        self.base = base
+        self.axis = integer(axis, "`axis`", low=0, high=2)
+        self.width = self.height = int(base.render_size)
+        self._matrix = np.asarray(base.camera_matrix(), dtype=np.float64)  # the scene cameras are fixed
+
+    def to_pixels(self, points: Any) -> np.ndarray:
+        """``(..., 3)`` world points -> ``(..., 2)`` pixels (fractional, not clipped)."""
+        from steer_envs.envs.robosuite import camera as cam
+
+        arr = np.asarray(points, dtype=np.float64)
+        if arr.ndim < 1 or arr.shape[-1] != 3:
+            raise SessionError(f"PlaneView.to_pixels needs world points (..., 3), got shape {arr.shape}")
+        flat = cam.world_to_pixel(arr.reshape(-1, 3), self._matrix)
+        return np.asarray(flat, dtype=np.float64)[:, :2].reshape(*arr.shape[:-1], 2)
+
+    def to_world(self, pixels: Any, level: float) -> np.ndarray:
+        """``(N, 2)`` pixels -> ``(N, 3)`` world points where their rays cross the plane ``world[axis] = level``.
+
+        ``SessionError`` for a pixel whose ray runs along the plane or meets it behind the camera.
+        """
+        arr = np.atleast_2d(np.asarray(pixels, dtype=np.float64))
+        inverse = np.linalg.inv(self._matrix)
+        origin = inverse @ np.array([0.0, 0.0, 0.0, 1.0])  # the camera centre (depth 0)
+        out = []
+        for u, v in arr:
+            ray = inverse @ np.array([u + 0.5, v + 0.5, 1.0, 0.0])  # world step per metre of depth
+            if abs(ray[self.axis]) < 1e-9:
+                raise SessionError(f"pixel ({u:g}, {v:g}) looks along the drag plane: it meets no point of it")
+            depth = (float(level) - origin[self.axis]) / ray[self.axis]
+            if depth <= 0:
+                raise SessionError(f"pixel ({u:g}, {v:g}) meets the drag plane behind the camera")
+            out.append(origin[:3] + depth * ray[:3])
+        return np.asarray(out)
+
+    def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
+        """As :meth:`PixelMap.check_pixels`."""
+        return _check_pixels(pixels, name, self.width, self.height)
+
+
+def make_view(kind: str, base: Any, image: np.ndarray) -> PixelMap | CameraView | PlaneView:
+    """The view of a domain (``"pixels"``, ``"box"``, ``"camera"`` or ``"plane"``) for the unwrapped env ``base``."""
     if kind == "camera":
         return CameraView(base)
+    if kind == "plane":
+        return PlaneView(base)
     if kind == "box":
         model = getattr(base, "model", None)
         if model is None or not hasattr(model, "low"):
@@ -147,7 +212,7 @@ def make_view(kind: str, base: Any, image: np.ndarray) -> PixelMap | CameraView:
         return PixelMap.from_box(model.low, model.high, image.shape[1], image.shape[0])
     if kind == "pixels":
         return PixelMap.from_env(base, image.shape[1], image.shape[0])
-    raise SessionError(f"unknown view {kind!r}: 'pixels', 'box' or 'camera'")
+    raise SessionError(f"unknown view {kind!r}: 'pixels', 'box', 'camera' or 'plane'")
 
 
 def _check_pixels(pixels: Any, name: str, width: int, height: int) -> np.ndarray:

@@ -29,7 +29,8 @@ def test_roundtrip_and_load_trials_with_findings() -> None:
     assert roundtrip.ok, roundtrip.error
     m = roundtrip.record["metrics"]
     assert m["browser"] == 0 and m["network_ms"] > 0 and m["roundtrip_ms"] >= m["network_ms"]
-    assert m["under_target"] == 100.0 and m["steer_calls"] is None
+    assert m["under_target"] == 100.0 and m["steer_calls"] is None and m["push_ms"] is None
+    assert roundtrip.record["extra"]["domain"] == "maze2d" and roundtrip.record["extra"]["cpu"]
     load = execute_trial(_trial("load", connections=2, duration_s=3.0, malformed=30, **fast))
     assert load.ok, load.error
     m = load.record["metrics"]
@@ -40,8 +41,21 @@ def test_roundtrip_and_load_trials_with_findings() -> None:
     assert verdicts[1] is True and len(verdicts) == 3
 
 
+def test_a_push_domain_round_trip() -> None:
+    pushed = execute_trial(_trial("roundtrip", domain="soup-scoop", roundtrips=2, browser="no", target_ms=60_000.0))
+    assert pushed.ok, pushed.error
+    m = pushed.record["metrics"]
+    assert m["network_ms"] is None and m["sampler_ms"] is None and 0 < m["push_ms"] <= m["server_ms"]
+    assert m["roundtrip_ms"] >= m["server_ms"] and pushed.record["extra"]["domain"] == "soup-scoop"
+    (table,) = summarize([pushed.record])
+    assert table.findings[0].holds is True and "push" in table.findings[0].detail
+    refused = execute_trial(_trial("load", domain="soup-scoop", duration_s=1.0))
+    assert not refused.ok and "maze2d" in str(refused.error)
+
+
 @pytest.mark.parametrize(
-    "overrides", [{"sampler": "XX"}, {"browser": "maybe"}, {"batch": 0}, {"duration_s": 0.1}, {"mcmc_steps": 0}]
+    "overrides",
+    [{"sampler": "XX"}, {"browser": "maybe"}, {"batch": -1}, {"duration_s": 0.1}, {"mcmc_steps": 0}, {"domain": "x"}],
 )
 def test_bad_parameters_are_refused(overrides: dict[str, object]) -> None:
     with pytest.raises(ValueError):

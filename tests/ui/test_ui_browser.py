@@ -6,7 +6,6 @@ Skipped where chromium / chromedriver are missing, unless ``STEER_REQUIRE_BROWSE
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import pytest
 pytest.importorskip("fastapi")
 pytest.importorskip("selenium")
 
-from ui_pages import served_page
+from ui_pages import screenshot, served_page
 
 from steer_envs.core.metrics import sketch_distances
 from steer_envs.ui.browser import Page
@@ -55,8 +54,7 @@ def test_sketch_then_ss_beats_rs_on_the_page(page: Page, tmp_path: Path) -> None
     ss = sketch_distances(ss_plans, drawn).mean()
     assert ss < 0.8 * rs, f"SS plans {ss:.1f} px from the sketch, RS {rs:.1f} px"
     assert page.state("errors") == []
-    shot = page.screenshot(Path(os.environ.get("STEER_UI_SCREENSHOT_DIR", tmp_path)) / "steer-ui.png")
-    assert shot.stat().st_size > 10_000
+    assert screenshot(page, "maze2d", tmp_path).stat().st_size > 10_000
 
 
 def test_nudge_and_step_update_the_view(page: Page) -> None:

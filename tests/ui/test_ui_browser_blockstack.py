@@ -6,6 +6,7 @@ Skipped where chromium / chromedriver are missing, unless ``STEER_REQUIRE_BROWSE
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ pytest.importorskip("fastapi")
 pytest.importorskip("selenium")
 pytest.importorskip("robosuite")
 
-from ui_pages import served_page
+from ui_pages import screenshot, served_page
 
 from steer_envs.ui import Session
 from steer_envs.ui.browser import Page
@@ -39,7 +40,7 @@ def cube_pixel(cube: int) -> np.ndarray:
         session.close()
 
 
-def test_a_click_on_a_cube_brings_skill_plans_drawn_in_the_camera(page: Page) -> None:
+def test_a_click_on_a_cube_brings_skill_plans_drawn_in_the_camera(page: Page, tmp_path: Path) -> None:
     page.set_mode("point")
     page.drag([cube_pixel(0)])  # press and release on the cube: a click
     page.wait("window.steerUI.plansReceived >= 1 || window.steerUI.errors.length > 0", 180, "the skill plans")
@@ -47,3 +48,4 @@ def test_a_click_on_a_cube_brings_skill_plans_drawn_in_the_camera(page: Page) ->
     plans = np.asarray(page.state("plans"))
     assert plans.ndim == 3 and plans.shape[-1] == 2 and len(plans) == page.state("drawnPlans")
     assert page.plan_pixels_drawn() > 100
+    screenshot(page, "blockstack", tmp_path)

@@ -1,4 +1,5 @@
-"""SoupScoop (TLI) end to end in headless chromium: drag the spoon, watch LTL-DS's automaton replan, play to the end.
+"""SoupScoop (TLI) end to end in headless chromium: drag the spoon, watch LTL-DS's automaton replan, play to the end,
+save the session and export its video.
 
 Skipped where chromium / chromedriver are missing, unless ``STEER_REQUIRE_BROWSER=1`` (CI).
 """
@@ -61,6 +62,15 @@ def test_push_the_spoon_and_watch_ltl_ds_replan(page: Page, tmp_path: Path) -> N
     page.wait("window.steerUI.done && !window.steerUI.playing", 60, "the episode's end")
     panel = page.panel()
     assert panel["automaton mode"] == "d" and int(panel["steps"]) <= 1000, panel
+
+    page.click_button("save")  # the session as a download: every push and step, replayable
+    page.wait("window.steerUI.downloads.length === 1", 30, "the saved session")
+    saved = page.state("downloads")[0]
+    assert saved["name"].startswith("steer-ui-soup-scoop-seed1-") and saved["mime"] == "application/json"
+    page.click_button("export")  # replayed in a fresh session, every frame as recorded, encoded as an MP4
+    page.wait("window.steerUI.downloads.length === 2", 120, "the exported video")
+    video = page.state("downloads")[1]
+    assert video["name"] == "steer-ui-soup-scoop-seed1.mp4" and video["size"] > 10_000 and video["identical"] is True
 
     page.click_button("reset")
     page.wait("!window.steerUI.done && window.steerUI.steps === 0", 30, "the reset")

@@ -11,7 +11,7 @@ const ui = {
   ready: false, connected: false, width: 0, height: 0, scale: 1, settings: {}, playing: false, declaration: null,
   plans: [], chosen: -1, collides: null, interaction: [], interactionKind: "none", overlays: {}, drawn: {}, panel: [],
   agent: null, lastInteraction: null, history: [], errors: [], plansReceived: 0, drawnPlans: 0, frames: 0, done: false,
-  steps: null,
+  steps: null, notices: [], downloads: [],
 };
 window.steerUI = ui;
 window.addEventListener("error", (event) => ui.errors.push(`page error: ${event.message}`));
@@ -56,6 +56,14 @@ function showError(message) {
   box.hidden = false;
   clearTimeout(showError.timer);
   showError.timer = setTimeout(() => { box.hidden = true; }, 8000);
+}
+
+// a message about the request that is not an error (e.g. a push the arm refused: nothing moved)
+function showNotice(message) {
+  const box = $("notice");
+  box.textContent = message;
+  box.hidden = !message;
+  if (message) ui.notices.push(message);
 }
 
 function el(tag, props = {}, children = []) {
@@ -143,6 +151,7 @@ const HANDLERS = {
     stats(msg, entry);
   },
   frame(msg) {
+    const t0 = performance.now();
     frame.src = msg.image;
     ui.frames += 1;
     ui.agent = msg.agent;
@@ -153,15 +162,32 @@ const HANDLERS = {
     if (msg.why === "ready" || msg.why === "reset") ui.overlays = {};
     Object.assign(ui.overlays, msg.overlays || {});
     showPanel(msg.panel || []);
+    showNotice(msg.notice || "");
     $("seed").value = msg.seed;
     const state = msg.done ? "ended — press Reset" : "running";
     const extra = [msg.mode && `mode ${msg.mode}`, msg.success && "success", msg.violation && "constraint violated",
       msg.steps !== null && msg.steps !== undefined && `${msg.steps} steps`].filter(Boolean);
     $("s-episode").textContent = [state, ...extra].join(", ");
     draw();
+    if (msg.timings && sentAt !== null) { // the answer to a push or nudge: its round trip, as for plans
+      const now = performance.now();
+      ui.history.push({ kind: msg.why, draw_ms: now - t0, roundtrip_ms: now - sentAt, ...msg.timings });
+      if (ui.history.length > HISTORY) ui.history.shift();
+      sentAt = null;
+    }
+  },
+  download(msg) {
+    const bytes = Uint8Array.from(atob(msg.data), (c) => c.charCodeAt(0));
+    const url = URL.createObjectURL(new Blob([bytes], { type: msg.mime }));
+    const link = el("a", { href: url, download: msg.name });
+    document.body.append(link); link.click(); link.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 60000);
+    ui.downloads.push({ name: msg.name, mime: msg.mime, size: bytes.length, identical: msg.identical });
+    $("export").disabled = false;
+    if (msg.identical === false) showNotice("the replayed frames differ from the session's (another backend?)");
   },
   playing(msg) { ui.playing = msg.playing; $("play").textContent = msg.playing ? "Pause" : "Play"; },
-  error(msg) { sentAt = null; showError(msg.message); },
+  error(msg) { sentAt = null; $("export").disabled = false; showError(msg.message); },
 };
 
 function applySettings(settings) {
@@ -267,6 +293,25 @@ const DRAWERS = {
     for (const p of data || []) dot(p, overlayColor(ov), 6);
     return (data || []).length;
   },
+  // rows of mode indices along the run, one bar each at the bottom of the view (mode k: the legend's row k)
+  strip(ov, data) {
+    if (!data) return 0;
+    const rows = data.rows, barH = 12, gap = 3, left = 64, width = overlay.width - left - 8;
+    const cell = width / Math.max(1, data.steps);
+    let y = overlay.height - rows.length * (barH + gap) - 4;
+    ctx.fillStyle = "rgba(255, 255, 255, 0.8)";
+    ctx.fillRect(0, y - gap, overlay.width, rows.length * (barH + gap) + gap + 4);
+    ctx.font = "11px system-ui, sans-serif"; ctx.textBaseline = "middle";
+    for (const [label, modes] of rows) {
+      ctx.fillStyle = "#222"; ctx.fillText(label, 6, y + barH / 2);
+      modes.forEach((k, i) => {
+        ctx.fillStyle = ov.legend[k] ? ov.legend[k][1] : "#999";
+        ctx.fillRect(left + i * cell, y, Math.max(cell, 1), barH);
+      });
+      y += barH + gap;
+    }
+    return rows.length;
+  },
 };
 
 function draw() {
@@ -325,7 +370,7 @@ overlay.addEventListener("pointerup", (event) => {
   const end = imagePixel(event);
   drag = null;
   if (interaction.gesture === "drag-agent") {
-    send({ type: interaction.message, to: end });
+    if (send({ type: interaction.message, to: end })) sentAt = performance.now();
   } else if (interaction.gesture === "click" || points.length < 2) {
     steer("point", [end]);
   } else {
@@ -348,5 +393,7 @@ $("resteer").addEventListener("click", () => {
 $("reset").addEventListener("click", () => send({ type: "reset", seed: Number($("seed").value) || 0 }));
 $("step").addEventListener("click", () => send({ type: "step" }));
 $("play").addEventListener("click", () => send({ type: ui.playing ? "pause" : "play" }));
+$("save").addEventListener("click", () => send({ type: "save" }));
+$("export").addEventListener("click", () => { if (send({ type: "export", format: "mp4" })) $("export").disabled = true; });
 
 connect();

@@ -1,10 +1,16 @@
 """The two steer-ui trials: a round trip's latency split, and a bounded load test.
 
-``roundtrip``: serve steer-ui in-process, draw one sketch and re-steer it
-``roundtrips`` times, timing sketch sent -> plans drawn. In a headless chromium
-when one is installed (``browser="auto"``), the page's own clock gives the
-drawing time; otherwise a WebSocket client stands in for the page (drawing 0).
-The server reports the policy network's time and the sampler's own.
+``roundtrip``: serve steer-ui's ``domain`` in-process and time its gesture
+``roundtrips`` times. A steered domain (ITPS): one sketch (Maze2D) or click
+(BlockStack: a cube; Kitchen: the door handle), then re-steered, timing input
+sent -> plans drawn; the server reports the policy network's time and the
+sampler's own. A push domain (TLI, GLiDE): the agent dragged to a domain's
+point and back (SoupScoop and ArmScoop: into the soup; PolygonNav: the far
+corner; Lift: up), timing push sent -> frame drawn; the server reports the
+push's own time (``perturb`` and the controller's reading) instead of network
+and sampler. In a headless chromium when one is installed (``browser="auto"``),
+the page's own clock gives the drawing time; otherwise a WebSocket client
+stands in for the page (drawing 0). The trial's extras name the CPU.
 
 ``load``: ``connections`` clients steer as fast as the server answers for
 ``duration_s`` seconds while one more sends ``malformed`` bad messages; a
@@ -18,6 +24,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -81,28 +88,94 @@ class _Client:
         self._connection.__exit__(None, None, None)
 
 
+def steering(params: Any) -> tuple[str, int]:
+    """The sampler and batch a trial steers with: ``params``', or the domain's own where they are unset."""
+    from steer_envs.ui.domains import DOMAINS
+
+    own = DOMAINS[params.domain].settings
+    return params.sampler or own.sampler, params.batch or own.batch
+
+
 def _settings(params: Any) -> dict[str, Any]:
-    return {"type": "configure", "sampler": params.sampler, "batch": params.batch, "mcmc_steps": params.mcmc_steps}
+    sampler, batch = steering(params)
+    return {"type": "configure", "sampler": sampler, "batch": batch, "mcmc_steps": params.mcmc_steps}
 
 
-def _roundtrip_browser(server: Any, params: Any, out: Path | None) -> list[dict[str, float]]:
+def cpu_name() -> str:
+    """The CPU's model name (Linux ``/proc/cpuinfo``; else :func:`platform.processor`; ``"unknown"``)."""
+    import platform
+
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def gesture(domain: str, seed: int, agent: np.ndarray) -> tuple[str, list[list[float]]]:
+    """The scripted input of ``domain`` from the page's ``agent`` pixel: ``("sketch" | "point", pixels)`` for a
+    steered domain, ``("push", [target, back])`` (pixels the agent is dragged to, in turn) for a push domain."""
+    import gymnasium as gym
+
+    from steer_envs.ui.domains import DOMAINS
+    from steer_envs.ui.views import PixelMap, PlaneView
+
+    start = [float(v) for v in agent]
+    spec = DOMAINS[domain]
+    if domain == "maze2d":
+        return "sketch", _sketch(agent)
+    if domain == "lift-glide":
+        return "push", [[start[0], start[1] - 25.0], start]
+    env = gym.make(spec.env_id, render_mode="rgb_array", **spec.env_kwargs)
+    try:
+        env.reset(seed=seed)
+        base: Any = env.unwrapped
+        if domain == "blockstack":
+            return "point", [base.world_to_pixel(base.cube_pos[0])[:2].tolist()]
+        if domain == "kitchen":
+            return "point", [base.world_to_pixel(base.handle_pos)[:2].tolist()]
+        if domain == "arm-scoop":
+            from steer_envs.envs.robosuite.arm_scoop import BOWL_X, SOUP_SURFACE, SOUP_Y
+
+            soup = PlaneView(base).to_pixels([BOWL_X, SOUP_Y, SOUP_SURFACE - 0.03])
+            return "push", [soup.tolist(), start]
+        frame = np.asarray(env.render())
+        view = PixelMap.from_box(base.model.low, base.model.high, frame.shape[1], frame.shape[0])
+        world = {"soup-scoop": (-2.0, -6.0), "polygon-nav": (7.0, -7.0)}[domain]
+        return "push", [view.to_pixels(np.asarray(world)).tolist(), start]
+    finally:
+        env.close()
+
+
+def _roundtrip_browser(server: Any, params: Any, seed: int, out: Path | None) -> list[dict[str, float]]:
     from steer_envs.ui.browser import open_page
 
     page = open_page(server.url)
     try:
-        page.wait_ready(120)
-        page.choose("sampler", params.sampler)
-        page.wait(f"window.steerUI.settings.sampler === {params.sampler!r}", 60, "sampler chosen")
-        for key in ("batch", "mcmc_steps"):
-            value = getattr(params, key)
+        page.wait_ready(600)
+        steered = bool(page.state("declaration")["steering"])
+        kind, pixels = gesture(params.domain, seed, np.asarray(page.state("agent")))
+        if not steered:
+            for i in range(params.roundtrips):
+                frames = int(page.state("frames"))
+                page.drag([page.state("agent"), pixels[i % len(pixels)]])
+                page.wait(f"window.steerUI.frames > {frames}", REPLY_TIMEOUT_S, "the pushed frame")
+            return [h for h in page.state("history") if h.get("kind") == "push"][-params.roundtrips :]
+        sampler, batch = steering(params)
+        page.choose("sampler", sampler)
+        page.wait(f"window.steerUI.settings.sampler === {sampler!r}", 60, "sampler chosen")
+        for key, value in (("batch", batch), ("mcmc_steps", params.mcmc_steps)):
             page.driver.execute_script(
                 "const el = document.getElementById(arguments[0]); el.value = arguments[1];"
                 "el.dispatchEvent(new Event('change'));",
                 key,
                 "" if value is None else str(value),
             )
-        page.wait(f"window.steerUI.settings.batch === {params.batch}", 60, "batch set")
-        page.drag(_sketch(np.asarray(page.state("agent"))))
+        page.wait(f"window.steerUI.settings.batch === {batch}", 60, "batch set")
+        page.set_mode(kind)
+        page.drag(pixels)
         page.wait("window.steerUI.plansReceived >= 1", REPLY_TIMEOUT_S, "first plans")
         received = int(page.state("plansReceived"))
         for _ in range(params.roundtrips):
@@ -110,21 +183,30 @@ def _roundtrip_browser(server: Any, params: Any, out: Path | None) -> list[dict[
             received += 1
             page.wait(f"window.steerUI.plansReceived >= {received}", REPLY_TIMEOUT_S, "plans")
         if out is not None:
-            page.screenshot(out / "steer-ui.png")
+            page.screenshot(out / ("steer-ui.png" if params.domain == "maze2d" else f"ui-{params.domain}.png"))
         history = page.state("history")
         return [h for h in history[-params.roundtrips :]]
     finally:
         page.close()
 
 
-def _roundtrip_socket(server: Any, params: Any) -> list[dict[str, float]]:
+def _roundtrip_socket(server: Any, params: Any, seed: int) -> list[dict[str, float]]:
     client = _Client(server.ws_url)
     try:
         ready = client.ask({"type": "hello"}, ("ready",))
-        client.ask(_settings(params), ("settings",))
-        message = {"type": "steer", "kind": "sketch", "points": _sketch(np.asarray(ready["agent"]))}
-        client.ask(message, ("plans",))  # warm-up (traces the network for this batch size)
+        kind, pixels = gesture(params.domain, seed, np.asarray(ready["agent"]))
         rows = []
+        if kind == "push":
+            for i in range(params.roundtrips):
+                t0 = time.perf_counter()
+                reply = client.ask({"type": "push", "to": pixels[i % len(pixels)]}, ("frame",))
+                if reply["type"] == "error":
+                    raise RuntimeError(f"steer-ui answered a push with an error: {reply['message']}")
+                rows.append({**reply["timings"], "roundtrip_ms": (time.perf_counter() - t0) * 1e3, "draw_ms": 0.0})
+            return rows
+        client.ask(_settings(params), ("settings",))
+        message = {"type": "steer", "kind": kind, "points": pixels}
+        client.ask(message, ("plans",))  # warm-up (traces the network for this batch size)
         for _ in range(params.roundtrips):
             t0 = time.perf_counter()
             reply = client.ask(message, ("plans",))
@@ -136,8 +218,13 @@ def _roundtrip_socket(server: Any, params: Any) -> list[dict[str, float]]:
         client.close()
 
 
-def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float]:
-    """Median latency split of ``params.roundtrips`` steering round trips."""
+def _median(rows: list[dict[str, float]], key: str) -> float | None:
+    values = [r[key] for r in rows if r.get(key) is not None]
+    return float(np.median(values)) if values else None
+
+
+def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float | None]:
+    """Median latency split of ``params.roundtrips`` round trips of ``params.domain``'s gesture."""
     from steer_envs.ui.browser import BrowserUnavailable, RunningServer, chromium_paths
     from steer_envs.ui.server import UIConfig
 
@@ -148,14 +235,22 @@ def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float]:
             use_browser = True
         except BrowserUnavailable:
             use_browser = False
-    with RunningServer(UIConfig(seed=seed, workers=1, accelerate=params.accelerate)) as server:
-        rows = _roundtrip_browser(server, params, out) if use_browser else _roundtrip_socket(server, params)
-    med = {k: float(np.median([r[k] for r in rows])) for k in ("network_ms", "sampler_ms", "server_ms", "draw_ms")}
+    config = UIConfig(
+        domain=params.domain,
+        seed=seed,
+        workers=1,
+        accelerate=params.accelerate,
+        cache_dir=params.cache_dir or None,
+    )
+    with RunningServer(config) as server:
+        rows = _roundtrip_browser(server, params, seed, out) if use_browser else _roundtrip_socket(server, params, seed)
+    keys = ("network_ms", "sampler_ms", "push_ms", "server_ms", "draw_ms")
+    med = {k: _median(rows, k) for k in keys}
     roundtrip = float(np.median([r["roundtrip_ms"] for r in rows]))
     return {
         **med,
         "roundtrip_ms": roundtrip,
-        "transfer_ms": max(0.0, roundtrip - med["server_ms"] - med["draw_ms"]),
+        "transfer_ms": max(0.0, roundtrip - (med["server_ms"] or 0.0) - (med["draw_ms"] or 0.0)),
         "under_target": 100.0 * float(roundtrip < params.target_ms),
         "browser": 1.0 if use_browser else 0.0,
     }
@@ -224,8 +319,11 @@ class _LoadClients:
 
 
 def run_load(params: Any, seed: int) -> dict[str, float]:
-    """``connections`` steering clients for ``duration_s`` s plus ``malformed`` bad messages on one more."""
+    """``connections`` steering clients for ``duration_s`` s plus ``malformed`` bad messages on one more (Maze2D)."""
     from steer_envs.ui.browser import RunningServer
+
+    if params.domain != "maze2d":
+        raise ValueError(f"steer-ui: the load test steers maze2d; got domain {params.domain!r}")
     from steer_envs.ui.server import UIConfig
 
     clients = _LoadClients(params, seed)
@@ -249,7 +347,7 @@ def run_load(params: Any, seed: int) -> dict[str, float]:
     return clients.metrics(rss_end - rss_warm, alive and answered)
 
 
-def run_ui_trial(trial: Trial, params_type: type[SuiteParams]) -> dict[str, float]:
+def run_ui_trial(trial: Trial, params_type: type[SuiteParams]) -> Mapping[str, float | None]:
     """One ``roundtrip`` or ``load`` trial (metrics of the other method are absent)."""
     import torch
 
