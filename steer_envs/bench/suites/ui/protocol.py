@@ -185,7 +185,7 @@ def _roundtrip_browser(server: Any, params: Any, seed: int, out: Path | None) ->
         if out is not None:
             page.screenshot(out / ("steer-ui.png" if params.domain == "maze2d" else f"ui-{params.domain}.png"))
         history = page.state("history")
-        return [h for h in history[-params.roundtrips :]]
+        return [h for h in history[-params.roundtrips - 1 :]]  # the first steering call after ready, then the rest
     finally:
         page.close()
 
@@ -206,7 +206,9 @@ def _roundtrip_socket(server: Any, params: Any, seed: int) -> list[dict[str, flo
             return rows
         client.ask(_settings(params), ("settings",))
         message = {"type": "steer", "kind": kind, "points": pixels}
-        client.ask(message, ("plans",))  # warm-up (traces the network for this batch size)
+        t0 = time.perf_counter()
+        first = client.ask(message, ("plans",))  # the first steering call after ready
+        rows.append({**first["timings"], "roundtrip_ms": (time.perf_counter() - t0) * 1e3, "draw_ms": 0.0})
         for _ in range(params.roundtrips):
             t0 = time.perf_counter()
             reply = client.ask(message, ("plans",))
@@ -244,6 +246,12 @@ def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float |
     )
     with RunningServer(config) as server:
         rows = _roundtrip_browser(server, params, seed, out) if use_browser else _roundtrip_socket(server, params, seed)
+    from steer_envs.ui.domains import DOMAINS
+
+    first_ratio = None
+    if DOMAINS[params.domain].steering:
+        first, rows = rows[0], rows[1:]
+        first_ratio = float(first["roundtrip_ms"]) / float(np.median([r["roundtrip_ms"] for r in rows]))
     keys = ("network_ms", "sampler_ms", "push_ms", "server_ms", "draw_ms")
     med = {k: _median(rows, k) for k in keys}
     roundtrip = float(np.median([r["roundtrip_ms"] for r in rows]))
@@ -252,6 +260,7 @@ def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float |
         "roundtrip_ms": roundtrip,
         "transfer_ms": max(0.0, roundtrip - (med["server_ms"] or 0.0) - (med["draw_ms"] or 0.0)),
         "under_target": 100.0 * float(roundtrip < params.target_ms),
+        "first_ratio": first_ratio,
         "browser": 1.0 if use_browser else 0.0,
     }
 
