@@ -45,6 +45,13 @@ __all__ = ["PlanCost", "WeightedCosts", "check_costs", "region_cost", "safety_co
 PlanCost = Callable[[torch.Tensor], torch.Tensor]
 
 
+def _against(plans: torch.Tensor, box: Boxes) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The plans' entries ``box.dims`` as ``(n, H, 1, m)`` and the box corners ``(k, m)`` as tensors like them."""
+    low = torch.as_tensor(box.low, dtype=plans.dtype, device=plans.device)
+    high = torch.as_tensor(box.high, dtype=plans.dtype, device=plans.device)
+    return plans[..., list(box.dims)].unsqueeze(-2), low, high
+
+
 def region_cost(regions: Sequence[Boxes]) -> PlanCost:
     """The mean over waypoints of how deep each waypoint is inside any of ``regions`` (0 outside all).
 
@@ -61,9 +68,7 @@ def region_cost(regions: Sequence[Boxes]) -> PlanCost:
         for box in boxes:
             if len(box) == 0:
                 continue
-            p = plans[..., list(box.dims)].unsqueeze(-2)  # (n, H, 1, m)
-            low = torch.as_tensor(box.low, dtype=plans.dtype, device=plans.device)
-            high = torch.as_tensor(box.high, dtype=plans.dtype, device=plans.device)
+            p, low, high = _against(plans, box)
             inside = torch.minimum(p - low, high - p).amin(dim=-1)  # (n, H, k), negative outside a box
             total = total + inside.clamp_min(0.0).amax(dim=-1).mean(dim=-1)
         return total
@@ -86,9 +91,7 @@ def _distance_outside(plans: torch.Tensor, regions: list[Boxes]) -> torch.Tensor
     for box in regions:
         if len(box) == 0:
             continue
-        p = plans[..., list(box.dims)].unsqueeze(-2)  # (n, H, 1, m)
-        low = torch.as_tensor(box.low, dtype=plans.dtype, device=plans.device)
-        high = torch.as_tensor(box.high, dtype=plans.dtype, device=plans.device)
+        p, low, high = _against(plans, box)
         gap = torch.maximum(low - p, p - high).clamp_min(0.0)
         # the norm's gradient is undefined at 0 (inside a box): a tiny floor keeps it finite there
         dist = (gap.square().sum(dim=-1) + 1e-12).sqrt().amin(dim=-1)

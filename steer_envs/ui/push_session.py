@@ -32,7 +32,7 @@ from steer_envs.ui.controllers import Controller, PushView, make_controller
 from steer_envs.ui.domains import DOMAINS, domain_named
 from steer_envs.ui.outcomes import StepOutcome
 from steer_envs.ui.recording import Recording, SessionLog, json_options, recording_of
-from steer_envs.ui.views import PixelMap, PlaneView, SessionError, make_view
+from steer_envs.ui.views import PixelMap, PlaneView, SessionError, make_view, rendered_frame
 
 __all__ = ["MAX_STEPS", "PushSession", "PushSettings"]
 
@@ -227,9 +227,7 @@ class PushSession:
 
     def frame(self) -> np.ndarray:
         """The env's rendered view ``(H, W, 3)`` uint8."""
-        image = self.env.render()
-        if not isinstance(image, np.ndarray) or image.ndim != 3:
-            raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+        image = rendered_frame(self.env)
         self.log.frame(image)
         return image
 

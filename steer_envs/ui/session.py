@@ -46,7 +46,15 @@ from steer_envs.ui.domains import DEFAULT_ENV, DOMAINS, Domain, domain_named
 from steer_envs.ui.outcomes import SteerOutcome, StepOutcome
 from steer_envs.ui.recording import Recording, SessionLog, interaction_json, recording_of
 from steer_envs.ui.settings import MAX_BATCH, SteerSettings
-from steer_envs.ui.views import CameraView, PixelMap, PlaneView, SessionError, make_view, resample_by_arclength
+from steer_envs.ui.views import (
+    CameraView,
+    PixelMap,
+    PlaneView,
+    SessionError,
+    make_view,
+    rendered_frame,
+    resample_by_arclength,
+)
 from steer_envs.utils.threads import limit_threads
 
 __all__ = [
@@ -483,9 +491,7 @@ class Session:
     # ------------------------------------------------------------- drawing
     def frame(self) -> np.ndarray:
         """The env's rendered view ``(H, W, 3)`` uint8 (walls, trail, agent)."""
-        image = self.env.render()
-        if not isinstance(image, np.ndarray) or image.ndim != 3:
-            raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+        image = rendered_frame(self.env)
         self.log.frame(image)
         return image
 

@@ -26,6 +26,7 @@ __all__ = [
     "PlaneView",
     "SessionError",
     "make_view",
+    "rendered_frame",
     "resample_by_arclength",
 ]
 
@@ -197,6 +198,14 @@ class PlaneView:
     def check_pixels(self, pixels: Any, name: str) -> np.ndarray:
         """As :meth:`PixelMap.check_pixels`."""
         return _check_pixels(pixels, name, self.width, self.height)
+
+
+def rendered_frame(env: Any) -> np.ndarray:
+    """``env.render()`` checked to be an ``(H, W, 3)`` image (``SessionError`` otherwise)."""
+    image = env.render()
+    if not isinstance(image, np.ndarray) or image.ndim != 3:
+        raise SessionError("the env must render an (H, W, 3) image (render_mode='rgb_array')")
+    return image
 
 
 def make_view(kind: str, base: Any, image: np.ndarray) -> PixelMap | CameraView | PlaneView:
