@@ -114,7 +114,7 @@ def ui_findings(table: Any) -> list[Finding]:
         out.append(Finding(claim, rtt["roundtrip_ms"] < TARGET_MS, detail.format_map(rtt)))
     first = cell_means(table, "roundtrip", ("first_ratio",))["first_ratio"]
     claim = f"the first steering call after ready takes at most {FIRST_RATIO:.1f}x the later ones (warmed up)"
-    out.append(Finding(claim, None if first is None else first <= FIRST_RATIO, f"{first or 0.0:.2f}x"))
+    out.append(Finding(claim, None) if first is None else Finding(claim, first <= FIRST_RATIO, f"{first:.2f}x"))
     load = cell_means(table, "load", LOAD_METRICS)
     claim = "concurrent connections steer without a drop, an error or a crash; every malformed message is answered"
     if load["dropped"] is None:
