@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from steer_envs.core.extras import install_command
-from steer_envs.core.validation import BoundExceeded
+from steer_envs.core.validation import BoundExceeded, real_scalar
 from steer_envs.ui.server import UIConfig, create_app
 
 __all__ = ["BrowserUnavailable", "Page", "RunningServer", "chromium_paths", "open_page"]
@@ -33,15 +33,20 @@ class BrowserUnavailable(RuntimeError):
 
 
 class RunningServer:
-    """steer-ui on ``127.0.0.1:<free port>`` in a daemon thread; use as a context manager."""
+    """steer-ui on ``127.0.0.1:<free port>`` in a daemon thread; use as a context manager.
 
-    def __init__(self, config: UIConfig | None = None, port: int = 0) -> None:
+    ``start_timeout``: seconds it may take to load and warm up before it listens (a domain that trains its
+    setup on first use, e.g. ``lift-glide`` without a cache, takes minutes).
+    """
+
+    def __init__(self, config: UIConfig | None = None, port: int = 0, start_timeout: float = START_TIMEOUT_S) -> None:
         import uvicorn
 
         self.app = create_app(config)
         self.server = uvicorn.Server(uvicorn.Config(self.app, host="127.0.0.1", port=port, log_level="warning"))
         self.thread = threading.Thread(target=self.server.run, name="steer-ui-server", daemon=True)
         self.port = port
+        self.start_timeout = real_scalar(start_timeout, "start_timeout", low=0.0, owner="RunningServer")
 
     @property
     def url(self) -> str:
@@ -54,14 +59,14 @@ class RunningServer:
         return f"ws://127.0.0.1:{self.port}/ws"
 
     def start(self) -> RunningServer:
-        """Start and wait until it listens (``BoundExceeded`` after :data:`START_TIMEOUT_S`)."""
+        """Start and wait until it listens (``BoundExceeded`` after ``start_timeout`` seconds)."""
         self.thread.start()
-        deadline = time.monotonic() + START_TIMEOUT_S
+        deadline = time.monotonic() + self.start_timeout
         while not self.server.started:
             if not self.thread.is_alive():
                 raise RuntimeError("steer-ui server thread exited while starting (see the log above)")
             if time.monotonic() > deadline:
-                raise BoundExceeded(f"steer-ui did not start within {START_TIMEOUT_S:.0f} s")
+                raise BoundExceeded(f"steer-ui did not start within {self.start_timeout:.0f} s")
             time.sleep(0.05)
         sockets = [s for server in self.server.servers for s in server.sockets]
         self.port = int(sockets[0].getsockname()[1])

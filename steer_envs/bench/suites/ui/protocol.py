@@ -47,6 +47,8 @@ MALFORMED: tuple[str, ...] = (
     '{"type": "reset", "seed": -1}',
 )
 REPLY_TIMEOUT_S = 300.0
+#: seconds a domain may take to set up before its server listens (lift-glide trains its classifier on first use)
+SETUP_TIMEOUT_S = 1800.0
 
 
 def _rss_mb() -> float:
@@ -244,7 +246,7 @@ def run_roundtrip(params: Any, seed: int, out: Path | None) -> dict[str, float |
         accelerate=params.accelerate,
         cache_dir=params.cache_dir or None,
     )
-    with RunningServer(config) as server:
+    with RunningServer(config, start_timeout=SETUP_TIMEOUT_S) as server:
         rows = _roundtrip_browser(server, params, seed, out) if use_browser else _roundtrip_socket(server, params, seed)
     from steer_envs.ui.domains import DOMAINS
 
