@@ -101,7 +101,8 @@ def replay_main(argv: Sequence[str]) -> int:
         parser.error(f"--video must end in .mp4 or .gif, got {args.video}")
     if not 0.1 <= args.fps <= 120:
         parser.error(f"--fps must be in [0.1, 120], got {args.fps}")
-    from steer_envs.ui.recording import RecordingError, load_recording, replay
+    from steer_envs.ui.recording import RecordingError, load_recording
+    from steer_envs.ui.replay import replay
 
     try:
         recording = load_recording(args.recording)

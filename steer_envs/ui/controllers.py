@@ -35,19 +35,16 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import one_of
 from steer_envs.ui.views import PixelMap, PlaneView
 
 #: the views a push session draws in: a kinematic env's top-down box, or a robosuite camera's drag plane
 PushView = PixelMap | PlaneView
 
 __all__ = [
-    "CONTROLLERS",
     "DEFAULT_CACHE_DIR",
     "Controller",
     "GlideController",
     "LTLDSController",
-    "make_controller",
     "mode_map_png",
     "quick_glide_setup",
 ]
@@ -359,22 +356,3 @@ def _pixel_centres(base: Any) -> np.ndarray:
 
     size = int(base.render_size)
     return Canvas(base.model.low, base.model.high, size, size).pixel_centers()
-
-
-#: name -> how a push session builds its controller from ``(env, options)``
-CONTROLLERS: dict[str, Callable[..., Controller]] = {
-    "ltl-ds": lambda env, **options: LTLDSController(env, **options),
-    "glide-planning": lambda env, **options: GlideController(env, **options),
-    "glide-bc-arm": lambda env, **options: _arm_glide(env, **options),
-}
-
-
-def _arm_glide(env: Any, **options: Any) -> Controller:
-    from steer_envs.ui.arm_glide import GlideArmController
-
-    return GlideArmController(env, **options)
-
-
-def make_controller(name: str, env: Any, **options: Any) -> Controller:
-    """The controller ``name`` of :data:`CONTROLLERS` for ``env`` (``options`` go to its constructor)."""
-    return CONTROLLERS[one_of(name, "controller", tuple(CONTROLLERS), owner="make_controller")](env, **options)

@@ -132,7 +132,7 @@ class Domain:
         title: what the page's header says.
         interactions: the input modes offered (:data:`INTERACTIONS`), the first selected at start.
         overlays: what the page draws over the frame.
-        controller: ``"push"``: the name of :data:`~steer_envs.ui.controllers.CONTROLLERS` that drives the agent.
+        controller: ``"push"``: the name of :data:`~steer_envs.ui.drivers.CONTROLLERS` that drives the agent.
         steps: ``"push"``: env steps one Step (or play tick) runs.
         hints: per-interaction hints in this domain's words.
     """

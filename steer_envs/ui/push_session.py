@@ -28,8 +28,9 @@ import numpy as np
 
 from steer_envs.core.env import PerturbableEnv
 from steer_envs.core.validation import integer, real_array
-from steer_envs.ui.controllers import Controller, PushView, make_controller
+from steer_envs.ui.controllers import Controller, PushView
 from steer_envs.ui.domains import DOMAINS, domain_named
+from steer_envs.ui.drivers import make_controller
 from steer_envs.ui.outcomes import StepOutcome
 from steer_envs.ui.recording import Recording, SessionLog, json_options, recording_of
 from steer_envs.ui.views import PixelMap, PlaneView, SessionError, make_view, rendered_frame

@@ -46,7 +46,8 @@ from steer_envs.ui.domains import DOMAINS
 from steer_envs.ui.messages import Message, MessageError, parse_message
 from steer_envs.ui.outcomes import SteerOutcome
 from steer_envs.ui.push_session import PushSession, PushSettings
-from steer_envs.ui.recording import Recording, recording_json, replay
+from steer_envs.ui.recording import Recording, recording_json
+from steer_envs.ui.replay import replay
 from steer_envs.ui.session import Session, shared_policy
 from steer_envs.ui.settings import MAX_BATCH, SteerSettings
 from steer_envs.ui.video import VIDEO_FORMATS, annotated_frame, encode_video
@@ -83,7 +84,7 @@ class UIConfig:
     allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
     #: where a push domain keeps what it trains (GLiDE's classifier; ``None``: ``~/.cache/steer-envs/ui``)
     cache_dir: str | None = None
-    #: passed to a push domain's controller (:data:`~steer_envs.ui.controllers.CONTROLLERS`), e.g. GLiDE's ``setup``
+    #: passed to a push domain's controller (:data:`~steer_envs.ui.drivers.CONTROLLERS`), e.g. GLiDE's ``setup``
     controller_options: Mapping[str, Any] | None = None
 
 

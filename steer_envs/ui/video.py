@@ -193,9 +193,9 @@ def replay_video(
 ) -> tuple[Path, Any]:
     """Replay ``recording`` and write its rollout to ``path`` (a frame per event, plans drawn).
 
-    Returns the path and the :class:`~steer_envs.ui.recording.Replayed` (its session closed).
+    Returns the path and the :class:`~steer_envs.ui.replay.Replayed` (its session closed).
     """
-    from steer_envs.ui.recording import replay
+    from steer_envs.ui.replay import replay
 
     max_frames = integer(max_frames, "max_frames", low=1, owner="replay_video")
     frames: list[np.ndarray] = []

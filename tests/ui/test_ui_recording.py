@@ -25,9 +25,9 @@ from steer_envs.ui.recording import (
     json_options,
     load_recording,
     recording_json,
-    replay,
     save_recording,
 )
+from steer_envs.ui.replay import replay
 from steer_envs.ui.video import encode_video, replay_video
 from steer_envs.utils.threads import limit_threads
 
