@@ -35,6 +35,20 @@ def module_env(maker: str, *args: Any) -> Callable[[], Iterator[gym.Env[Any, Any
     return env
 
 
+def lazy_arms() -> Iterator[dict[str, gym.Env[Any, Any]]]:
+    """A fixture body: a dict that makes ``steer_envs/<name>-v0`` on first lookup; every env made is closed after."""
+    made: dict[str, gym.Env[Any, Any]] = {}
+
+    class Lazy(dict[str, gym.Env[Any, Any]]):
+        def __missing__(self, name: str) -> gym.Env[Any, Any]:
+            made[name] = self[name] = gym.make(f"steer_envs/{name}-v0")
+            return made[name]
+
+    yield Lazy()
+    for env in made.values():
+        env.close()
+
+
 def refuse_bad_perturb_and_action(env: gym.Env[Any, Any]) -> np.ndarray:
     """A NaN push, a push to a string and an action of the wrong size raise; returns the eef state before them."""
     base = env.unwrapped

@@ -16,7 +16,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
-from robosuite_helpers import ROBOSUITE_MARKS
+from robosuite_helpers import ROBOSUITE_MARKS, lazy_arms
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.envs.robosuite import SimulationUnstableError
@@ -34,16 +34,7 @@ WILD_JOINTS = np.array([10.6, -85.7, 6.8, -121.0, -6.2, -80.1, 0.79])
 
 @pytest.fixture(scope="module")
 def envs() -> Iterator[dict[str, gym.Env[Any, Any]]]:
-    made: dict[str, gym.Env[Any, Any]] = {}
-
-    class Lazy(dict[str, gym.Env[Any, Any]]):
-        def __missing__(self, name: str) -> gym.Env[Any, Any]:
-            made[name] = self[name] = gym.make(f"steer_envs/{name}-v0")
-            return made[name]
-
-    yield Lazy()
-    for env in made.values():
-        env.close()
+    yield from lazy_arms()
 
 
 @pytest.fixture

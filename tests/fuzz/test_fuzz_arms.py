@@ -38,7 +38,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
-from robosuite_helpers import ROBOSUITE_MARKS
+from robosuite_helpers import ROBOSUITE_MARKS, lazy_arms
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.envs.robosuite.adapter import PERTURB_MAX_STEPS
@@ -58,16 +58,7 @@ OPS = ("step",) * 12 + ("push",) * 3 + ("push_to",) * 2 + ("reset",)
 
 @pytest.fixture(scope="module")
 def arms() -> Iterator[dict[str, gym.Env[Any, Any]]]:
-    made: dict[str, gym.Env[Any, Any]] = {}
-
-    class Lazy(dict[str, gym.Env[Any, Any]]):
-        def __missing__(self, name: str) -> gym.Env[Any, Any]:
-            made[name] = self[name] = gym.make(f"steer_envs/{name}-v0")
-            return made[name]
-
-    yield Lazy()
-    for env in made.values():
-        env.close()
+    yield from lazy_arms()
 
 
 # ---------------------------------------------------------------------- operations
