@@ -305,6 +305,12 @@ def _steer_bench(*args: str) -> list[str]:
     return [str(script), *args] if script.exists() else [sys.executable, "-m", "steer_envs.bench", *args]
 
 
+def _selftest_on(address: str, out: Path) -> list[str]:
+    """``steer-bench run selftest`` on the Ray cluster at ``address``, into ``out``."""
+    ray = ("--executor", "ray", "--address", address)
+    return _steer_bench("run", "selftest", *ray, "--out", str(out), "--no-progress")
+
+
 def _toy_run(out: Path, *extra: str) -> list[str]:
     return _steer_bench(
         "run",
@@ -400,17 +406,7 @@ def test_a_driver_without_the_clusters_token_exits_2_with_a_hint(ray_cluster, tm
     env["RAY_AUTH_TOKEN_PATH"] = str(wrong)
     started = time.monotonic()
     proc = subprocess.run(
-        _steer_bench(
-            "run",
-            "selftest",
-            "--executor",
-            "ray",
-            "--address",
-            ray_cluster.address,
-            "--out",
-            str(tmp_path / "o"),
-            "--no-progress",
-        ),
+        _selftest_on(ray_cluster.address, tmp_path / "o"),
         env=env,
         capture_output=True,
         text=True,
@@ -433,17 +429,7 @@ def test_an_address_where_no_ray_head_listens_exits_2_within_a_minute(tmp_path):
         address = f"127.0.0.1:{server.getsockname()[1]}"
         started = time.monotonic()
         proc = subprocess.run(
-            _steer_bench(
-                "run",
-                "selftest",
-                "--executor",
-                "ray",
-                "--address",
-                address,
-                "--out",
-                str(tmp_path / "o"),
-                "--no-progress",
-            ),
+            _selftest_on(address, tmp_path / "o"),
             env=bench_env(),
             capture_output=True,
             text=True,
