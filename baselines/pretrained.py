@@ -3,11 +3,14 @@
 One loader, :func:`load_pretrained`, for all of them: the Maze2D-Large
 Diffusion Policy and ACT (``"dp"``, ``"act"``, and ``"dp-w16"``, the
 previous, narrower Maze2D DP), the BlockStack and Kitchen skill Diffusion
-Policies (``"blockstack"``, ``"kitchen"``), a checkpoint file of the same
+Policies (``"blockstack"``, ``"kitchen"``), the flow-matching policies of the
+Maze2D and BlockStack DPs' presets and data (``"flow"``,
+``"blockstack-flow"``), a checkpoint file of the same
 layout as a shipped one (``checkpoint=``), or any checkpoint file (a policy
 of a registered kind, or a GLiDE :class:`~steer_envs.baselines.glide.classifier.ModeClassifier`).
 
-``scripts/train_maze_checkpoints.sh``, ``scripts/train_blockstack_checkpoint.sh``
+``scripts/train_maze_checkpoints.sh``, ``scripts/train_maze_flow_checkpoint.sh``,
+``scripts/train_blockstack_checkpoint.sh`` (``POLICY=flow`` for the flow)
 and ``scripts/train_kitchen_checkpoint.sh`` hold the exact commands that produced
 them (``python -m steer_envs.baselines.training``); each checkpoint's ``.json``
 record beside it has the loss curve and wall time, which those scripts'
@@ -40,7 +43,7 @@ import torch
 
 from steer_envs.baselines.common.checkpoint import read_record
 from steer_envs.baselines.factory import load_policy
-from steer_envs.core.validation import one_of
+from steer_envs.core.validation import describe, integer, one_of
 from steer_envs.io import CheckpointError
 from steer_envs.utils.imports import resolve_function
 
@@ -85,6 +88,12 @@ CHECKPOINTS: dict[str, ShippedCheckpoint] = {
     ),
     # ITPS §2.3: one door or bowl skill per plan, (32, 5) waypoints [x, y, z, yaw, gripper]
     "kitchen": ShippedCheckpoint("kitchen/dp.safetensors", "dp", "scripts/train_kitchen_checkpoint.sh", (0, 1, 2)),
+    # flow-matching policies of the same presets, networks and data as "dp" and "blockstack" (itps-flow-safety,
+    # itps-blockstack's FLOW-* methods)
+    "flow": ShippedCheckpoint("maze2d_large/flow.safetensors", "flow", "scripts/train_maze_flow_checkpoint.sh"),
+    "blockstack-flow": ShippedCheckpoint(
+        "blockstack/flow.safetensors", "flow", "POLICY=flow scripts/train_blockstack_checkpoint.sh", (0, 1, 2)
+    ),
 }
 #: the ``module:function`` of the shipped checkpoints (a suite's default ``loader``)
 PRETRAINED_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
@@ -134,7 +143,8 @@ def load_pretrained(
     """The shipped checkpoint ``name``, a file of its layout (``checkpoint``), or the checkpoint file ``name``.
 
     ``name``: a key of :data:`CHECKPOINTS` (``"dp"``, ``"act"``, ``"dp-w16"``,
-    ``"blockstack"``, ``"kitchen"``) or a path. With a key and a ``checkpoint``
+    ``"blockstack"``, ``"kitchen"``, the flow policies ``"flow"`` and
+    ``"blockstack-flow"``) or a path. With a key and a ``checkpoint``
     file (e.g. a GPU training run), the file is loaded in the shipped one's
     place: it must hold the same policy kind and gets the same
     ``interaction_dims``. A path loads whatever it holds: a policy of a
@@ -235,7 +245,7 @@ def _takes_argument(fn: Any) -> bool:
     return any(p.kind in positional or p.kind == inspect.Parameter.VAR_POSITIONAL for p in params)
 
 
-_SHARED: dict[tuple[str, str, str, str], Any] = {}
+_SHARED: dict[tuple[str, str, str, str, int], Any] = {}
 _SHARED_LOCK = threading.Lock()
 
 
@@ -246,12 +256,15 @@ def shared_policy(
     *,
     loader: str = PRETRAINED_LOADER,
     owner: str = "accelerate",
+    steps: int = 0,
 ) -> Any:
     """:func:`resolve_policy`'s policy with its denoiser in ``accelerate`` mode, loaded once per process.
 
     Every caller in a process (the suites' trials, steer-ui's sessions) with
-    the same ``(loader, name, checkpoint, accelerate)`` gets the same object;
-    loading is serialized (thread-safe). ``accelerate``: a mode of
+    the same ``(loader, name, checkpoint, accelerate, steps)`` gets the same object;
+    loading is serialized (thread-safe). ``steps`` > 0: the policy's
+    ``with_steps(steps)`` (DDIM or Euler steps per plan; sharing the network of
+    the policy with its own steps). ``accelerate``: a mode of
     :func:`~steer_envs.baselines.diffusion.acceleration.accelerated` (``"none"``:
     eager; a policy without an ``accelerate`` method takes only ``"none"``,
     ``"auto"`` and ``"fastest"``; a ``TypeError`` naming ``owner`` otherwise).
@@ -262,12 +275,24 @@ def shared_policy(
     from steer_envs.baselines.diffusion.acceleration import accelerated, resolve_acceleration
 
     mode = resolve_acceleration(accelerate, owner=owner)
-    key = (loader, name, str(checkpoint or ""), mode)
+    steps = integer(steps, "steps", low=0, high=100_000, owner="shared_policy")
+    key = (loader, name, str(checkpoint or ""), mode, steps)
     with _SHARED_LOCK:
         policy = _SHARED.get(key)
         if policy is None:
-            policy = resolve_policy(loader, name, checkpoint)
-            if accelerate != "none":
-                policy = accelerated(policy, accelerate, owner=owner)
+            if steps:
+                policy = _SHARED.get((*key[:-1], 0))
+            if policy is None:
+                policy = resolve_policy(loader, name, checkpoint)
+                if accelerate != "none":
+                    policy = accelerated(policy, accelerate, owner=owner)
+                _SHARED[(*key[:-1], 0)] = policy
+            if steps:
+                with_steps = getattr(policy, "with_steps", None)
+                if not callable(with_steps):
+                    raise TypeError(
+                        f"shared_policy: steps={steps} needs a policy with with_steps, got {describe(policy)}"
+                    )
+                policy = with_steps(steps)
             _SHARED[key] = policy
         return policy

@@ -16,6 +16,8 @@
 #            the loss curve with the shipped record; exit 1 if it differs.
 # WORKERS=N sets the data job's parallel workers (default 2); CHECKPOINT_DIR=DIR writes the new
 # checkpoint there instead of over the shipped one (to compare with it: cmp, or --check its record).
+# POLICY=flow trains the flow-matching policy of the same preset on the same data instead (flow.*; the
+# matched comparison of itps-blockstack's `policy=flow`).
 source "$(dirname "$0")/recipe.sh"
 recipe_args runs/blockstack-data "$@"
 EPISODES=100
@@ -31,8 +33,12 @@ export MUJOCO_GL=${MUJOCO_GL:-osmesa}
     --out "$DATA_DIR/run"
 "$PY" -m steer_envs.data.blockstack_shards --cache-dir "$DATA_DIR" --episodes "$EPISODES" \
     --skills-per-episode "$SKILLS" --branches "$BRANCHES" --permutations 15 --shift 0.05 --yaw 0.5 --out "$DATA"
-check_dp "$DATA" "$SHIPPED/dp.json"
+POLICY=${POLICY:-dp}
+if [ "$CHECK" = 1 ]; then
+  exec "$PY" -m steer_envs.baselines.training --policy "$POLICY" --dataset "$DATA" \
+      --check "$SHIPPED/$POLICY.json" --check-steps 200
+fi
 mkdir -p "$OUT"
-"$PY" -m steer_envs.baselines.training --policy dp --preset blockstack --dataset "$DATA" \
-    --model obs_octaves=2 --fused-optimizer --out "$OUT/dp.safetensors" --seed 0 --threads 1
-echo "recipe done in $((SECONDS / 60)) min $((SECONDS % 60)) s: $OUT/dp.safetensors"
+"$PY" -m steer_envs.baselines.training --policy "$POLICY" --preset blockstack --dataset "$DATA" \
+    --model obs_octaves=2 --fused-optimizer --out "$OUT/$POLICY.safetensors" --seed 0 --threads 1
+echo "recipe done in $((SECONDS / 60)) min $((SECONDS % 60)) s: $OUT/$POLICY.safetensors"

@@ -7,12 +7,17 @@ installed (the fastest float32 mode on CPU) and a trace (eager's plans, bit for
 bit) elsewhere (:func:`resolve_acceleration`). ``"openvino"`` is the fastest on a
 CPU with native bfloat16 (AMX or AVX512-BF16), where it computes in bfloat16 and
 so moves the plans by bfloat16 rounding; ``"fastest"`` chooses it where it is
-installed (``"auto"`` never does).
+installed (``"auto"`` never does). ``"openvino-f32"``, ``"openvino-bf16"`` and
+``"openvino-int8"`` fix OpenVINO's precision; int8 is NNCF's post-training
+quantization of the export, calibrated on the first
+:data:`CALIBRATION_CALLS` network calls of each input shape (run in float32
+meanwhile), so it quantizes for the inputs the policy actually sees.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import logging
 import operator
 import threading
 import warnings
@@ -28,6 +33,8 @@ from steer_envs.core.validation import one_of
 
 __all__ = [
     "ACCELERATIONS",
+    "CALIBRATION_CALLS",
+    "OPENVINO_MODES",
     "FastNetwork",
     "accelerated",
     "onnx_missing",
@@ -36,8 +43,14 @@ __all__ = [
     "resolve_acceleration",
 ]
 
+#: OpenVINO's modes: its precision for this CPU (:func:`openvino_precision`), or a fixed one
+OPENVINO_MODES: tuple[str, ...] = ("openvino", "openvino-f32", "openvino-bf16", "openvino-int8")
 #: the modes of :meth:`DiffusionPolicy.accelerate`.
-ACCELERATIONS: tuple[str, ...] = ("auto", "fastest", "none", "compile", "onnx", "openvino", "trace")
+ACCELERATIONS: tuple[str, ...] = ("auto", "fastest", "none", "compile", "onnx", "trace", *OPENVINO_MODES)
+#: the ``"fastest"`` choices already logged in this process
+_LOGGED_CHOICES: set[str] = set()
+#: network calls per input shape that ``"openvino-int8"`` runs in float32 and calibrates its quantization on
+CALIBRATION_CALLS = 32
 #: the most input shapes whose traces (or ONNX exports) one policy keeps.
 MAX_TRACES = 16
 _version = operator.attrgetter("_version")
@@ -50,9 +63,10 @@ def onnx_missing() -> list[str]:
     return [name for name in ("onnx", "onnxruntime") if importlib.util.find_spec(name) is None]
 
 
-def openvino_missing() -> list[str]:
-    """The packages ``"openvino"`` mode needs that are not installed (``onnx``, ``openvino``)."""
-    return [name for name in ("onnx", "openvino") if importlib.util.find_spec(name) is None]
+def openvino_missing(mode: str = "openvino") -> list[str]:
+    """The packages an OpenVINO ``mode`` needs that are not installed (``onnx``, ``openvino``; ``nncf`` for int8)."""
+    needs = ("onnx", "openvino", "nncf") if mode == "openvino-int8" else ("onnx", "openvino")
+    return [name for name in needs if importlib.util.find_spec(name) is None]
 
 
 def openvino_precision() -> str:
@@ -71,11 +85,25 @@ def resolve_acceleration(mode: str, *, owner: str = "accelerate") -> str:
     ``owner`` for another mode.
     """
     mode = one_of(mode, "mode", ACCELERATIONS, owner=owner)
-    if mode == "fastest" and not openvino_missing():
-        return "openvino"
-    if mode in ("auto", "fastest"):
+    if mode == "fastest":
+        return _fastest()
+    if mode == "auto":
         return "trace" if onnx_missing() else "onnx"
     return mode
+
+
+def _fastest() -> str:
+    """What ``"fastest"`` is on this machine; each choice is logged once per process with the CPU it was made on."""
+    if openvino_missing():
+        choice, why = ("trace", "neither OpenVINO nor ONNX Runtime") if onnx_missing() else ("onnx", "no OpenVINO")
+    else:
+        choice, why = "openvino", f"OpenVINO in {openvino_precision()}"
+    if choice not in _LOGGED_CHOICES:
+        from steer_envs.utils.cpu import cpu_summary
+
+        _LOGGED_CHOICES.add(choice)
+        logging.getLogger(__name__).info("accelerate='fastest' is %r here (%s) on %s", choice, why, cpu_summary())
+    return choice
 
 
 def accelerated(policy: Any, mode: str, *, owner: str = "accelerate") -> Any:
@@ -116,6 +144,7 @@ class FastNetwork:
         self._traces: dict[tuple[Any, ...], Callable[..., torch.Tensor]] = {}
         self._sessions: dict[tuple[Any, ...], tuple[int, Any]] = {}
         self._tensors: list[torch.Tensor] = []  # the model's parameters and buffers, whose versions the export tracks
+        self._calibration: dict[tuple[Any, ...], list[dict[str, Any]]] = {}  # int8: feeds seen per input key
 
     def __call__(self, model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
         """``model(x, t, cond)``; ``t (1 or n,)`` and ``cond (1 or n, c)`` (one row: shared by the batch)."""
@@ -126,7 +155,7 @@ class FastNetwork:
             self._tensors = [*model.parameters(), *model.buffers()]
         if self.mode == "compile" and self._compiled is None:
             self._compiled = cast(Callable[..., torch.Tensor], torch.compile(model, dynamic=False))
-        if self.mode in ("onnx", "openvino"):
+        if self.mode == "onnx" or self.mode in OPENVINO_MODES:
             return self._run_onnx(model, x, t, cond)
         n = x.shape[0]
         t, cond = t.expand(n), cond.expand(n, -1)
@@ -155,8 +184,15 @@ class FastNetwork:
         if x.device.type != "cpu":  # CPU runtimes only; elsewhere the network runs as is
             return cast(torch.Tensor, model(x, t, cond))
         # ONNX Runtime: one export serves any batch size; OpenVINO compiles each input shape
-        size = tuple(x.shape) if self.mode == "openvino" else tuple(x.shape[1:])
-        key = (size, tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype, shared)
+        size = tuple(x.shape) if self.mode in OPENVINO_MODES else tuple(x.shape[1:])
+        key: tuple[Any, ...] = (size, tuple(cond.shape[1:]), x.dtype, t.dtype, cond.dtype, shared)
+        feeds = {"x": x.detach().numpy(), "t": t.detach().reshape(-1).numpy(), "cond": cond.detach().numpy()}
+        mode = self.mode
+        if mode == "openvino-int8":
+            seen = self._calibration.setdefault(key, [])
+            if len(seen) < CALIBRATION_CALLS:  # float32 until the shape's calibration set is full
+                seen.append({k: v.copy() for k, v in feeds.items()})
+                key, mode = (*key, "calibrating"), "openvino-f32"
         versions = sum(map(_version, self._tensors))  # version counters only grow: any change raises the sum
         entry = self._sessions.get(key)
         if entry is None or entry[0] != versions:
@@ -165,10 +201,14 @@ class FastNetwork:
                 if entry is None or entry[0] != versions:
                     if entry is None and len(self._sessions) >= MAX_TRACES:
                         del self._sessions[next(iter(self._sessions))]
-                    build = _openvino_model if self.mode == "openvino" else _onnx_session
-                    session = build(model, x, t.reshape(-1), cond, shared=shared)
+                    if mode == "onnx":
+                        session = _onnx_session(model, x, t.reshape(-1), cond, shared=shared)
+                    else:
+                        calibration = self._calibration.get(key) if mode == "openvino-int8" else None
+                        session = _openvino_model(
+                            model, x, t.reshape(-1), cond, shared=shared, mode=mode, calibration=calibration
+                        )
                     self._sessions[key] = entry = (versions, session)
-        feeds = {"x": x.detach().numpy(), "t": t.detach().reshape(-1).numpy(), "cond": cond.detach().numpy()}
         return torch.from_numpy(entry[1].run(None, feeds)[0])
 
 
@@ -263,25 +303,60 @@ def _onnx_session(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torc
     return ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])
 
 
-def _openvino_model(model: nn.Module, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor, *, shared: bool) -> Any:
+def _openvino_model(
+    model: nn.Module,
+    x: torch.Tensor,
+    t: torch.Tensor,
+    cond: torch.Tensor,
+    *,
+    shared: bool,
+    mode: str = "openvino",
+    calibration: list[dict[str, Any]] | None = None,
+) -> Any:
     """:func:`_onnx_graph`'s export compiled by OpenVINO for ``x``'s exact shape, on torch's thread count.
 
-    In :func:`openvino_precision`; no thread pinning (other processes of a
-    bench run share the cores), one stream, latency mode.
+    ``mode``'s precision (``"openvino"``: :func:`openvino_precision`); ``"openvino-int8"`` quantizes the
+    graph with NNCF on ``calibration`` (feeds of this shape) and runs what stays float in
+    :func:`openvino_precision`. No thread pinning (other processes of a bench run share the cores), one
+    stream, latency mode.
     """
     import openvino as ov
 
     core = ov.Core()
     graph = core.read_model(_onnx_graph(model, x, t, cond, shared=shared), b"")  # ONNX bytes, weights inside
     graph.reshape({"x": list(x.shape), "t": list(t.shape), "cond": list(cond.shape)})
+    precision = {"openvino-f32": "f32", "openvino-bf16": "bf16"}.get(mode, openvino_precision())
+    if mode == "openvino-int8":
+        graph = _quantized(graph, calibration or [])
     config = {
         "INFERENCE_NUM_THREADS": torch.get_num_threads(),
-        "INFERENCE_PRECISION_HINT": openvino_precision(),
+        "INFERENCE_PRECISION_HINT": precision,
         "PERFORMANCE_HINT": "LATENCY",
         "NUM_STREAMS": 1,
         "ENABLE_CPU_PINNING": False,
     }
     return _OpenVinoRunner(core.compile_model(graph, "CPU", config))
+
+
+def _quantized(graph: Any, calibration: list[dict[str, Any]]) -> Any:
+    """``graph`` with int8 weights and activations: NNCF's post-training quantization on ``calibration``."""
+    import logging
+
+    import nncf
+
+    if not calibration:
+        raise ValueError("openvino-int8: no calibration feeds for this input shape")
+    nncf_log = logging.getLogger("nncf")
+    level = nncf_log.level
+    nncf_log.setLevel(logging.WARNING)  # its progress bars and INFO lines would flood a benchmark's output
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return nncf.quantize(
+                graph, nncf.Dataset(calibration), subset_size=len(calibration), fast_bias_correction=True
+            )
+    finally:
+        nncf_log.setLevel(level)
 
 
 class _OpenVinoRunner:

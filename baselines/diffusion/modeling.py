@@ -27,6 +27,7 @@ the training data.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import Any, Protocol, Self, cast
 
@@ -38,6 +39,7 @@ from torch import nn
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
 from steer_envs.baselines.diffusion.acceleration import (
     ACCELERATIONS,
+    OPENVINO_MODES,
     FastNetwork,
     onnx_missing,
     openvino_missing,
@@ -46,7 +48,7 @@ from steer_envs.baselines.diffusion.acceleration import (
 from steer_envs.baselines.diffusion.configuration import DiffusionConfig
 from steer_envs.baselines.diffusion.network import DiffusionNet
 from steer_envs.core.extras import MissingExtraError, install_command
-from steer_envs.core.validation import describe, real_array
+from steer_envs.core.validation import describe, integer, real_array
 
 __all__ = ["ACCELERATIONS", "DiffusionPolicy"]
 
@@ -129,7 +131,9 @@ class DiffusionPolicy(TorchPolicy):
         ``onnx`` extra). ``"openvino"``: that export compiled by OpenVINO per
         input shape, in bfloat16 on a CPU with native bfloat16 (AMX,
         AVX512-BF16: the fastest mode there, plans within bfloat16 rounding of
-        eager's), float32 elsewhere; needs the ``openvino`` extra. ``"auto"``:
+        eager's), float32 elsewhere; needs the ``openvino`` extra;
+        ``"openvino-f32"`` / ``"openvino-bf16"`` fix the precision, ``"openvino-int8"``
+        quantizes with NNCF, calibrated on the first calls of each input shape. ``"auto"``:
         ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``;
         ``"fastest"``: ``"openvino"`` where it is installed, else as ``"auto"``
         (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
@@ -139,17 +143,36 @@ class DiffusionPolicy(TorchPolicy):
         ``ImportError`` naming the extra when ``"onnx"`` or ``"openvino"`` lacks its packages.
         """
         mode = resolve_acceleration(mode, owner="DiffusionPolicy.accelerate")
-        if mode in ("onnx", "openvino"):
-            missing = onnx_missing() if mode == "onnx" else openvino_missing()
+        if mode == "onnx" or mode in OPENVINO_MODES:
+            missing = onnx_missing() if mode == "onnx" else openvino_missing(mode)
+            extra = "onnx" if mode == "onnx" else "openvino"
             if missing:
                 raise MissingExtraError(
                     f"DiffusionPolicy.accelerate: mode {mode!r} needs {' and '.join(missing)}, "
-                    f"which is not installed: {install_command(mode)}",
+                    f"which is not installed: {install_command(extra)}",
                     name=missing[0],
-                    extra=mode,
+                    extra=extra,
                 )
         self._fast = None if mode == "none" else FastNetwork(mode)
         return self
+
+    def with_steps(self, steps: int) -> DiffusionPolicy:
+        """This policy sampled with ``steps`` DDIM steps: a copy sharing the network and its acceleration.
+
+        Fewer steps call the network fewer times per plan (the steering
+        samplers' cost is DDIM steps x SS's MCMC steps); this policy keeps its
+        own steps for every other caller.
+
+        >>> policy = DiffusionPolicy(DiffusionConfig(obs_dim=2, action_dim=2, horizon=8, down_dims=(8, 16)))
+        >>> policy.with_steps(4).num_inference_steps, policy.num_inference_steps
+        (4, 10)
+        """
+        fewer = copy.copy(self)
+        fewer.scheduler = copy.deepcopy(self.scheduler)  # set_timesteps changes it: one per step count
+        fewer.num_inference_steps = integer(
+            steps, "steps", low=1, high=self.config.num_train_timesteps, owner="DiffusionPolicy.with_steps"
+        )
+        return fewer
 
     @property
     def acceleration(self) -> str:

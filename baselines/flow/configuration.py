@@ -11,7 +11,7 @@ only the target (a velocity) and the sampler (Euler steps) differ.
 >>> cfg.parameter_count() == DiffusionConfig(obs_dim=2, action_dim=2).parameter_count()
 True
 >>> sorted(PRESETS)
-['cpu', 'itps']
+['blockstack', 'cpu', 'itps', 'kitchen']
 """
 
 from __future__ import annotations
@@ -38,5 +38,6 @@ def _like_dp(name: str) -> Preset[FlowConfig]:
 
 
 #: named (config, training) presets, each DP's preset of that name field for field: ``cpu`` (the shipped
-#: Maze2D DP's recipe) and ``itps`` (ITPS's full-size network, a GPU job)
-PRESETS: dict[str, Preset[FlowConfig]] = {name: _like_dp(name) for name in ("cpu", "itps")}
+#: Maze2D DP's recipe), ``blockstack`` and ``kitchen`` (the skill-plan policies) and ``itps`` (ITPS's
+#: full-size network, a GPU job)
+PRESETS: dict[str, Preset[FlowConfig]] = {name: _like_dp(name) for name in ("blockstack", "cpu", "itps", "kitchen")}

@@ -24,6 +24,7 @@ checkpoints, resumable runs and ``--check``.
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
@@ -33,7 +34,7 @@ from torch import nn
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
 from steer_envs.baselines.diffusion.network import DiffusionNet
 from steer_envs.baselines.flow.configuration import FlowConfig
-from steer_envs.core.validation import describe
+from steer_envs.core.validation import describe, integer
 
 __all__ = ["FlowPolicy"]
 
@@ -64,6 +65,20 @@ class FlowPolicy(TorchPolicy):
 
     def _build_model(self) -> nn.Module:
         return DiffusionNet(self.config)
+
+    def with_steps(self, steps: int) -> FlowPolicy:
+        """This policy sampled with ``steps`` Euler steps: a copy sharing the network (this one is unchanged).
+
+        Fewer steps call the network fewer times per plan; a shared policy (one
+        per process) keeps its own steps for every other caller.
+
+        >>> policy = FlowPolicy(FlowConfig(obs_dim=2, action_dim=2, horizon=8, down_dims=(8, 16)))
+        >>> policy.with_steps(4).num_inference_steps, policy.num_inference_steps
+        (4, 10)
+        """
+        fewer = copy.copy(self)
+        fewer.num_inference_steps = integer(steps, "steps", low=1, high=1000, owner="FlowPolicy.with_steps")
+        return fewer
 
     # ------------------------------------------------------------ FlowPolicyLike
     def predict_velocity(self, x: torch.Tensor, tau: Any, cond: torch.Tensor) -> torch.Tensor:

@@ -24,7 +24,7 @@ from steer_envs.bench.suite import Finding
 if TYPE_CHECKING:
     from steer_envs.bench.report import Table
 
-__all__ = ["all_full", "cell_means", "full", "judge", "listing", "missing"]
+__all__ = ["all_full", "cell_means", "full", "judge", "listing", "missing", "on_other_policy"]
 
 V = TypeVar("V")
 
@@ -101,3 +101,29 @@ def all_full(table: Table, claim: str, metric: str, methods: Iterable[str]) -> F
     """``claim``: the percentage ``metric`` is 100 for every one of ``methods``; the detail lists each one's."""
     means = table.means(metric, list(methods))
     return judge(claim, means, lambda m: all(full(v) for v in m.values()), lambda m: listing(m, ".0f", unit=" %"))
+
+
+class _OtherPolicy:
+    """A summary table whose ``means`` read ``prefix``'s methods under ``DP-`` names."""
+
+    def __init__(self, table: Any, prefix: str) -> None:
+        self.table, self.prefix = table, prefix
+
+    def means(self, metric: str, methods: list[str]) -> dict[str, float] | None:
+        values = self.table.means(metric, [m.replace("DP-", self.prefix, 1) for m in methods])
+        return None if values is None else {k.replace(self.prefix, "DP-", 1): v for k, v in values.items()}
+
+
+def on_other_policy(findings: Callable[[Any], list[Finding]], table: Any, prefix: str, label: str) -> list[Finding]:
+    """``findings`` (written for ``DP-*`` methods) judged on the methods named ``prefix`` instead, claims labelled.
+
+    How a suite checks the thesis's DP findings on another policy of the same
+    samplers (``FLOW-*``) without writing them twice.
+
+    >>> class T:
+    ...     def means(self, metric, methods): return {m: {"FLOW-SS": 0.1, "FLOW-RS": 0.3}[m] for m in methods}
+    >>> def f(t): return [judge("SS beats RS", t.means("x", ["DP-SS", "DP-RS"]), lambda v: v["DP-SS"] < v["DP-RS"])]
+    >>> on_other_policy(f, T(), "FLOW-", "flow")
+    [Finding(claim='flow: SS beats RS', holds=True, detail='')]
+    """
+    return [Finding(f"{label}: {f.claim}", f.holds, f.detail) for f in findings(_OtherPolicy(table, prefix))]

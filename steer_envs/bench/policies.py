@@ -34,31 +34,38 @@ PRETRAINED_LOADER = "steer_envs.baselines.pretrained:load_pretrained"
 
 
 def plan_with_policy(suite: Suite, request: TrialRequest, what: str, remedy: str) -> TrialPlan:
-    """Every env x method x seed of ``request`` once the params' ``policy()`` loads; else no trial and a note.
+    """Every env x method x seed of ``request`` whose policy loads; the others skipped with a note.
 
-    ``what`` names the policy in the note (``"the Kitchen policy"``), ``remedy``
-    says how to make it (``"train it with scripts/train_kitchen_checkpoint.sh"``).
-    A policy is missing while loading it raises one of
-    :data:`~steer_envs.baselines.pretrained.POLICY_UNAVAILABLE`.
+    A method's policy is the params' ``policy_for(method)`` (or ``policy()``
+    for every method). ``what`` names the policy in the note (``"the Kitchen
+    policy"``), ``remedy`` says how to make it (``"train it with
+    scripts/train_kitchen_checkpoint.sh"``). A policy is missing while loading
+    it raises one of :data:`~steer_envs.baselines.pretrained.POLICY_UNAVAILABLE`.
     """
     from steer_envs.baselines.pretrained import POLICY_UNAVAILABLE
 
     params: Any = suite.resolve_params(request.params, request.trials, base=request.base)
-    try:
-        params.policy()
-    except POLICY_UNAVAILABLE as exc:
-        note = (
-            f"skipped every method: {what} is not available ({type(exc).__name__}: {exc}); "
-            f"{remedy} or set --param loader=module:function"
-        )
-        return TrialPlan((), (note,))
+    policy_for = getattr(params, "policy_for", lambda method: params.policy())
+    available: list[str | None] = []
+    missing: dict[str, list[str]] = {}
+    for method in request.methods:
+        try:
+            policy_for(method)
+            available.append(method)
+        except POLICY_UNAVAILABLE as exc:
+            missing.setdefault(f"{type(exc).__name__}: {exc}", []).append(str(method))
+    notes = []
+    for reason, methods in missing.items():
+        which = "every method" if not available else ", ".join(methods)
+        note = f"skipped {which}: {what} is not available ({reason}); {remedy} or set --param loader=module:function"
+        notes.append(note)
     trials = [
         suite.trial(env, method, seed, params)
         for env in request.envs
-        for method in request.methods
+        for method in available
         for seed in suite.seed_list(request)
     ]
-    return TrialPlan(tuple(trials), ())
+    return TrialPlan(tuple(trials), tuple(notes))
 
 
 def policy_planner(what: str, remedy: str) -> Callable[[Suite, TrialRequest], TrialPlan]:
@@ -105,6 +112,10 @@ class SkillPolicyParams(SuiteParams):
         from steer_envs.baselines.pretrained import shared_policy
 
         return shared_policy(self.policy_name, self.checkpoint, self.accelerate, loader=self.loader)
+
+    def policy_for(self, method: str | None) -> Any:
+        """The policy ``method`` steers (here: :meth:`policy` for every method; a suite may choose per method)."""
+        return self.policy()
 
     def thread_limits(self) -> AbstractContextManager[None]:
         """A trial's thread limits: one BLAS thread, ``torch_threads`` torch threads."""

@@ -47,6 +47,7 @@ BUILTIN_SUITE_MODULES: tuple[str, ...] = (
     "steer_envs.bench.suites.itps_blockstack.suite",
     "steer_envs.bench.suites.itps_kitchen.suite",
     "steer_envs.bench.suites.itps_flow.suite",
+    "steer_envs.bench.suites.itps_latency.suite",
     "steer_envs.bench.suites.tli_cooking.suite",
     "steer_envs.bench.suites.tli_inspection.suite",
     "steer_envs.bench.suites.tli_color_tracing.suite",

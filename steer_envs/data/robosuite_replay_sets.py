@@ -37,13 +37,15 @@ def demo_with_replays(
     truncated_copies: bool = True,
     success_hold: int = rr.SUCCESS_HOLD_STEPS,
     extra_gripper: bool = False,
+    demos: str = "scripted",
 ) -> list[rr.ArmTrajectory]:
     """The demo from reset seed ``index`` and (when it succeeds) ``replays`` perturbed replays of it.
 
+    ``demos``: who demonstrates (:data:`~steer_envs.data.robosuite_replays.DEMO_SOURCES`).
     Each successful replay is followed by its early-terminated copy (``truncated_copies``) and,
     with ``extra_gripper``, by a replay of it with the gripper forced open (see the module).
     """
-    demo = rr.record_demo(env, index, success_hold=success_hold)
+    demo = rr.record_demo(env, index, success_hold=success_hold, demos=demos)
     out = [demo]
     if not (integer(replays, "replays", low=0, owner="demo_with_replays") > 0 and demo.success):
         return out

@@ -1,10 +1,11 @@
 """Demonstrations and GLiDE counterfactual replays on the robosuite arms (thesis §4.4).
 
-A demonstration is a scripted expert's episode (:mod:`steer_envs.data.experts.robosuite`)
-recorded as :class:`ArmTrajectory`: the thesis appendix's *available features*
-at every state (:data:`FEATURES`; the LLM selects a subset of them), the env's
-observations and actions (what BC learns from), the end-effector path and the
-ground-truth modes (evaluation only).
+A demonstration is a scripted expert's episode (:mod:`steer_envs.data.experts.robosuite`;
+or, ``demos="human_like"``, that of the human-like demonstrator wrapped around it,
+:mod:`steer_envs.data.experts.human_like`) recorded as :class:`ArmTrajectory`: the
+thesis appendix's *available features* at every state (:data:`FEATURES`; the LLM
+selects a subset of them), the env's observations and actions (what BC learns
+from), the end-effector path and the ground-truth modes (evaluation only).
 
 A counterfactual replay (:func:`replay`) resets the env to the demo's seed and
 re-runs the demo's actions with a feedback term that tracks the demo's
@@ -53,12 +54,14 @@ from steer_envs.envs.robosuite.tasks import TASK_NAMES
 from steer_envs.io import DatasetError, atomic_write_npz, npz_json, read_npz, require_arrays
 
 __all__ = [
+    "DEMO_SOURCES",
     "ENV_IDS",
     "FEATURES",
     "PERTURBATIONS",
     "SUCCESS_HOLD_STEPS",
     "ArmPerturbation",
     "ArmTrajectory",
+    "demonstrator",
     "early_terminated",
     "feature_columns",
     "feature_names",
@@ -79,6 +82,9 @@ ENV_IDS: Mapping[str, str] = {
 }
 #: steps a recording continues once the task succeeds while success holds (robosuite's demo collection: 10).
 SUCCESS_HOLD_STEPS = 10
+#: who demonstrates (:func:`record_demo`'s ``demos``): the scripted expert, or the human-like demonstrator
+#: (:mod:`steer_envs.data.experts.human_like`, a sensitivity study) wrapped around it.
+DEMO_SOURCES: tuple[str, ...] = ("scripted", "human_like")
 #: perturbation kinds of :func:`sample_perturbation` (``"demo"``: none; ``"truncated"``: an early-terminated copy).
 PERTURBATIONS: tuple[str, ...] = ("demo", "kernel", "gripper", "truncated")
 
@@ -264,9 +270,9 @@ class _Recorder:
         )
 
 
-def make_arm_env(task: str) -> RobosuiteEnv:
-    """The unwrapped env of ``task`` (no renderer; steps counted by the callers, not a TimeLimit)."""
-    return RobosuiteEnv(_task(task))
+def make_arm_env(task: str, variant: str = "thesis") -> RobosuiteEnv:
+    """The unwrapped env of ``task`` in ``variant`` (no renderer; steps counted by the callers, not a TimeLimit)."""
+    return RobosuiteEnv(_task(task), variant=variant)
 
 
 def _max_steps(task: str) -> int:
@@ -276,22 +282,45 @@ def _max_steps(task: str) -> int:
     return int(steps) if steps is not None else 500
 
 
+def demonstrator(env: RobosuiteEnv, seed: int, demos: str = "scripted") -> Any:
+    """Who demonstrates ``env``'s task: its scripted expert, or that expert in the human-like wrapper.
+
+    ``demos``: one of :data:`DEMO_SOURCES`. ``seed`` seeds both (the public-code
+    Lift's xy walk; :class:`~steer_envs.data.experts.human_like.HumanLikeDemonstrator`'s draws).
+    """
+    from steer_envs.data.experts.human_like import HumanLikeDemonstrator
+    from steer_envs.data.experts.robosuite import CanExpert, LiftExpert, SquareExpert
+
+    if not isinstance(env, RobosuiteEnv):
+        raise TypeError(f"demonstrator: `env` must be a RobosuiteEnv, got {type(env).__name__}")
+    demos = one_of(demos, "demos", DEMO_SOURCES, owner="demonstrator")
+    expert: Any = (
+        LiftExpert(env, seed=seed)
+        if env.task_name == "lift"
+        else {"can": CanExpert, "square": SquareExpert}[env.task_name](env)
+    )
+    return HumanLikeDemonstrator(expert, seed=seed) if demos == "human_like" else expert
+
+
 def record_demo(
-    env: RobosuiteEnv, seed: int, *, max_steps: int | None = None, success_hold: int = SUCCESS_HOLD_STEPS
+    env: RobosuiteEnv,
+    seed: int,
+    *,
+    max_steps: int | None = None,
+    success_hold: int = SUCCESS_HOLD_STEPS,
+    demos: str = "scripted",
 ) -> ArmTrajectory:
-    """One episode of ``env``'s scripted expert from reset seed ``seed``.
+    """One episode of ``env``'s demonstrator (:func:`demonstrator`, ``demos``) from reset seed ``seed``.
 
     It ends when success has held for ``success_hold`` steps (0: at the first
     success) or after ``max_steps`` steps (the env's step limit by default).
     """
-    from steer_envs.data.experts.robosuite import CanExpert, LiftExpert, SquareExpert
-
     if not isinstance(env, RobosuiteEnv):
         raise TypeError(f"record_demo: `env` must be a RobosuiteEnv, got {type(env).__name__}")
     seed = integer(seed, "seed", low=0, owner="record_demo")
     limit = _max_steps(env.task_name) if max_steps is None else integer(max_steps, "max_steps", low=1)
     hold = integer(success_hold, "success_hold", low=0, owner="record_demo")
-    expert: Any = {"lift": LiftExpert, "can": CanExpert, "square": SquareExpert}[env.task_name](env)
+    expert = demonstrator(env, seed, demos)
     obs, info = env.reset(seed=seed)
     expert.reset(obs, info)
     rec = _Recorder(env, obs, info, hold)

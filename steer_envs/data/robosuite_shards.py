@@ -1,8 +1,10 @@
 """GLiDE's robosuite data in shards: one shard per demonstration (the demo and its perturbed replays).
 
-Shard ``i`` of a task: the scripted expert from reset seed ``i``; if ``i <
-replay_demos``, ``replays_per_demo`` perturbed replays of it and their
-truncated copies (:func:`~steer_envs.data.robosuite_replay_sets.demo_with_replays`).
+Shard ``i`` of a task: the demonstrator's demo from reset seed ``i`` (the
+scripted expert, or with ``demos="human_like"`` the human-like one; in the
+task's ``variant``, e.g. the public-code Lift); if ``i < replay_demos``,
+``replays_per_demo`` perturbed replays of it and their truncated copies
+(:func:`~steer_envs.data.robosuite_replay_sets.demo_with_replays`).
 Shards live under ``cache_dir/shards`` in the shared
 :class:`~steer_envs.data.shards.ShardCache`: a readable shard on disk is never
 rebuilt, so generation resumes where it stopped and runs in parallel processes
@@ -51,21 +53,28 @@ class ShardSettings:
     truncated_copies: bool = True
     success_hold: int = rr.SUCCESS_HOLD_STEPS
     extra_gripper: bool = False
+    variant: str = "thesis"
+    demos: str = "scripted"
 
     @property
     def has_replays(self) -> bool:
         return self.index < self.replay_demos
 
     def file_name(self) -> str:
-        key = {
+        key: dict[str, object] = {
             "v": SHARD_VERSION,
             "replays": self.replays_per_demo if self.has_replays else 0,
             "truncated": self.truncated_copies and self.has_replays,
             "hold": self.success_hold,
             "extra_gripper": self.extra_gripper and self.has_replays,
         }
+        # named only when not the default, so the default shards keep their names (and caches)
+        key |= {k: v for k, v in (("variant", self.variant), ("demos", self.demos)) if v != _DEFAULTS[k]}
         digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:10]
         return f"{self.task}-demo{self.index:04d}-{digest}.npz"
+
+
+_DEFAULTS = {"variant": "thesis", "demos": "scripted"}
 
 
 def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv) -> list[rr.ArmTrajectory]:
@@ -77,6 +86,7 @@ def build_shard(settings: ShardSettings, env: rr.RobosuiteEnv) -> list[rr.ArmTra
         truncated_copies=settings.truncated_copies,
         success_hold=settings.success_hold,
         extra_gripper=settings.extra_gripper,
+        demos=settings.demos,
     )
 
 
@@ -85,11 +95,18 @@ def shard_path(cache_dir: str | Path, settings: ShardSettings) -> Path:
     return shard_file(cache_dir, settings.file_name())
 
 
-def _cache(cache_dir: str | Path, envs: LazyEnvs[str, rr.RobosuiteEnv]) -> ShardCache[ShardSettings, rr.ArmTrajectory]:
+_Key = tuple[str, str]  # (task, variant): one env each
+
+
+def _make(key: _Key) -> rr.RobosuiteEnv:
+    return rr.make_arm_env(*key)
+
+
+def _cache(cache_dir: str | Path, envs: LazyEnvs[_Key, rr.RobosuiteEnv]) -> ShardCache[ShardSettings, rr.ArmTrajectory]:
     return ShardCache(
         Path(cache_dir),
         name=ShardSettings.file_name,
-        build=lambda settings: build_shard(settings, envs.get(settings.task)),
+        build=lambda settings: build_shard(settings, envs.get((settings.task, settings.variant))),
         load=lambda path: rr.load_trajectories(path)[0],
         save=lambda path, trajs, meta: rr.save_trajectories(path, trajs, meta=meta),
     )
@@ -97,7 +114,7 @@ def _cache(cache_dir: str | Path, envs: LazyEnvs[str, rr.RobosuiteEnv]) -> Shard
 
 def ensure_shard(cache_dir: str | Path, settings: ShardSettings) -> tuple[list[rr.ArmTrajectory], Path, bool]:
     """The shard (trajectories, file, built now), built and written atomically unless a readable file exists."""
-    with LazyEnvs[str, rr.RobosuiteEnv](rr.make_arm_env) as envs:
+    with LazyEnvs[_Key, rr.RobosuiteEnv](_make) as envs:
         return _cache(cache_dir, envs).ensure(settings)
 
 
@@ -120,5 +137,5 @@ def task_dataset(
 
 def read_shards(cache_dir: str | Path, shards: Sequence[ShardSettings]) -> list[rr.ArmTrajectory]:
     """Every trajectory of ``shards`` in their order; a missing shard is built and written here."""
-    with LazyEnvs[str, rr.RobosuiteEnv](rr.make_arm_env) as envs:  # an env per task, made for its first missing shard
+    with LazyEnvs[_Key, rr.RobosuiteEnv](_make) as envs:  # an env per task, made for its first missing shard
         return _cache(cache_dir, envs).gather(shards)

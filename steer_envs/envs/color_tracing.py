@@ -60,7 +60,8 @@ Termination
     (registered).
 
 Registered ids
-    ``steer_envs/ColorTracing-v0``, ``steer_envs/ColorTracingDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/ColorTracing-v0``, ``steer_envs/ColorTracingDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

@@ -34,7 +34,8 @@ Termination
     ``terminate_on_violation=True``, on leaving the mode; truncation at 1000 steps (registered).
 
 Registered ids
-    ``steer_envs/ConvexMode-v0``, ``steer_envs/ConvexModeDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/ConvexMode-v0``, ``steer_envs/ConvexModeDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

@@ -92,7 +92,8 @@ Termination
     (registered).
 
 Registered ids
-    ``steer_envs/Cooking-v0``, ``steer_envs/CookingDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/Cooking-v0``, ``steer_envs/CookingDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

@@ -47,7 +47,8 @@ Termination
     1000 steps (registered).
 
 Registered ids
-    ``steer_envs/InspectionLine-v0``, ``steer_envs/InspectionLineDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/InspectionLine-v0``, ``steer_envs/InspectionLineDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

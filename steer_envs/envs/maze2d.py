@@ -56,8 +56,9 @@ Termination
 Registered ids
     ``steer_envs/Maze2D-{Umaze,Medium,Large}-v0`` and, for each maze, ``...Dense-v0``
     (``reward_type="dense"``, ``observe_goal=True``: the goal the reward measures is in the
-    observation), ``...Goal-v0`` (goal-conditioned, sparse) and
-    ``...GoalDense-v0``, e.g. ``steer_envs/Maze2D-UmazeGoalDense-v0``. Gymnasium-Robotics
+    observation, ``normalize_actions=True``), ``...Goal-v0`` (goal-conditioned, sparse, the
+    plain ids' waypoint actions) and ``...GoalDense-v0`` (dense, ``normalize_actions=True``),
+    e.g. ``steer_envs/Maze2D-UmazeGoalDense-v0``. Gymnasium-Robotics
     names its dense variant ``PointMaze_UMazeDense-v3`` and has no separate goal id (its
     mazes are always goal-conditioned); here the plain ids keep the ITPS Box observation.
     The RL variants (``...Dense``, ``...Goal``, ``...GoalDense``) observe the velocity; the dense

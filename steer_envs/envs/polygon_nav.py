@@ -47,7 +47,8 @@ Termination
 
 Registered ids
     ``steer_envs/PolygonNav-{3,4,5}Mode-v0`` (``num_modes`` 3, 4, 5) and
-    ``steer_envs/PolygonNav-{3,4,5}ModeDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/PolygonNav-{3,4,5}ModeDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

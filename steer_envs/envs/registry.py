@@ -175,29 +175,44 @@ MAZE_DENSE_FRAME_SKIP = 8
 _MAZE_ITPS_FRAME_SKIP = 4
 
 
+#: what a kinematic ``...Dense-v0`` id sets: the shaped reward, the sensor bits observed (task memory such as
+#: "soup on the spoon" is then in the state) and a ``[-1, 1]^2`` action box (what RL policies output)
+KINEMATIC_DENSE_KWARGS: dict[str, Any] = {"reward_type": "dense", "observe_sensors": True, "normalize_actions": True}
+#: what the Maze2D ``...Dense-v0`` / ``...GoalDense-v0`` ids set besides the shaped reward: the velocity observed
+#: (as PointMaze: without it the state is not Markov), a ``[-1, 1]^2`` action box mapped onto the maze, and
+#: :data:`MAZE_DENSE_FRAME_SKIP`; the plain ``...Dense-v0`` ids also observe the goal (``observe_goal``)
+MAZE_DENSE_KWARGS: dict[str, Any] = {
+    "reward_type": "dense",
+    "observe_velocity": True,
+    "normalize_actions": True,
+    "frame_skip": MAZE_DENSE_FRAME_SKIP,
+}
+
+
 def _variants() -> tuple[EnvEntry, ...]:
     out: list[EnvEntry] = []
     for e in BASE_ENTRIES:
         if e.kinematic:
-            out.append(_variant(e, "Dense", reward_type="dense"))
+            out.append(_variant(e, "Dense", **KINEMATIC_DENSE_KWARGS))
         elif e.entry_point.startswith("steer_envs.envs.maze2d:"):
-            # the RL variants observe the velocity, as PointMaze does: without it the state is not Markov.
-            # The dense ones act at half the ITPS rate, at which SAC learns Maze2D-Large within 100k steps; the
-            # sparse goal ids keep it, at which HER learns Umaze fastest (docs/results.md, sb3)
+            # the dense ids act at half the ITPS rate, at which SAC learns Maze2D-Large within 100k steps; the
+            # sparse goal ids keep it, at which HER learns Umaze fastest (docs/results.md, sb3), and the waypoint
+            # action box of the plain ids
             assert e.max_episode_steps is not None
             limit = e.max_episode_steps * _MAZE_ITPS_FRAME_SKIP // MAZE_DENSE_FRAME_SKIP
             dense = replace(e, max_episode_steps=limit)
-            rate = {"observe_velocity": True, "frame_skip": MAZE_DENSE_FRAME_SKIP}
-            out.append(_variant(dense, "Dense", reward_type="dense", observe_goal=True, **rate))
+            out.append(_variant(dense, "Dense", observe_goal=True, **MAZE_DENSE_KWARGS))
             goal = replace(e, entry_point="steer_envs.envs.maze2d:Maze2DGoalEnv")
             out.append(_variant(goal, "Goal", observe_velocity=True))
             goal_dense = replace(dense, entry_point="steer_envs.envs.maze2d:Maze2DGoalEnv")
-            out.append(_variant(goal_dense, "GoalDense", reward_type="dense", **rate))
+            out.append(_variant(goal_dense, "GoalDense", **MAZE_DENSE_KWARGS))
     return tuple(out)
 
 
-#: the variant ids: ``reward_type="dense"`` of every 2D env (``SoupScoopDense-v0``, ``Maze2D-UmazeDense-v0``,
-#: ...) and the goal-conditioned Maze2D (``Maze2D-UmazeGoal-v0``, ``Maze2D-UmazeGoalDense-v0``, ...).
+#: the variant ids, made for RL as registered: the dense ids of every 2D env (``SoupScoopDense-v0``:
+#: :data:`KINEMATIC_DENSE_KWARGS`; ``Maze2D-UmazeDense-v0``: :data:`MAZE_DENSE_KWARGS`) and the goal-conditioned
+#: Maze2D (``Maze2D-UmazeGoal-v0``: sparse, the velocity observed; ``Maze2D-UmazeGoalDense-v0``). The base ids keep
+#: the thesis's interface (xy observation, raw velocity or waypoint actions, sparse reward).
 VARIANT_ENTRIES: tuple[EnvEntry, ...] = _variants()
 #: every registered entry, base ids first.
 ENTRIES: tuple[EnvEntry, ...] = BASE_ENTRIES + VARIANT_ENTRIES
@@ -227,6 +242,8 @@ def entry(env_id: str) -> EnvEntry:
 
     >>> entry("steer_envs/Maze2D-Large-v0").kwargs
     {'maze': 'large'}
+    >>> entry("PolygonNav-3ModeDense-v0").kwargs  # the RL options, as registered
+    {'num_modes': 3, 'reward_type': 'dense', 'observe_sensors': True, 'normalize_actions': True}
     """
     for e in ENTRIES:
         if env_id in (e.id, e.name):

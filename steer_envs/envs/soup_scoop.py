@@ -78,7 +78,8 @@ Termination
     steps (registered).
 
 Registered ids
-    ``steer_envs/SoupScoop-v0``, ``steer_envs/SoupScoopDense-v0`` (``reward_type="dense"``).
+    ``steer_envs/SoupScoop-v0``, ``steer_envs/SoupScoopDense-v0`` (for RL: ``reward_type="dense"``,
+    ``observe_sensors=True``, ``normalize_actions=True``).
 """
 
 from __future__ import annotations

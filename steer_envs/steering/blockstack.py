@@ -52,6 +52,7 @@ from steer_envs.steering.registry import make_sampler
 from steer_envs.steering.study import SCENE_SEED_OFFSET, quadrant_shares
 
 __all__ = [
+    "FLOW_PREFIX",
     "METHOD_SAMPLERS",
     "SAFE_SUFFIX",
     "TABLE_BETA_METHODS",
@@ -75,6 +76,8 @@ METHOD_SAMPLERS: dict[str, tuple[str, dict[str, Any]]] = {
 TABLE_BETA_METHODS: tuple[str, ...] = ("DP-GD", "DP-GD-I50")
 #: a method name ending in this adds :func:`tower_safety_cost` to its sampler (``"DP-GD+safe"``)
 SAFE_SUFFIX = "+safe"
+#: ``"FLOW-GD"`` is ``"DP-GD"``'s sampler on a flow-matching policy (the samplers take either kind)
+FLOW_PREFIX = "FLOW-"
 #: the guards sit this far inside the skill classifier's tolerances: a plan the cost is happy with classifies
 _GUARD_MARGIN = 0.7
 
@@ -84,6 +87,9 @@ def make_method_sampler(
 ) -> Sampler:
     """The sampler of ``method`` (``guide_ratio`` replaces the beta of :data:`TABLE_BETA_METHODS` when given).
 
+    ``method``: a key of :data:`METHOD_SAMPLERS`, optionally with ``FLOW-`` for
+    ``DP-`` (the same sampler; the policy is the caller's) and ``+safe``.
+
     ``use_clipped_model_output`` goes to GD and SS (see
     :class:`~steer_envs.steering.GuidedDiffusion`); on by default here:
     over this policy's 100 DDIM steps ITPS's step carries guided plans away from
@@ -91,11 +97,15 @@ def make_method_sampler(
 
     >>> make_method_sampler("DP-GD-I50", guide_ratio=25.0)
     GuidedDiffusion(guide_ratio=25.0, min_guided_t=50, use_clipped_model_output=True)
+    >>> make_method_sampler("FLOW-GD-B25")
+    GuidedDiffusion(guide_ratio=25.0, min_guided_t=0, use_clipped_model_output=True)
     """
     base = method.removesuffix(SAFE_SUFFIX)
-    if base not in METHOD_SAMPLERS or (base != method and METHOD_SAMPLERS[base][0] == "RS"):
+    if base.startswith(FLOW_PREFIX):
+        base = "DP-" + base.removeprefix(FLOW_PREFIX)
+    if base not in METHOD_SAMPLERS or (method.endswith(SAFE_SUFFIX) and METHOD_SAMPLERS[base][0] == "RS"):
         known = [*METHOD_SAMPLERS, *(f"{m}{SAFE_SUFFIX}" for m, (n, _) in METHOD_SAMPLERS.items() if n != "RS")]
-        raise ValueError(f"unknown method {method!r}; methods: {', '.join(known)}")
+        raise ValueError(f"unknown method {method!r}; methods: {', '.join(known)} (or FLOW- for DP-)")
     method = base
     name, kwargs = METHOD_SAMPLERS[method]
     if guide_ratio is not None and method in TABLE_BETA_METHODS:

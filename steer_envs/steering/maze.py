@@ -28,13 +28,19 @@ __all__ = ["method_sampler", "steering_trial", "warm_up"]
 _warm: set[tuple[int, str, int]] = set()
 
 
-def method_sampler(name: str, env: Any, *, safety_weight: float = 0.0) -> Sampler:
+def method_sampler(name: str, env: Any, *, safety_weight: float = 0.0, mcmc_steps: int | None = None) -> Sampler:
     """The sampler ``name`` for ``env``'s maze: OP stops before the sketch's first wall (``env.is_wall``).
 
     ``safety_weight > 0`` adds the maze's safety cost (its walls,
-    :func:`~steer_envs.steering.costs.safety_cost`) with that weight.
+    :func:`~steer_envs.steering.costs.safety_cost`) with that weight;
+    ``mcmc_steps`` sets SS's iterations per noise level (``None``: its default).
     """
-    sampler = OutputPerturbation(collides=env.is_wall) if name == "OP" else make_sampler(name)
+    if name == "OP":
+        sampler: Sampler = OutputPerturbation(collides=env.is_wall)
+    elif name == "SS" and mcmc_steps is not None:
+        sampler = make_sampler(name, mcmc_steps=mcmc_steps)
+    else:
+        sampler = make_sampler(name)
     if safety_weight > 0:
         sampler.with_costs([(safety_cost(env.task), safety_weight)])
     return sampler
@@ -43,7 +49,7 @@ def method_sampler(name: str, env: Any, *, safety_weight: float = 0.0) -> Sample
 def warm_up(policy: Any, sampler: Sampler, obs: Any, sketch: Any, batch: int) -> None:
     """One untimed call per (policy, sampler, batch) and process: lazy initialisation (per-shape kernels,
     traces, compilation) stays out of the timed call."""
-    key = (id(policy), sampler.name, batch)
+    key = (id(policy), repr(sampler), batch)
     if key not in _warm:
         sampler(policy, obs, sketch, batch, generator=np.random.default_rng(0))
         _warm.add(key)
@@ -94,6 +100,7 @@ def steering_trial(
     latency_repeats: int = 1,
     keep_plans: bool = False,
     safety_weight: float = 0.0,
+    mcmc_steps: int | None = None,
 ) -> tuple[dict[str, float | None], dict[str, Any]]:
     """One start location (``seed``) steered by ``sampler_name`` (``"RS"``, ``"PR"``, ``"OP"``, ``"BI"``, ...).
 
@@ -105,7 +112,8 @@ def steering_trial(
     of ``latency_repeats`` interleaved calls). ``through_wall`` is the share of
     sketches the user draws through walls. ``extra`` holds the start and the
     sketch kind, plus the plans, sketch and distances with ``keep_plans``.
-    ``safety_weight > 0`` adds the walls' safety cost to the sampler (:func:`method_sampler`).
+    ``safety_weight > 0`` adds the walls' safety cost to the sampler and
+    ``mcmc_steps`` sets SS's iterations per noise level (:func:`method_sampler`).
     """
     import gymnasium as gym
 
@@ -117,7 +125,7 @@ def steering_trial(
     try:
         obs, _ = env.reset(seed=seed)
         drawn = SketchUser(env.grid, through_wall=through_wall, seed=seed).draw(env.state)
-        sampler = method_sampler(sampler_name, env, safety_weight=safety_weight)
+        sampler = method_sampler(sampler_name, env, safety_weight=safety_weight, mcmc_steps=mcmc_steps)
         obs_in = policy_observation(policy, [obs])
         warm_up(policy, sampler, obs_in, drawn.sketch, batch)
         generator = np.random.default_rng(np.random.SeedSequence([seed, 0x1795]))

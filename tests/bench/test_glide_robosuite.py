@@ -40,9 +40,48 @@ def test_params_refuse_bad_values() -> None:
 
 def test_suites_declare_the_librarys_variants_and_methods() -> None:
     from steer_envs.baselines import glide
-    from steer_envs.bench.suites.glide_robosuite.suite import METHODS
+    from steer_envs.bench.suites.glide_robosuite.suite import DEMO_SOURCES, METHODS
+    from steer_envs.data.robosuite_replays import DEMO_SOURCES as LIBRARY_DEMO_SOURCES
 
     assert VARIANTS == glide.ARM_VARIANTS and METHODS == glide.ARM_METHODS  # kept twice: declaring imports no torch
+    assert DEMO_SOURCES == LIBRARY_DEMO_SOURCES
+
+
+def test_lift_variant_and_demo_source_are_data_settings_that_keep_todays_shards() -> None:
+    from steer_envs.bench.suites.glide_robosuite.suite import PolicyParams
+
+    default = DataParams(replay_demos=1, replays_per_demo=2)
+    assert (default.lift, default.demos) == ("thesis", "scripted")  # today's results stay
+    assert default.shard("lift", 0).file_name() == "lift-demo0000-f7b062c0a2.npz"  # named as before the options
+    public = DataParams(replay_demos=1, replays_per_demo=2, lift="public_code")
+    assert public.shard("lift", 0).variant == "public_code" and public.shard("can", 0).variant == "thesis"
+    assert public.shard("lift", 0).file_name() != default.shard("lift", 0).file_name()
+    assert public.shard("can", 0).file_name() == default.shard("can", 0).file_name()  # Can has one variant
+    human = DataParams(replay_demos=1, replays_per_demo=2, demos="human_like")
+    assert human.shard("can", 0).demos == "human_like"
+    assert human.shard("can", 0).file_name() != default.shard("can", 0).file_name()
+    assert GroundingParams.from_json({"lift": "public_code"}).variant("lift") == "public_code"
+    assert PolicyParams().horizon == 0 and PolicyParams.from_json({"horizon": 400}).horizon == 400
+    for bad in ({"lift": "fork"}, {"demos": "teleop"}, {"horizon": -1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            PolicyParams.from_json(bad)
+
+
+@needs_robosuite
+def test_evaluation_envs_take_the_variant_and_the_horizon() -> None:
+    from steer_envs.bench.suites.glide_robosuite.suite import PolicyParams, evaluation_env
+
+    env = evaluation_env("lift", PolicyParams(lift="public_code", horizon=400), perturbed=True)
+    try:
+        assert env.unwrapped.variant == "public_code" and env.spec.max_episode_steps == 400
+        assert type(env).__name__ == "ArmPerturbationWrapper"
+    finally:
+        env.close()
+    env = evaluation_env("lift", PolicyParams(lift="public_code"), perturbed=False)
+    try:
+        assert env.spec.max_episode_steps == 200  # the registered limit
+    finally:
+        env.close()
 
 
 @pytest.fixture(scope="module")
@@ -66,6 +105,22 @@ def test_data_trials_build_shards_once(cache: Path) -> None:
     again = execute_trial(trials[0])
     assert again.record["metrics"]["built"] == 0.0  # resumed: the shard on disk is reused
     assert again.record["metrics"]["replay_success"] == m0["replay_success"]
+
+
+@needs_robosuite
+def test_data_trials_build_public_lift_shards_with_human_like_demos(cache: Path) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+    from steer_envs.data.robosuite_shards import read_shards
+
+    params = DataParams(
+        replay_demos=1, replays_per_demo=1, cache_dir=str(cache), lift="public_code", demos="human_like"
+    )
+    out = execute_trial(get_suite(DATA_SUITE).trial("steer_envs/Lift-v0", None, 0, params))
+    assert out.ok, out.error
+    assert out.record["metrics"]["demo_success"] == 1.0 and out.record["metrics"]["built"] == 1.0
+    (demo, *_) = read_shards(cache, [params.shard("lift", 0)])
+    assert demo.source == -1 and demo.modes.max() == 2 and float(np.mean(demo.modes == 1)) > 0.3  # lifting
 
 
 def test_success_hold_is_a_data_setting() -> None:

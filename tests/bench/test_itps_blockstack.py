@@ -38,10 +38,10 @@ def _verdicts(cells: dict[str, dict[str, float]]) -> list[bool | None]:
 def test_findings_check_the_safety_cost_raises_cs() -> None:
     plain = {m: {"TA": 0.8, "CS": 0.2, "AS": 0.2} for m in ("DP-GD", "DP-GD-B25", "DP-SS")}
     safer = {f"{m}+safe": {"TA": 0.8, "CS": 0.5, "AS": 0.4} for m in plain}
-    assert _all_verdicts({**TABLE_2_2, **plain, **safer})[6:] == [True, True, True]
+    assert _all_verdicts({**TABLE_2_2, **plain, **safer})[6:9] == [True, True, True]
     worse = {**safer, "DP-SS+safe": {"TA": 0.8, "CS": 0.2, "AS": 0.2}}
-    assert _all_verdicts({**TABLE_2_2, **plain, **worse})[6:] == [True, True, False]
-    assert _all_verdicts({**TABLE_2_2, **plain})[6:] == [None, None, None]
+    assert _all_verdicts({**TABLE_2_2, **plain, **worse})[6:9] == [True, True, False]
+    assert _all_verdicts({**TABLE_2_2, **plain})[6:9] == [None, None, None]
 
 
 def test_findings_check_table_2_2s_trade_off() -> None:
@@ -168,3 +168,76 @@ def test_the_safety_cost_guards_grasps_and_releases_in_the_scene() -> None:
         assert values[0] < 1e-3 and values[1] > 0.05
     finally:
         env.close()
+
+
+def test_flow_methods_run_dps_samplers() -> None:
+    from steer_envs.steering.blockstack import make_method_sampler
+
+    for method in ("RS", "PR", "GD", "GD-I50", "GD-B25", "SS"):
+        assert repr(make_method_sampler(f"FLOW-{method}", 50.0)) == repr(make_method_sampler(f"DP-{method}", 50.0))
+    with pytest.raises(ValueError, match=r"unknown method 'FLOW-RS\+safe'"):
+        make_method_sampler("FLOW-RS+safe")
+    with pytest.raises(ValueError, match="flow_steps"):
+        SteerParams.from_json({"flow_steps": -1})
+
+
+@pytest.fixture(scope="module")
+def tiny_blockstack_flow(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An untrained flow policy of the shipped BlockStack DP's layout and statistics: the plumbing, not the quality."""
+    from steer_envs.baselines.flow import FlowConfig, FlowPolicy
+    from steer_envs.baselines.pretrained import load_pretrained
+
+    dp = load_pretrained("blockstack")
+    fields = {**dp.config.to_dict(), "down_dims": (8, 16), "obs_embed_dim": 8}
+    fields = {k: v for k, v in fields.items() if k in FlowConfig.field_names()}
+    policy = FlowPolicy(FlowConfig.from_dict(fields), dp.stats)
+    return policy.save(tmp_path_factory.mktemp("flow") / "flow.safetensors")
+
+
+def test_a_missing_flow_policy_skips_only_the_flow_methods(monkeypatch: pytest.MonkeyPatch) -> None:
+    from steer_envs.baselines import pretrained
+    from steer_envs.bench.runner import build_request, plan_trials
+    from steer_envs.bench.suite import get_suite
+
+    missing = pretrained.ShippedCheckpoint("blockstack/no-such-flow.safetensors", "flow", "a recipe", (0, 1, 2))
+    monkeypatch.setitem(pretrained.CHECKPOINTS, "blockstack-flow", missing)
+    suite = get_suite(SUITE_NAME)
+    plan = plan_trials(suite, build_request(suite, methods=["DP-PR", "FLOW-PR", "FLOW-GD"], seeds=1))
+    assert [t.method for t in plan.trials] == ["DP-PR"]
+    (note,) = plan.notes
+    assert note.startswith("skipped FLOW-PR, FLOW-GD:") and "no-such-flow" in note
+
+
+@needs_robosuite
+def test_a_flow_trial_steers_the_flow_policy(tiny_blockstack_flow: Path) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.runner import build_request, plan_trials
+    from steer_envs.bench.suite import get_suite
+
+    suite = get_suite(SUITE_NAME)
+    params = {"flow_checkpoint": str(tiny_blockstack_flow), "flow_steps": 4, "batch": 4, "max_interactions": 1}
+    (trial,) = plan_trials(suite, build_request(suite, methods=["FLOW-GD-I50"], seeds=1, params=params)).trials
+    assert SteerParams.from_json(trial.params).policy_for("FLOW-GD-I50").num_inference_steps == 4
+    outcome = execute_trial(trial)
+    assert outcome.ok, outcome.error
+    assert outcome.record["metrics"]["interactions"] == 1
+
+
+def test_findings_check_table_2_2_on_the_flow_policy() -> None:
+    extra = {"DP-GD-B25": {"TA": 0.7, "CS": 0.4, "AS": 0.3}, "DP-SS": {"TA": 0.8, "CS": 0.9, "AS": 0.7}}
+    thesis = {**TABLE_2_2, **extra}
+    flow = {m.replace("DP-", "FLOW-"): v for m, v in thesis.items()}
+    timed = {"DP-SS": {**extra["DP-SS"], "latency_ms": 900.0}, "FLOW-SS": {**extra["DP-SS"], "latency_ms": 300.0}}
+    verdicts = _all_verdicts({**thesis, **flow, **timed})
+    assert verdicts[:6] == verdicts[9:15] == [True] * 6 and verdicts[15] is True
+    assert _all_verdicts(thesis)[9:] == [None] * 7
+    flat = {m: {"TA": 0.5, "CS": 0.5, "AS": 0.25, "latency_ms": 1000.0} for m in flow}
+    assert _all_verdicts({**thesis, **flat, **{"DP-SS": timed["DP-SS"]}})[9:] == [
+        False,
+        False,
+        True,
+        False,
+        False,
+        False,
+        False,
+    ]

@@ -38,13 +38,21 @@ def test_methods_and_names() -> None:
 
 
 def test_flow_rows_are_skipped_with_a_note_without_a_checkpoint(suite: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    def not_trained() -> str:
-        raise FileNotFoundError("no flow checkpoint yet")
+    from steer_envs.baselines import pretrained
 
-    monkeypatch.setattr(flow_suite, "_shipped_flow", not_trained)
+    missing = pretrained.ShippedCheckpoint("maze2d_large/no-such-flow.safetensors", "flow", "a recipe")
+    monkeypatch.setitem(pretrained.CHECKPOINTS, "flow", missing)
     plan = plan_trials(suite, build_request(suite, methods=["FLOW-GD", "DP-PR"], seeds=1))
     assert [t.method for t in plan.trials] == ["DP-PR"]
-    assert any("FLOW methods" in note and "no flow checkpoint yet" in note for note in plan.notes)
+    assert any("FLOW methods" in note and "no-such-flow" in note for note in plan.notes)
+
+
+def test_flow_steps_set_the_flows_euler_steps(suite: Any, tiny_flow: Path) -> None:
+    params = flow_suite.FlowSafetyParams(flow_checkpoint=str(tiny_flow), flow_steps=3)
+    assert params.policy("flow").num_inference_steps == 3
+    assert flow_suite.FlowSafetyParams(flow_checkpoint=str(tiny_flow)).policy("flow").num_inference_steps == 10
+    with pytest.raises(ValueError, match="flow_steps"):
+        flow_suite.FlowSafetyParams(flow_steps=-1)
 
 
 def test_a_named_flow_file_that_is_missing_is_an_error(suite: Any, tmp_path: Path) -> None:
@@ -64,15 +72,15 @@ def test_a_trial_of_each_kind_runs(suite: Any, tiny_flow: Path, method: str) -> 
 
 
 class Means:
-    """What the findings read of a report table: per-method means (``None`` when a method has no row)."""
+    """What the findings read of a report table: per-method means (``None`` for a method or metric without a row)."""
 
     def __init__(self, rows: dict[str, tuple[float, float, float]]) -> None:
         self.rows = rows
 
     def means(self, metric: str, methods: list[str]) -> dict[str, float] | None:
-        column = ("min_l2", "collision", "latency_ms").index(metric)
-        if any(m not in self.rows for m in methods):
+        if metric not in ("min_l2", "collision", "latency_ms") or any(m not in self.rows for m in methods):
             return None
+        column = ("min_l2", "collision", "latency_ms").index(metric)
         return {m: self.rows[m][column] for m in methods}
 
 
@@ -88,3 +96,5 @@ def test_findings_judge_the_safety_cost_and_the_flow_latency() -> None:
     verdicts = {f.claim.split(" ")[0]: f.holds for f in findings}
     assert verdicts["DP-GD+safe"] is True and verdicts["DP-SS+safe"] is False  # SS+safe lost alignment here
     assert verdicts["FLOW-GD+safe"] is None and verdicts["the"] is True
+    on_flow = [f for f in findings if f.claim.startswith("flow policy: ")]
+    assert len(on_flow) == 4 and all(f.holds is None for f in on_flow)  # Table 2.1 needs every FLOW sampler

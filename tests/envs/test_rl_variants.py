@@ -8,7 +8,7 @@ import pytest
 from kinematic_helpers import step_singles_like_vector
 
 import steer_envs
-from steer_envs.data.experts import make_expert
+from steer_envs.data.experts import RLConventionExpert, make_expert
 from steer_envs.envs.kinematic import DENSE_REWARD_SCALE
 from steer_envs.envs.maze2d import Maze2DEnv, Maze2DGoalEnv
 from steer_envs.envs.registry import BASE_ENTRIES, VARIANT_ENTRIES, entry
@@ -32,6 +32,35 @@ def test_variant_ids_are_registered_beside_the_base_ids() -> None:
         steer_envs.env_ids(variants="yes")  # type: ignore[arg-type]
 
 
+def test_dense_ids_carry_the_rl_options_as_registered_and_the_base_ids_do_not() -> None:
+    for base in KINEMATIC_BASE:
+        stem, version = base.rsplit("-", 1)
+        plain, dense = gym.make(base), gym.make(f"{stem}Dense-{version}")
+        sensors = len(plain.unwrapped.task.sensors)
+        assert (plain.unwrapped.reward_type, plain.unwrapped.observe_sensors, plain.unwrapped.normalize_actions) == (
+            "sparse",
+            False,
+            False,
+        )
+        assert plain.observation_space.shape == (2,)
+        assert plain.action_space.high[0] == pytest.approx(plain.unwrapped.max_speed)  # float32
+        assert (dense.unwrapped.reward_type, dense.unwrapped.observe_sensors, dense.unwrapped.normalize_actions) == (
+            "dense",
+            True,
+            True,
+        )
+        assert dense.observation_space.shape == (2 + sensors,)
+        assert dense.action_space.low.tolist() == [-1.0, -1.0] and dense.action_space.high.tolist() == [1.0, 1.0]
+        # an explicit option still overrides the registered one
+        assert gym.make(f"{stem}Dense-{version}", observe_sensors=False).observation_space.shape == (2,)
+    for maze in MAZES:
+        for suffix, normalised in (("", False), ("Goal", False), ("Dense", True), ("GoalDense", True)):
+            env = gym.make(f"steer_envs/Maze2D-{maze}{suffix}-v0")
+            assert env.unwrapped.normalize_actions is normalised, (maze, suffix)
+            assert (env.action_space.low.tolist() == [-1.0, -1.0]) is normalised, (maze, suffix)
+            assert env.unwrapped.relative_actions is False
+
+
 @pytest.mark.parametrize("env_id", [*KINEMATIC_BASE, "steer_envs/Maze2D-Umaze-v0"])
 def test_bad_options_name_the_argument(env_id: str) -> None:
     with pytest.raises(ValueError, match=r"reward_type.*'dense'.*'shaped'"):
@@ -46,7 +75,8 @@ def test_bad_options_name_the_argument(env_id: str) -> None:
 @pytest.mark.parametrize("env_id", KINEMATIC_BASE)
 def test_sparse_default_is_unchanged_and_dense_rewards_the_expert(env_id: str) -> None:
     stem, version = env_id.rsplit("-", 1)
-    sparse, dense = gym.make(env_id), gym.make(f"{stem}Dense-{version}")
+    # the dense id's raw velocity actions (it registers [-1, 1] ones), so both envs step exactly alike
+    sparse, dense = gym.make(env_id), gym.make(f"{stem}Dense-{version}", normalize_actions=False)
     expert = make_expert(sparse)
     obs, info = sparse.reset(seed=0)
     dense.reset(seed=0)
@@ -57,7 +87,7 @@ def test_sparse_default_is_unchanged_and_dense_rewards_the_expert(env_id: str) -
         action = expert.act(obs, info)
         obs, r, terminated, truncated, info = sparse.step(action)
         dobs, d, dterm, _, dinfo = dense.step(action)
-        np.testing.assert_array_equal(obs, dobs)
+        np.testing.assert_array_equal(obs, dobs[:2])  # then the sensor bits
         assert dterm == terminated and dinfo["mode"] == info["mode"]
         sparse_rewards.append(r)
         dense_rewards.append(d)
@@ -341,7 +371,7 @@ def test_maze2d_normalised_actions_map_onto_the_grid() -> None:
 def test_maze2d_relative_actions_are_offsets_from_the_agent() -> None:
     env = gym.make("steer_envs/Maze2D-UmazeDense-v0", relative_actions=True)
     assert env.action_space.low.tolist() == [-1.0, -1.0] and env.action_space.high.tolist() == [1.0, 1.0]
-    ref = gym.make("steer_envs/Maze2D-UmazeDense-v0")
+    ref = gym.make("steer_envs/Maze2D-UmazeDense-v0", normalize_actions=False)  # absolute waypoints
     options = {"state": [1.0, 1.0], "goal_cell": (3, 1)}
     obs, _ = env.reset(seed=0, options=options)
     ref_obs, _ = ref.reset(seed=0, options=options)
@@ -375,3 +405,29 @@ def test_sb3_her_sac_learns_a_few_hundred_steps_on_goal_conditioned_maze() -> No
     obs, _ = env.reset(seed=0)
     action, _ = model.predict(obs, deterministic=True)
     assert action in env.action_space
+
+
+@pytest.mark.parametrize(
+    ("env_id", "options"),
+    [
+        ("steer_envs/PolygonNav-3ModeDense-v0", {}),
+        ("steer_envs/SoupScoop-v0", {"normalize_actions": True}),
+        ("steer_envs/Maze2D-UmazeDense-v0", {}),
+        ("steer_envs/Maze2D-UmazeDense-v0", {"relative_actions": True}),
+    ],
+)
+def test_the_expert_acts_in_the_ids_action_convention(env_id: str, options: dict[str, bool]) -> None:
+    env = gym.make(env_id, **options)
+    expert = make_expert(env)
+    assert isinstance(expert, RLConventionExpert)
+    expert.gain = 3.0  # a setting reaches the wrapped expert (read back through it)
+    assert expert.inner.gain == 3.0 and expert.gain == 3.0
+    obs, info = env.reset(seed=1)
+    expert.reset(obs, info)
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action = expert.act(obs, info)
+        assert action.dtype == np.float32 and np.abs(action).max() <= 1.0
+        obs, _, terminated, truncated, info = env.step(action)
+    assert info["success"] and terminated
+    assert not isinstance(make_expert(gym.make("steer_envs/SoupScoop-v0")), RLConventionExpert)  # the thesis's ids

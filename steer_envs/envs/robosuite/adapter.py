@@ -13,7 +13,8 @@ Observation (flat ``float32`` Box, keys in :attr:`RobosuiteEnv.obs_keys`):
 the object-to-gripper vector (3)): 19 numbers.
 Action: 7 reals in [-1, 1] (clipped): delta eef position / axis-angle (scaled
 by robosuite to +-0.05 m, +-0.5 rad per step) and the gripper (+1 closes).
-Reward: 1 on success (robosuite's sparse reward), which also terminates the
+Reward: 1 on success (robosuite's sparse reward; for the public-code Lift,
+``variant="public_code"``, its own 0.40 m success), which also terminates the
 episode; the step limit is the registry's TimeLimit (robosuite's own
 ``horizon`` is off: ``ignore_done=True``).
 
@@ -52,7 +53,7 @@ from steer_envs.envs.robosuite import camera as cam
 from steer_envs.envs.robosuite.gl_backend import ensure_gl_backend
 from steer_envs.envs.robosuite.ik import IK_TOLERANCE, ArmIK, Residual
 from steer_envs.envs.robosuite.stability import SimulationUnstableError, StepWatch
-from steer_envs.envs.robosuite.tasks import SQUARE_LOW_HEIGHT, TASK_NAMES, TASKS, task_spec
+from steer_envs.envs.robosuite.tasks import FALL_SPEED, SQUARE_LOW_HEIGHT, TASK_NAMES, VARIANTS, task_spec
 from steer_envs.envs.robosuite.workspace import Workspace, arm_workspace
 
 __all__ = [
@@ -135,6 +136,10 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
 
     Args:
         task: the task name, one of :data:`steer_envs.envs.robosuite.tasks.TASK_NAMES`.
+        variant: which version of the task (:data:`steer_envs.envs.robosuite.tasks.VARIANTS`):
+            ``"thesis"`` (default; robosuite's task as the thesis text describes it) or, for Lift,
+            ``"public_code"`` (the public GLiDE fork's Lift: success at 0.40 m above the table,
+            modes free / lifting / success; reward 1 and termination at that success).
         render_mode: ``"rgb_array"`` (an offscreen renderer is built) or None (no renderer).
             The arm envs are ``rgb_array``-only: ``"human"`` is refused here (a ``ValueError``);
             ``gymnasium.make(..., render_mode="human")`` wraps them in Gymnasium's ``HumanRendering``.
@@ -178,6 +183,8 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 - Env's type
     interaction_kinds: tuple[InteractionKind, ...] = ("point", "sketch", "nudge")
     control_freq = 20
+    #: success is the object this high above the table (m); None: robosuite's ``_check_success``
+    _success_height: float | None = None
     #: the camera ``render`` draws when ``camera`` is not given
     default_camera = "agentview"
     _OPTION_KEYS = frozenset({"state"})
@@ -185,12 +192,17 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
     def __init__(
         self,
         task: str = "lift",
+        *,
+        variant: str = "thesis",
         **view: Unpack[ViewOptions],
     ) -> None:
         owner = type(self).__name__
         self.task_name = one_of(task, "task", TASK_NAMES, owner=owner)
+        #: the task's variant (``"thesis"``, or Lift's ``"public_code"``)
+        self.variant = one_of(variant, "variant", tuple(VARIANTS[self.task_name]), owner=owner)
         self._check_view_args(view, owner)
-        self.spec_task = TASKS[self.task_name]
+        self.spec_task = VARIANTS[self.task_name][self.variant]
+        self._success_height = self.spec_task.success_height
         self.task = task_spec(self.spec_task)
         self.obs_keys: tuple[str, ...] = ROBOT_KEYS + self.spec_task.object_keys
 
@@ -412,9 +424,13 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
         self._held = lasted >= GRASP_HOLD_STEPS or (self._held and (grasped or in_air))
         if not self._held and self._at_rest():
             self._rest_z = min(self._rest_z, float(pos[2]))
-        self._success = bool(rs._check_success())
+        self._success = bool(rs._check_success()) if self._success_height is None else self._above_table()
         sensors = {"held": self._held}
-        if self.task_name == "lift":
+        if self.task_name == "lift" and self._success_height is not None:
+            vz = float(rs.sim.data.qvel[self._object_qvel + 2])  # a free joint's linear velocity is in the world frame
+            sensors["falling"] = vz < -FALL_SPEED
+            sensors["at_height"] = self._success
+        elif self.task_name == "lift":
             sensors["lifted"] = bool(in_air)
             sensors["at_height"] = self._success
         elif self.task_name == "can":
@@ -428,6 +444,13 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
             sensors["low"] = bool(pos[2] < self._rest_z + SQUARE_LOW_HEIGHT)
             sensors["on_peg"] = self._success
         return sensors
+
+    def _above_table(self) -> bool:
+        """The object's body is more than the variant's success height above the table top (robosuite's rule)."""
+        rs = self.rs_env
+        body = rs.sim.model.body_name2id(self._object.root_body)
+        assert self._success_height is not None
+        return bool(rs.sim.data.body_xpos[body][2] > rs.table_offset[2] + self._success_height)
 
     def _event_violation(self) -> bool:
         """A violation the last sensor reading found besides a forbidden mode change (none here; BlockStack: a drop)."""
@@ -488,6 +511,8 @@ class RobosuiteEnv(ClosableEnv[np.ndarray, np.ndarray]):
         self._gripper = float(act[6])
         self.robosuite_obs, reward, _, _ = self._sim_step(act, owner)
         info = self._info()
+        if self._success_height is not None:  # robosuite's sparse reward is its own success's
+            reward = float(info["success"])
         return self._obs(), float(reward), info["success"], False, info
 
     def _sim_step(self, action: np.ndarray, owner: str) -> Any:

@@ -20,6 +20,12 @@ Groundtruth in RoboSuite") are labelled from sensor APs, so
 - Lift: ``lifted`` (cube 1 cm above its rest height), ``at_height`` (robosuite's
   success: cube 4 cm above the table). Modes reach -> lift (held, or lifted)
   -> reach_height (at_height).
+- Lift, ``variant="public_code"`` (:data:`LIFT_VARIANTS`): the task of the
+  public GLiDE robosuite fork. Success needs the cube
+  :data:`PUBLIC_CODE_LIFT_HEIGHT` (0.40 m) above the table, ten times
+  robosuite's margin; ``falling`` (the cube moves down faster than
+  :data:`FALL_SPEED`), ``at_height`` (that success). Modes free -> lifting
+  (held and not falling) -> success (at_height), the fork's three.
 - Can: ``above_target`` (can xy within ``bin_size / 4`` of its target bin
   placement, per axis). Modes reach -> transport (held) -> hover (above_target,
   held or released into the bin).
@@ -38,6 +44,8 @@ dropped after being grasped, or a skipped mode) reports
 ('reach', 'transport', 'align', 'lower')
 >>> sorted(TASK_NAMES)
 ['can', 'lift', 'square']
+>>> task_variant("lift", "public_code").modes
+('free', 'lifting', 'success')
 """
 
 from __future__ import annotations
@@ -48,10 +56,29 @@ from dataclasses import dataclass
 
 from steer_envs.core.task import TaskSpec
 
-__all__ = ["SQUARE_LOW_HEIGHT", "TASKS", "TASK_NAMES", "RobosuiteTask", "task_spec"]
+__all__ = [
+    "FALL_SPEED",
+    "LIFT_VARIANTS",
+    "PUBLIC_CODE_LIFT_HEIGHT",
+    "SQUARE_LOW_HEIGHT",
+    "TASKS",
+    "TASK_NAMES",
+    "VARIANTS",
+    "RobosuiteTask",
+    "task_spec",
+    "task_variant",
+]
 
 #: Square: the nut counts as "low" (lowering onto the peg) below this height over its rest height (m).
 SQUARE_LOW_HEIGHT = 0.10
+#: Lift's variants: the thesis text's task (robosuite's) and the public GLiDE robosuite fork's.
+LIFT_VARIANTS: tuple[str, ...] = ("thesis", "public_code")
+#: public-code Lift: success once the cube is this high above the table top (m; robosuite's margin is 0.04).
+PUBLIC_CODE_LIFT_HEIGHT = 0.40
+#: public-code Lift: the cube counts as falling while it moves down faster than this (m/s, 5 mm a control
+#: step; the fork compares heights step to step, this leaves out the mm jitter of a cube held still, and
+#: a dropped cube reaches 0.49 m/s within one step).
+FALL_SPEED = 0.1
 
 Labeller = Callable[[Mapping[str, bool]], str]
 
@@ -68,6 +95,8 @@ class RobosuiteTask:
         modes: ordered ground-truth modes.
         sensors: sensor APs (``info["sensors"]`` keys).
         label: sensor reading -> mode name.
+        variant: which version of the task (``"thesis"``; Lift also ``"public_code"``).
+        success_height: success is the object this high above the table top (m); None: robosuite's own check.
     """
 
     name: str
@@ -77,12 +106,20 @@ class RobosuiteTask:
     modes: tuple[str, ...]
     sensors: tuple[str, ...]
     label: Labeller
+    variant: str = "thesis"
+    success_height: float | None = None
 
 
 def _lift(s: Mapping[str, bool]) -> str:
     if s["at_height"]:
         return "reach_height"
     return "lift" if s["held"] or s["lifted"] else "reach"
+
+
+def _lift_public_code(s: Mapping[str, bool]) -> str:
+    if s["at_height"]:
+        return "success"
+    return "lifting" if s["held"] and not s["falling"] else "free"
 
 
 def _can(s: Mapping[str, bool]) -> str:
@@ -129,6 +166,38 @@ TASKS: Mapping[str, RobosuiteTask] = {
     ),
 }
 TASK_NAMES = tuple(TASKS)
+#: every task's variants: task name -> variant name -> task (``"thesis"``: :data:`TASKS`).
+VARIANTS: Mapping[str, Mapping[str, RobosuiteTask]] = {
+    "lift": {
+        "thesis": TASKS["lift"],
+        "public_code": RobosuiteTask(
+            "lift",
+            "Lift",
+            "cube",
+            TASKS["lift"].object_keys,
+            ("free", "lifting", "success"),
+            ("held", "falling", "at_height"),
+            _lift_public_code,
+            variant="public_code",
+            success_height=PUBLIC_CODE_LIFT_HEIGHT,
+        ),
+    },
+    "can": {"thesis": TASKS["can"]},
+    "square": {"thesis": TASKS["square"]},
+}
+
+
+def task_variant(task: str, variant: str = "thesis") -> RobosuiteTask:
+    """The ``variant`` of ``task`` (a ``ValueError`` naming the argument for an unknown one).
+
+    >>> task_variant("lift").success_height is None, task_variant("lift", "public_code").success_height
+    (True, 0.4)
+    """
+    if task not in VARIANTS:
+        raise ValueError(f"task_variant: unknown `task` {task!r}; tasks: {list(TASK_NAMES)}")
+    if variant not in VARIANTS[task]:
+        raise ValueError(f"task_variant: `variant` of {task!r} must be one of {list(VARIANTS[task])}, got {variant!r}")
+    return VARIANTS[task][variant]
 
 
 def task_spec(task: RobosuiteTask) -> TaskSpec:
@@ -145,8 +214,9 @@ def task_spec(task: RobosuiteTask) -> TaskSpec:
     m = task.modes
     transitions = {(m[i], m[i + 1]) for i in range(len(m) - 1)}
     transitions |= {(m[i + 1], m[i]) for i in range(1, len(m) - 1)}
+    suffix = "" if task.variant == "thesis" else f"-{task.variant}"
     return TaskSpec(
-        name=f"robosuite-{task.name}",
+        name=f"robosuite-{task.name}{suffix}",
         modes=m,
         sensors=task.sensors,
         sensor_modes=sensor_modes,

@@ -19,6 +19,14 @@
 ``cache_dir`` defaults to ``~/.cache/steer-envs/glide-robosuite``. Trials run
 with one BLAS and one torch thread.
 
+Every suite takes ``lift`` (``thesis``: robosuite's Lift as the thesis text
+describes it; ``public_code``: the public GLiDE fork's Lift, success 0.40 m above
+the table, modes free / lifting / success, its demos extended by the fork's
+1 cm-a-step lift) and ``demos`` (``scripted``: the experts; ``human_like``: the
+human-like demonstrator, a sensitivity study,
+:mod:`steer_envs.data.experts.human_like`); ``glide-robosuite`` also takes
+``horizon`` (the evaluation episodes' step limit; 0: the env's, 400: the forks').
+
 >>> GroundingParams(epochs=0)
 Traceback (most recent call last):
 ValueError: glide-robosuite-grounding: parameter 'epochs' must be >= 1, got 0
@@ -35,6 +43,7 @@ from steer_envs.bench.metrics import BUILT, EVAL_SECONDS, evaluation_metrics, su
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Metric, Reference, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
+from steer_envs.envs.robosuite.tasks import LIFT_VARIANTS
 from steer_envs.io import default_cache_dir
 from steer_envs.utils.fields import build_from
 from steer_envs.utils.threads import single_threaded
@@ -65,6 +74,8 @@ THESIS_TABLE_4_3: Mapping[str, Mapping[str, tuple[float, float]]] = {
     "glide_bc": {"can": (0.85, 0.40), "lift": (0.99, 0.39), "square": (0.25, 0.15)},
 }
 METHODS: tuple[str, ...] = tuple(THESIS_TABLE_4_3)
+#: who demonstrates: the library's ``steer_envs.data.robosuite_replays.DEMO_SOURCES`` (repeated: no scipy here).
+DEMO_SOURCES: tuple[str, ...] = ("scripted", "human_like")
 
 
 def _task(env: str | None) -> str:
@@ -78,7 +89,9 @@ class DataParams(SuiteParams):
     """What the replay data are built from: demos with replays, replays per demo, the cache folder ("": default).
 
     ``success_hold``: steps a recording goes on once the task succeeds (robosuite's
-    demo collection records 10; 0 stops at the first success).
+    demo collection records 10; 0 stops at the first success). ``lift``: Lift's
+    variant (:data:`~steer_envs.envs.robosuite.tasks.LIFT_VARIANTS`; Can and
+    Square have one). ``demos``: who demonstrates (:data:`DEMO_SOURCES`).
     """
 
     suite_name: ClassVar[str] = DATA_SUITE
@@ -87,12 +100,20 @@ class DataParams(SuiteParams):
     cache_dir: str = ""
     success_hold: int = 10
     extra_gripper: bool = False
+    lift: str = "thesis"
+    demos: str = "scripted"
 
     def __post_init__(self) -> None:
         self.require_at_least(0, "replay_demos", "success_hold")
         self.require_at_least(1, "replays_per_demo")
         self.require_at_most(10_000, "replay_demos", "replays_per_demo")
         self.require_at_most(1_000, "success_hold")
+        self.require_in("lift", LIFT_VARIANTS)
+        self.require_in("demos", DEMO_SOURCES)
+
+    def variant(self, task: str) -> str:
+        """The variant of ``task`` these parameters run (``lift`` for Lift, ``"thesis"`` for the others)."""
+        return self.lift if task == "lift" else "thesis"
 
     @property
     def cache(self) -> str:
@@ -104,7 +125,7 @@ class DataParams(SuiteParams):
         """The :class:`~steer_envs.data.robosuite_shards.ShardSettings` of demo ``index`` of ``task``."""
         from steer_envs.data.robosuite_shards import ShardSettings
 
-        return build_from(ShardSettings, self, task=task, index=index)
+        return build_from(ShardSettings, self, task=task, index=index, variant=self.variant(task))
 
     def trajectories(self, task: str, n_demos: int) -> list[Any]:
         """Every trajectory of ``task``'s first ``n_demos`` shards (missing ones built here)."""
@@ -301,6 +322,8 @@ class PolicyParams(GroundingParams):
     ``bc_hidden`` / ``bc_steps``: the hidden layers and training steps of every
     BC MLP (BC's, and GLiDE+BC's one per mode;
     :class:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings`).
+    ``horizon``: the evaluation episodes' step limit; 0 (default) keeps the env's
+    registered one (Lift 200, Can 400, Square 500); the public forks evaluate 400.
     """
 
     suite_name: ClassVar[str] = POLICY_SUITE
@@ -310,10 +333,12 @@ class PolicyParams(GroundingParams):
     perturb_after_mode_change: bool = False
     bc_hidden: tuple[int, ...] = (256, 256)
     bc_steps: int = 8000
+    horizon: int = 0
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.require_at_least(1, "n_episodes")
+        self.require_between(0, 100_000, "horizon")
         self.require_at_most(100_000, "n_episodes")
         self.require_in("predictor", PREDICTORS)
         self.require_in("perturbation", PERTURBATION_SCHEDULES)
@@ -338,17 +363,25 @@ class PolicyParams(GroundingParams):
         return ArmBCSettings(hidden=tuple(self.bc_hidden), steps=self.bc_steps)
 
 
-def _evaluate(task: str, policy: Any, predictor: Any, params: PolicyParams, perturbed: bool) -> dict[str, Any]:
-    """``n_episodes`` of the registered env of ``task``, wrapped in the "+p" perturbations when ``perturbed``."""
+def evaluation_env(task: str, params: PolicyParams, *, perturbed: bool) -> Any:
+    """The registered env of ``task`` in the variant and horizon of ``params``; "+p" wrapped when ``perturbed``."""
     import gymnasium as gym
 
-    from steer_envs.baselines.glide import evaluate_arm_policy
     from steer_envs.data.robosuite_replays import ENV_IDS as ARM_ENV_IDS
     from steer_envs.wrappers.arm_perturbation import ArmPerturbationWrapper
 
-    env: Any = gym.make(ARM_ENV_IDS[task])
-    if perturbed:
-        env = ArmPerturbationWrapper(env, **params.perturbation_settings())
+    kwargs: dict[str, Any] = {"variant": params.variant(task)}
+    if params.horizon:
+        kwargs["max_episode_steps"] = params.horizon
+    env: Any = gym.make(ARM_ENV_IDS[task], **kwargs)
+    return ArmPerturbationWrapper(env, **params.perturbation_settings()) if perturbed else env
+
+
+def _evaluate(task: str, policy: Any, predictor: Any, params: PolicyParams, perturbed: bool) -> dict[str, Any]:
+    """``n_episodes`` of :func:`evaluation_env`."""
+    from steer_envs.baselines.glide import evaluate_arm_policy
+
+    env = evaluation_env(task, params, perturbed=perturbed)
     try:
         return evaluate_arm_policy(env, policy, predictor=predictor, n_episodes=params.n_episodes)
     finally:

@@ -149,7 +149,7 @@ def run_scaling_trial(trial: Trial) -> TrialResult:
     """Train (or load) one pilot, then score it with every DP sampler on the ITPS starts."""
     from steer_envs.baselines.diffusion import DiffusionPolicy
     from steer_envs.baselines.training.trainer import sidecar_path
-    from steer_envs.bench.suites.itps.suite import table_2_1_checks
+    from steer_envs.bench.table_2_1 import table_2_1_checks
     from steer_envs.steering.maze import steering_trial
 
     params = ScalingParams.from_json(trial.params)

@@ -60,15 +60,14 @@ ValueError: itps-maze2d: parameter 'through_wall' must be in [0, 1], got 1.5
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from steer_envs.bench.findings import listing
 from steer_envs.bench.metrics import MAZE_STEERING_METRICS, table_references
 from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER
-from steer_envs.bench.suite import Finding, Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.bench.suite import Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.bench.table_2_1 import SAMPLERS, table_2_1_findings
 from steer_envs.utils.threads import limit_threads
 
 if TYPE_CHECKING:
@@ -76,7 +75,7 @@ if TYPE_CHECKING:
 
 SUITE_NAME = "itps-maze2d"
 ENV_ID = "steer_envs/Maze2D-Large-v0"
-DP_SAMPLERS: tuple[str, ...] = ("RS", "PR", "OP", "BI", "GD", "SS")
+DP_SAMPLERS: tuple[str, ...] = SAMPLERS
 ACT_SAMPLERS: tuple[str, ...] = ("RS", "PR", "OP")
 METHODS: tuple[str, ...] = tuple(f"DP-{s}" for s in DP_SAMPLERS) + tuple(f"ACT-{s}" for s in ACT_SAMPLERS)
 _DIFFUSION_ONLY = frozenset({"BI", "GD", "SS"})
@@ -107,7 +106,10 @@ class ItpsParams(SuiteParams):
     ``module:function``) and ``{dp,act}_checkpoint`` a checkpoint file that
     replaces it; ``dp_accelerate`` the DP's inference acceleration
     (``"fastest"``, the default, or another mode of
-    :meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`).
+    :meth:`~steer_envs.baselines.diffusion.DiffusionPolicy.accelerate`);
+    ``ddim_steps`` the DP's DDIM steps per plan (0: the checkpoint's 10) and
+    ``mcmc_steps`` SS's iterations per noise level (0: its default 4): SS
+    calls the network about ``ddim_steps x mcmc_steps`` times.
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -121,9 +123,13 @@ class ItpsParams(SuiteParams):
     dp_checkpoint: str = ""
     act_checkpoint: str = ""
     dp_accelerate: str = "fastest"
+    ddim_steps: int = 0
+    mcmc_steps: int = 0
 
     def __post_init__(self) -> None:
         self.require_at_least(1, "batch")
+        self.require_between(0, 100, "ddim_steps")
+        self.require_between(0, 64, "mcmc_steps")
         self.require("through_wall", 0.0 <= self.through_wall <= 1.0, "in [0, 1]")
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
         self.require_at_least(1, "latency_repeats")
@@ -141,7 +147,8 @@ class ItpsParams(SuiteParams):
 
         accelerate = self.dp_accelerate if kind == "dp" else "none"
         loader, checkpoint = getattr(self, f"{kind}_loader"), getattr(self, f"{kind}_checkpoint")
-        return shared_policy(kind, checkpoint, accelerate, loader=loader, owner="dp_accelerate")
+        steps = self.ddim_steps if kind == "dp" else 0
+        return shared_policy(kind, checkpoint, accelerate, loader=loader, owner="dp_accelerate", steps=steps)
 
 
 def split_method(method: str) -> tuple[str, str]:
@@ -200,66 +207,9 @@ def run_itps_trial(trial: Trial) -> TrialResult:
             through_wall=params.through_wall,
             latency_repeats=params.latency_repeats,
             keep_plans=trial.seed < params.plot_seeds,
+            mcmc_steps=params.mcmc_steps or None,
         )
     return TrialResult(metrics, extra)
-
-
-#: Table 2.1's qualitative findings, in the order :func:`table_2_1_checks` returns their verdicts
-TABLE_2_1_CLAIMS: tuple[str, ...] = (
-    "SS has the best Min L2 and Avg L2 among the DP samplers",
-    "SS's collision rate is within 0.02 of RS's",
-    "GD and BI collide more than SS",
-    "PR improves Min L2 over RS but not Avg L2",
-)
-
-
-def table_2_1_checks(
-    min_l2: Mapping[str, float] | None, avg_l2: Mapping[str, float] | None, collision: Mapping[str, float] | None
-) -> list[bool | None]:
-    """The verdicts on :data:`TABLE_2_1_CLAIMS` from per-sampler means keyed ``"RS"``, ``"PR"``, ..., ``"SS"``.
-
-    ``None`` for a claim whose metric is missing. SS's L2 is compared with
-    every other sampler in the mapping.
-
-    >>> m = {"RS": 0.3, "PR": 0.2, "BI": 0.1, "GD": 0.1, "SS": 0.05}
-    >>> table_2_1_checks(m, m, {"RS": 0.01, "PR": 0.01, "BI": 0.06, "GD": 0.06, "SS": 0.01})
-    [True, True, True, False]
-    """
-    verdicts: list[bool | None] = [None] * 4
-    if min_l2 is not None and avg_l2 is not None:
-        others = [s for s in min_l2 if s != "SS"]
-        best_min = min(min_l2[s] for s in others)
-        best_avg = min(avg_l2[s] for s in others)
-        verdicts[0] = min_l2["SS"] < best_min and avg_l2["SS"] < best_avg
-        verdicts[3] = min_l2["PR"] < min_l2["RS"] and avg_l2["PR"] >= avg_l2["RS"] - 0.005
-    if collision is not None:
-        verdicts[1] = abs(collision["SS"] - collision["RS"]) <= 0.02
-        verdicts[2] = collision["GD"] > collision["SS"] and collision["BI"] > collision["SS"]
-    return verdicts
-
-
-def itps_findings(table: Any) -> list[Finding]:
-    """Table 2.1's qualitative findings, checked on a run's summary table."""
-    dp = [f"DP-{s}" for s in DP_SAMPLERS]
-    min_l2, avg_l2, coll = (table.means(m, dp) for m in ("min_l2", "avg_l2", "collision"))
-
-    def by_sampler(values: Mapping[str, float] | None) -> dict[str, float] | None:
-        return None if values is None else {m.removeprefix("DP-"): v for m, v in values.items()}
-
-    def fmt(values: Mapping[str, float] | None, *methods: str) -> str:
-        return listing(values, ".3f", strip="DP-", names=methods) if values else ""
-
-    verdicts = table_2_1_checks(by_sampler(min_l2), by_sampler(avg_l2), by_sampler(coll))
-    details = ["", fmt(coll, "DP-SS", "DP-RS"), fmt(coll, "DP-GD", "DP-BI", "DP-SS"), ""]
-    if min_l2 is not None and avg_l2 is not None:
-        others = [m for m in dp if m != "DP-SS"]
-        best_min, best_avg = min(others, key=min_l2.__getitem__), min(others, key=avg_l2.__getitem__)
-        details[0] = f"Min L2 {fmt(min_l2, 'DP-SS', best_min)}; Avg L2 {fmt(avg_l2, 'DP-SS', best_avg)}"
-        details[3] = f"Min L2 {fmt(min_l2, 'DP-PR', 'DP-RS')}; Avg L2 {fmt(avg_l2, 'DP-PR', 'DP-RS')}"
-    return [
-        Finding(claim, holds) if holds is None else Finding(claim, holds, detail)
-        for claim, holds, detail in zip(TABLE_2_1_CLAIMS, verdicts, details, strict=True)
-    ]
 
 
 def _references() -> tuple[Reference, ...]:
@@ -284,6 +234,6 @@ ITPS_MAZE2D = register_suite(
         quick={"plot_seeds": 2},
         quick_seeds=4,
         plot="steer_envs.bench.suites.itps.plots:plot_itps",
-        findings=itps_findings,
+        findings=table_2_1_findings,
     )
 )

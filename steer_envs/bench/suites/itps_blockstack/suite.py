@@ -25,7 +25,10 @@
   so. Each steered method also runs with BlockStack's safety cost (``+safe``:
   :func:`~steer_envs.steering.blockstack.tower_safety_cost`, weight ``safety_weight``: the gripper closes
   only at a free cube and opens only where the held cube can rest). The ``plot`` hook draws steered plans
-  like thesis Fig. 2.6 (:mod:`~steer_envs.bench.suites.itps_blockstack.plots`).
+  like thesis Fig. 2.6 (:mod:`~steer_envs.bench.suites.itps_blockstack.plots`). ``FLOW-*`` runs
+  Table 2.2's methods on the flow-matching policy of the same preset, network and data
+  (``load_pretrained("blockstack-flow")`` or ``flow_checkpoint``; ``flow_steps`` Euler steps, 0: its own):
+  flow vs DP at matched parameters and training samples. While it is missing, only ``FLOW-*`` is skipped.
 
 >>> DataParams(skills_per_episode=0)
 Traceback (most recent call last):
@@ -38,7 +41,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from steer_envs.bench.findings import judge, listing
+from steer_envs.bench.findings import judge, listing, on_other_policy
 from steer_envs.bench.metrics import (
     BUILT,
     QUADRANT_METRICS,
@@ -58,7 +61,11 @@ DATA_SUITE = "itps-blockstack-data"
 #: Table 2.2's methods, then each steered one with the safety cost (``+safe``)
 TABLE_METHODS = ("DP-RS", "DP-PR", "DP-GD", "DP-GD-I50", "DP-GD-B25", "DP-SS")
 SAFE_METHODS = tuple(f"{m}+safe" for m in TABLE_METHODS if m != "DP-RS")
-METHODS = TABLE_METHODS + SAFE_METHODS
+#: Table 2.2's methods on the flow-matching policy of the same preset and data (``FLOW-*``)
+FLOW_METHODS = tuple(m.replace("DP-", "FLOW-", 1) for m in TABLE_METHODS)
+METHODS = TABLE_METHODS + SAFE_METHODS + FLOW_METHODS
+#: the shipped flow-matching skill policy (``load_pretrained``'s name)
+FLOW_POLICY = "blockstack-flow"
 ENV_ID = "steer_envs/BlockStack-v0"
 
 
@@ -148,7 +155,8 @@ class SteerParams(SkillPolicyParams):
     ``plot_seeds`` seeds that keep their plans for the figure; ``torch_threads``
     per trial process (0: torch's default); ``loader`` the policy's loader (called with ``"blockstack"``):
     ``pretrained`` or, with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that
-    replaces it.
+    replaces it. ``flow_checkpoint`` a flow policy file in place of the shipped one (``FLOW-*``), sampled
+    with ``flow_steps`` Euler steps (0: the checkpoint's own, the DP's 100 DDIM steps).
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -164,11 +172,22 @@ class SteerParams(SkillPolicyParams):
     accelerate: str = "auto"
     loader: PolicyLoader = PRETRAINED_LOADER
     checkpoint: str = ""
+    flow_checkpoint: str = ""
+    flow_steps: int = 0
 
     def __post_init__(self) -> None:
         self.require_steering()
         self.require("guide_ratio", self.guide_ratio >= 0, ">= 0")
         self.require("safety_weight", self.safety_weight > 0, "> 0")
+        self.require_between(0, 1000, "flow_steps")
+
+    def policy_for(self, method: str | None) -> Any:
+        """The flow policy for ``FLOW-*`` methods, the DP (:meth:`policy`) for the others."""
+        if not str(method).startswith("FLOW-"):
+            return self.policy()
+        from steer_envs.baselines.pretrained import shared_policy
+
+        return shared_policy(FLOW_POLICY, self.flow_checkpoint, steps=self.flow_steps)
 
 
 def run_steer_trial(trial: Trial) -> TrialResult:
@@ -180,7 +199,7 @@ def run_steer_trial(trial: Trial) -> TrialResult:
     with params.thread_limits():
         metrics, extra = tower_trial(
             trial.seed,
-            params.policy(),
+            params.policy_for(trial.method),
             str(trial.method),
             batch=params.batch,
             max_interactions=params.max_interactions,
@@ -260,9 +279,21 @@ def steer_findings(table: Any) -> list[Finding]:
     ]
 
 
+def flow_findings(table: Any) -> list[Finding]:
+    """Table 2.2's findings on the flow policy (``FLOW-*``), and its steering latency against DP's."""
+    on_flow = on_other_policy(steer_findings, table, "FLOW-", "flow policy")
+    latency = judge(
+        "the flow policy steers (SS) no slower than DP",
+        table.means("latency_ms", ["DP-SS", "FLOW-SS"]),
+        lambda v: v["FLOW-SS"] <= 1.05 * v["DP-SS"],
+        lambda v: f"FLOW-SS / DP-SS latency {v['FLOW-SS'] / v['DP-SS']:.2f}",
+    )
+    return [*on_flow, latency]
+
+
 def table_findings(table: Any) -> list[Finding]:
-    """Table 2.2's findings, then the safety cost's."""
-    return [*steer_findings(table), *safety_findings(table)]
+    """Table 2.2's findings, then the safety cost's, then the flow policy's."""
+    return [*steer_findings(table), *safety_findings(table), *flow_findings(table)]
 
 
 register_suite(

@@ -4,12 +4,14 @@ Table 2.1's protocol (:func:`~steer_envs.steering.maze.steering_trial`: one
 start and one sketch per seed, a batch of 32 plans, distances over the maze
 extent, wall collisions, latency) on two policies of the same network and
 training budget, Diffusion Policy (``DP-*``, the shipped checkpoint) and the
-flow-matching policy (``FLOW-*``, :class:`~steer_envs.baselines.flow.FlowPolicy`
-trained by ``scripts/train_maze_flow_checkpoint.sh``, or ``flow_checkpoint``),
+flow-matching policy (``FLOW-*``, :class:`~steer_envs.baselines.flow.FlowPolicy`,
+the shipped ``load_pretrained("flow")`` trained by
+``scripts/train_maze_flow_checkpoint.sh``, or ``flow_checkpoint``),
 each sampler with and without the maze's safety cost (``+safe``: the walls of
 the env's ``TaskSpec`` through :func:`~steer_envs.steering.costs.safety_cost`,
 weight ``safety_weight``). Both policies run eagerly (no acceleration), so
-``latency_ms`` compares their samplers at matched cost per network call. While
+``latency_ms`` compares their samplers at matched cost per network call
+(``flow_steps`` sets the flow's Euler steps: fewer calls per plan). While
 no flow checkpoint exists, the ``FLOW-*`` methods are skipped with a note.
 
 >>> split_method("FLOW-SS+safe")
@@ -21,10 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from steer_envs.bench.findings import listing
+from steer_envs.bench.findings import listing, on_other_policy
 from steer_envs.bench.metrics import MAZE_STEERING_METRICS
 from steer_envs.bench.params import SuiteParams
 from steer_envs.bench.suite import Finding, Suite, TrialPlan, TrialResult, register_suite
+from steer_envs.bench.table_2_1 import table_2_1_findings
 from steer_envs.utils.threads import limit_threads
 
 if TYPE_CHECKING:
@@ -38,8 +41,6 @@ POLICIES: tuple[str, ...] = ("DP", "FLOW")
 METHODS: tuple[str, ...] = tuple(
     f"{p}-{s}{safe}" for p in POLICIES for s in SAMPLERS for safe in ("", "+safe") if not (s == "RS" and safe)
 )
-#: where the training recipe writes the flow policy
-DEFAULT_FLOW = "baselines/checkpoints/maze2d_large/flow.safetensors"
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,9 @@ class FlowSafetyParams(SuiteParams):
     ``batch`` plans per call; ``through_wall`` the share of sketches through
     walls; ``safety_weight`` the safety cost's weight in the ``+safe``
     methods; ``flow_checkpoint`` the flow policy's file (default: the shipped
-    one); ``dp_checkpoint`` another DP file (default: the shipped DP);
+    one, ``load_pretrained("flow")``); ``flow_steps`` its Euler steps per plan (0:
+    the checkpoint's own, DP's 10 DDIM steps; fewer steer faster);
+    ``dp_checkpoint`` another DP file (default: the shipped DP);
     ``torch_threads`` per trial process.
     """
 
@@ -58,6 +61,7 @@ class FlowSafetyParams(SuiteParams):
     through_wall: float = 0.3
     safety_weight: float = 1.0
     flow_checkpoint: str = ""
+    flow_steps: int = 0
     dp_checkpoint: str = ""
     torch_threads: int = 1
 
@@ -66,24 +70,15 @@ class FlowSafetyParams(SuiteParams):
         self.require("through_wall", 0.0 <= self.through_wall <= 1.0, "in [0, 1]")
         self.require("safety_weight", self.safety_weight > 0, "> 0")
         self.require("torch_threads", self.torch_threads >= 0, ">= 0 (0: torch's default)")
+        self.require_between(0, 1000, "flow_steps")
 
     def policy(self, kind: str) -> Any:
-        """The DP (``"dp"``) or flow (``"flow"``) policy, loaded once per process."""
+        """The DP (``"dp"``) or flow (``"flow"``, with ``flow_steps`` Euler steps) policy, loaded once per process."""
         from steer_envs.baselines.pretrained import shared_policy
 
         if kind == "dp":
             return shared_policy("dp", self.dp_checkpoint)
-        path = self.flow_checkpoint or _shipped_flow()
-        return shared_policy(path, loader="steer_envs.baselines.pretrained:load_pretrained")
-
-
-def _shipped_flow() -> str:
-    from importlib import resources
-
-    path = resources.files("steer_envs.baselines") / "checkpoints" / "maze2d_large" / "flow.safetensors"
-    if not path.is_file():
-        raise FileNotFoundError(f"no flow checkpoint at {DEFAULT_FLOW}: run scripts/train_maze_flow_checkpoint.sh")
-    return str(path)
+        return shared_policy("flow", self.flow_checkpoint, steps=self.flow_steps)
 
 
 def split_method(method: str) -> tuple[str, str, bool]:
@@ -155,16 +150,17 @@ def _safety_findings(table: Any, policy: str) -> list[Finding]:
 
 
 def _flow_findings(table: Any) -> list[Finding]:
-    claim = "the flow policy's SS call is no slower than DP's (same network, same number of steps)"
+    claim = "the flow policy's SS call is no slower than DP's"
     latency = table.means("latency_ms", ["DP-SS", "FLOW-SS"])
     if latency is None:
         return [Finding(claim, None)]
     ratio = latency["FLOW-SS"] / latency["DP-SS"]
-    return [Finding(claim, ratio <= 1.05, f"FLOW-SS / DP-SS latency {ratio:.2f}")]
+    speed = Finding(claim, ratio <= 1.05, f"FLOW-SS / DP-SS latency {ratio:.2f}")
+    return [*on_other_policy(table_2_1_findings, table, "FLOW-", "flow policy"), speed]
 
 
 def flow_safety_findings(table: Any) -> list[Finding]:
-    """The safety cost helps GD and SS of each policy; the flow steers at DP's speed or better."""
+    """The safety cost helps GD and SS of each policy; Table 2.1's findings on the flow; its speed against DP's."""
     return [*_safety_findings(table, "DP"), *_safety_findings(table, "FLOW"), *_flow_findings(table)]
 
 

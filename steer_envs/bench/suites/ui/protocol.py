@@ -103,19 +103,6 @@ def _settings(params: Any) -> dict[str, Any]:
     return {"type": "configure", "sampler": sampler, "batch": batch, "mcmc_steps": params.mcmc_steps}
 
 
-def cpu_name() -> str:
-    """The CPU's model name (Linux ``/proc/cpuinfo``; else :func:`platform.processor`; ``"unknown"``)."""
-    import platform
-
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
 def gesture(domain: str, seed: int, agent: np.ndarray) -> tuple[str, list[list[float]]]:
     """The scripted input of ``domain`` from the page's ``agent`` pixel: ``("sketch" | "point", pixels)`` for a
     steered domain, ``("push", [target, back])`` (pixels the agent is dragged to, in turn) for a push domain."""

@@ -91,7 +91,8 @@ LOAD_METRICS = (
 
 def run_steer_ui_trial(trial: Trial) -> TrialResult:
     """One trial (the other method's metrics are ``None``); its extras: the domain and the CPU's name."""
-    from steer_envs.bench.suites.ui.protocol import cpu_name, run_ui_trial
+    from steer_envs.bench.suites.ui.protocol import run_ui_trial
+    from steer_envs.utils.cpu import cpu_name
 
     values = run_ui_trial(trial, UIParams)
     metrics = {name: values.get(name) for name in (*ROUNDTRIP_METRICS, *LOAD_METRICS, "browser")}
