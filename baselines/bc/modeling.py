@@ -23,9 +23,11 @@ touched. With ``epochs`` the shuffles continue that generator; with
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Literal, Self, cast
@@ -193,8 +195,33 @@ class BCPolicy:
 
         Both are finite real arrays (or tensors) with ``N >= 1`` rows. Each call
         trains ``config.epochs`` (or ``config.steps``) more from the current
-        weights, with a fresh Adam optimiser.
+        weights, with a fresh Adam optimiser (:class:`~steer_envs.baselines.bc.runs.BCRun`
+        keeps one optimiser across calls, and its state in a file).
         """
+        cfg = self.config
+        x, y = self.training_tensors(states, actions)
+        opt = self.new_optimizer()
+        losses: list[float] = []
+        with self.training():
+            if cfg.epochs is not None:
+                for _ in range(cfg.epochs):
+                    order = torch.randperm(len(x), generator=self._batch_generator)
+                    total = 0.0
+                    for start in range(0, len(x), cfg.batch_size):
+                        idx = order[start : start + cfg.batch_size]
+                        total += self._step(opt, x[idx], y[idx]) * len(idx)
+                    losses.append(total / len(x))
+                self.trained_for += cfg.epochs
+            else:
+                assert cfg.steps is not None
+                for _ in range(cfg.steps):
+                    losses.append(self.minibatch_step(opt, x, y))
+                self.trained_for += cfg.steps
+        return losses
+
+    def training_tensors(self, states: ArrayLike, actions: ArrayLike) -> tuple[torch.Tensor, torch.Tensor]:
+        """The inputs and targets :meth:`fit` trains on: checked, float32, the inputs standardised (the first
+        call sets the statistics with ``config.standardize``), the targets in the loss's units."""
         cfg = self.config
         s = _as_batch(states, "states", cfg.state_dim)
         a = _as_batch(actions, "actions", cfg.action_dim)
@@ -212,32 +239,35 @@ class BCPolicy:
         x = torch.from_numpy(self._standardized(s32))
         a32 = a.astype(np.float32)
         y = torch.from_numpy(a32 if cfg.output == "tanh" else a32 / cfg.output_scale)
-        opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
-        losses: list[float] = []
+        return x, y
+
+    def new_optimizer(self) -> torch.optim.Adam:
+        """A fresh Adam optimiser over the network's weights at ``config.lr`` (what :meth:`fit` trains with)."""
+        return torch.optim.Adam(self.net.parameters(), lr=self.config.lr)
+
+    @property
+    def batch_generator(self) -> torch.Generator:
+        """The generator the minibatches are drawn from (its state is part of a resumable run's)."""
+        return self._batch_generator
+
+    @contextlib.contextmanager
+    def training(self) -> Iterator[None]:
+        """Training mode with ``config.num_threads`` torch threads; evaluation mode and the caller's threads after."""
         threads = torch.get_num_threads()
-        torch.set_num_threads(cfg.num_threads)
+        torch.set_num_threads(self.config.num_threads)
         try:
             self.net.train()
-            if cfg.epochs is not None:
-                for _ in range(cfg.epochs):
-                    order = torch.randperm(len(x), generator=self._batch_generator)
-                    total = 0.0
-                    for start in range(0, len(x), cfg.batch_size):
-                        idx = order[start : start + cfg.batch_size]
-                        total += self._step(opt, x[idx], y[idx]) * len(idx)
-                    losses.append(total / len(x))
-                self.trained_for += cfg.epochs
-            else:
-                assert cfg.steps is not None
-                n = min(cfg.batch_size, len(x))
-                for _ in range(cfg.steps):
-                    idx = torch.randint(0, len(x), (n,), generator=self._batch_generator)
-                    losses.append(self._step(opt, x[idx], y[idx]))
-                self.trained_for += cfg.steps
+            yield
         finally:
             torch.set_num_threads(threads)
             self.net.eval()
-        return losses
+
+    def minibatch_step(self, optimizer: torch.optim.Optimizer, x: torch.Tensor, y: torch.Tensor) -> float:
+        """One step on ``min(batch_size, N)`` rows of ``(x, y)`` drawn with replacement from :attr:`batch_generator`
+        (one step of :meth:`fit` with ``steps``); returns its loss. Call it inside :meth:`training`."""
+        n = min(self.config.batch_size, len(x))
+        idx = torch.randint(0, len(x), (n,), generator=self._batch_generator)
+        return self._step(optimizer, x[idx], y[idx])
 
     def _step(self, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.Tensor) -> float:
         """One Adam step on the squared error of a minibatch; returns its loss."""

@@ -22,19 +22,21 @@ import operator
 import threading
 import warnings
 from collections.abc import Callable
-from typing import Any, cast
+from typing import Any, Self, cast
 
 import torch
 from torch import nn
 
 from steer_envs.baselines.diffusion.export import ExportDenoiser
 from steer_envs.baselines.diffusion.network import DiffusionNet
+from steer_envs.core.extras import MissingExtraError, install_command
 from steer_envs.core.validation import one_of
 
 __all__ = [
     "ACCELERATIONS",
     "CALIBRATION_CALLS",
     "OPENVINO_MODES",
+    "AcceleratedNetwork",
     "FastNetwork",
     "accelerated",
     "onnx_missing",
@@ -383,3 +385,68 @@ class _OpenVinoRunner:
             return [request.infer(feeds)[self.compiled.output(0)].copy()]  # the request reuses its output buffer
         finally:
             self._requests.put(request)
+
+
+class AcceleratedNetwork:
+    """What a policy with a :class:`~steer_envs.baselines.diffusion.network.DiffusionNet` gets to run it faster.
+
+    Diffusion Policy and the flow-matching policy mix it in: :meth:`accelerate`
+    picks a mode of :data:`ACCELERATIONS`, :attr:`acceleration` says which, and
+    the policy calls :meth:`_network` where it would call ``self.model``. The
+    class sets ``self._fast`` to ``None`` (eager) until :meth:`accelerate` runs.
+    """
+
+    model: nn.Module
+    _fast: FastNetwork | None = None
+
+    def accelerate(self, mode: str) -> Self:
+        """Run the network of inference calls eagerly (``"none"``, the default) or faster (:data:`ACCELERATIONS`).
+
+        ``"trace"``: a ``torch.jit.trace`` per input shape (~1 s each; the same
+        plans as eager, bit for bit). ``"compile"``: ``torch.compile(model,
+        dynamic=False)`` (~1 min per batch size; fused kernels round
+        differently: plans of the shipped checkpoint within ~2e-5, more where
+        SS's re-noising amplifies it). ``"onnx"``: an ONNX export run by ONNX
+        Runtime on CPU (~1 s per plan shape, any batch size; the fastest of the
+        three on CPU, float32 rounding apart the eager plans; needs the
+        ``onnx`` extra). ``"openvino"``: that export compiled by OpenVINO per
+        input shape, in bfloat16 on a CPU with native bfloat16 (AMX,
+        AVX512-BF16: the fastest mode there, plans within bfloat16 rounding of
+        eager's), float32 elsewhere; needs the ``openvino`` extra;
+        ``"openvino-f32"`` / ``"openvino-bf16"`` fix the precision, ``"openvino-int8"``
+        quantizes with NNCF, calibrated on the first calls of each input shape. ``"auto"``:
+        ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``;
+        ``"fastest"``: ``"openvino"`` where it is installed, else as ``"auto"``
+        (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
+        samplers' ``predict_noise`` / ``predict_velocity``) are accelerated; gradient calls and
+        training run eagerly. Weights are followed (after replacing parameter
+        objects, call again). Returns self; ``ValueError`` for another ``mode``,
+        ``ImportError`` naming the extra when ``"onnx"`` or ``"openvino"`` lacks its packages.
+        """
+        owner = f"{type(self).__name__}.accelerate"
+        mode = resolve_acceleration(mode, owner=owner)
+        if mode == "onnx" or mode in OPENVINO_MODES:
+            missing = onnx_missing() if mode == "onnx" else openvino_missing(mode)
+            extra = "onnx" if mode == "onnx" else "openvino"
+            if missing:
+                raise MissingExtraError(
+                    f"{owner}: mode {mode!r} needs {' and '.join(missing)}, "
+                    f"which is not installed: {install_command(extra)}",
+                    name=missing[0],
+                    extra=extra,
+                )
+        self._fast = None if mode == "none" else FastNetwork(mode)
+        return self
+
+    @property
+    def acceleration(self) -> str:
+        """The mode set by :meth:`accelerate` (``"none"`` by default)."""
+        return "none" if self._fast is None else self._fast.mode
+
+    def _network(self, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """``model(x, t, cond)`` for ``t`` and ``cond`` of 1 or ``n`` rows, accelerated (:meth:`accelerate`) when
+        gradients are off and the model is in eval (one shared row then runs the condition path once)."""
+        if self._fast is None or torch.is_grad_enabled() or self.model.training:
+            n = x.shape[0]
+            return self.model(x, t.expand(n), cond.expand(n, -1))
+        return self._fast(self.model, x, t, cond)

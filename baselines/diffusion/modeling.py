@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
-from typing import Any, Protocol, Self, cast
+from typing import Any, Protocol, cast
 
 import numpy as np
 import torch
@@ -37,17 +37,9 @@ from diffusers import DDIMScheduler
 from torch import nn
 
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
-from steer_envs.baselines.diffusion.acceleration import (
-    ACCELERATIONS,
-    OPENVINO_MODES,
-    FastNetwork,
-    onnx_missing,
-    openvino_missing,
-    resolve_acceleration,
-)
+from steer_envs.baselines.diffusion.acceleration import ACCELERATIONS, AcceleratedNetwork
 from steer_envs.baselines.diffusion.configuration import DiffusionConfig
 from steer_envs.baselines.diffusion.network import DiffusionNet
-from steer_envs.core.extras import MissingExtraError, install_command
 from steer_envs.core.validation import describe, integer, real_array
 
 __all__ = ["ACCELERATIONS", "DiffusionPolicy"]
@@ -71,7 +63,7 @@ class _Scheduler(Protocol):
 
 
 # ------------------------------------------------------------------ policy
-class DiffusionPolicy(TorchPolicy):
+class DiffusionPolicy(TorchPolicy, AcceleratedNetwork):
     """Observation history -> batch of plans by DDIM (a ``DiffusionPolicyLike``).
 
     Args:
@@ -116,45 +108,6 @@ class DiffusionPolicy(TorchPolicy):
             ),
         )
         self.num_inference_steps = self.config.num_inference_steps
-        self._fast: FastNetwork | None = None
-
-    def accelerate(self, mode: str) -> Self:
-        """Run the network of inference calls eagerly (``"none"``, the default) or faster (:data:`ACCELERATIONS`).
-
-        ``"trace"``: a ``torch.jit.trace`` per input shape (~1 s each; the same
-        plans as eager, bit for bit). ``"compile"``: ``torch.compile(model,
-        dynamic=False)`` (~1 min per batch size; fused kernels round
-        differently: plans of the shipped checkpoint within ~2e-5, more where
-        SS's re-noising amplifies it). ``"onnx"``: an ONNX export run by ONNX
-        Runtime on CPU (~1 s per plan shape, any batch size; the fastest of the
-        three on CPU, float32 rounding apart the eager plans; needs the
-        ``onnx`` extra). ``"openvino"``: that export compiled by OpenVINO per
-        input shape, in bfloat16 on a CPU with native bfloat16 (AMX,
-        AVX512-BF16: the fastest mode there, plans within bfloat16 rounding of
-        eager's), float32 elsewhere; needs the ``openvino`` extra;
-        ``"openvino-f32"`` / ``"openvino-bf16"`` fix the precision, ``"openvino-int8"``
-        quantizes with NNCF, calibrated on the first calls of each input shape. ``"auto"``:
-        ``"onnx"`` where ONNX Runtime is installed, else ``"trace"``;
-        ``"fastest"``: ``"openvino"`` where it is installed, else as ``"auto"``
-        (:attr:`acceleration` says which). Only no-grad calls in eval mode (``sample``, the ITPS
-        samplers' ``predict_noise``) are accelerated; gradient calls and
-        training run eagerly. Weights are followed (after replacing parameter
-        objects, call again). Returns self; ``ValueError`` for another ``mode``,
-        ``ImportError`` naming the extra when ``"onnx"`` or ``"openvino"`` lacks its packages.
-        """
-        mode = resolve_acceleration(mode, owner="DiffusionPolicy.accelerate")
-        if mode == "onnx" or mode in OPENVINO_MODES:
-            missing = onnx_missing() if mode == "onnx" else openvino_missing(mode)
-            extra = "onnx" if mode == "onnx" else "openvino"
-            if missing:
-                raise MissingExtraError(
-                    f"DiffusionPolicy.accelerate: mode {mode!r} needs {' and '.join(missing)}, "
-                    f"which is not installed: {install_command(extra)}",
-                    name=missing[0],
-                    extra=extra,
-                )
-        self._fast = None if mode == "none" else FastNetwork(mode)
-        return self
 
     def with_steps(self, steps: int) -> DiffusionPolicy:
         """This policy sampled with ``steps`` DDIM steps: a copy sharing the network and its acceleration.
@@ -173,11 +126,6 @@ class DiffusionPolicy(TorchPolicy):
             steps, "steps", low=1, high=self.config.num_train_timesteps, owner="DiffusionPolicy.with_steps"
         )
         return fewer
-
-    @property
-    def acceleration(self) -> str:
-        """The mode set by :meth:`accelerate` (``"none"`` by default)."""
-        return "none" if self._fast is None else self._fast.mode
 
     def _build_model(self) -> nn.Module:
         return DiffusionNet(self.config)
@@ -213,14 +161,6 @@ class DiffusionPolicy(TorchPolicy):
         if self.config.prediction == "epsilon":
             return out
         return (1 - abar).sqrt() * x_rel + abar.sqrt() * out  # epsilon implied by v (exact, no division)
-
-    def _network(self, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
-        """``model(x, t, cond)`` for ``t`` and ``cond`` of 1 or ``n`` rows, accelerated (:meth:`accelerate`) when
-        gradients are off and the model is in eval (one shared row then runs the condition path once)."""
-        if self._fast is None or torch.is_grad_enabled() or self.model.training:
-            n = x.shape[0]
-            return self.model(x, t.expand(n), cond.expand(n, -1))
-        return self._fast(self.model, x, t, cond)
 
     def _timesteps(self, t: Any, n: int, device: torch.device) -> torch.Tensor:
         """``t`` as a 1-D integer tensor of 1 or ``n`` diffusion steps in ``[0, num_train_timesteps)``."""

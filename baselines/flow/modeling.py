@@ -12,7 +12,8 @@ a flow and a DP of one preset match in parameters and training samples.
 
 It is a :class:`~steer_envs.core.policy.FlowPolicyLike`: the six ITPS
 samplers steer it (BI, GD and SS in the flow's own form,
-:mod:`steer_envs.steering.flow`). It trains through
+:mod:`steer_envs.steering.flow`). Its no-grad network calls run as fast as
+DP's (:meth:`accelerate`: ONNX Runtime, OpenVINO, ...). It trains through
 :mod:`steer_envs.baselines.training` (``--policy flow``) with the same
 checkpoints, resumable runs and ``--check``.
 
@@ -32,6 +33,7 @@ import torch
 from torch import nn
 
 from steer_envs.baselines.common.torch_policy import TorchPolicy, check_tensor
+from steer_envs.baselines.diffusion.acceleration import AcceleratedNetwork
 from steer_envs.baselines.diffusion.network import DiffusionNet
 from steer_envs.baselines.flow.configuration import FlowConfig
 from steer_envs.core.validation import describe, integer
@@ -39,7 +41,7 @@ from steer_envs.core.validation import describe, integer
 __all__ = ["FlowPolicy"]
 
 
-class FlowPolicy(TorchPolicy):
+class FlowPolicy(TorchPolicy, AcceleratedNetwork):
     """A rectified-flow plan policy (see the module docstring); ``name = "flow"`` in the policy factory.
 
     Args:
@@ -103,7 +105,7 @@ class FlowPolicy(TorchPolicy):
         rows = cond.to(device=x.device, dtype=x.dtype)
         level = taus.reshape(-1, 1, 1)
         anchor = self._anchor(rows)  # the current position the plan is relative to (0 for absolute plans)
-        out = self.model(x - level * anchor, (taus * self.config.num_train_timesteps).expand(n), rows.expand(n, -1))
+        out = self._network(x - level * anchor, taus * self.config.num_train_timesteps, rows)
         return out + anchor
 
     def _anchor(self, cond: torch.Tensor) -> torch.Tensor:

@@ -25,6 +25,7 @@ The robosuite arms (thesis Tables 4.2 and 4.3):
 * :mod:`.arm_plan` -- the recorded LLM plans: selected features, feasibility, goal features;
 * :mod:`.arm_grounding` -- :func:`train_arm_predictor`, :func:`evaluate_arm_grounding`;
 * :mod:`.arm_policies` -- BC (:class:`ArmBC`) and GLiDE+BC (:class:`GlideArmPolicy`), :func:`train_arm_policy`;
+* :mod:`.public_attractor` -- the public GLiDE fork's first-mode pull (:class:`PublicCodeAttractor`);
 * :mod:`.arm_eval` -- :func:`evaluate_arm_policy`.
 
 GLiDE+BC on PolygonNav, from expert demos (the classifier trains for a minute or two)::
@@ -89,8 +90,13 @@ if TYPE_CHECKING:
         selected_features,
     )
     from steer_envs.baselines.glide.arm_policies import (
+        ARM_ATTRACTORS,
+        ARM_BC_RECIPES,
         ARM_METHODS,
+        ATTRACTOR_MODES,
         GROUND_TRUTH,
+        ROBOMIMIC_CPU_STEPS,
+        ROBOMIMIC_STEPS,
         ArmBC,
         ArmBCSettings,
         ArmPolicy,
@@ -172,6 +178,7 @@ if TYPE_CHECKING:
         evaluate_polygon_policy,
         grounding_scores,
     )
+    from steer_envs.baselines.glide.public_attractor import PublicCodeAttractor
     from steer_envs.baselines.glide.training import (
         GlideTrainResult,
         train_mode_classifier,
@@ -179,8 +186,11 @@ if TYPE_CHECKING:
 
 #: public name -> the submodule that defines it
 _EXPORTS: dict[str, str] = {
+    "ARM_ATTRACTORS": "arm_policies",
+    "ARM_BC_RECIPES": "arm_policies",
     "ARM_METHODS": "arm_policies",
     "ARM_VARIANTS": "arm_grounding",
+    "ATTRACTOR_MODES": "arm_policies",
     "ArmBC": "arm_policies",
     "ArmBCSettings": "arm_policies",
     "ArmGroundingSetup": "arm_grounding",
@@ -220,6 +230,9 @@ _EXPORTS: dict[str, str] = {
     "PerturbationSchedule": "polygon_eval",
     "PlanStep": "llm_plan",
     "PlannerConfig": "planners",
+    "PublicCodeAttractor": "public_attractor",
+    "ROBOMIMIC_CPU_STEPS": "arm_policies",
+    "ROBOMIMIC_STEPS": "arm_policies",
     "ROBOT_MOTION": "arm_plan",
     "RecordedProvider": "llm_plan",
     "SYSTEM_PROMPT": "llm_plan",
@@ -266,8 +279,11 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = [
+    "ARM_ATTRACTORS",
+    "ARM_BC_RECIPES",
     "ARM_METHODS",
     "ARM_VARIANTS",
+    "ATTRACTOR_MODES",
     "EEF_FEATURE",
     "EVAL_STARTS",
     "FREE_SPACE_PLANNERS",
@@ -278,6 +294,8 @@ __all__ = [
     "POLYGON_ENV_IDS",
     "POLYGON_METHODS",
     "POLYGON_VARIANTS",
+    "ROBOMIMIC_CPU_STEPS",
+    "ROBOMIMIC_STEPS",
     "ROBOT_MOTION",
     "SYSTEM_PROMPT",
     "TASK_STRIDE",
@@ -310,6 +328,7 @@ __all__ = [
     "PerturbationSchedule",
     "PlanStep",
     "PlannerConfig",
+    "PublicCodeAttractor",
     "RecordedProvider",
     "build_prompt",
     "cached_classifier_info",

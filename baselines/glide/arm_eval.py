@@ -47,13 +47,14 @@ def _episode(env: Any, policy: ArmPolicy, predictor: Any, cols: np.ndarray, seed
     done = False
     while not done:
         features = rr.feature_vector(base)
+        true_mode = int(info["mode"]) if "mode" in info else None
         if predictor == GROUND_TRUTH:
             mode = int(info["mode"])
         else:
             mode = int(predictor.predict(np.asarray(features[cols], dtype=np.float64)[None])[0])
         changes += int(last_mode >= 0 and mode != last_mode)
         last_mode = mode
-        action = np.asarray(policy.act(obs, features, mode), dtype=np.float32)
+        action = np.asarray(policy.act(obs, features, mode, true_mode), dtype=np.float32)
         obs, _, terminated, truncated, info = env.step(action)
         steps += 1
         violation |= bool(info["constraint_violation"])
@@ -79,7 +80,8 @@ def evaluate_arm_policy(
 
     The mode passed to the policy is the predictor's on the current state's
     selected features (``info["mode"]`` for
-    :data:`~steer_envs.baselines.glide.arm_policies.GROUND_TRUTH`). The env
+    :data:`~steer_envs.baselines.glide.arm_policies.GROUND_TRUTH`); the env's
+    ``info["mode"]`` goes with it as ``true_mode`` (for an attractor that reads it). The env
     stays open (the caller closes it). Returns ``task``, ``n_episodes``,
     ``success_rate``, ``violation_rate``, ``mean_length``,
     ``mean_perturbations`` (the wrapper's ``perturbation_count``; 0 without

@@ -62,18 +62,31 @@ Choices, and why (where they differ from PolygonNav's
 * A mode with no demo pairs (Lift's final mode holds only the demos' last
   state: success ends the episode) uses the nearest mode's policy below it
   (above it if there is none); PolygonNav's lets the attractor alone act.
+
+Options for running the study the way the public GLiDE fork did: the BC
+recipe (:meth:`ArmBCSettings.recipe`: ``"robomimic"``, 1024x1024 on raw
+observations, tanh output, Adam 1e-4, batch 100), the attractor
+(:data:`ARM_ATTRACTORS`: ``"public_code"``, the fork's first-mode pull,
+:class:`~steer_envs.baselines.glide.public_attractor.PublicCodeAttractor`)
+and the mode it reads (:data:`ATTRACTOR_MODES`: the predictor's, as the
+thesis's text says, or the env's true mode, as the fork does).
 """
 
 from __future__ import annotations
 
+import copy
 import math
+import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+import torch
 
 from steer_envs.baselines.bc.modeling import BCConfig, BCPolicy
+from steer_envs.baselines.bc.runs import BCRun, train_run
 from steer_envs.baselines.glide.arm_plan import (
     EEF_FEATURE,
     RELATIVE_SUFFIX,
@@ -84,13 +97,19 @@ from steer_envs.baselines.glide.arm_plan import (
 )
 from steer_envs.baselines.glide.glide_bc import GlideBC
 from steer_envs.baselines.glide.modes import label_demonstrations
-from steer_envs.core.validation import describe, integer, one_of, real_scalar
+from steer_envs.baselines.glide.public_attractor import PublicCodeAttractor
+from steer_envs.core.validation import boolean, describe, integer, one_of, real_scalar
 from steer_envs.data import robosuite_replays as rr
 from steer_envs.envs.robosuite.tasks import TASK_NAMES
 
 __all__ = [
+    "ARM_ATTRACTORS",
+    "ARM_BC_RECIPES",
     "ARM_METHODS",
+    "ATTRACTOR_MODES",
     "GROUND_TRUTH",
+    "ROBOMIMIC_CPU_STEPS",
+    "ROBOMIMIC_STEPS",
     "ArmBC",
     "ArmBCSettings",
     "ArmPolicy",
@@ -108,13 +127,30 @@ __all__ = [
 ARM_METHODS: tuple[str, ...] = ("bc", "glide_bc")
 #: the stand-in predictor: the demos' recorded modes for segmentation, ``info["mode"]`` at test time.
 GROUND_TRUTH = "ground_truth"
+#: the BC recipes of :meth:`ArmBCSettings.recipe`.
+ARM_BC_RECIPES: tuple[str, ...] = ("thesis", "robomimic")
+#: robomimic's BC budget (minibatch steps), and the robomimic recipe's default here: a quarter of it, about
+#: 20 min of one CPU core per 1024x1024 MLP; a run continues to any larger budget from its saved state.
+ROBOMIMIC_STEPS = 200_000
+ROBOMIMIC_CPU_STEPS = 50_000
+#: GLiDE+BC's attractors (:class:`GlideArmPolicy`): the thesis's per-mode blend, or the public fork's first-mode
+#: pull (:class:`~steer_envs.baselines.glide.public_attractor.PublicCodeAttractor`).
+ARM_ATTRACTORS: tuple[str, ...] = ("thesis", "public_code")
+#: which mode an attractor reads: the mode predictor's (the one the policy runs on), or the env's true mode.
+ATTRACTOR_MODES: tuple[str, ...] = ("classifier", "ground_truth")
 _ACTION_DIM = 7
+#: a tanh output's targets: +-1 (the gripper) sits on tanh's bound, which :class:`BCPolicy` refuses
+_TANH_TARGET = 1.0 - 1e-6
 
 
 class ArmPolicy(Protocol):
-    """A policy of this study: one action ``(7,)`` from the observation, the feature vector and the mode."""
+    """A policy of this study: one action ``(7,)`` from the observation, the feature vector and the mode.
 
-    def act(self, obs: np.ndarray, features: np.ndarray, mode: int) -> np.ndarray:
+    ``true_mode`` is the env's ground-truth mode (``info["mode"]``, ``None`` where it is not known): a policy
+    whose attractor reads the true mode needs it.
+    """
+
+    def act(self, obs: np.ndarray, features: np.ndarray, mode: int, true_mode: int | None = None) -> np.ndarray:
         """The action for the current state (``mode`` is ignored by mode-agnostic policies)."""
         ...
 
@@ -128,8 +164,17 @@ def _task(task: Any) -> str:
 class ArmBCSettings:
     """Architecture and training of one :class:`ArmBC` MLP (ReLU hidden layers, Adam, minibatches with replacement).
 
+    ``standardize``: standardise the inputs (std floored at ``std_floor``) or
+    feed the raw observations; ``output``: ``"clip"``, a linear output clipped
+    to [-1, 1] per component, or ``"tanh"``, squashed by tanh as robomimic's
+    actor is (trained on targets within ``1 - 1e-6`` of +-1: the gripper's
+    +-1 lies on tanh's bound). :meth:`recipe` gives the named recipes.
+
     >>> ArmBCSettings().hidden, ArmBCSettings().steps
     ((256, 256), 8000)
+    >>> r = ArmBCSettings.recipe("robomimic")
+    >>> r.hidden, r.lr, r.batch_size, r.standardize, r.output, r.steps
+    ((1024, 1024), 0.0001, 100, False, 'tanh', 50000)
     """
 
     hidden: tuple[int, ...] = (256, 256)
@@ -137,6 +182,8 @@ class ArmBCSettings:
     batch_size: int = 256
     lr: float = 1e-3
     std_floor: float = 0.01
+    standardize: bool = True
+    output: str = "clip"
 
     def __post_init__(self) -> None:
         owner = "ArmBCSettings"
@@ -148,15 +195,47 @@ class ArmBCSettings:
         integer(self.batch_size, "batch_size", low=1, owner=owner)
         real_scalar(self.lr, "lr", low=0.0, low_inclusive=False, owner=owner)
         real_scalar(self.std_floor, "std_floor", low=0.0, low_inclusive=False, owner=owner)
+        boolean(self.standardize, "standardize", owner=owner)
+        one_of(self.output, "output", ("clip", "tanh"), owner=owner)
+
+    @classmethod
+    def recipe(cls, name: str, *, hidden: tuple[int, ...] | None = None, steps: int | None = None) -> ArmBCSettings:
+        """The settings of a named recipe (:data:`ARM_BC_RECIPES`), its layers or steps replaced where given.
+
+        ``"thesis"``: this study's BC (the defaults: 256x256, standardised
+        inputs, Adam 1e-3, batch 256, 8000 steps). ``"robomimic"``: robomimic's
+        BC as the public GLiDE fork trains it: 1024x1024 on raw observations,
+        tanh output, Adam 1e-4, batch 100; :data:`ROBOMIMIC_CPU_STEPS` steps
+        (robomimic's are :data:`ROBOMIMIC_STEPS`).
+        """
+        name = one_of(name, "recipe", ARM_BC_RECIPES, owner="ArmBCSettings.recipe")
+        base = cls()
+        if name == "robomimic":
+            base = cls(
+                hidden=(1024, 1024),
+                steps=ROBOMIMIC_CPU_STEPS,
+                batch_size=100,
+                lr=1e-4,
+                standardize=False,
+                output="tanh",
+            )
+        changes: dict[str, Any] = {}
+        if hidden is not None:
+            changes["hidden"] = tuple(hidden)
+        if steps is not None:
+            changes["steps"] = steps
+        return replace(base, **changes)
 
     def config(self, state_dim: int) -> BCConfig:
-        """The :class:`BCConfig` of the MLP (linear output in units of ``sqrt(7)``, inputs standardised outside)."""
+        """The :class:`BCConfig` of the MLP (``clip``: linear output in units of ``sqrt(7)``; ``tanh``: bound 1;
+        inputs standardised outside, if at all)."""
+        tanh = self.output == "tanh"
         return BCConfig(
             state_dim=state_dim,
             action_dim=_ACTION_DIM,
             hidden=self.hidden,
-            output="clip",
-            output_scale=math.sqrt(_ACTION_DIM),
+            output="tanh" if tanh else "clip",
+            output_scale=1.0 if tanh else math.sqrt(_ACTION_DIM),
             standardize=False,
             lr=self.lr,
             batch_size=self.batch_size,
@@ -166,21 +245,31 @@ class ArmBCSettings:
 
 
 class ArmBC:
-    """BC for a box action: standardised inputs, a :class:`BCPolicy` MLP, each action component clipped to [-1, 1].
+    """BC for a box action: (optionally) standardised inputs, a :class:`BCPolicy` MLP, each action component in [-1, 1].
+
+    Trained by :func:`~steer_envs.baselines.bc.runs.train_run`: with ``cache_dir``
+    the run is kept under ``<cache_dir>/<run key>`` (its state at
+    ``keep_steps`` and at ``settings.steps``, and every two minutes the
+    latest), so the same training (settings but the steps, seed, data) is
+    read instead of trained, a killed one continues from its last saved
+    step, and a larger budget continues a smaller one's run.
 
     Args:
         states: ``(N, d)`` training inputs; actions: ``(N, 7)`` targets in [-1, 1].
         seed: seeds the weights and the minibatches.
         settings: the MLP and its training.
         standardization: ``(mean, std)`` of the inputs (``(d,)`` each) to use instead of
-            the statistics of ``states`` (the std is floored at ``settings.std_floor`` either way).
+            the statistics of ``states`` (the std is floored at ``settings.std_floor`` either way);
+            ignored with ``settings.standardize`` off (raw inputs).
+        cache_dir: the folder of the cached runs (``None``: train in memory only).
+        keep_steps: steps (``1 .. settings.steps``) whose weights :meth:`at_step` gives (a learning curve).
 
     >>> import numpy as np
     >>> x = np.random.default_rng(0).normal(size=(40, 3))
     >>> a = np.clip(np.c_[x, x, x[:, :1]], -1, 1)
-    >>> bc = ArmBC(x, a, settings=ArmBCSettings(hidden=(16,), steps=10))
-    >>> bc.act(10 * x).shape, bool(np.all(np.abs(bc.act(10 * x)) <= 1))
-    ((40, 7), True)
+    >>> bc = ArmBC(x, a, settings=ArmBCSettings(hidden=(16,), steps=10), keep_steps=(5,))
+    >>> bc.act(10 * x).shape, bool(np.all(np.abs(bc.act(10 * x)) <= 1)), bc.at_step(5).steps
+    ((40, 7), True, 5)
     """
 
     def __init__(
@@ -191,17 +280,52 @@ class ArmBC:
         seed: int = 0,
         settings: ArmBCSettings | None = None,
         standardization: tuple[np.ndarray, np.ndarray] | None = None,
+        cache_dir: str | os.PathLike[str] | None = None,
+        keep_steps: Sequence[int] = (),
     ) -> None:
         s = np.asarray(states, dtype=np.float64)
         a = np.asarray(actions, dtype=np.float64)
         if s.ndim != 2 or a.shape != (len(s), _ACTION_DIM) or len(s) == 0:
             raise ValueError(f"ArmBC: states (N>=1, d) and actions (N, 7) needed, got {s.shape} and {a.shape}")
+        if cache_dir is not None and not isinstance(cache_dir, (str, os.PathLike)):
+            raise TypeError(f"ArmBC: `cache_dir` must be a path or None, got {describe(cache_dir)}")
         self.settings = settings or ArmBCSettings()
-        mean, std = (s.mean(0), s.std(0)) if standardization is None else standardization
+        if not self.settings.standardize:
+            mean, std = np.zeros(s.shape[1]), np.ones(s.shape[1])
+        else:
+            mean, std = (s.mean(0), s.std(0)) if standardization is None else standardization
         self.mean = np.asarray(mean, dtype=np.float64).reshape(s.shape[1])
         self.scale = np.maximum(np.asarray(std, dtype=np.float64).reshape(s.shape[1]), self.settings.std_floor)
         self.policy = BCPolicy(self.settings.config(s.shape[1]), seed=integer(seed, "seed", low=0, owner="ArmBC"))
-        self.losses = self.policy.fit(self._standardized(s), np.clip(a, -1.0, 1.0))
+        bound = _TANH_TARGET if self.settings.output == "tanh" else 1.0
+        run = BCRun(self.policy, self._standardized(s), np.clip(a, -bound, bound))
+        folder = None if cache_dir is None else Path(cache_dir) / run.key
+        steps = self.settings.steps
+        #: step -> the weights at that step (:meth:`at_step`)
+        self.snapshots: dict[int, dict[str, torch.Tensor]] = {}
+        if steps:
+            self.snapshots = train_run(run, steps, folder=folder, keep=tuple(keep_steps))
+        elif keep_steps:
+            raise ValueError(f"ArmBC: `keep_steps` must lie in [1, steps], got {list(keep_steps)} with steps=0")
+        #: ``[[step, mean loss], ...]`` of the run; the steps trained in this process (the rest were read)
+        self.losses = run.losses
+        self.trained_steps = run.steps_trained
+        self.run_folder = folder
+
+    @property
+    def steps(self) -> int:
+        """The training steps of the weights :meth:`act` uses."""
+        return self.policy.trained_for
+
+    def at_step(self, step: int) -> ArmBC:
+        """This BC with its weights at ``step`` (one of the ``keep_steps``, or ``settings.steps``)."""
+        if step not in self.snapshots:
+            raise ValueError(f"ArmBC.at_step: no weights kept at step {step!r}; kept: {sorted(self.snapshots)}")
+        out = copy.copy(self)
+        out.policy = BCPolicy(self.policy.config, seed=self.policy.seed)
+        out.policy.net.load_state_dict(self.snapshots[step])
+        out.policy.trained_for = step
+        return out
 
     def _standardized(self, s: np.ndarray) -> np.ndarray:
         return (np.asarray(s, dtype=np.float64) - self.mean) / self.scale
@@ -212,14 +336,18 @@ class ArmBC:
 
 
 class BCArmPolicy:
-    """The mode-agnostic BC baseline as an :class:`ArmPolicy` (observation in, features and mode ignored)."""
+    """The mode-agnostic BC baseline as an :class:`ArmPolicy` (observation in, features and modes ignored)."""
 
     def __init__(self, bc: ArmBC) -> None:
         self.bc = bc
 
-    def act(self, obs: np.ndarray, features: np.ndarray, mode: int) -> np.ndarray:
+    def act(self, obs: np.ndarray, features: np.ndarray, mode: int, true_mode: int | None = None) -> np.ndarray:
         """BC's action for ``obs``."""
         return self.bc.act(np.asarray(obs, dtype=np.float64))
+
+    def at_step(self, step: int) -> BCArmPolicy:
+        """The policy with BC's weights at ``step`` (:meth:`ArmBC.at_step`)."""
+        return BCArmPolicy(self.bc.at_step(step))
 
 
 # ----------------------------------------------------------------------- attractors
@@ -316,7 +444,7 @@ def mode_attractors(
 
 # ------------------------------------------------------------------------- GLiDE+BC
 class GlideArmPolicy(GlideBC[ArmBC]):
-    """GLiDE+BC on an arm: one :class:`ArmBC` per mode plus its pseudo-attractor (see the module).
+    """GLiDE+BC on an arm: one :class:`ArmBC` per mode plus an attractor (see the module).
 
     Args:
         task: the task name.
@@ -331,6 +459,13 @@ class GlideArmPolicy(GlideBC[ArmBC]):
         gain: the proportional gain of the attractor's position command (the experts' 10).
         seed: seeds the BC training (mode ``k``'s MLP gets ``1000 * seed + k``).
         settings: the BC MLPs (each mode's MLP trains as many steps as the mode-agnostic BC).
+        attractor: ``"thesis"`` (the per-mode :class:`ModeAttractor` blend; the four
+            arguments above) or ``"public_code"`` (the fork's first-mode pull).
+        attractor_mode: the mode the attractor reads: ``"classifier"``, the one the
+            policy runs on (``mode`` of :meth:`act`), or ``"ground_truth"``, the env's
+            (``true_mode``); the attractor is built from the same labels (``modes``, or
+            the demos' recorded ones).
+        cache_dir, keep_steps: each mode's :class:`ArmBC` run cache and kept steps.
     """
 
     def __init__(
@@ -346,6 +481,10 @@ class GlideArmPolicy(GlideBC[ArmBC]):
         gain: float = 10.0,
         seed: int = 0,
         settings: ArmBCSettings | None = None,
+        attractor: str = "thesis",
+        attractor_mode: str = "classifier",
+        cache_dir: str | os.PathLike[str] | None = None,
+        keep_steps: Sequence[int] = (),
     ) -> None:
         who = "GlideArmPolicy"
         self.task = _task(task)
@@ -353,19 +492,20 @@ class GlideArmPolicy(GlideBC[ArmBC]):
             raise ValueError(f"{who}: demos and modes must be non-empty and of equal length")
         super().__init__(num_modes(self.task), attractor_weight=attractor_weight, owner=who)
         self.gain = real_scalar(gain, "gain", low=0.0, owner=who)
+        self.attractor = one_of(attractor, "attractor", ARM_ATTRACTORS, owner=who)
+        self.attractor_mode = one_of(attractor_mode, "attractor_mode", ATTRACTOR_MODES, owner=who)
         seed = integer(seed, "seed", low=0, owner=who)
         labels = [np.asarray(m, dtype=np.int64) for m in modes]
         for m in labels:
             if m.size and (m.min() < 0 or m.max() >= self.num_modes):
                 raise ValueError(f"{who}: mode labels must lie in [0, {self.num_modes}), got {np.unique(m).tolist()}")
+        by = labels if self.attractor_mode == "classifier" else [np.asarray(d.modes, dtype=np.int64) for d in demos]
+        features = [d.features for d in demos]
         self.attractors = mode_attractors(
-            self.task,
-            [d.features for d in demos],
-            labels,
-            plan=plan,
-            quantile=attractor_quantile,
-            min_threshold=min_threshold,
+            self.task, features, by, plan=plan, quantile=attractor_quantile, min_threshold=min_threshold
         )
+        #: the fork's first-mode pull (with ``attractor="public_code"``)
+        self.public = PublicCodeAttractor.from_demos(self.task, features, by) if attractor == "public_code" else None
         obs = np.concatenate([d.obs[:-1] for d in demos]).astype(np.float64)
         acts = np.concatenate([d.actions for d in demos]).astype(np.float64)
         state_modes = np.concatenate([m[:-1] for m in labels])
@@ -375,7 +515,17 @@ class GlideArmPolicy(GlideBC[ArmBC]):
         stats = (obs.mean(0), obs.std(0))  # every mode's inputs scaled as the mode-agnostic BC's are
 
         def fit(s: np.ndarray, a: np.ndarray, k: int) -> ArmBC | None:
-            return ArmBC(s, a, seed=1000 * seed + k, settings=base, standardization=stats) if len(s) else None
+            if not len(s):
+                return None
+            return ArmBC(
+                s,
+                a,
+                seed=1000 * seed + k,
+                settings=base,
+                standardization=stats,
+                cache_dir=cache_dir,
+                keep_steps=keep_steps,
+            )
 
         self.fit_modes(obs, acts, state_modes, fit)
         trained = [k for k, p in enumerate(self.policies) if p is not None]
@@ -389,16 +539,37 @@ class GlideArmPolicy(GlideBC[ArmBC]):
         below = [j for j in trained if j <= k]
         return max(below) if below else min(trained)
 
-    def act(self, obs: np.ndarray, features: np.ndarray, mode: int) -> np.ndarray:
-        """Mode ``mode``'s BC action, its position part pulled toward the attractor when far from it."""
+    @property
+    def trained_steps(self) -> int:
+        """The BC steps trained in this process over every mode (the rest were read from the run cache)."""
+        return sum(p.trained_steps for p in self.policies if p is not None)
+
+    def at_step(self, step: int) -> GlideArmPolicy:
+        """The policy with every mode's BC weights at ``step`` (:meth:`ArmBC.at_step`)."""
+        out = copy.copy(self)
+        out.policies = [None if p is None else p.at_step(step) for p in self.policies]
+        return out
+
+    def act(self, obs: np.ndarray, features: np.ndarray, mode: int, true_mode: int | None = None) -> np.ndarray:
+        """Mode ``mode``'s BC action, with the attractor of the mode it reads (``mode``, or ``true_mode``)."""
         k = integer(mode, "mode", low=0, high=self.num_modes - 1, owner="GlideArmPolicy.act")
         policy = self.policies[self.policy_of[k]]
         assert policy is not None  # policy_of names trained modes only
         action = policy.act(np.asarray(obs, dtype=np.float64))
+        if self.attractor_mode == "ground_truth":
+            if true_mode is None:
+                raise ValueError("GlideArmPolicy.act: its attractor reads the true mode; pass `true_mode`")
+            k = integer(true_mode, "true_mode", low=0, high=self.num_modes - 1, owner="GlideArmPolicy.act")
         return self.attract(action, features, k)
 
     def attract(self, action: np.ndarray, features: np.ndarray, mode: int) -> np.ndarray:
-        """``action`` with the attractor term of ``mode`` mixed into its position part (when far enough)."""
+        """``action`` with the attractor term of ``mode`` applied.
+
+        Thesis: mixed into the position part when far enough from the mode's
+        attractor; public code: the first mode's pull (:class:`PublicCodeAttractor`).
+        """
+        if self.public is not None:
+            return self.public.apply(action, features) if mode == 0 else np.array(action, dtype=np.float64)
         out = np.array(action, dtype=np.float64, copy=True)
         attractor = self.attractors[mode]
         f = np.asarray(features, dtype=np.float64)
@@ -442,14 +613,16 @@ def demo_modes(task: str, demos: Sequence[rr.ArmTrajectory], predictor: Any) -> 
 class GlideArmSettings:
     """GLiDE+BC's attractor settings on the arms (see :class:`GlideArmPolicy`).
 
-    >>> GlideArmSettings().attractor_quantile, GlideArmSettings().min_threshold
-    (0.9, 0.02)
+    >>> GlideArmSettings().attractor_quantile, GlideArmSettings().min_threshold, GlideArmSettings().attractor
+    (0.9, 0.02, 'thesis')
     """
 
     attractor_weight: float = 0.5
     attractor_quantile: float = 0.9
     min_threshold: float = 0.02
     gain: float = 10.0
+    attractor: str = "thesis"
+    attractor_mode: str = "classifier"
 
 
 def _check_demos(task: str, demos: Any) -> list[rr.ArmTrajectory]:
@@ -471,12 +644,16 @@ def train_arm_policy(
     bc: ArmBCSettings | None = None,
     glide: GlideArmSettings | None = None,
     plan: Any = None,
-) -> ArmPolicy:
+    cache_dir: str | os.PathLike[str] | None = None,
+    keep_steps: Sequence[int] = (),
+) -> BCArmPolicy | GlideArmPolicy:
     """A trained :class:`ArmPolicy`: ``"bc"`` (all demo pairs) or ``"glide_bc"`` (per predicted mode).
 
     ``predictor`` labels the demos for GLiDE+BC (:func:`demo_modes`); ``bc``
     sets every BC MLP, ``glide`` the attractors, ``plan`` the LLM plan
-    (default: the recorded one).
+    (default: the recorded one). ``cache_dir``: where every BC run is kept
+    (read instead of trained when it is there; see :class:`ArmBC`);
+    ``keep_steps``: the steps whose weights the policy's ``at_step`` gives.
     """
     task = _task(task)
     method = one_of(method, "method", ARM_METHODS, owner="train_arm_policy")
@@ -485,7 +662,7 @@ def train_arm_policy(
     if method == "bc":
         obs = np.concatenate([d.obs[:-1] for d in demos])
         acts = np.concatenate([d.actions for d in demos])
-        return BCArmPolicy(ArmBC(obs, acts, seed=seed, settings=bc))
+        return BCArmPolicy(ArmBC(obs, acts, seed=seed, settings=bc, cache_dir=cache_dir, keep_steps=keep_steps))
     g = glide or GlideArmSettings()
     return GlideArmPolicy(
         task,
@@ -498,4 +675,8 @@ def train_arm_policy(
         gain=g.gain,
         seed=seed,
         settings=bc,
+        attractor=g.attractor,
+        attractor_mode=g.attractor_mode,
+        cache_dir=cache_dir,
+        keep_steps=keep_steps,
     )

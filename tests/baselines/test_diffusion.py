@@ -374,7 +374,8 @@ def test_accelerate_checks_its_mode() -> None:
     policy = _tiny()
     assert policy.acceleration == "none"
     for bad in ("jit", "", None, 1):
-        modes = r"\['auto', 'compile', 'fastest', 'none', 'onnx', 'openvino', 'trace'\]"
+        modes = r"\['auto', 'compile', 'fastest', 'none', 'onnx', 'openvino', 'openvino-bf16', 'openvino-f32', "
+        modes += r"'openvino-int8', 'trace'\]"
         with pytest.raises(ValueError, match=r"accelerate: mode must be one of " + modes):
             policy.accelerate(bad)  # type: ignore[arg-type]
     assert policy.accelerate("trace") is policy and policy.acceleration == "trace"

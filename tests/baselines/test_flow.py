@@ -125,3 +125,26 @@ def test_the_training_entry_point_trains_and_checks_a_flow(walk, tmp_path: Path)
     check = subprocess.run([*base, "--check", str(out.with_suffix(".json")), "--check-steps", "10"],
                            capture_output=True, text=True, timeout=600)  # fmt: skip
     assert check.returncode == 0, check.stdout[-2000:] + check.stderr[-2000:]
+
+
+@pytest.mark.parametrize("mode", ["trace", "onnx"])
+def test_accelerated_velocities_and_plans_match_eager(mode: str) -> None:
+    """A flow runs its network as DP does: eager's velocities within float32 rounding, gradients left eager."""
+    if mode == "onnx":
+        pytest.importorskip("onnxruntime")
+    eager, fast = _tiny(), _tiny().accelerate(mode)
+    assert fast.acceleration == mode and eager.acceleration == "none"
+    x, cond = torch.randn(5, eager.horizon, 2, generator=torch.Generator().manual_seed(0)), eager.encode_obs([2.0, 3.0])
+    with torch.no_grad():
+        for tau in (0.0, 0.4, 0.95):
+            want, got = eager.predict_velocity(x, tau, cond), fast.predict_velocity(x, tau, cond)
+            assert (got - want).abs().max() <= 1e-4 * want.abs().max(), (tau, (got - want).abs().max())
+    plans = [p.sample([2.0, 3.0], 4, generator=np.random.default_rng(1)) for p in (eager, fast)]
+    np.testing.assert_allclose(plans[1], plans[0], atol=1e-4)
+    x.requires_grad_(True)
+    fast.predict_velocity(x, 0.5, cond).square().sum().backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0
+    fewer = fast.with_steps(3)
+    assert fewer.acceleration == mode and fewer.num_inference_steps == 3 and fast.num_inference_steps != 3
+    with pytest.raises(ValueError, match="mode"):
+        _tiny().accelerate("cuda")

@@ -187,7 +187,7 @@ class SteerParams(SkillPolicyParams):
             return self.policy()
         from steer_envs.baselines.pretrained import shared_policy
 
-        return shared_policy(FLOW_POLICY, self.flow_checkpoint, steps=self.flow_steps)
+        return shared_policy(FLOW_POLICY, self.flow_checkpoint, self.accelerate, steps=self.flow_steps)
 
 
 def run_steer_trial(trial: Trial) -> TrialResult:
