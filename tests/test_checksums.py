@@ -21,8 +21,10 @@ from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.bc import BCConfig, BCPolicy
 from steer_envs.baselines.common.checkpoint import (
     CHECKSUM_KEY,
+    METADATA_CHECKSUM_KEY,
     RECORD_CHECKSUM_KEY,
     add_checksum,
+    metadata_digest,
     read_record,
     read_safetensors,
     tensors_digest,
@@ -78,6 +80,7 @@ def _strip_checksum(path: Path) -> None:
     raw = path.read_bytes()
     header, start = _split(raw)
     del header["__metadata__"][CHECKSUM_KEY]
+    header["__metadata__"].pop(METADATA_CHECKSUM_KEY, None)
     path.write_bytes(_join(header, raw[start:]))
 
 
@@ -114,6 +117,8 @@ def test_every_shipped_checkpoint_and_record_carries_its_checksum() -> None:
             f"{path} has no valid {CHECKSUM_KEY}: give it one with "
             "steer_envs.baselines.common.checkpoint.add_checksum (its tensors stay as they are)"
         )
+        stored = header["__metadata__"].get(METADATA_CHECKSUM_KEY)
+        assert stored == metadata_digest(header["__metadata__"]), f"{path}: add_checksum it (its metadata's)"
         record = path.with_suffix(".json")
         assert RECORD_CHECKSUM_KEY in json.loads(record.read_text()), f"{record}: add_checksum it"
         read_record(record)
@@ -130,6 +135,17 @@ def test_a_flipped_bit_in_a_shipped_checkpoint_is_refused_naming_the_file(name: 
     assert "restore it from a good copy" in str(err.value), tensor
     with pytest.raises(CheckpointError, match=copy.name):
         load_policy(copy)
+    # its metadata: one changed digit of the normalization statistics is refused, the header still parsing
+    shutil.copyfile(checkpoint_path(name), copy)
+    raw = copy.read_bytes()
+    header, start = _split(raw)
+    config = header["__metadata__"]["config"]
+    where = config.index('"stats"')
+    digit = next(i for i in range(where, len(config)) if config[i] in "123456789")
+    header["__metadata__"]["config"] = config[:digit] + str(int(config[digit]) % 9 + 1) + config[digit + 1 :]
+    copy.write_bytes(_join(header, raw[start:]))
+    with pytest.raises(CheckpointError, match=rf"{copy.name}: damaged: its metadata \(config, normalization\)"):
+        load_pretrained(name, checkpoint=copy)
     # its record: one changed number is refused too
     record = json.loads(checkpoint_path(name).with_suffix(".json").read_text())
     record["training"]["losses"][-1][1] += 1e-9
@@ -145,6 +161,7 @@ def test_every_checkpoint_writer_stores_a_checksum_that_loading_checks(kind: str
     path = write(tmp_path / f"{kind}.safetensors")
     header, _ = _split(path.read_bytes())
     assert len(header["__metadata__"][CHECKSUM_KEY]) == 64
+    assert header["__metadata__"][METADATA_CHECKSUM_KEY] == metadata_digest(header["__metadata__"])
     load(path)
     _flip(path, count=16)
     with pytest.raises(CheckpointError, match=rf"{kind}\.safetensors: damaged"):

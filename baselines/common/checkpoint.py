@@ -18,10 +18,12 @@ network is built. Every problem is a
 
 Checked bytes: :func:`write_safetensors` stores the sha256 of the tensors
 (:func:`tensors_digest`: each tensor's name, dtype and shape, then its raw
-bytes, in name order) in the metadata entry :data:`CHECKSUM_KEY`;
-:func:`read_safetensors` recomputes it, so a file whose tensor bytes changed
-after it was written (a flipped bit on disk, a bad copy) is refused even when
-its header is intact. A training record (:func:`write_record`) carries the
+bytes, in name order) in the metadata entry :data:`CHECKSUM_KEY`, and the
+sha256 of the other metadata (:func:`metadata_digest`: the config and
+normalization statistics, JSON) under :data:`METADATA_CHECKSUM_KEY`;
+:func:`read_safetensors` recomputes both, so a file whose tensor bytes or
+metadata changed after it was written (a flipped bit on disk, a bad copy) is
+refused even when its header still parses. A training record (:func:`write_record`) carries the
 sha256 of its JSON content under :data:`RECORD_CHECKSUM_KEY` and is checked
 the same way. Files written without a checksum (before it was kept) load as
 before; :func:`add_checksum` gives such a file its checksum without changing
@@ -56,11 +58,13 @@ __all__ = [
     "CHECKSUM_KEY",
     "MAX_CHECKPOINT_BYTES",
     "MAX_PARAMETERS",
+    "METADATA_CHECKSUM_KEY",
     "RECORD_CHECKSUM_KEY",
     "CheckpointError",
     "add_checksum",
     "check_parameter_count",
     "check_state",
+    "metadata_digest",
     "read_record",
     "read_safetensors",
     "tensors_digest",
@@ -78,6 +82,8 @@ MAX_RECORD_BYTES = 64 * 2**20
 _MAX_HEADER_BYTES = 16 * 2**20
 #: the safetensors metadata entry holding the hex sha256 of a file's tensors (:func:`tensors_digest`)
 CHECKSUM_KEY = "tensors_sha256"
+#: the safetensors metadata entry holding the hex sha256 of the file's other metadata (:func:`metadata_digest`)
+METADATA_CHECKSUM_KEY = "metadata_sha256"
 #: the entry of a training record (a JSON object) holding the hex sha256 of its other entries
 RECORD_CHECKSUM_KEY = "sha256"
 _HEX_SHA256 = re.compile(r"[0-9a-f]{64}")
@@ -123,8 +129,8 @@ def write_safetensors(
     out = _source(path)
     if out.suffix != ".safetensors":
         raise ValueError(f"path must end with .safetensors, got {str(out)!r}")
-    if meta_key == CHECKSUM_KEY:
-        raise ValueError(f"meta_key {CHECKSUM_KEY!r} is reserved for the tensors' checksum")
+    if meta_key in (CHECKSUM_KEY, METADATA_CHECKSUM_KEY):
+        raise ValueError(f"meta_key {meta_key!r} is reserved for a checksum")
     cpu = {}
     for name, value in tensors.items():
         if not isinstance(value, torch.Tensor):
@@ -141,9 +147,21 @@ def write_safetensors(
     n = int.from_bytes(raw[:8], "little")
     header = json.loads(raw[8 : 8 + n])
     data = memoryview(raw)[8 + n :]
-    header["__metadata__"][CHECKSUM_KEY] = tensors_digest(header, data)
+    metadata = header["__metadata__"]
+    metadata[METADATA_CHECKSUM_KEY] = metadata_digest(metadata)
+    metadata[CHECKSUM_KEY] = tensors_digest(header, data)
     _write(out, header, data)
     return out
+
+
+def metadata_digest(metadata: Mapping[str, Any]) -> str:
+    """The hex sha256 of a safetensors file's string metadata, its checksum entries left out (sorted JSON).
+
+    >>> metadata_digest({"config": "{}", METADATA_CHECKSUM_KEY: "x"}) == metadata_digest({"config": "{}"})
+    True
+    """
+    body = {k: v for k, v in metadata.items() if k not in (CHECKSUM_KEY, METADATA_CHECKSUM_KEY)}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def tensors_digest(header: Mapping[str, Any], data: bytes | memoryview) -> str:
@@ -224,14 +242,24 @@ def _parse(src: Path) -> tuple[bytes, dict[str, Any], dict[str, Any], memoryview
     return raw, header, metadata or {}, data
 
 
-def _stored_digest(src: Path, metadata: Mapping[str, Any]) -> str | None:
-    """The checksum a file's metadata holds (``None``: written without one)."""
-    stored = metadata.get(CHECKSUM_KEY)
+def _stored_digest(src: Path, metadata: Mapping[str, Any], key: str = CHECKSUM_KEY) -> str | None:
+    """The checksum ``key`` a file's metadata holds (``None``: written without one)."""
+    stored = metadata.get(key)
     if stored is None:
         return None
     if not (isinstance(stored, str) and _HEX_SHA256.fullmatch(stored)):
-        raise CheckpointError(f"{src}: its {CHECKSUM_KEY!r} metadata is not a sha256 hex digest (corrupt file)")
+        raise CheckpointError(f"{src}: its {key!r} metadata is not a sha256 hex digest (corrupt file)")
     return stored
+
+
+def _check_metadata(src: Path, metadata: Mapping[str, Any], remedy: str) -> None:
+    """``CheckpointError`` when the metadata's checksum (if the file has one) does not match it."""
+    stored = _stored_digest(src, metadata, METADATA_CHECKSUM_KEY)
+    if stored is not None and metadata_digest(metadata) != stored:
+        raise CheckpointError(
+            f"{src}: damaged: its metadata (config, normalization) does not match the sha256 checksum written "
+            f"with it, so the file changed after it was written; {remedy}"
+        )
 
 
 def read_safetensors(
@@ -241,13 +269,14 @@ def read_safetensors(
 
     :class:`~steer_envs.io.CheckpointError` (naming the file) for a missing,
     oversized, truncated or corrupt file, a foreign file without ``meta_key``,
-    tensors whose bytes do not match the file's checksum (:data:`CHECKSUM_KEY`;
-    the message ends with ``remedy``, what to do about it), and non-finite
+    tensors or metadata that do not match the file's checksums (:data:`CHECKSUM_KEY`,
+    :data:`METADATA_CHECKSUM_KEY`; the message ends with ``remedy``, what to do about it), and non-finite
     floating-point tensors. A file without a checksum (written before it was
     kept) loads as before.
     """
     src = _source(path)
     raw, header, metadata, data = _parse(src)
+    _check_metadata(src, metadata, remedy)
     if not isinstance(metadata.get(meta_key), str):
         raise CheckpointError(f"{src} is not a steer-envs safetensors checkpoint (no {meta_key!r} metadata)")
     try:
@@ -279,11 +308,12 @@ def read_safetensors(
 def add_checksum(path: str | os.PathLike[str]) -> bool:
     """Give a checkpoint (``.safetensors``) or training record (``.json``) written without a checksum its checksum.
 
-    A checkpoint gets :data:`CHECKSUM_KEY` in its header, its tensors' bytes
-    staying as they are; a record is rewritten by :func:`write_record` with
-    the same content. Atomic. Returns ``False`` when the file already has a
-    checksum (which is then verified: ``CheckpointError`` on a mismatch). The
-    new checksum vouches for the file as it is now: check an old file first.
+    A checkpoint gets :data:`CHECKSUM_KEY` and :data:`METADATA_CHECKSUM_KEY`
+    in its header (whichever it lacks), its tensors' bytes staying as they are;
+    a record is rewritten by :func:`write_record` with the same content.
+    Atomic. Returns ``False`` when the file already has its checksums (which
+    are then verified: ``CheckpointError`` on a mismatch). A new checksum
+    vouches for the file as it is now: check an old file first.
     """
     src = _source(path)
     if src.suffix == ".json":
@@ -295,13 +325,15 @@ def add_checksum(path: str | os.PathLike[str]) -> bool:
     if src.suffix != ".safetensors":
         raise ValueError(f"path must end with .safetensors or .json, got {str(src)!r}")
     _, header, metadata, data = _parse(src)
+    _check_metadata(src, metadata, _REMEDY)
     digest = tensors_digest(header, data)
     stored = _stored_digest(src, metadata)
-    if stored is not None:
-        if stored != digest:
-            raise CheckpointError(f"{src}: damaged: its tensors' bytes do not match its sha256 checksum; {_REMEDY}")
+    if stored is not None and stored != digest:
+        raise CheckpointError(f"{src}: damaged: its tensors' bytes do not match its sha256 checksum; {_REMEDY}")
+    if stored is not None and METADATA_CHECKSUM_KEY in metadata:
         return False
-    _write(src, {"__metadata__": {**metadata, CHECKSUM_KEY: digest}, **header}, data)
+    added = {CHECKSUM_KEY: digest, METADATA_CHECKSUM_KEY: metadata_digest(metadata)}
+    _write(src, {"__metadata__": {**metadata, **added}, **header}, data)
     return True
 
 

@@ -20,7 +20,7 @@ from safetensors.torch import save as st_save
 from steer_envs.baselines.act import ACTConfig, ACTPolicy
 from steer_envs.baselines.bc import BCConfig, BCPolicy
 from steer_envs.baselines.common import CheckpointError, read_checkpoint
-from steer_envs.baselines.common.checkpoint import CHECKSUM_KEY
+from steer_envs.baselines.common.checkpoint import CHECKSUM_KEY, METADATA_CHECKSUM_KEY, metadata_digest
 from steer_envs.baselines.diffusion import DiffusionConfig, DiffusionPolicy
 from steer_envs.baselines.factory import load_policy
 from steer_envs.baselines.glide.classifier import ModeClassifier
@@ -46,6 +46,11 @@ def _split(raw: bytes) -> tuple[dict[str, Any], bytes]:
 
 
 def _join(header: dict[str, Any], data: bytes) -> bytes:
+    """The file of ``header`` and ``data``, its metadata checksum renewed: a consistently written foreign file,
+    so the checks behind the checksum are the ones tested."""
+    meta = header.get("__metadata__")
+    if isinstance(meta, dict) and METADATA_CHECKSUM_KEY in meta:
+        meta[METADATA_CHECKSUM_KEY] = metadata_digest(meta)
     text = json.dumps(header).encode()
     return struct.pack("<Q", len(text)) + text + data
 
