@@ -21,6 +21,9 @@ Choices, and why:
 * ``stride`` per task (:data:`~steer_envs.baselines.glide.arm_plan.TASK_STRIDE`):
   Lift's lift phase lasts ~5 control steps (sometimes 1-2), which a stride
   above 1 can skip.
+* Padding (``pad_to``, off by default) applies to the classifier's training
+  data only: the demo samples it is scored on, and k-means, see the
+  trajectories as recorded.
 * Variants (:data:`ARM_VARIANTS`): ``full`` (``L_under``, eq. 4.3),
   ``no_dynamics`` (``L_dyn`` off), ``no_prediction`` (``L_succ`` and
   ``L_fail`` off), ``no_feature_selection`` (every available feature),
@@ -49,13 +52,35 @@ from steer_envs.baselines.glide.arm_plan import (
 from steer_envs.baselines.glide.classifier import GlideLossWeights, GlideTrainConfig
 from steer_envs.baselines.glide.kmeans import KMeansModes
 from steer_envs.baselines.glide.training import train_mode_classifier
+from steer_envs.core.validation import integer
 from steer_envs.data import robosuite_replays as rr
 from steer_envs.data.robosuite_replay_sets import split_demos
 
-__all__ = ["ARM_VARIANTS", "ArmGroundingSetup", "evaluate_arm_grounding", "train_arm_predictor"]
+__all__ = [
+    "ARM_VARIANTS",
+    "MAX_PAD",
+    "ArmGroundingSetup",
+    "evaluate_arm_grounding",
+    "pad_states",
+    "train_arm_predictor",
+]
 
 #: the grounding variants of thesis Table 4.2 (see the module).
 ARM_VARIANTS: tuple[str, ...] = ("full", "no_dynamics", "no_prediction", "no_feature_selection", "kmeans")
+#: the longest padding (:attr:`ArmGroundingSetup.pad_to`)
+MAX_PAD = 100_000
+
+
+def pad_states(states: np.ndarray, length: int) -> np.ndarray:
+    """``states`` ``(T, d)`` padded to ``length`` rows by repeating the last one (unchanged when ``T >= length``).
+
+    >>> pad_states(np.array([[0.0], [1.0]]), 4).ravel().tolist()
+    [0.0, 1.0, 1.0, 1.0]
+    """
+    arr = np.asarray(states)
+    if arr.ndim != 2 or len(arr) == 0:
+        raise ValueError(f"pad_states: states must be (T>=1, d), got shape {arr.shape}")
+    return np.pad(arr, ((0, max(0, length - len(arr))), (0, 0)), mode="edge")
 
 
 @dataclass(frozen=True)
@@ -71,6 +96,9 @@ class ArmGroundingSetup:
     restarts). ``replay_demos``: the demos with replays (``seed <
     replay_demos``) are the demos the classifier trains on;
     ``train_truncated``: it trains on the replays' truncated copies too.
+    ``pad_to``: every trajectory the classifier trains on shorter than this
+    many states is padded to it by repeating its last state (the public GLiDE
+    fork pads to 200); 0: no padding. Longer ones stay as they are.
     """
 
     n_demos: int = 50
@@ -83,6 +111,10 @@ class ArmGroundingSetup:
     dyn_weight: float = 10.0
     stride: int = 0
     train_truncated: bool = True
+    pad_to: int = 0
+
+    def __post_init__(self) -> None:
+        integer(self.pad_to, "pad_to", low=0, high=MAX_PAD, owner="ArmGroundingSetup")
 
     def stride_of(self, task: str) -> int:
         """The stride on ``task``: :attr:`stride`, or the task's when 0."""
@@ -124,8 +156,13 @@ def _train_classifier(
         dyn_inputs=dyn_inputs,
         dyn_input_lag=0,
     )
+    states = [t.features[:, cols] for t in train]
+    if setup.pad_to:
+        info["padded"] = sum(len(x) < setup.pad_to for x in states)
+        info["longer_than_pad"] = sum(len(x) > setup.pad_to for x in states)
+        states = [pad_states(x, setup.pad_to) for x in states]
     result = train_mode_classifier(
-        [t.features[:, cols] for t in train],
+        states,
         [t.success for t in train],
         manipulation_feasibility(num_modes(task)),
         weights=_weights(setup, variant),

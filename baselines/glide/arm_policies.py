@@ -349,6 +349,11 @@ class BCArmPolicy:
         """The policy with BC's weights at ``step`` (:meth:`ArmBC.at_step`)."""
         return BCArmPolicy(self.bc.at_step(step))
 
+    @property
+    def trained_steps(self) -> int:
+        """The BC steps trained in this process (the rest were read from the run cache)."""
+        return self.bc.trained_steps
+
 
 # ----------------------------------------------------------------------- attractors
 @dataclass(frozen=True)

@@ -20,14 +20,14 @@ quantile of the demos' distances.
 >>> import numpy as np
 >>> from steer_envs.data import robosuite_replays as rr
 >>> rel = rr.feature_columns("lift", ["block_to_robot0_eef_pos"])
->>> f = np.zeros((3, len(rr.feature_names("lift"))))
+>>> f = np.zeros((3, sum(size for _, size in rr.FEATURES["lift"])))
 >>> f[:, rel] = [[0.0, 0.0, -0.3], [0.0, 0.0, -0.1], [0.0, 0.0, -0.02]]  # the eef comes down onto the block
 >>> pull = PublicCodeAttractor.from_demos("lift", [f], [np.array([0, 0, 1])])
 >>> pull.offset.round(3).tolist()  # the grasp offset, its height scaled by 1.5
 [0.0, 0.0, -0.03]
 >>> far = f[0]  # 0.3 m above the block: pulled down, rotation zeroed
 >>> pull.apply(np.full(7, 0.5), far).round(3).tolist()
-[0.5, 0.5, 0.368, 0.0, 0.0, 0.0, 0.5]
+[0.5, 0.5, 0.369, 0.0, 0.0, 0.0, 0.5]
 >>> pull.apply(np.full(7, 0.5), f[2]).tolist()  # within 0.1 m of the block: the policy's action
 [0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5]
 """

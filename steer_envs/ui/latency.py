@@ -51,5 +51,5 @@ def steering_latency(session: Any, interaction: Any, *, calls: int = 8, warmup: 
         wall = (time.perf_counter() - t0) * 1e3
         network, sampler = outcome.timings["network_ms"], outcome.timings["sampler_ms"]
         rows.append((wall, network, sampler, max(0.0, wall - network - sampler), outcome.timings["network_evals"]))
-    medians = [statistics.median(column) for column in zip(*rows, strict=True)]
-    return Latency(*medians, calls=calls)
+    total, network, sampler, other, evals = (statistics.median(column) for column in zip(*rows, strict=True))
+    return Latency(total, network, sampler, other, evals, calls=calls)

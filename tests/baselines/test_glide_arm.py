@@ -186,7 +186,7 @@ def test_training_and_evaluation_refuse_bad_arguments(lift_demos: list[rr.ArmTra
         glide.train_arm_policy("can", "bc", 0, demos=lift_demos)
     with pytest.raises(TypeError, match="robosuite arm env"):
         glide.evaluate_arm_policy(
-            object(), glide.BCArmPolicy(glide.ArmBC(np.zeros((2, 3)), np.zeros((2, 7)))), n_episodes=1
+            object(), glide.BCArmPolicy(glide.ArmBC(np.zeros((2, 3)), np.zeros((2, 7)), settings=TINY)), n_episodes=1
         )
     with pytest.raises(TypeError, match="predictor"):
         _evaluate(glide.train_arm_policy("lift", "bc", 0, demos=lift_demos, bc=TINY), predictor=object())
@@ -207,3 +207,115 @@ def test_feasibility_and_plan_choices() -> None:
     assert glide.ArmGroundingSetup().stride_of("lift") == 1 and glide.ArmGroundingSetup(stride=3).stride_of("can") == 3
     with pytest.raises(ValueError, match="unknown variant"):
         glide.train_arm_predictor("lift", "oracle", [])
+
+
+# ------------------------------------------------------- recipes, run cache, public-code attractor
+def test_robomimic_recipe_trains_raw_inputs_with_a_tanh_output() -> None:
+    r = glide.ArmBCSettings.recipe("robomimic")
+    assert (r.hidden, r.lr, r.batch_size, r.standardize, r.output) == ((1024, 1024), 1e-4, 100, False, "tanh")
+    assert r.steps == glide.ROBOMIMIC_CPU_STEPS < glide.ROBOMIMIC_STEPS
+    assert glide.ArmBCSettings.recipe("thesis") == glide.ArmBCSettings()
+    small = glide.ArmBCSettings.recipe("robomimic", hidden=(16,), steps=30)
+    assert (small.hidden, small.steps, small.lr) == ((16,), 30, 1e-4)
+    x = np.random.default_rng(1).normal(size=(50, 4)) * [1.0, 10.0, 100.0, 0.01]
+    a = np.c_[np.clip(x[:, :2], -1, 1), np.zeros((50, 4)), np.where(x[:, :1] > 0, 1.0, -1.0)]  # gripper at +-1
+    raw = glide.ArmBC(x, a, settings=small)
+    np.testing.assert_array_equal(raw.mean, 0.0)
+    np.testing.assert_array_equal(raw.scale, 1.0)  # raw observations: no standardisation
+    assert raw.policy.config.output == "tanh" and np.all(np.abs(raw.act(x)) <= 1.0)
+    thesis = glide.ArmBC(x, a, settings=glide.ArmBCSettings(hidden=(16,), steps=30))
+    assert np.allclose(thesis.mean, x.mean(0)) and not np.allclose(thesis.act(x), raw.act(x))
+    with pytest.raises(ValueError, match="recipe"):
+        glide.ArmBCSettings.recipe("diffusion")
+    with pytest.raises(ValueError, match="output"):
+        glide.ArmBCSettings(output="relu")
+    with pytest.raises(TypeError, match="standardize"):
+        glide.ArmBCSettings(standardize=1)  # type: ignore[arg-type]
+
+
+def test_arm_bc_runs_are_cached_and_keep_learning_curve_steps(tmp_path: Any) -> None:
+    x = np.random.default_rng(0).normal(size=(64, 5))
+    a = np.clip(np.c_[x, x[:, :2]], -1, 1)
+    settings = glide.ArmBCSettings(hidden=(16,), steps=40)
+    first = glide.ArmBC(x, a, seed=2, settings=settings, cache_dir=tmp_path, keep_steps=(10, 20))
+    assert first.trained_steps == 40 and first.run_folder is not None and first.run_folder.parent == tmp_path
+    again = glide.ArmBC(x, a, seed=2, settings=settings, cache_dir=tmp_path, keep_steps=(10, 20))
+    assert again.trained_steps == 0  # read from the cache
+    np.testing.assert_array_equal(again.act(x), first.act(x))
+    np.testing.assert_array_equal(glide.ArmBC(x, a, seed=2, settings=settings).act(x), first.act(x))  # as in memory
+    at_10 = first.at_step(10)
+    assert at_10.steps == 10 and first.steps == 40
+    short = glide.ArmBC(x, a, seed=2, settings=glide.ArmBCSettings(hidden=(16,), steps=10))
+    np.testing.assert_array_equal(at_10.act(x), short.act(x))  # the kept weights are a 10-step run's
+    with pytest.raises(ValueError, match="no weights kept at step 15"):
+        first.at_step(15)
+    with pytest.raises(ValueError, match="keep"):
+        glide.ArmBC(x, a, settings=settings, keep_steps=(41,))
+    with pytest.raises(TypeError, match="cache_dir"):
+        glide.ArmBC(x, a, settings=settings, cache_dir=3)  # type: ignore[arg-type]
+
+
+def _potential(rel: np.ndarray, offset: np.ndarray, eef: np.ndarray) -> float:
+    """The fork's potential exp(|(object - eef) - g|) at eef, the object fixed (rel = object - eef at eef = 0)."""
+    return float(np.exp(np.linalg.norm(rel - eef - offset)))
+
+
+def test_public_code_attractor_is_the_forks_gradient_pull() -> None:
+    (f1, m1), (f2, m2) = _demo(0.0), _demo(0.2)
+    pull = glide.PublicCodeAttractor.from_demos("lift", [f1, f2], [m1, m2])
+    np.testing.assert_allclose(pull.offset, [0.0, 0.0, -0.015])  # the grasp offset -0.01, its height x 1.5
+    now = _features(np.array([[0.3, 0.1, 0.4]]), np.array([[0.0, 0.0, 0.0]]))[0]
+    rel = now[BLOCK_REL]
+    step = 1e-6  # the pull is -0.1 x the potential's gradient in the eef position (central differences)
+    grad = [(_potential(rel, pull.offset, e) - _potential(rel, pull.offset, -e)) / (2 * step) for e in np.eye(3) * step]
+    np.testing.assert_allclose(pull.pull(now), -0.1 * np.asarray(grad), rtol=1e-5)
+    action = np.array([0.1, -0.1, 0.0, 0.3, 0.2, 0.1, 0.7])
+    out = pull.apply(action, now)
+    np.testing.assert_allclose(out[:3], np.clip(action[:3] - 0.1 * np.asarray(grad), -1, 1), rtol=1e-5)
+    np.testing.assert_array_equal(out[3:6], 0.0)  # rotation zeroed while it acts
+    assert out[6] == 0.7  # the gripper is the policy's
+    close = _features(np.array([[0.0, 0.0, 0.09]]), np.zeros((1, 3)))[0]  # 9 cm from the block: no pull
+    assert pull.pull(close) is None
+    np.testing.assert_array_equal(pull.apply(action, close), action)
+
+
+def test_glide_bc_with_the_public_code_attractor_acts_in_the_first_mode_only() -> None:
+    demos = [_arm_trajectory(*_demo(0.0)), _arm_trajectory(*_demo(0.1))]
+    predicted = [np.array([0, 0, 1, 1, 1, 2]), np.array([0, 0, 1, 1, 1, 2])]  # the predictor's: one step early
+    thesis = glide.GlideArmPolicy("lift", demos, predicted, plan=PLAN, settings=TINY)
+    public = glide.GlideArmPolicy("lift", demos, predicted, plan=PLAN, settings=TINY, attractor="public_code")
+    assert thesis.public is None and public.public is not None
+    far = _features(np.array([[0.3, 0.1, 0.4]]), np.zeros((1, 3)))[0]
+    obs = np.zeros(19)
+    policy_action = public.policies[0].act(obs)  # the BCs are the same: same data, seeds and settings
+    np.testing.assert_array_equal(policy_action, thesis.policies[0].act(obs))
+    np.testing.assert_array_equal(public.act(obs, far, 0), public.public.apply(policy_action, far))
+    assert not np.allclose(public.act(obs, far, 0), thesis.act(obs, far, 0))  # another attractor
+    np.testing.assert_array_equal(public.act(obs, far, 1), public.policies[1].act(obs))  # no pull after mode 0
+    # the fork reads the true mode: the pull follows it, not the mode the policy runs on
+    fork = glide.GlideArmPolicy(
+        "lift", demos, predicted, plan=PLAN, settings=TINY, attractor="public_code", attractor_mode="ground_truth"
+    )
+    np.testing.assert_array_equal(fork.act(obs, far, 1, true_mode=0), fork.public.apply(fork.policies[1].act(obs), far))
+    np.testing.assert_array_equal(fork.act(obs, far, 0, true_mode=1), fork.policies[0].act(obs))
+    # its grasp point comes from the demos' recorded modes (exit at state 3), the classifier's from state 2
+    assert fork.public.offset[2] == pytest.approx(-0.015) and public.public.offset[2] != fork.public.offset[2]
+    with pytest.raises(ValueError, match="true_mode"):
+        fork.act(obs, far, 0)
+    with pytest.raises(ValueError, match="attractor"):
+        glide.GlideArmPolicy("lift", demos, predicted, plan=PLAN, settings=TINY, attractor="fork")
+    with pytest.raises(ValueError, match="attractor_mode"):
+        glide.GlideArmPolicy("lift", demos, predicted, plan=PLAN, settings=TINY, attractor_mode="oracle")
+    kept = glide.GlideArmPolicy("lift", demos, predicted, plan=PLAN, settings=TINY, keep_steps=(5,))
+    assert [p.steps for p in kept.at_step(5).policies if p is not None] == [5, 5]
+    assert kept.trained_steps == 40 and [p.steps for p in kept.policies if p is not None] == [20, 20]
+
+
+def test_classifier_data_padding() -> None:
+    from steer_envs.baselines.glide.arm_grounding import pad_states
+
+    np.testing.assert_array_equal(pad_states(np.arange(6.0).reshape(3, 2), 5)[3:], [[4.0, 5.0], [4.0, 5.0]])
+    assert pad_states(np.zeros((7, 2)), 5).shape == (7, 2)  # longer ones stay
+    assert glide.ArmGroundingSetup().pad_to == 0
+    with pytest.raises(ValueError, match="pad_to"):
+        glide.ArmGroundingSetup(pad_to=-1)

@@ -44,6 +44,11 @@ def test_suites_declare_the_librarys_variants_and_methods() -> None:
     from steer_envs.data.robosuite_replays import DEMO_SOURCES as LIBRARY_DEMO_SOURCES
 
     assert VARIANTS == glide.ARM_VARIANTS and METHODS == glide.ARM_METHODS  # kept twice: declaring imports no torch
+    from steer_envs.baselines.glide.arm_grounding import MAX_PAD
+    from steer_envs.bench.suites.glide_robosuite import suite
+
+    assert suite.BC_RECIPES == glide.ARM_BC_RECIPES and suite.GLIDE_BC_VARIANTS == glide.ARM_ATTRACTORS
+    assert suite.ATTRACTOR_MODES[1:] == glide.ATTRACTOR_MODES and suite.MAX_PAD == MAX_PAD
     assert DEMO_SOURCES == LIBRARY_DEMO_SOURCES
 
 
@@ -235,7 +240,7 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert PolicyParams().bc_settings() == ArmBCSettings()  # the defaults are ArmBCSettings'
     big = PolicyParams.from_json({"bc_hidden": [512, 512, 512], "bc_steps": 40000}).bc_settings()
     assert big.hidden == (512, 512, 512) and big.steps == 40000
-    for bad in ({"bc_hidden": []}, {"bc_hidden": [0]}, {"bc_steps": 0}):
+    for bad in ({"bc_hidden": [0]}, {"bc_steps": -1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             PolicyParams.from_json(bad)
 
@@ -258,3 +263,87 @@ def test_policy_params_and_table_4_3_finding() -> None:
     assert worse.holds is False and "can 0.30 vs 0.30" in worse.detail
     (harmless,) = findings({"bc": 0.0, "glide_bc": 0.0})
     assert harmless.holds is False and "cost BC nothing on can, lift, square" in harmless.detail
+
+
+def test_bc_recipe_public_code_glide_and_padding_params() -> None:
+    from steer_envs.baselines.glide import ArmBCSettings, GlideArmSettings
+    from steer_envs.bench.suites.glide_robosuite.suite import PolicyParams
+
+    default = PolicyParams()
+    assert (default.bc_recipe, default.glide_bc, default.attractor_mode, default.pad_to) == ("thesis", "thesis", "", 0)
+    assert default.glide_settings() == GlideArmSettings()  # today's GLiDE+BC
+    assert default.setup().pad_to == 0 and GroundingParams(pad_to=200).setup().pad_to == 200
+    robomimic = PolicyParams.from_json({"bc_recipe": "robomimic"}).bc_settings()
+    assert robomimic == ArmBCSettings.recipe("robomimic") and robomimic.hidden == (1024, 1024)
+    longer = PolicyParams.from_json({"bc_recipe": "robomimic", "bc_steps": 200_000}).bc_settings()
+    assert longer.steps == 200_000 and longer.lr == 1e-4
+    public = PolicyParams.from_json({"glide_bc": "public_code"}).glide_settings()
+    assert (public.attractor, public.attractor_mode) == ("public_code", "ground_truth")  # the fork's
+    text = PolicyParams.from_json({"glide_bc": "public_code", "attractor_mode": "classifier"}).glide_settings()
+    assert text.attractor_mode == "classifier"  # the thesis's text
+    assert PolicyParams(bc_curve=(0.25, 0.5)).curve_steps(50_000) == (12_500, 25_000)
+    assert PolicyParams(bc_curve=(0.001, 0.5)).curve_steps(10) == (1, 5)
+    assert PolicyParams(cache_dir="/c").bc_cache == "/c/bc-runs"
+    for bad in (
+        {"bc_recipe": "diffusion"},
+        {"glide_bc": "fork"},
+        {"attractor_mode": "oracle"},
+        {"pad_to": -1},
+        {"bc_curve": [1.0]},
+        {"bc_curve": [0.0]},
+    ):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            PolicyParams.from_json(bad)
+    with pytest.raises(ValueError, match="pad_to"):
+        GroundingParams.from_json({"pad_to": 10**6})
+
+
+@needs_robosuite
+def test_padding_changes_the_classifiers_training_data(cache: Path) -> None:
+    from steer_envs.baselines.glide import ArmGroundingSetup, train_arm_predictor
+    from steer_envs.data.robosuite_shards import task_dataset
+
+    trajs = task_dataset(cache, "lift", 2, 1, 2)
+    setup = ArmGroundingSetup(n_demos=2, replay_demos=1, replays_per_demo=2, epochs=5, n_heads=2)
+    _, plain = train_arm_predictor("lift", "full", trajs, setup=setup)
+    _, padded = train_arm_predictor("lift", "full", trajs, setup=ArmGroundingSetup(**{**setup.__dict__, "pad_to": 200}))
+    assert "padded" not in plain and padded["padded"] == padded["n_train"] and padded["longer_than_pad"] == 0
+    assert padded["head_losses"] != plain["head_losses"]
+
+
+@needs_robosuite
+def test_policy_trials_with_the_public_code_options_reuse_their_bc_runs(cache: Path) -> None:
+    from steer_envs.bench.executors import execute_trial
+    from steer_envs.bench.suite import get_suite
+    from steer_envs.bench.suites.glide_robosuite.suite import POLICY_SUITE, PolicyParams
+
+    params = PolicyParams.from_json(
+        {
+            "n_demos": 2,
+            "replay_demos": 1,
+            "replays_per_demo": 2,
+            "epochs": 5,
+            "n_heads": 2,
+            "pad_to": 100,
+            "n_episodes": 1,
+            "horizon": 15,
+            "cache_dir": str(cache),
+            "bc_recipe": "robomimic",
+            "bc_hidden": [16],
+            "bc_steps": 20,
+            "bc_curve": [0.5],
+            "glide_bc": "public_code",
+        }
+    )
+    suite = get_suite(POLICY_SUITE)
+    first = execute_trial(suite.trial("steer_envs/Lift-v0", "glide_bc", 0, params))
+    assert first.ok, first.error
+    extra = first.record["extra"]
+    assert [p["step"] for p in extra["learning_curve"]] == [10, 20]
+    assert extra["learning_curve"][-1]["success"] == first.record["metrics"]["success"]
+    assert extra["bc_trained_steps"] > 0 and extra["grounding"]["padded"] > 0
+    assert (cache / "bc-runs").is_dir()
+    again = execute_trial(suite.trial("steer_envs/Lift-v0", "glide_bc", 0, params))
+    assert again.ok and again.record["extra"]["bc_trained_steps"] == 0  # every BC run read from the cache
+    assert again.record["metrics"]["success"] == first.record["metrics"]["success"]
+    assert again.record["extra"]["clean"] == extra["clean"]

@@ -26,6 +26,15 @@ the table, modes free / lifting / success, its demos extended by the fork's
 human-like demonstrator, a sensitivity study,
 :mod:`steer_envs.data.experts.human_like`); ``glide-robosuite`` also takes
 ``horizon`` (the evaluation episodes' step limit; 0: the env's, 400: the forks').
+The grounding suites take ``pad_to`` (the classifier's training trajectories
+padded to that many states by repeating the last one; the forks': 200).
+``glide-robosuite`` takes ``bc_recipe`` (``thesis``, or ``robomimic``: the
+BC of the public forks), ``bc_curve`` (fractions of the BC budget at which
+clean success is measured too), ``glide_bc`` (``thesis``, or ``public_code``:
+the fork's first-mode attractor) and ``attractor_mode`` (the mode that
+attractor reads). Its BC runs are kept under ``<cache_dir>/bc-runs``: trained
+once per settings, seed and data, resumed where a run was stopped, continued
+where a larger budget is asked for.
 
 >>> GroundingParams(epochs=0)
 Traceback (most recent call last):
@@ -37,6 +46,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, ClassVar
 
 from steer_envs.bench.metrics import BUILT, EVAL_SECONDS, evaluation_metrics, success_references, train_seconds
@@ -76,6 +86,13 @@ THESIS_TABLE_4_3: Mapping[str, Mapping[str, tuple[float, float]]] = {
 METHODS: tuple[str, ...] = tuple(THESIS_TABLE_4_3)
 #: who demonstrates: the library's ``steer_envs.data.robosuite_replays.DEMO_SOURCES`` (repeated: no scipy here).
 DEMO_SOURCES: tuple[str, ...] = ("scripted", "human_like")
+#: the library's ``ARM_BC_RECIPES``, ``ARM_ATTRACTORS`` and ``ATTRACTOR_MODES`` (repeated: no torch here);
+#: ``attractor_mode=""`` is the attractor's own (thesis: the classifier's mode; public code: the true one).
+BC_RECIPES: tuple[str, ...] = ("thesis", "robomimic")
+GLIDE_BC_VARIANTS: tuple[str, ...] = ("thesis", "public_code")
+ATTRACTOR_MODES: tuple[str, ...] = ("", "classifier", "ground_truth")
+#: the longest padding of the classifier's data (the library's ``MAX_PAD``)
+MAX_PAD = 100_000
 
 
 def _task(env: str | None) -> str:
@@ -136,7 +153,11 @@ class DataParams(SuiteParams):
 
 @dataclass(frozen=True)
 class GroundingParams(DataParams):
-    """Parameters of ``glide-robosuite-grounding``: the data (``n_demos`` demos scored), the classifier's training."""
+    """Parameters of ``glide-robosuite-grounding``: the data (``n_demos`` demos scored), the classifier's training.
+
+    ``pad_to``: the classifier's training trajectories shorter than this are
+    padded to it by repeating their last state (the public forks: 200); 0: none.
+    """
 
     suite_name: ClassVar[str] = GROUNDING_SUITE
     n_demos: int = 50
@@ -147,12 +168,14 @@ class GroundingParams(DataParams):
     stride: int = 0
     dyn_weight: float = 10.0
     plot_seeds: int = 1
+    pad_to: int = 0
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.require_at_least(1, "n_demos", "epochs", "n_heads", "prune_to")
         self.require_at_least(0, "plot_seeds", "stride")
         self.require_at_most(10_000, "n_demos")
+        self.require_between(0, MAX_PAD, "pad_to")
         if not self.dyn_weight >= 0:
             raise ValueError(f"{self.suite_name}: parameter 'dyn_weight' must be >= 0, got {self.dyn_weight}")
         if not 0 <= self.best_head_weight <= 1:
@@ -319,9 +342,25 @@ class PolicyParams(GroundingParams):
     episode's ground-truth mode has first changed (the arm has left reach;
     :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper`'s
     ``after_mode_change``); off, most of them land during reach.
-    ``bc_hidden`` / ``bc_steps``: the hidden layers and training steps of every
-    BC MLP (BC's, and GLiDE+BC's one per mode;
-    :class:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings`).
+    ``bc_recipe``: how every BC MLP (BC's, and GLiDE+BC's one per mode) is
+    built and trained (:meth:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings.recipe`):
+    ``"thesis"`` (256x256, standardised inputs, Adam 1e-3, batch 256, 8000
+    steps) or ``"robomimic"`` (the public forks': 1024x1024 on raw
+    observations, tanh output, Adam 1e-4, batch 100; 50 000 steps here,
+    robomimic's 200 000 with ``bc_steps=200000``); robomimic's 200 demos are
+    ``n_demos=200``. ``bc_hidden`` / ``bc_steps``: the recipe's layers and
+    steps replaced (empty / 0: the recipe's). ``bc_curve``: fractions of the
+    steps (in (0, 1)) at which the policy's clean success is measured too
+    (``n_episodes`` more episodes each; the trial's ``learning_curve``).
+    ``glide_bc``: GLiDE+BC's attractor, ``"thesis"`` (one per mode, blended
+    in beyond a quantile of the demos' distances) or ``"public_code"`` (the
+    public fork's: in the first mode only, an additive pull toward the grasp
+    point while the eef is >= 0.1 m from the object, rotation zeroed;
+    :mod:`~steer_envs.baselines.glide.public_attractor`).
+    ``attractor_mode``: the mode that attractor reads, ``"classifier"`` (the
+    one the policy runs on; the thesis's text) or ``"ground_truth"`` (the
+    env's; the fork); empty: the attractor's own (thesis: classifier, public
+    code: ground truth).
     ``horizon``: the evaluation episodes' step limit; 0 (default) keeps the env's
     registered one (Lift 200, Can 400, Square 500); the public forks evaluate 400.
     """
@@ -331,8 +370,12 @@ class PolicyParams(GroundingParams):
     predictor: str = "classifier"
     perturbation: str = "displace"
     perturb_after_mode_change: bool = False
-    bc_hidden: tuple[int, ...] = (256, 256)
-    bc_steps: int = 8000
+    bc_recipe: str = "thesis"
+    bc_hidden: tuple[int, ...] = ()
+    bc_steps: int = 0
+    bc_curve: tuple[float, ...] = ()
+    glide_bc: str = "thesis"
+    attractor_mode: str = ""
     horizon: int = 0
 
     def __post_init__(self) -> None:
@@ -342,8 +385,18 @@ class PolicyParams(GroundingParams):
         self.require_at_most(100_000, "n_episodes")
         self.require_in("predictor", PREDICTORS)
         self.require_in("perturbation", PERTURBATION_SCHEDULES)
-        self.require("bc_hidden", bool(self.bc_hidden) and min(self.bc_hidden) >= 1, "a non-empty list of ints >= 1")
-        self.require_at_least(1, "bc_steps")
+        self.require_in("bc_recipe", BC_RECIPES)
+        self.require(
+            "bc_hidden",
+            len(self.bc_hidden) <= 64 and all(1 <= h <= 65_536 for h in self.bc_hidden),
+            "empty (the recipe's) or a list of at most 64 ints in [1, 65536]",
+        )
+        self.require_between(0, 10_000_000, "bc_steps")
+        self.require(
+            "bc_curve", len(self.bc_curve) <= 20 and all(0 < f < 1 for f in self.bc_curve), "fractions in (0, 1)"
+        )
+        self.require_in("glide_bc", GLIDE_BC_VARIANTS)
+        self.require_in("attractor_mode", ATTRACTOR_MODES)
 
     def perturbation_settings(self) -> dict[str, Any]:
         """The :class:`~steer_envs.wrappers.arm_perturbation.ArmPerturbationWrapper` keyword arguments."""
@@ -360,7 +413,27 @@ class PolicyParams(GroundingParams):
         """The :class:`~steer_envs.baselines.glide.arm_policies.ArmBCSettings` of these parameters."""
         from steer_envs.baselines.glide import ArmBCSettings
 
-        return ArmBCSettings(hidden=tuple(self.bc_hidden), steps=self.bc_steps)
+        return ArmBCSettings.recipe(self.bc_recipe, hidden=self.bc_hidden or None, steps=self.bc_steps or None)
+
+    def curve_steps(self, steps: int) -> tuple[int, ...]:
+        """The BC steps of :attr:`bc_curve` for a budget of ``steps`` (each >= 1, below ``steps``, sorted).
+
+        >>> PolicyParams(bc_curve=(0.5, 0.25)).curve_steps(8000)
+        (2000, 4000)
+        """
+        return tuple(sorted({max(1, round(f * steps)) for f in self.bc_curve} - {steps}))
+
+    def glide_settings(self) -> Any:
+        """The :class:`~steer_envs.baselines.glide.arm_policies.GlideArmSettings` of these parameters."""
+        from steer_envs.baselines.glide import GlideArmSettings
+
+        own = "ground_truth" if self.glide_bc == "public_code" else "classifier"
+        return GlideArmSettings(attractor=self.glide_bc, attractor_mode=self.attractor_mode or own)
+
+    @property
+    def bc_cache(self) -> str:
+        """Where the BC runs are kept: ``<cache>/bc-runs``."""
+        return str(Path(self.cache) / "bc-runs")
 
 
 def evaluation_env(task: str, params: PolicyParams, *, perturbed: bool) -> Any:
@@ -388,16 +461,18 @@ def _evaluate(task: str, policy: Any, predictor: Any, params: PolicyParams, pert
         env.close()
 
 
-def _predictor(task: str, trial: Trial, params: PolicyParams, trajs: list[Any], demos: list[Any]) -> tuple[Any, Any]:
-    """What GLiDE+BC segments the demos by (:data:`PREDICTORS`), and the grounding's training time."""
+def _predictor(
+    task: str, trial: Trial, params: PolicyParams, trajs: list[Any], demos: list[Any]
+) -> tuple[Any, dict[str, Any]]:
+    """What GLiDE+BC segments the demos by (:data:`PREDICTORS`), and the grounding's record (time, padding)."""
     from steer_envs.baselines.glide import GROUND_TRUTH, KMeansModes, train_arm_predictor
 
     if trial.method == "glide_bc" and params.predictor == "classifier":
         predictor, info = train_arm_predictor(task, "full", trajs, seed=trial.seed, setup=params.setup())
-        return predictor, info["train_seconds"]
+        return predictor, {k: info[k] for k in ("train_seconds", "padded", "longer_than_pad") if k in info}
     if trial.method == "glide_bc" and params.predictor == "kmeans":
-        return KMeansModes(task, demos, seed=trial.seed), None
-    return GROUND_TRUTH, None
+        return KMeansModes(task, demos, seed=trial.seed), {}
+    return GROUND_TRUTH, {}
 
 
 def run_policy_trial(trial: Trial) -> TrialResult:
@@ -408,17 +483,36 @@ def run_policy_trial(trial: Trial) -> TrialResult:
     task = _task(trial.env)
     check_trial(trial, methods=METHODS)
     params = PolicyParams.from_json(trial.params)
+    bc = params.bc_settings()
+    curve_steps = params.curve_steps(bc.steps)
+    glide_bc = trial.method == "glide_bc"
     with single_threaded():
         trajs = params.trajectories(task, params.n_demos)
         demos, _ = split_demos(trajs)
-        predictor, grounding_seconds = _predictor(task, trial, params, trajs, demos)
+        predictor, grounding = _predictor(task, trial, params, trajs, demos)
+        grounding_seconds = grounding.pop("train_seconds", None)
         start = time.perf_counter()
         policy = train_arm_policy(
-            task, str(trial.method), trial.seed, demos=demos, predictor=predictor, bc=params.bc_settings()
+            task,
+            str(trial.method),
+            trial.seed,
+            demos=demos,
+            predictor=predictor,
+            bc=bc,
+            glide=params.glide_settings() if glide_bc else None,
+            cache_dir=params.bc_cache,
+            keep_steps=curve_steps,
         )
         train_seconds = time.perf_counter() - start
         clean = _evaluate(task, policy, predictor, params, perturbed=False)
         pert = _evaluate(task, policy, predictor, params, perturbed=True)
+        curve = [
+            {
+                "step": s,
+                "success": _evaluate(task, policy.at_step(s), predictor, params, perturbed=False)["success_rate"],
+            }
+            for s in curve_steps
+        ]
     metrics = {
         **evaluation_metrics(clean, pert),
         "success_drop": clean["success_rate"] - pert["success_rate"],
@@ -426,11 +520,16 @@ def run_policy_trial(trial: Trial) -> TrialResult:
         "eval_seconds": clean["eval_seconds"] + pert["eval_seconds"],
     }
     extra = {
-        "predictor": params.predictor if trial.method == "glide_bc" else None,
+        "predictor": params.predictor if glide_bc else None,
         "grounding_seconds": grounding_seconds,
         "clean": {k: clean[k] for k in ("mean_length", "episodes")},
         "perturbed": {k: pert[k] for k in ("mean_length", "mean_perturbations", "episodes")},
+        "bc_trained_steps": policy.trained_steps,  # 0: every BC run was read from the cache
     }
+    if grounding:
+        extra["grounding"] = grounding
+    if params.bc_curve:
+        extra["learning_curve"] = [*curve, {"step": bc.steps, "success": clean["success_rate"]}]
     return TrialResult(metrics, extra)
 
 

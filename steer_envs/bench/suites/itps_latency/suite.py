@@ -107,7 +107,8 @@ def run_latency_trial(trial: Trial) -> TrialResult:
         settings = SteerSettings(sampler, params.batch, mcmc_steps=params.mcmc_steps or None)
         session = Session("maze2d", policy=policy, settings=settings, seed=trial.seed, threads=params.threads)
         try:
-            sketch = SketchUser(session.env.unwrapped.grid, through_wall=0.0, seed=trial.seed).draw(session.state)
+            maze: Any = session.env.unwrapped
+            sketch = SketchUser(maze.grid, through_wall=0.0, seed=trial.seed).draw(session.state)
             latency = steering_latency(session, sketch.sketch, calls=params.calls, warmup=params.warmup)
         finally:
             session.env.close()
