@@ -112,6 +112,9 @@ class GlideSetup:
     train: GlideTrainConfig = field(default_factory=GlideTrainConfig)
     #: BC and GLiDE+BC's per-mode policies
     bc: GlideBCConfig = field(default_factory=GlideBCConfig)
+    #: where BC's demos start (``"uniform"`` or ``"spread"``, :func:`polygon_demonstrations`); GLiDE's keep
+    #: the setup's data set's demos
+    bc_demo_starts: str = "uniform"
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     grid_resolution: int = 200
 
@@ -163,12 +166,14 @@ def check_count(name: str, value: Any, low: int = 0) -> int:
 
 
 def polygon_demonstrations(
-    env_id: str, layout_seed: int, n: int, seed: int, *, goal_steps: int = 0
+    env_id: str, layout_seed: int, n: int, seed: int, *, goal_steps: int = 0, demo_starts: str = "uniform"
 ) -> list[Demonstration]:
     """``n`` expert demos of one layout; demo start states are drawn from ``seed``.
 
     ``goal_steps > 0``: each demo goes on for up to that many steps after entering the goal
     polygon, the expert walking to the polygon's centroid (see ``GlideSetup.demo_goal_steps``).
+    ``demo_starts``: where the demos start (:mod:`steer_envs.data.demo_starts`: ``"uniform"`` in free
+    space, the env's reset; ``"spread"`` evenly around the workspace edge, as the public code's demos).
     """
     goal_steps = check_count("goal_steps", goal_steps)
     return collect_demonstrations(
@@ -177,6 +182,7 @@ def polygon_demonstrations(
         seed=1000 * int(seed),
         steps_after_success=goal_steps,
         expert_kwargs={"final_target": "centroid"} if goal_steps else None,
+        demo_starts=demo_starts,
         layout_seed=int(layout_seed),
     )
 
@@ -349,7 +355,9 @@ def make_polygon_policy(
     env.close()
     policy: Any
     if method == "bc":
-        demos = polygon_demonstrations(env_id, layout_seed, setup.n_demos, seed, goal_steps=setup.demo_goal_steps)
+        demos = polygon_demonstrations(
+            env_id, layout_seed, setup.n_demos, seed, goal_steps=setup.demo_goal_steps, demo_starts=setup.bc_demo_starts
+        )
         states = np.concatenate([d.states[:-1] for d in demos])
         actions = np.concatenate([d.actions for d in demos])
         start = time.perf_counter()

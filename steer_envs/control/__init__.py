@@ -1,6 +1,6 @@
 """Robot controllers: what turns a plan or a goal into low-level actions on an env.
 
-* :mod:`.blockstack` -- BlockStack skill plans run open-loop on the arm
+* :mod:`.blockstack` -- BlockStack skill plans run on the arm
   (:func:`execute_plan`), the skill a plan performs (:func:`classify_plan`,
   :func:`plan_target`) and the skill vocabulary and P-control the scripted
   expert, the tracker and the simulated user share (:class:`Skill`,
@@ -9,7 +9,8 @@
 * :mod:`.kitchen` -- Kitchen skill plans run by a waypoint tracker
   (:func:`execute_kitchen_plan`) and read off geometrically
   (:func:`classify_kitchen_plan`);
-* :mod:`.plans` -- what both plan trackers share (:func:`check_plan`, :func:`first_index`);
+* :mod:`.plans` -- what both plan trackers share (:func:`check_plan`, :func:`first_index`,
+  the executions ``"open_loop"`` and ``"closed_loop"``: :data:`EXECUTIONS`, :func:`check_execution`);
 * :mod:`.waypoint` -- D4RL's Maze2D waypoint controller
   (:class:`WaypointController`, Q-iteration over grid cells).
 
@@ -50,7 +51,7 @@ if TYPE_CHECKING:
         execute_kitchen_plan,
         kitchen_scene,
     )
-    from steer_envs.control.plans import PlanOutcome, check_plan, first_index
+    from steer_envs.control.plans import EXECUTIONS, PlanOutcome, check_execution, check_plan, first_index
     from steer_envs.control.waypoint import (
         WaypointController,
         cell_path,
@@ -75,7 +76,9 @@ _EXPORTS: dict[str, str] = {
     "eef_yaw": "kitchen",
     "execute_kitchen_plan": "kitchen",
     "kitchen_scene": "kitchen",
+    "EXECUTIONS": "plans",
     "PlanOutcome": "plans",
+    "check_execution": "plans",
     "check_plan": "plans",
     "first_index": "plans",
     "WaypointController": "waypoint",
@@ -84,12 +87,14 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = [
+    "EXECUTIONS",
     "KitchenPlanOutcome",
     "KitchenScene",
     "PlanOutcome",
     "Skill",
     "WaypointController",
     "cell_path",
+    "check_execution",
     "check_plan",
     "classify_kitchen_plan",
     "classify_plan",

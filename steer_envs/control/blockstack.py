@@ -1,4 +1,4 @@
-"""Running BlockStack skill plans open-loop, and reading off which skill a plan performs (ITPS §2.3).
+"""Running BlockStack skill plans on the arm, and reading off which skill a plan performs (ITPS §2.3).
 
 A skill plan (:mod:`steer_envs.data.blockstack_plans`) is ``(H, 4)``: eef
 positions every ``PLAN_STRIDE`` control steps and the gripper command then. It
@@ -11,7 +11,22 @@ tracked for ``stride`` control steps with the expert's P-control
 (:func:`move_action`). At a gripper switch the tracker first waits (at most
 :data:`SWITCH_SETTLE` extra steps) until the eef is on the switching
 waypoint, so the fingers close on the cube and open with the cube on its
-support although the P-control lags a moving target.
+support although the P-control lags a moving target. That is the default,
+``execution="open_loop"``. ``execution="closed_loop"``
+(:mod:`steer_envs.control.plans`) tracks the same plan as the thesis's robots
+did: after its ``stride`` steps a waypoint is held until the eef is within
+:data:`WAYPOINT_TOL` of it (at most :data:`WAYPOINT_PATIENCE` more steps); a
+grasp settles on the closing waypoint square to the cube, closes for
+:data:`CLOSE_STEPS` and checks that both finger pads touch the cube the plan
+closes on; if not, and the plan's closing waypoint was a grasp of that cube
+(:func:`classify_plan`'s tolerances), it opens, comes down on the cube where
+it is now from :data:`REAPPROACH_HEIGHT` above and closes again, at most
+:data:`GRASP_RETRIES` times; a release that is a place by
+:func:`classify_plan`'s rule puts the held cube :data:`PLACE_CLEARANCE` above
+its support, centred on a tower top (the classifier's tolerances are looser
+than the env's rest and drop tests), opens, and holds still until the env
+lets the cube go (at most :data:`RELEASE_SETTLE` steps). A plan that is no
+skill is run as it is: closed loop corrects execution, not the plan.
 
 :func:`classify_plan` is the alignment test of the block-stacking study ("the
 sample corresponds to the intended block"): the skill a plan would perform from
@@ -34,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import PlanOutcome, check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, check_execution, check_plan, first_index
 from steer_envs.core.validation import integer, real_scalar
 from steer_envs.envs.robosuite.blockstack import (
     CUBE_HALF,
@@ -47,15 +62,25 @@ from steer_envs.envs.robosuite.blockstack import (
 
 __all__ = [
     "CLASSIFY_XY_TOL",
+    "CLOSE_STEPS",
+    "GRASP_RETRIES",
+    "GRASP_SETTLE",
     "GRASP_Z_TOL",
     "HOME_YAW",
     "MAX_WAYPOINTS",
+    "OPEN_STEPS",
+    "PLACE_CLEARANCE",
     "PLACE_Z_TOL",
     "PLAN_DIM",
     "PLAN_STRIDE",
+    "REAPPROACH_HEIGHT",
+    "RELEASE_SETTLE",
+    "SQUARE_TOL",
     "SWITCH_SETTLE",
     "SWITCH_TOL",
     "TOWER_CLEARANCE",
+    "WAYPOINT_PATIENCE",
+    "WAYPOINT_TOL",
     "PlanOutcome",
     "Skill",
     "classify_plan",
@@ -82,6 +107,26 @@ HOME_YAW = 0.0
 SWITCH_SETTLE = 12
 #: the eef is "on" the switching waypoint within this distance (m).
 SWITCH_TOL = 0.004
+#: closed loop: the tracker moves on once the eef is within this distance (m) of the waypoint ...
+WAYPOINT_TOL = 0.01
+#: ... or after this many extra control steps on it.
+WAYPOINT_PATIENCE = 15
+#: closed loop: most control steps to settle on a switching waypoint (squared to the cube) before closing / opening.
+GRASP_SETTLE = 40
+#: closed loop: the wrist is square to the cube within this yaw (rad).
+SQUARE_TOL = 0.05
+#: closed loop: control steps the fingers close before the grasp is checked (the expert's) ...
+CLOSE_STEPS = 10
+#: ... and open before a retry or before the released cube may be checked (the expert's).
+OPEN_STEPS = 8
+#: closed loop: most times a grasp that closed on nothing is tried again.
+GRASP_RETRIES = 2
+#: closed loop: a retry comes down on the cube from this far (m) above its centre.
+REAPPROACH_HEIGHT = 0.06
+#: closed loop: a place lets the held cube go this far (m) above its rest (the expert's).
+PLACE_CLEARANCE = 0.003
+#: closed loop: most control steps the opened hand holds still for the env to let the cube go (its latch clears).
+RELEASE_SETTLE = 30
 #: a plan closes on / opens over a cube within this xy distance (m) of the waypoint (of the held cube's centre).
 CLASSIFY_XY_TOL = 0.03
 #: a closing waypoint grasps a cube when it is within this height (m) of the cube's centre.
@@ -345,61 +390,189 @@ def _squaring(
     return None
 
 
-def execute_plan(env: Any, plan: Any, *, stride: int = PLAN_STRIDE, home_yaw: float = HOME_YAW) -> PlanOutcome:
-    """Run ``plan`` open-loop on the unwrapped env (see the module docstring); returns a :class:`PlanOutcome`.
+class _Tracker:
+    """One plan run: the env, the wrist's squaring target, and the outcome so far (steps, trail, violation)."""
+
+    def __init__(
+        self, base: BlockStackEnv, square: tuple[str, int] | None, held_before: int | None, home: float
+    ) -> None:
+        self.base, self.square, self.held_before, self.home_yaw = base, square, held_before, home
+        self.trail = [base.state]
+        self.violation = False
+        self.steps = 0
+        self.last_obs = base._obs()
+        self.regrasps = 0
+
+    def yaw_error(self, turning: bool) -> float:
+        """The wrist's yaw change still to go (0 when not squaring)."""
+        if not turning or self.square is None:
+            return 0.0
+        base = self.base
+        eef_yaw = yaw_of(base.robosuite_obs["robot0_eef_quat"])
+        quat = base.cube_quat
+        if self.square[0] == "pick":
+            return quarter_turn(self.home_yaw, eef_yaw, yaw_of(quat[self.square[1]]))
+        assert self.held_before is not None
+        in_hand = yaw_of(quat[self.held_before]) - eef_yaw
+        return quarter_turn(self.home_yaw, eef_yaw, yaw_of(quat[self.square[1]]) - in_hand)
+
+    def step(self, target: np.ndarray, g: float, turning: bool) -> None:
+        """One control step toward ``target`` with gripper command ``g`` (turning the wrist when ``turning``)."""
+        action, _ = move_action(self.base, target, g, self.yaw_error(turning))
+        if turning and self.square is not None and self.square[0] == "place":
+            action[5] = np.clip(action[5], -_YAW_CARRY, _YAW_CARRY)
+        self.last_obs, _, _, _, info = self.base.step(action)
+        self.violation |= bool(info["constraint_violation"])
+        self.trail.append(self.base.state)
+        self.steps += 1
+
+    def settle(self, target: np.ndarray, g: float, turning: bool, most: int, *, square: bool = False) -> None:
+        """Step toward ``target`` until on it (:data:`SWITCH_TOL`; square with ``square``), at most ``most`` steps."""
+        for _ in range(most):
+            on = np.linalg.norm(target - self.base.state) < SWITCH_TOL
+            if on and (not square or abs(self.yaw_error(turning)) < SQUARE_TOL):
+                return
+            self.step(target, g, turning)
+
+    def outcome(self) -> PlanOutcome:
+        """What the run did: the skill the world shows since the start, the violation, steps and trail."""
+        trail = np.stack(self.trail).astype(np.float64)
+        executed = _executed(self.held_before, self.base)
+        return PlanOutcome(executed, self.violation, self.steps, trail, np.asarray(self.last_obs), self.regrasps)
+
+
+def _open_loop(run: _Tracker, arr: np.ndarray, grip: np.ndarray, switch: int | None, stride: int) -> None:
+    """Each waypoint for ``stride`` steps; at a gripper switch first at most :data:`SWITCH_SETTLE` steps to reach it."""
+    current = float(run.base._gripper)
+    for k in range(len(arr)):
+        target, g = arr[k, :3], float(grip[k])
+        turning = switch is None or k <= switch
+        if g != current:  # settle on the switching waypoint with the old command, then switch
+            run.settle(target, current, turning, SWITCH_SETTLE)
+            current = g
+        for _ in range(stride):
+            run.step(target, g, turning)
+
+
+def _grasping(base: BlockStackEnv, cube: int) -> bool:
+    """Both finger pads touch ``cube`` now (the contacts the env's held latch is set from)."""
+    return bool(base._grasped_cubes()[cube])
+
+
+def _grasp(run: _Tracker, target: np.ndarray, turning: bool) -> None:
+    """Close on the cube at ``target``; while no contact grasp shows, re-approach it and close again.
+
+    The plan's cube is the one its closing waypoint reads as (:func:`classify_plan`'s rule).
+    A retry opens, rises :data:`REAPPROACH_HEIGHT` above the cube where it is now, comes down
+    onto its centre and closes: at most :data:`GRASP_RETRIES` times, and only when the plan's
+    closing waypoint was a grasp of that cube (within the classifier's tolerances).
+    """
+    base = run.base
+    cube = _closing_cube(base, target)
+    rel = target - base.cube_pos[cube]
+    is_grasp = np.linalg.norm(rel[:2]) < CLASSIFY_XY_TOL and abs(rel[2]) < GRASP_Z_TOL
+    point = target
+    for attempt in range(GRASP_RETRIES + 1):
+        run.settle(point, -1.0, turning, GRASP_SETTLE, square=True)
+        for _ in range(CLOSE_STEPS):
+            run.step(point, 1.0, turning)
+        if _grasping(base, cube) or not is_grasp or attempt == GRASP_RETRIES:
+            return
+        run.regrasps += 1
+        for _ in range(OPEN_STEPS):
+            run.step(point, -1.0, turning)
+        above = base.cube_pos[cube] + np.array([0.0, 0.0, REAPPROACH_HEIGHT])
+        _reach(run, above, -1.0, turning, GRASP_SETTLE)
+        point = base.cube_pos[cube]
+
+
+def _reach(run: _Tracker, target: np.ndarray, g: float, turning: bool, most: int) -> None:
+    """Step toward ``target`` until within :data:`WAYPOINT_TOL`, at most ``most`` steps."""
+    for _ in range(most):
+        if np.linalg.norm(target - run.base.state) < WAYPOINT_TOL:
+            return
+        run.step(target, g, turning)
+
+
+def _place_point(base: BlockStackEnv, target: np.ndarray, held: int) -> np.ndarray | None:
+    """Where the eef puts ``held`` down when the plan opens at ``target``, or None if that is no place.
+
+    A place by :func:`classify_plan`'s rule (the held cube's centre over a tower
+    top, or low over the table): the held cube centred on the top (or where it
+    is, over the table) and :data:`PLACE_CLEARANCE` above its rest, using the
+    held offset measured now. The classifier's tolerances are looser than the
+    env's rest and drop tests; this puts a valid place within them.
+    """
+    offset = base.cube_pos[held] - base.state
+    centre = target + offset
+    onto = _over_tower(base, centre, held)
+    rest = base.table_z + CUBE_HALF if onto is None else base.cube_pos[onto, 2] + 2 * CUBE_HALF
+    if not -CUBE_HALF < centre[2] - rest < PLACE_Z_TOL:
+        return None
+    xy = centre[:2] if onto is None else base.cube_pos[onto, :2]
+    return np.array([xy[0], xy[1], rest + PLACE_CLEARANCE]) - offset
+
+
+def _release(run: _Tracker, target: np.ndarray, turning: bool) -> None:
+    """Put the held cube down where the plan opens (:func:`_place_point`), open, and hold still until
+    the env lets the cube go (it rests on a support), bounded."""
+    base = run.base
+    held = base.held_cube
+    assert held is not None
+    for _ in range(GRASP_SETTLE):
+        point = _place_point(base, target, held)
+        point = target if point is None else point
+        if np.linalg.norm(point - base.state) < SWITCH_TOL and abs(run.yaw_error(turning)) < SQUARE_TOL:
+            break
+        run.step(point, 1.0, turning)
+        target = point
+    for i in range(RELEASE_SETTLE):
+        run.step(target, -1.0, turning)
+        if i + 1 >= OPEN_STEPS and base.held_cube is None:
+            return
+
+
+def _closed_loop(run: _Tracker, arr: np.ndarray, grip: np.ndarray, switch: int | None, stride: int) -> None:
+    """Each waypoint for ``stride`` steps and then until the eef is on it (bounded); checked grasps and releases."""
+    current = float(run.base._gripper)
+    for k in range(len(arr)):
+        target, g = arr[k, :3], float(grip[k])
+        turning = switch is None or k <= switch
+        if g != current:
+            if g > 0 and run.base.held_cube is None:
+                _grasp(run, target, turning)
+            elif g <= 0 and run.base.held_cube is not None:
+                _release(run, target, turning)
+            else:
+                run.settle(target, current, turning, SWITCH_SETTLE)
+            current = g
+        for _ in range(stride):
+            run.step(target, g, turning)
+        _reach(run, target, g, turning, WAYPOINT_PATIENCE)
+
+
+def execute_plan(
+    env: Any, plan: Any, *, stride: int = PLAN_STRIDE, home_yaw: float = HOME_YAW, execution: str = "open_loop"
+) -> PlanOutcome:
+    """Run ``plan`` on the unwrapped env (see the module docstring); returns a :class:`PlanOutcome`.
 
     ``env``: a BlockStackEnv or a wrapper of one (the unwrapped env is stepped, so
     no TimeLimit or success termination interrupts the plan). ``stride``: control
-    steps per waypoint. ``home_yaw``: the arm's start yaw (rad), near which yaw
+    steps per waypoint (closed loop: at least). ``home_yaw``: the arm's start yaw (rad), near which yaw
     targets are chosen (the expert's rule). A waypoint's gripper value > 0
-    closes the gripper, <= 0 opens it.
+    closes the gripper, <= 0 opens it. ``execution``: ``"open_loop"`` or ``"closed_loop"``
+    (:data:`~steer_envs.control.plans.EXECUTIONS`).
     """
     owner = "execute_plan"
     base = unwrap_blockstack(env, owner)
     arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
     stride = integer(stride, "stride", low=1, high=1000, owner=owner)
     home_yaw = real_scalar(home_yaw, "home_yaw", owner=owner)
+    execution = check_execution(execution, owner)
     grip = np.where(arr[:, 3] > 0, 1.0, -1.0)
     held_before = base.held_cube
     # the wrist yaw: decided from the plan before moving, tracked until the gripper switches
     switch = first_index(grip != base._gripper)
-    square = _squaring(base, arr, grip, held_before, switch)
-    trail = [base.state]
-    violation = False
-    steps = 0
-    last_obs = base._obs()
-
-    def step(target: np.ndarray, g: float, turning: bool) -> None:
-        nonlocal violation, steps, last_obs
-        yaw_err = 0.0
-        if turning and square is not None:
-            eef_yaw = yaw_of(base.robosuite_obs["robot0_eef_quat"])
-            quat = base.cube_quat
-            if square[0] == "pick":
-                yaw_err = quarter_turn(home_yaw, eef_yaw, yaw_of(quat[square[1]]))
-            else:
-                assert held_before is not None
-                in_hand = yaw_of(quat[held_before]) - eef_yaw
-                yaw_err = quarter_turn(home_yaw, eef_yaw, yaw_of(quat[square[1]]) - in_hand)
-        action, _ = move_action(base, target, g, yaw_err)
-        if turning and square is not None and square[0] == "place":
-            action[5] = np.clip(action[5], -_YAW_CARRY, _YAW_CARRY)
-        last_obs, _, _, _, info = base.step(action)
-        violation |= bool(info["constraint_violation"])
-        trail.append(base.state)
-        steps += 1
-
-    current = float(base._gripper)
-    for k in range(len(arr)):
-        target, g = arr[k, :3], float(grip[k])
-        turning = switch is None or k <= switch
-        if g != current:  # settle on the switching waypoint with the old command, then switch
-            for _ in range(SWITCH_SETTLE):
-                if np.linalg.norm(target - base.state) < SWITCH_TOL:
-                    break
-                step(target, current, turning)
-            current = g
-        for _ in range(stride):
-            step(target, g, turning)
-    trail_arr = np.stack(trail).astype(np.float64)
-    return PlanOutcome(_executed(held_before, base), violation, steps, trail_arr, np.asarray(last_obs))
+    run = _Tracker(base, _squaring(base, arr, grip, held_before, switch), held_before, home_yaw)
+    (_open_loop if execution == "open_loop" else _closed_loop)(run, arr, grip, switch, stride)
+    return run.outcome()

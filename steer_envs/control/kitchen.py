@@ -1,4 +1,4 @@
-"""Running Kitchen skill plans open-loop, and reading off which skill a plan performs (ITPS §2.3).
+"""Running Kitchen skill plans on the arm, and reading off which skill a plan performs (ITPS §2.3).
 
 A Kitchen skill plan (:mod:`steer_envs.data.kitchen_plans`) is ``(H, 5)``:
 waypoint ``k`` is the end-effector position (world frame, m), the wrist yaw
@@ -12,7 +12,21 @@ interpolated pose with the env's P-control
 waits (at most :data:`SWITCH_SETTLE` extra steps) until the eef is on the
 switching waypoint, then holds there :data:`SWITCH_HOLD` steps with the new
 command, so the fingers close on the handle or bowl (and let a bowl go) where
-the plan says, although the P-control lags a moving target.
+the plan says, although the P-control lags a moving target. That is the
+default, ``execution="open_loop"``. ``execution="closed_loop"``
+(:mod:`steer_envs.control.plans`) tracks the same plan as the thesis's robots
+did: after a waypoint's interpolation the tracker holds it until the eef is
+within :data:`WAYPOINT_TOL` and :data:`WAYPOINT_YAW_TOL` (at most
+:data:`WAYPOINT_PATIENCE` more steps); a grasp closes on the switching
+waypoint for :data:`CLOSE_STEPS` and checks the hand holds what the plan
+closes on (the bowl: both finger pads on it; the handle's bar: the fingers
+stopped at least :data:`MIN_GRIP_GAP` apart); if not, it opens, rises
+:data:`REAPPROACH_HEIGHT`, comes down on the object where it is now (the bowl:
+:data:`BOWL_GRASP_HEIGHT` above its centre; the bar: on its axis at the plan's
+height) and closes again, at most :data:`GRASP_RETRIES` times (only for a plan that
+closes on the handle or the bowl by :func:`classify_kitchen_plan`'s rules); a
+release opens and holds still until the env lets the bowl go (at most
+:data:`RELEASE_SETTLE` steps).
 
 Yaw: :func:`eef_yaw` (the expert's wrist yaw: the fingers' opening axis about
 the vertical; :func:`~steer_envs.envs.robosuite.kitchen.rotation` of yaw ``y``
@@ -38,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import PlanOutcome, check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, check_execution, check_plan, first_index
 from steer_envs.core.validation import integer
 from steer_envs.envs.robosuite.kitchen import (
     DOOR_OPEN_ANGLE,
@@ -52,20 +66,29 @@ from steer_envs.envs.robosuite.kitchen_assets import BOWL_HEIGHT
 from steer_envs.envs.robosuite.kitchen_scene import CAVITY_HIGH, CAVITY_LOW, SINK_SIZE, SINK_XY, TABLE_Z
 
 __all__ = [
+    "BOWL_GRASP_HEIGHT",
     "BOWL_XY_TOL",
     "BOWL_Z_RANGE",
+    "CLOSE_STEPS",
+    "GRASP_RETRIES",
     "HANDLE_ANGLE_TOL",
     "HANDLE_RADIUS_TOL",
     "HANDLE_Z_RANGE",
     "MAX_WAYPOINTS",
+    "MIN_GRIP_GAP",
     "PLACE_Z_RANGE",
     "PLAN_DIM",
     "PLAN_STRIDE",
+    "REAPPROACH_HEIGHT",
+    "RELEASE_SETTLE",
     "SWING_MARGIN",
     "SWITCH_HOLD",
     "SWITCH_SETTLE",
     "SWITCH_TOL",
     "SWITCH_YAW_TOL",
+    "WAYPOINT_PATIENCE",
+    "WAYPOINT_TOL",
+    "WAYPOINT_YAW_TOL",
     "YAW_LEAD",
     "KitchenPlanOutcome",
     "KitchenScene",
@@ -89,6 +112,24 @@ SWITCH_HOLD = 6
 SWITCH_TOL = 0.005
 #: ... and within this yaw (rad).
 SWITCH_YAW_TOL = 0.05
+#: closed loop: the tracker moves on once the eef is within this distance (m) ...
+WAYPOINT_TOL = 0.015
+#: ... and this yaw (rad) of the waypoint ...
+WAYPOINT_YAW_TOL = 0.1
+#: ... or after this many extra control steps on it.
+WAYPOINT_PATIENCE = 15
+#: closed loop: control steps the fingers close before the grasp is checked (the expert's).
+CLOSE_STEPS = 10
+#: closed loop: most times a grasp that closed on nothing is tried again.
+GRASP_RETRIES = 2
+#: closed loop: a retry comes down onto the grasp point from this far (m) above it.
+REAPPROACH_HEIGHT = 0.05
+#: closed loop: a retry on the bowl closes this far (m) above its centre (the expert's grasp).
+BOWL_GRASP_HEIGHT = 0.005
+#: closed loop: the fingers closed on the handle's bar stay at least this far apart (m, both fingers' travel).
+MIN_GRIP_GAP = 0.005
+#: closed loop: most control steps the opened hand holds still for the env to let the bowl go (its latch clears).
+RELEASE_SETTLE = 30
 #: the tracker's yaw target leads the wrist by at most this much (rad), so a turn goes the plan's way.
 YAW_LEAD = 0.5
 #: a plan closes on the handle within this distance (m) of the circle the bar's axis moves on about the hinge, ...
@@ -267,58 +308,177 @@ def _executed(before: str, after: str) -> str | None:
     return next((s for s in SKILLS if skill_target(before, s) == after), None)
 
 
-def execute_kitchen_plan(env: Any, plan: Any, *, stride: int = PLAN_STRIDE) -> KitchenPlanOutcome:
-    """Run ``plan`` open-loop on the unwrapped env (see the module docstring); returns a :class:`KitchenPlanOutcome`.
+class _Tracker:
+    """One plan run: the env, the wrist's unwrapped yaw, and the outcome so far (steps, trail, violation)."""
 
-    ``env``: a KitchenEnv or a wrapper of one (the unwrapped env is stepped, so
-    no TimeLimit or success termination interrupts the plan). ``stride``:
-    control steps per waypoint. A waypoint's gripper value > 0 closes the
-    gripper, <= 0 opens it.
+    def __init__(self, base: Any) -> None:
+        self.base = base
+        self.yaw_now = eef_yaw(base)  # the wrist's yaw, unwrapped along the run
+        self.trail = [base.state]
+        self.violation = False
+        self.steps = 0
+        self.last_obs = base._obs()
+        self.regrasps = 0
+
+    def step(self, target: np.ndarray, yaw: float, g: float) -> None:
+        """One control step toward ``target`` and ``yaw`` (led by at most :data:`YAW_LEAD`) with gripper ``g``."""
+        lead = self.yaw_now + float(np.clip(yaw - self.yaw_now, -YAW_LEAD, YAW_LEAD))
+        action, _ = pose_action(self.base, target, rotation(lead, 0.0), g)
+        self.last_obs, _, _, _, info = self.base.step(action)
+        self.violation |= bool(info["constraint_violation"])
+        now = eef_yaw(self.base)
+        self.yaw_now += float((now - self.yaw_now + np.pi) % (2 * np.pi) - np.pi)
+        self.trail.append(self.base.state)
+        self.steps += 1
+
+    def on(self, pos: np.ndarray, yaw: float, tol: float, yaw_tol: float) -> bool:
+        """The eef is within ``tol`` (m) of ``pos`` and ``yaw_tol`` (rad) of ``yaw``."""
+        return bool(np.linalg.norm(pos - self.base.state) < tol and abs(yaw - self.yaw_now) < yaw_tol)
+
+    def settle(self, pos: np.ndarray, yaw: float, g: float, most: int) -> None:
+        """Step toward the pose until on it (:data:`SWITCH_TOL`, :data:`SWITCH_YAW_TOL`), at most ``most`` steps."""
+        for _ in range(most):
+            if self.on(pos, yaw, SWITCH_TOL, SWITCH_YAW_TOL):
+                return
+            self.step(pos, yaw, g)
+
+    def reach(self, pos: np.ndarray, yaw: float, g: float, most: int) -> None:
+        """Step toward the pose until within :data:`WAYPOINT_TOL` / :data:`WAYPOINT_YAW_TOL`, at most ``most`` steps."""
+        for _ in range(most):
+            if self.on(pos, yaw, WAYPOINT_TOL, WAYPOINT_YAW_TOL):
+                return
+            self.step(pos, yaw, g)
+
+    def switch(self, pos: np.ndarray, yaw: float, old: float, new: float) -> None:
+        """Settle on the switching pose with the ``old`` command, then hold it :data:`SWITCH_HOLD` steps, ``new``."""
+        self.settle(pos, yaw, old, SWITCH_SETTLE)
+        for _ in range(SWITCH_HOLD):
+            self.step(pos, yaw, new)
+
+
+def _grip_target(base: Any, point: np.ndarray) -> str | None:
+    """What a hand closing at ``point`` grasps by the classifier's rules: ``"handle"``, ``"bowl"`` or None."""
+    scene = kitchen_scene(base)
+    if _on_handle(scene, point):
+        return "handle"
+    return "bowl" if _on_bowl(scene, point) else None
+
+
+def _object_pos(base: Any, target: str) -> np.ndarray:
+    return np.asarray(base.handle_pos if target == "handle" else base.bowl_pos)
+
+
+def _gripping(base: Any, target: str) -> bool:
+    """The closed hand holds ``target``: both finger pads on the bowl (the env's grasp contacts), or, on the
+    handle's bar, the fingers stopped apart by it (:data:`MIN_GRIP_GAP`)."""
+    if target == "bowl":
+        return bool(base._grasped())
+    gap = float(np.sum(np.abs(base.robosuite_obs["robot0_gripper_qpos"])))
+    return gap > MIN_GRIP_GAP
+
+
+def _regrasp_point(base: Any, target: str, pos: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Where a retry closes: on the bowl, :data:`BOWL_GRASP_HEIGHT` above its centre now (the expert's grasp);
+    on the handle's bar, on its axis now at the plan's height (moved with the bar since ``start``)."""
+    now = _object_pos(base, target)
+    if target == "bowl":
+        return now + np.array([0.0, 0.0, BOWL_GRASP_HEIGHT])
+    return np.array([now[0], now[1], pos[2] + now[2] - start[2]])
+
+
+def _grasp(run: _Tracker, pos: np.ndarray, yaw: float) -> None:
+    """Close on ``pos``; while the plan's object is not held, re-approach it where it is now and close again.
+
+    The object is the one the closing waypoint reads as (:func:`classify_kitchen_plan`'s
+    rules: the handle's bar or the bowl); a plan that closes on neither gets no retry. A
+    retry opens, rises :data:`REAPPROACH_HEIGHT`, moves over the object's grasp point now
+    (:func:`_regrasp_point`), comes down onto it and closes: at most :data:`GRASP_RETRIES` times.
     """
-    owner = "execute_kitchen_plan"
-    base = unwrap_kitchen(env, owner)
-    arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
-    stride = integer(stride, "stride", low=1, high=1000, owner=owner)
-    grip = np.where(arr[:, 4] > 0, 1.0, -1.0)
-    before = base.task.modes[base._mode]
-    measured = eef_yaw(base)
-    yaw_now = measured  # the wrist's yaw, unwrapped along the run
-    yaws = arr[:, 3] + np.pi * np.round((measured - arr[0, 3]) / np.pi)
-    trail = [base.state]
-    violation = False
-    steps = 0
-    last_obs = base._obs()
+    base = run.base
+    target = _grip_target(base, pos)
+    start = None if target is None else _object_pos(base, target)
+    point = pos
+    up = np.array([0.0, 0.0, REAPPROACH_HEIGHT])
+    for attempt in range(GRASP_RETRIES + 1):
+        run.switch(point, yaw, -1.0, 1.0)
+        for _ in range(CLOSE_STEPS - SWITCH_HOLD):
+            run.step(point, yaw, 1.0)
+        if target is None or start is None or _gripping(base, target) or attempt == GRASP_RETRIES:
+            return
+        run.regrasps += 1
+        for _ in range(CLOSE_STEPS):
+            run.step(point, yaw, -1.0)
+        run.reach(point + up, yaw, -1.0, SWITCH_SETTLE)
+        point = _regrasp_point(base, target, pos, start)
+        run.reach(point + up, yaw, -1.0, SWITCH_SETTLE)
 
-    def step(target: np.ndarray, yaw: float, g: float) -> None:
-        nonlocal violation, steps, last_obs, yaw_now
-        lead = yaw_now + float(np.clip(yaw - yaw_now, -YAW_LEAD, YAW_LEAD))
-        action, _ = pose_action(base, target, rotation(lead, 0.0), g)
-        last_obs, _, _, _, info = base.step(action)
-        violation |= bool(info["constraint_violation"])
-        now = eef_yaw(base)
-        yaw_now += float((now - yaw_now + np.pi) % (2 * np.pi) - np.pi)
-        trail.append(base.state)
-        steps += 1
 
+def _release(run: _Tracker, pos: np.ndarray, yaw: float) -> None:
+    """Open on ``pos`` and hold still until the env lets the bowl go (it rests somewhere), bounded."""
+    run.settle(pos, yaw, 1.0, SWITCH_SETTLE)
+    for i in range(RELEASE_SETTLE):
+        run.step(pos, yaw, -1.0)
+        if i + 1 >= SWITCH_HOLD and not run.base.held:
+            return
+
+
+def _run(run: _Tracker, arr: np.ndarray, grip: np.ndarray, yaws: np.ndarray, stride: int, closed: bool) -> None:
+    """Interpolate each waypoint over ``stride`` steps; switch the gripper on its waypoint (see the module docstring).
+
+    ``closed``: then wait on each waypoint (bounded) and check grasps and releases.
+    """
+    base = run.base
     current = float(base._gripper)
-    prev_pos, prev_yaw = base.state, yaw_now
+    prev_pos, prev_yaw = base.state, run.yaw_now
     for k in range(len(arr)):
         pos, yaw, g = arr[k, :3], float(yaws[k]), float(grip[k])
         switching = g != current
         for i in range(1, stride + 1):
             f = i / stride
-            step(prev_pos + f * (pos - prev_pos), prev_yaw + f * (yaw - prev_yaw), current if switching else g)
-        if switching:  # settle on the switching waypoint with the old command, then switch and hold
-            for _ in range(SWITCH_SETTLE):
-                if np.linalg.norm(pos - base.state) < SWITCH_TOL and abs(yaw - yaw_now) < SWITCH_YAW_TOL:
-                    break
-                step(pos, yaw, current)
-            current = g
-            for _ in range(SWITCH_HOLD):
-                step(pos, yaw, g)
+            run.step(prev_pos + f * (pos - prev_pos), prev_yaw + f * (yaw - prev_yaw), current if switching else g)
+        if switching and closed and g > 0 and not base.held:
+            _grasp(run, pos, yaw)
+        elif switching and closed and g <= 0 and base.held:
+            _release(run, pos, yaw)
+        elif switching:  # settle on the switching waypoint with the old command, then switch and hold
+            run.switch(pos, yaw, current, g)
+        elif closed:
+            run.reach(pos, yaw, g, WAYPOINT_PATIENCE)
+        current = g
         prev_pos, prev_yaw = pos, yaw
+
+
+def execute_kitchen_plan(
+    env: Any, plan: Any, *, stride: int = PLAN_STRIDE, execution: str = "open_loop"
+) -> KitchenPlanOutcome:
+    """Run ``plan`` on the unwrapped env (see the module docstring); returns a :class:`KitchenPlanOutcome`.
+
+    ``env``: a KitchenEnv or a wrapper of one (the unwrapped env is stepped, so
+    no TimeLimit or success termination interrupts the plan). ``stride``:
+    control steps per waypoint (closed loop: at least). A waypoint's gripper value > 0 closes the
+    gripper, <= 0 opens it. ``execution``: ``"open_loop"`` or ``"closed_loop"``
+    (:data:`~steer_envs.control.plans.EXECUTIONS`).
+    """
+    owner = "execute_kitchen_plan"
+    base = unwrap_kitchen(env, owner)
+    arr = check_plan(plan, PLAN_DIM, MAX_WAYPOINTS, owner)
+    stride = integer(stride, "stride", low=1, high=1000, owner=owner)
+    execution = check_execution(execution, owner)
+    grip = np.where(arr[:, 4] > 0, 1.0, -1.0)
+    before = base.task.modes[base._mode]
+    run = _Tracker(base)
+    yaws = arr[:, 3] + np.pi * np.round((run.yaw_now - arr[0, 3]) / np.pi)
+    _run(run, arr, grip, yaws, stride, execution == "closed_loop")
     after = base.task.modes[base._mode]
-    trail_arr = np.stack(trail).astype(np.float64)
-    executed = _executed(before, after)
-    obs = np.asarray(last_obs)
-    return KitchenPlanOutcome(executed, violation, steps, trail_arr, obs, mode_before=before, mode_after=after)
+    trail = np.stack(run.trail).astype(np.float64)
+    obs = np.asarray(run.last_obs)
+    return KitchenPlanOutcome(
+        _executed(before, after),
+        run.violation,
+        run.steps,
+        trail,
+        obs,
+        run.regrasps,
+        mode_before=before,
+        mode_after=after,
+    )

@@ -6,6 +6,19 @@ else, :func:`first_index` finds the first waypoint where a condition holds
 (e.g. where the gripper closes). Executing a plan gives a
 :class:`PlanOutcome` (the Kitchen's adds the modes before and after).
 
+Both trackers run a plan in one of :data:`EXECUTIONS` (:func:`check_execution`):
+
+* ``"open_loop"``: each waypoint gets a fixed number of control steps, then
+  the tracker moves on wherever the arm is (it waits only at a gripper switch,
+  briefly, for the eef to reach the switching waypoint);
+* ``"closed_loop"``: as the thesis's robots ran their plans: the tracker does
+  not move on before the measured eef is within a tolerance of the waypoint
+  (a bounded number of extra steps), a grasp is checked by contact (both
+  finger pads on the intended object; if not, it opens, re-approaches the
+  object where it is now and closes again, a bounded number of times, and only
+  when the plan's closing waypoint was a grasp of that object), and a release
+  waits until the let-go object rests on its support before the arm moves on.
+
 >>> first_index(check_plan([[0.0, 0.0, 0.3, -1.0], [0.0, 0.0, 0.2, 1.0]], 4, 10, "demo")[:, 3] > 0)
 1
 """
@@ -17,9 +30,12 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.core.validation import real_array
+from steer_envs.core.validation import one_of, real_array
 
-__all__ = ["PlanOutcome", "check_plan", "first_index"]
+__all__ = ["EXECUTIONS", "PlanOutcome", "check_execution", "check_plan", "first_index"]
+
+#: how a tracker runs a plan (module docstring); the first is the default.
+EXECUTIONS = ("open_loop", "closed_loop")
 
 
 @dataclass(frozen=True)
@@ -33,6 +49,7 @@ class PlanOutcome:
         steps: control steps run.
         trail: ``(steps + 1, 3)`` eef positions, the start included.
         obs: the env's observation after the last step (what the next plan is conditioned on).
+        regrasps: grasps the closed-loop tracker tried again after one closed on nothing (0 open-loop).
 
     >>> PlanOutcome("pick_1", False, 3, np.zeros((4, 3)), np.zeros(33)).success
     True
@@ -43,6 +60,7 @@ class PlanOutcome:
     steps: int
     trail: np.ndarray
     obs: np.ndarray
+    regrasps: int = 0
 
     @property
     def success(self) -> bool:
@@ -59,6 +77,15 @@ def check_plan(plan: Any, width: int, max_waypoints: int, owner: str) -> np.ndar
     if arr.shape[0] < 1 or arr.shape[1] != width:
         raise ValueError(f"{owner}: `plan` must have shape (H, {width}) with H >= 1, got {arr.shape}")
     return arr
+
+
+def check_execution(execution: Any, owner: str) -> str:
+    """``execution`` if it is one of :data:`EXECUTIONS`; ``ValueError`` naming ``owner`` and the argument otherwise.
+
+    >>> check_execution("closed_loop", "demo")
+    'closed_loop'
+    """
+    return one_of(execution, "execution", EXECUTIONS, owner=owner)
 
 
 def first_index(mask: np.ndarray) -> int | None:

@@ -11,7 +11,7 @@ fewer than 10. A collector tries episodes until it has enough
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -52,8 +52,12 @@ def rollout_expert(
     *,
     steps_after_success: int = 0,
     expert_kwargs: Mapping[str, Any] | None = None,
+    start: Any = None,
 ) -> Demonstration:
     """Run the scripted expert of ``env`` for one episode from ``reset(seed=seed)``.
+
+    ``start``: None, or a start state passed as ``reset(options={"state": start})``
+    (the env checks it).
 
     By default the demo ends at the first successful state (where the envs end
     the episode). ``steps_after_success > 0`` (opt-in) keeps following the
@@ -81,7 +85,7 @@ def rollout_expert(
         raise TypeError(f"rollout_expert: expert_kwargs must be a mapping or None, got {describe(expert_kwargs)}")
     expert = make_expert(env, **dict(expert_kwargs or {}))
     task = task_of(env, who="rollout_expert")
-    obs, info = env.reset(seed=int(seed))
+    obs, info = env.reset(seed=int(seed), options=None if start is None else {"state": start})
     expert.reset(obs, info)
     states, actions, modes, sensors = [np.asarray(obs, dtype=np.float64)], [], [info["mode"]], [_sensor_row(task, info)]
     limit = max_steps if max_steps is not None else _step_limit(env)
@@ -143,6 +147,7 @@ def collect_demonstrations(
     only_successful: bool = True,
     steps_after_success: int = 0,
     expert_kwargs: Mapping[str, Any] | None = None,
+    demo_starts: str = "uniform",
     **make_kwargs: Any,
 ) -> list[Demonstration]:
     """``n`` expert demonstrations of ``env_id`` from seeds ``seed, seed + 1, ...``.
@@ -153,7 +158,10 @@ def collect_demonstrations(
     when fewer succeed.
     ``steps_after_success`` and ``expert_kwargs`` go to :func:`rollout_expert`
     (defaults: demos end on success, the expert's default settings);
-    ``make_kwargs`` to ``gymnasium.make``.
+    ``make_kwargs`` to ``gymnasium.make``. ``demo_starts``: ``"uniform"`` (the
+    env's reset) or, on PolygonNav, ``"spread"``: attempt ``a`` starts at
+    :func:`~steer_envs.data.demo_starts.spread_start` ``a`` of ``n`` on a ring
+    whose phase is drawn from ``seed`` (:mod:`steer_envs.data.demo_starts`).
 
     >>> import steer_envs
     >>> demos = collect_demonstrations("steer_envs/PolygonNav-3Mode-v0", n=2, seed=0, layout_seed=0)
@@ -165,10 +173,17 @@ def collect_demonstrations(
     only_successful = boolean(only_successful, "only_successful", owner="collect_demonstrations")
     if not isinstance(env_id, str):
         raise TypeError(f"collect_demonstrations: env_id must be a str, got {describe(env_id)}")
+    starts = _starts(demo_starts, seed, n)
     env = gym.make(env_id, **make_kwargs)
     try:
         episodes = (
-            rollout_expert(env, s, steps_after_success=steps_after_success, expert_kwargs=expert_kwargs)
+            rollout_expert(
+                env,
+                s,
+                steps_after_success=steps_after_success,
+                expert_kwargs=expert_kwargs,
+                start=None if starts is None else starts(env, s - seed),
+            )
             for s in range(int(seed), int(seed) + 10 * int(n))
         )
         demos = first_demos((d if d.success or not only_successful else None for d in episodes), n)
@@ -180,6 +195,24 @@ def collect_demonstrations(
         f"collect_demonstrations: the expert of {env_id} succeeded only {len(demos)} times in {10 * n} episodes "
         f"(the bound: 10 * n episodes of at most max_steps={_episode_limit(env)} steps each)"
     )
+
+
+def _starts(demo_starts: Any, seed: int, n: int) -> Callable[[gym.Env, int], np.ndarray] | None:
+    """The start state of attempt ``a`` on an env for ``demo_starts``; None for the env's own reset."""
+    from steer_envs.data.demo_starts import check_demo_starts, spread_phase, spread_start
+    from steer_envs.envs.polygon_nav import PolygonNavEnv
+
+    if check_demo_starts(demo_starts, "collect_demonstrations") == "uniform":
+        return None
+    phase = spread_phase(seed)
+
+    def start(env: gym.Env, attempt: int) -> np.ndarray:
+        if not isinstance(env.unwrapped, PolygonNavEnv):
+            name = env.spec.id if env.spec else type(env.unwrapped).__name__
+            raise ValueError(f"collect_demonstrations: demo_starts='spread' needs a PolygonNav env, got {name}")
+        return spread_start(env, attempt, n, phase=phase)
+
+    return start
 
 
 def first_demos(attempts: Iterable[D | None], n: int) -> list[D]:

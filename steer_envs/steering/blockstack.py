@@ -7,9 +7,11 @@ training scene), draws the user's tower order from the seed and lets a
 skill policy: at every interaction the user names the next skill toward the
 tower (recovering from earlier mistakes as a person would), sketches it in 3D
 from the end effector, the sampler (:func:`make_method_sampler`) returns a
-batch of plans and picks one, and the plan is executed open-loop
-(:func:`~steer_envs.control.blockstack.execute_plan`). The thesis's scoring,
-per interaction:
+batch of plans and picks one, and the plan is executed
+(:func:`~steer_envs.control.blockstack.execute_plan`; ``execution``
+``"open_loop"`` by default, or ``"closed_loop"``: waypoints reached within a
+tolerance, grasps checked by contact and retried, releases settled). The
+thesis's scoring, per interaction:
 
 * *aligned* (``TA`` and the AS/AF/MS/MF quadrants): the thesis's definition,
   "the conditional sample [...] corresponds to the intended block", aligned
@@ -22,10 +24,16 @@ per interaction:
   height, or opens just above the tower top or table); a plan that traces the
   sketch to the right cube but never grasps is aligned, not skill-aligned;
 * *success*: the executed skill happened in the world (a cube picked, or
-  placed and resting) without a drop or a falling tower.
+  placed and resting) without a drop or a falling tower;
+* *valid* and *executed_ok*: the policy's part and the robot's part of
+  success, apart: the picked plan is some skill in shape (``valid``:
+  :func:`~steer_envs.control.blockstack.classify_plan` reads a skill, the
+  intended one or not), and a valid plan's execution did that skill without a
+  drop or a falling tower (``executed_ok``, a share of the valid plans).
 
 A trial ends when the tower stands or after ``max_interactions``. Its metrics
-are shares of its interactions (TA, CS and the AS/AF/MS/MF quadrants), the
+are shares of its interactions (TA, CS, valid and the AS/AF/MS/MF quadrants;
+``executed_ok`` of its valid plans, None without one), the
 share of the batch that performs the intended skill (``batch_aligned``: how
 often the intended mode is in the batch at all), whether the tower was built,
 and the mean latency of the steering calls.
@@ -177,7 +185,15 @@ def _plan_list(plans: np.ndarray) -> list[list[list[float]]]:
 
 
 def _steer_skill(
-    env: Any, user: Any, policy: Any, sampler: Sampler, obs: Any, batch: int, rng: np.random.Generator, home_yaw: float
+    env: Any,
+    user: Any,
+    policy: Any,
+    sampler: Sampler,
+    obs: Any,
+    batch: int,
+    rng: np.random.Generator,
+    home_yaw: float,
+    execution: str,
 ) -> tuple[dict[str, Any], dict[str, Any], Any]:
     """One interaction: the user's sketch steers a batch, the picked plan runs; ``(row, plans kept, obs after)``."""
     from steer_envs.control.blockstack import classify_plan, execute_plan, plan_target
@@ -189,15 +205,19 @@ def _steer_skill(
     kinds = [classify_plan(env, p) for p in result.plans]
     target = plan_target(env, result.plan)
     on_target = target == skill.name
-    outcome = execute_plan(env, result.plan, home_yaw=home_yaw)
+    outcome = execute_plan(env, result.plan, home_yaw=home_yaw, execution=execution)
+    planned = kinds[result.chosen]
     row = {
         "intended": skill.name,
-        "planned": kinds[result.chosen],
+        "planned": planned,
         "target": target,
         "executed": outcome.executed,
         "aligned": on_target,
         "skill_aligned": kinds[result.chosen] == skill.name,
         "success": outcome.success,
+        "valid": planned is not None,
+        "executed_ok": planned is not None and outcome.executed == planned and not outcome.violation,
+        "regrasps": outcome.regrasps,
         "batch_aligned": float(np.mean([k == skill.name for k in kinds])),
         "latency_ms": float(result.timings["total_ms"]),
     }
@@ -217,10 +237,13 @@ def _tower_metrics(rows: list[dict[str, Any]], built: bool) -> dict[str, float |
     n = len(rows)
     success = np.array([r["success"] for r in rows], dtype=bool)
     skill_shaped = np.array([r["skill_aligned"] for r in rows], dtype=bool)
+    valid = [r for r in rows if r["valid"]]
     return {
         **quadrant_shares([r["aligned"] for r in rows], success),
         "TA_skill": float(skill_shaped.mean()) if n else None,
         "AS_skill": float((skill_shaped & success).mean()) if n else None,
+        "valid": float(np.mean([r["valid"] for r in rows])) if n else None,
+        "executed_ok": float(np.mean([r["executed_ok"] for r in valid])) if valid else None,
         "batch_aligned": float(np.mean([r["batch_aligned"] for r in rows])) if n else None,
         "tower_built": float(built),
         "interactions": float(n),
@@ -239,21 +262,26 @@ def tower_trial(
     keep_plans: bool = False,
     use_clipped_model_output: bool = True,
     safety_weight: float = 5.0,
+    execution: str = "open_loop",
 ) -> tuple[dict[str, float | None], dict[str, Any]]:
     """One tower-building trial of ``method`` from evaluation scene ``seed``: ``(metrics, extra)`` (module docstring).
 
     ``safety_weight``: the weight of :func:`tower_safety_cost` in a ``+safe`` method.
+    ``execution``: how the picked plans run on the arm, ``"open_loop"`` or ``"closed_loop"``
+    (:data:`~steer_envs.control.plans.EXECUTIONS`).
 
     ``extra``: the tower ``order``, one row per interaction and, with
     ``keep_plans``, every interaction's scene, sketch and plans.
     """
     from steer_envs.control.blockstack import yaw_of
+    from steer_envs.control.plans import check_execution
     from steer_envs.data.blockstack_skills import make_env
     from steer_envs.users.block_sketcher import TowerSketchUser
 
     sampler = make_method_sampler(method, guide_ratio, use_clipped_model_output)
     safe = method.endswith(SAFE_SUFFIX)
     weight = real_scalar(safety_weight, "`safety_weight`", low=0.0)
+    execution = check_execution(execution, "tower_trial")
     rng = np.random.default_rng([seed, 7])
     order = tuple(int(c) for c in rng.permutation(4))
     env = make_env()
@@ -269,7 +297,7 @@ def tower_trial(
             generator = np.random.default_rng([seed, len(rows)])
             if safe:
                 sampler.with_costs([(tower_safety_cost(env), weight)])
-            row, plans, obs = _steer_skill(env, user, policy, sampler, obs, batch, generator, home_yaw)
+            row, plans, obs = _steer_skill(env, user, policy, sampler, obs, batch, generator, home_yaw, execution)
             rows.append(row)
             if keep_plans:
                 kept.append(plans)

@@ -4,9 +4,11 @@
 (:data:`~steer_envs.steering.study.SCENE_SEED_OFFSET` ``+ seed``: never a
 training scene) and rolls the frozen skill policy out one skill at a time with
 re-planning: at every skill boundary a batch of whole-skill plans is sampled
-conditioned on the current observation, the chosen plan runs open-loop on the
-arm (:func:`~steer_envs.control.kitchen.execute_kitchen_plan`), and this
-repeats until the task's goal, a failed skill, or ``max_skills``.
+conditioned on the current observation, the chosen plan runs on the arm
+(:func:`~steer_envs.control.kitchen.execute_kitchen_plan`; ``execution``
+``"open_loop"`` by default, or ``"closed_loop"``: waypoints reached within a
+tolerance, grasps checked and retried, releases settled), and this repeats
+until the task's goal, a failed skill, or ``max_skills``.
 
 At each of the first ``max_interactions`` skill boundaries the simulated user
 (:class:`~steer_envs.users.kitchen_clicker.KitchenClickUser`) watches an
@@ -37,7 +39,13 @@ Scoring, per interaction:
 * *success* (CS): the executed skill happened (a mode change some skill makes),
   no constraint was violated, and the change is a transition of the task's tree
   (a placement into a shut microwave, a moved door while holding the bowl, a
-  dropped bowl are failures).
+  dropped bowl are failures);
+* *valid* and *executed_ok*: the policy's part and the robot's part of
+  success, apart: the run plan is some skill (``valid``:
+  :func:`~steer_envs.control.kitchen.classify_kitchen_plan` reads one, the
+  intended one or not), and a valid plan's execution did that skill, legally
+  and without a violation (``executed_ok``, a share of the valid plans; None
+  without one).
 
 Default tasks: the thesis's merged setting, ``tasks[seed % 2]`` with
 ``tasks = ("microwave", "sink")`` (seeds alternate): the policy is trained on
@@ -195,6 +203,7 @@ class _Rollout:
     op_distance: float
     keep_frames: bool
     frame_step: int
+    execution: str
 
 
 @dataclass(frozen=True)
@@ -221,6 +230,9 @@ def _row(
         "violation": outcome.violation,
         "aligned": aligned,
         "success": success,
+        "valid": planned is not None,
+        "executed_ok": planned is not None and outcome.executed == planned and success,
+        "regrasps": outcome.regrasps,
         "pixel": list(click.pixel),
         "point": np.round(click.point, 4).tolist(),
         "click_error": round(click.error, 4),
@@ -256,7 +268,7 @@ def _boundary(base: Any, run: _Rollout, obs: Any, user: Any, k: int, steer: bool
         args = (base, run.policy, obs, run.method, click.point, run.sampler, run.batch, rng_method)
         plan, obs, latency = steered_plan(*args, op_distance=run.op_distance)
     planned = classify_kitchen_plan(base, plan)
-    outcome = execute_kitchen_plan(base, plan)
+    outcome = execute_kitchen_plan(base, plan, execution=run.execution)
     success = bool(outcome.success and (outcome.mode_before, outcome.mode_after) in base.task.transitions)
     row = frame = None
     if click is not None:
@@ -269,8 +281,11 @@ def _boundary(base: Any, run: _Rollout, obs: Any, user: Any, k: int, steer: bool
 
 def _kitchen_metrics(rows: list[dict[str, Any]], goal: bool, skills: int) -> dict[str, float | None]:
     n = len(rows)
+    valid = [r for r in rows if r["valid"]]
     return {
         **quadrant_shares([r["aligned"] for r in rows], [r["success"] for r in rows]),
+        "valid": float(np.mean([r["valid"] for r in rows])) if n else None,
+        "executed_ok": float(np.mean([r["executed_ok"] for r in valid])) if valid else None,
         "goal": float(goal),
         "skills": float(skills),
         "interactions": float(n),
@@ -323,6 +338,7 @@ def kitchen_trial(
     keep_frames: bool = False,
     frame_step: int = 2,
     env: Any = None,
+    execution: str = "open_loop",
 ) -> tuple[dict[str, float | None], dict[str, Any]]:
     """One steered rollout of ``method`` from evaluation scene ``seed``: ``(metrics, extra)`` (module docstring).
 
@@ -330,7 +346,11 @@ def kitchen_trial(
     the seed's); None builds one and closes it after. ``keep_frames`` keeps
     the camera frame before every interaction (subsampled by ``frame_step``)
     with the click and the run plan projected into it, for a rollout strip.
+    ``execution``: how the plans run on the arm, ``"open_loop"`` or ``"closed_loop"``
+    (:data:`~steer_envs.control.plans.EXECUTIONS`).
     """
+    from steer_envs.control.plans import check_execution
+
     owner = "kitchen_trial"
     seed = integer(seed, "seed", low=0, owner=owner)
     if isinstance(tasks, str) or not tasks:
@@ -341,8 +361,9 @@ def kitchen_trial(
     max_skills = integer(max_skills, "max_skills", low=1, high=100, owner=owner)
     op_distance = real_scalar(op_distance, "op_distance", low=0.0, high=1.0, owner=owner)
     frame_step = integer(frame_step, "frame_step", low=1, high=16, owner=owner)
+    execution = check_execution(execution, owner)
     sampler = make_method_sampler(method, gd_ratio=gd_ratio, ss_ratio=ss_ratio)
-    run = _Rollout(seed, policy, method, sampler, batch, op_distance, keep_frames, frame_step)
+    run = _Rollout(seed, policy, method, sampler, batch, op_distance, keep_frames, frame_step, execution)
     own_env = env is None
     env = make_env(task) if own_env else env
     base = env.unwrapped

@@ -40,6 +40,8 @@ def test_the_suite_is_registered_beside_the_data_suite() -> None:
         assert sum(values[k] for k in ("AS", "AF", "MS", "MF")) == pytest.approx(1.0, abs=0.011)
     params = SteerParams()
     assert (params.gd_ratio, params.ss_ratio, params.tasks) == (5.0, 100.0, ("microwave", "sink"))
+    assert params.execution == "open_loop" and SteerParams(execution="closed_loop").execution == "closed_loop"
+    assert {"valid", "executed_ok"} <= {m.name for m in suite.metrics}
 
 
 def test_findings_check_table_2_3() -> None:
@@ -63,6 +65,7 @@ def test_findings_check_table_2_3() -> None:
         {"tasks": ["bake"]},
         {"torch_threads": -1},
         {"accelerate": "jit"},
+        {"execution": "closed"},
     ],
 )
 def test_params_refuse_bad_values(bad: dict[str, Any]) -> None:

@@ -134,6 +134,21 @@ def test_policy_suite_runs_tiny_through_the_runner(tmp_path: Path) -> None:
     assert "success_perturbed (ref)" in text and "0.908" in text and "thesis Table 4.1" in text
 
 
+def test_bc_from_spread_demo_starts_runs_and_bad_starts_are_refused(tmp_path: Path) -> None:
+    from steer_envs.bench.suites.glide.suite import DEMO_STARTS, run_policy_trial
+    from steer_envs.data.demo_starts import DEMO_STARTS as LIBRARY_DEMO_STARTS
+
+    assert DEMO_STARTS == LIBRARY_DEMO_STARTS
+    suite = get_suite("glide-polygon")
+    assert suite.resolve_params({}).bc_demo_starts == "uniform"  # type: ignore[attr-defined]
+    params = {**TINY, "bc_steps": 5, "n_rollouts": 2, "max_steps": 50, "bc_demo_starts": "spread"}
+    params = suite.resolve_params(params).to_json()
+    result = run_policy_trial(Trial(suite.name, ENV3, "bc", 0, params, suite.fn))
+    assert result.metrics["success"] in {0.0, 0.5, 1.0} and result.metrics["train_seconds"] > 0.0
+    with pytest.raises(ValueError, match="bc_demo_starts"):
+        plan_trials(suite, build_request(suite, params={"bc_demo_starts": "edge"}))
+
+
 def test_trials_reject_unknown_variants_and_envs() -> None:
     suite = get_suite("glide-polygon-grounding")
     params = suite.resolve_params(TINY).to_json()

@@ -99,7 +99,8 @@ def hold_plan(env: Any, n: int = 8, gripper: float = -1.0) -> np.ndarray:
     return np.tile(np.r_[env.state, gripper], (n, 1))
 
 
-def test_expert_pick_and_place_replay_as_plans(env: Any, records: list[Any]) -> None:
+@pytest.mark.parametrize("execution", ["open_loop", "closed_loop"])
+def test_expert_pick_and_place_replay_as_plans(env: Any, records: list[Any], execution: str) -> None:
     from steer_envs.control.blockstack import classify_plan, execute_plan
     from steer_envs.data.blockstack_plans import PLAN_HORIZON, PLAN_STRIDE
 
@@ -107,12 +108,55 @@ def test_expert_pick_and_place_replay_as_plans(env: Any, records: list[Any]) -> 
         start_of(env, records, k)
         plan = plan_of(rec)
         assert classify_plan(env, plan) == rec.name
-        out = execute_plan(gym.Wrapper(env), plan)  # a wrapper is unwrapped
+        out = execute_plan(gym.Wrapper(env), plan, execution=execution)  # a wrapper is unwrapped
         assert out.executed == rec.name and not out.violation and out.success, (rec.name, out.executed)
         assert out.steps >= PLAN_HORIZON * PLAN_STRIDE and out.trail.shape == (out.steps + 1, 3)
         assert np.allclose(out.trail[0], rec.eef[0]) and np.allclose(out.trail[-1], env.state)
         # the eef ends near where the expert's did (the plan pads with its last waypoint)
         assert np.linalg.norm(out.trail[-1] - rec.eef[-1]) < 0.02
+
+
+def raised(plan: np.ndarray, dz: float) -> np.ndarray:
+    """``plan`` with every waypoint ``dz`` (m) higher."""
+    return plan + np.array([0.0, 0.0, dz, 0.0])
+
+
+def test_closed_loop_grasps_again_where_a_valid_pick_closed_on_nothing(env: Any, records: list[Any]) -> None:
+    from steer_envs.control.blockstack import classify_plan, execute_plan
+
+    pick = records[0]
+    plan = raised(plan_of(pick), 0.022)  # still a pick by the classifier, but the pads close over the cube's top
+    start_of(env, records, 0)
+    assert classify_plan(env, plan) == pick.name
+    out = execute_plan(env, plan)
+    assert out.executed is None and out.regrasps == 0  # open loop closes on nothing and lifts an empty hand
+    start_of(env, records, 0)
+    out = execute_plan(env, plan, execution="closed_loop")
+    assert out.success and out.executed == pick.name and out.regrasps == 1 and env.held_cube == pick.cube
+
+
+def test_closed_loop_puts_a_valid_place_down_instead_of_dropping_it(env: Any, records: list[Any]) -> None:
+    from steer_envs.control.blockstack import classify_plan, execute_plan
+
+    place = records[1]
+    plan = raised(plan_of(place), 0.018)  # opens 1.8 cm high: a place by the classifier, a drop in the world
+    start_of(env, records, 1)
+    assert classify_plan(env, plan) == place.name
+    out = execute_plan(env, plan)
+    assert out.executed == place.name and out.violation and not out.success
+    start_of(env, records, 1)
+    out = execute_plan(env, plan, execution="closed_loop")
+    assert out.success and out.executed == place.name and env.held_cube is None
+
+
+def test_closed_loop_runs_a_plan_that_is_no_skill_as_it_is(env: Any, records: list[Any]) -> None:
+    from steer_envs.control.blockstack import classify_plan, execute_plan
+
+    plan = raised(plan_of(records[0]), 0.06)  # closes 6 cm above the cube: no pick, and no retry makes one
+    start_of(env, records, 0)
+    assert classify_plan(env, plan) is None
+    out = execute_plan(env, plan, execution="closed_loop")
+    assert out.executed is None and out.regrasps == 0 and env.held_cube is None
 
 
 def test_a_plan_that_does_nothing_executes_nothing(env: Any, records: list[Any]) -> None:
@@ -219,6 +263,9 @@ def test_bad_input_is_refused(env: Any, records: list[Any]) -> None:
         execute_plan(env, good, stride=2.0)
     with pytest.raises(TypeError, match="home_yaw"):
         execute_plan(env, good, home_yaw="0")
+    for bad in ("closed", None, 1):
+        with pytest.raises(ValueError, match="execute_plan: execution must be one of"):
+            execute_plan(env, good, execution=bad)  # type: ignore[arg-type]
 
 
 def test_shared_pieces_are_the_experts_and_the_plan_layout() -> None:

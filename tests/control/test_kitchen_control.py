@@ -120,6 +120,27 @@ def test_expert_skills_replay_as_plans(env: Any, records: list[Any]) -> None:
         assert out.obs.shape == (17,)
 
 
+def test_closed_loop_keeps_up_with_a_plan_that_runs_ahead_and_grasps_again(env: Any, records: list[Any]) -> None:
+    from steer_envs.control.kitchen import classify_kitchen_plan, execute_kitchen_plan
+    from steer_envs.data.kitchen_skills import replay_to_start
+
+    pick = records[1]
+    plan = plan_of(pick)
+    replay_to_start(env, records, 1)
+    assert execute_kitchen_plan(env, plan, stride=2).executed is None  # open loop closes before the bowl
+    replay_to_start(env, records, 1)
+    out = execute_kitchen_plan(env, plan, stride=2, execution="closed_loop")  # waits on the waypoints
+    assert out.success and out.executed == pick.name and out.regrasps == 0
+    high = plan.copy()
+    close = int(np.argmax(high[:, 4] > 0))
+    high[close, 2] += 0.03  # closes 3 cm higher: still a pick by the classifier, but over the bowl's rim
+    high[:close, 2] += np.linspace(0.0, 0.03, close)  # (open loop lifts an empty hand)
+    replay_to_start(env, records, 1)
+    assert classify_kitchen_plan(env, high) == pick.name
+    out = execute_kitchen_plan(env, high, execution="closed_loop")
+    assert out.success and out.executed == pick.name and out.regrasps == 1
+
+
 def test_recorded_skills_classify_offline_from_their_scenes(records: list[Any]) -> None:
     from steer_envs.control.kitchen import classify_kitchen_plan
 
@@ -240,6 +261,9 @@ def test_bad_input_is_refused(env: Any) -> None:
         execute_kitchen_plan(env, good, stride=0)
     with pytest.raises(TypeError, match="stride"):
         execute_kitchen_plan(env, good, stride=2.0)
+    for bad in ("closed", None):
+        with pytest.raises(ValueError, match="execute_kitchen_plan: execution must be one of"):
+            execute_kitchen_plan(env, good, execution=bad)  # type: ignore[arg-type]
     for fn in (eef_yaw, kitchen_scene):
         with pytest.raises(TypeError, match="env"):
             fn(object())

@@ -66,12 +66,34 @@ def test_one_interaction_per_method_scores_in_range(env: Any, method: str) -> No
     assert sum(m[k] for k in ("AS", "AF", "MS", "MF")) == pytest.approx(1.0)  # type: ignore[misc]
     assert m["TA"] == pytest.approx(m["AS"] + m["AF"]) and m["CS"] == pytest.approx(m["AS"] + m["MS"])  # type: ignore[operator]
     assert m["latency_ms"] > 0  # type: ignore[operator]
+    check_validity_and_execution(m, extra)
     (row,) = extra["interactions"]
     assert row["intended"] != row["watched"] and row["mode"] == "closed_table"
     assert row["intended"] in ("open_door", "pick_bowl") and row["click_error"] < 0.01
     first, end = extra["frames"]
     assert decode_frame(first).shape == (128, 128, 3) and np.asarray(first["plan_uv"]).shape == (8, 2)
     assert end["end"] is True
+
+
+def check_validity_and_execution(m: dict[str, Any], extra: dict[str, Any]) -> None:
+    """``valid`` is the share of interactions whose plan is a skill; ``executed_ok`` that of the valid ones done."""
+    rows = extra["interactions"]
+    assert m["valid"] == pytest.approx(np.mean([r["valid"] for r in rows]))
+    valid = [r for r in rows if r["valid"]]
+    assert m["executed_ok"] == (pytest.approx(np.mean([r["executed_ok"] for r in valid])) if valid else None)
+    for r in rows:
+        assert r["valid"] == (r["planned"] is not None) and r["regrasps"] >= 0
+        assert r["executed_ok"] == (r["valid"] and r["executed"] == r["planned"] and r["success"])
+
+
+def test_closed_loop_execution_is_scored_apart_from_validity(env: Any) -> None:
+    from steer_envs.steering.kitchen import kitchen_trial
+
+    m, extra = kitchen_trial(
+        0, tiny_policy(), "DP-RS", batch=2, max_interactions=1, max_skills=1, env=env, execution="closed_loop"
+    )
+    assert m["interactions"] == 1
+    check_validity_and_execution(m, extra)
 
 
 def test_the_sweep_reports_a_share_per_ratio(env: Any) -> None:
@@ -115,6 +137,8 @@ def test_bad_trial_arguments_are_refused(env: Any) -> None:
         kitchen_trial(1, policy, "DP-RS", env=env)  # seed 1 is a sink rollout; the env is the microwave one
     with pytest.raises(ValueError, match="tasks"):
         kitchen_trial(0, policy, "DP-RS", tasks="sink", env=env)
+    with pytest.raises(ValueError, match="kitchen_trial: execution must be one of"):
+        kitchen_trial(0, policy, "DP-RS", execution="closed", env=env)
 
 
 def test_the_probe_counts_valid_and_distinct_plans_per_scene(env: Any) -> None:

@@ -54,6 +54,7 @@ from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
+from steer_envs.control.plans import EXECUTIONS
 from steer_envs.io import default_cache_dir
 from steer_envs.utils.threads import single_threaded
 
@@ -157,6 +158,9 @@ class SteerParams(SkillPolicyParams):
     ``pretrained`` or, with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that
     replaces it. ``flow_checkpoint`` a flow policy file in place of the shipped one (``FLOW-*``), sampled
     with ``flow_steps`` Euler steps (0: the checkpoint's own, the DP's 100 DDIM steps).
+    ``execution`` how the picked plans run on the arm: ``open_loop`` (the default) or ``closed_loop``
+    (waypoints reached within a tolerance, grasps checked by contact and retried, releases settled;
+    :func:`~steer_envs.control.blockstack.execute_plan`).
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -174,9 +178,11 @@ class SteerParams(SkillPolicyParams):
     checkpoint: str = ""
     flow_checkpoint: str = ""
     flow_steps: int = 0
+    execution: str = "open_loop"
 
     def __post_init__(self) -> None:
         self.require_steering()
+        self.require_in("execution", EXECUTIONS)
         self.require("guide_ratio", self.guide_ratio >= 0, ">= 0")
         self.require("safety_weight", self.safety_weight > 0, "> 0")
         self.require_between(0, 1000, "flow_steps")
@@ -207,6 +213,7 @@ def run_steer_trial(trial: Trial) -> TrialResult:
             keep_plans=trial.seed < params.plot_seeds,
             use_clipped_model_output=params.use_clipped_model_output,
             safety_weight=params.safety_weight,
+            execution=params.execution,
         )
     return TrialResult(metrics, extra)
 
@@ -317,6 +324,8 @@ register_suite(
                 fmt=".2f",
             ),
             Metric("AS_skill", "skill-aligned success", fmt=".2f"),
+            Metric("valid", f"the picked plan is some skill in shape, the intended one or not ({SHARE})", fmt=".2f"),
+            Metric("executed_ok", "share of the valid plans executed as that skill, nothing dropped", fmt=".2f"),
             Metric("batch_aligned", "share of the batch doing the intended skill", fmt=".2f"),
             Metric("tower_built", "the user's tower stands at the end", fmt=".2f"),
             Metric("interactions", "steering calls of the trial", fmt=".1f"),

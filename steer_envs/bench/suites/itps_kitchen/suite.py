@@ -17,7 +17,9 @@
   simulated user steers at each of the first ``max_interactions`` skill
   boundaries by clicking, in the scene camera, the target of a legal skill other
   than the one it watched the policy sample
-  (:func:`~steer_envs.steering.kitchen.kitchen_trial`). Methods (thesis
+  (:func:`~steer_envs.steering.kitchen.kitchen_trial`; ``execution``
+  ``open_loop`` or ``closed_loop``: how the plans run on the arm, scored
+  apart from the plans' validity by ``valid`` and ``executed_ok``). Methods (thesis
   Table 2.3): RS (unsteered), GD (point, ``gd_ratio`` 5 at every DDIM step), SS
   (point, ``ss_ratio`` 100, 4 MCMC iterations), OP (a physical push of the end
   effector ``op_distance`` m toward the click, then RS). Seeds alternate the
@@ -58,6 +60,7 @@ from steer_envs.bench.params import PolicyLoader, SuiteParams
 from steer_envs.bench.policies import PRETRAINED_LOADER, SkillPolicyParams, policy_planner
 from steer_envs.bench.suite import Finding, Metric, Suite, Trial, TrialResult, register_suite
 from steer_envs.bench.trials import check_trial
+from steer_envs.control.plans import EXECUTIONS
 from steer_envs.io import default_cache_dir
 from steer_envs.utils.fields import same_named
 from steer_envs.utils.threads import single_threaded
@@ -213,6 +216,9 @@ class SteerParams(SkillPolicyParams):
     frames for the rollout strip; ``torch_threads`` per trial process (0:
     torch's default); ``loader`` the policy's loader (called with ``"kitchen"``): ``pretrained`` or,
     with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that replaces it.
+    ``execution`` how the plans run on the arm: ``open_loop`` (the default) or ``closed_loop``
+    (waypoints reached within a tolerance, grasps checked and retried, releases settled;
+    :func:`~steer_envs.control.kitchen.execute_kitchen_plan`).
     """
 
     suite_name: ClassVar[str] = SUITE_NAME
@@ -230,11 +236,13 @@ class SteerParams(SkillPolicyParams):
     accelerate: str = "auto"
     loader: PolicyLoader = PRETRAINED_LOADER
     checkpoint: str = ""
+    execution: str = "open_loop"
 
     def __post_init__(self) -> None:
         ok = 0 < len(self.tasks) <= 100 and all(t in TASKS for t in self.tasks)
         self.require("tasks", ok, f"a non-empty list of {TASKS}")
         self.require_steering()
+        self.require_in("execution", EXECUTIONS)
         self.require_between(1, 100, "max_skills")
         self.require("gd_ratio", self.gd_ratio >= 0, ">= 0")
         self.require("ss_ratio", self.ss_ratio >= 0, ">= 0")
@@ -295,6 +303,8 @@ register_suite(
             Metric("TA", f"aligned: the run plan does the intended skill ({SHARE})", fmt=".2f"),
             Metric("CS", f"success: the skill happened, legally in the task tree, no violation ({SHARE})", fmt=".2f"),
             *QUADRANT_METRICS,
+            Metric("valid", f"the run plan is some skill, the intended one or not ({SHARE})", fmt=".2f"),
+            Metric("executed_ok", "share of the valid plans whose execution did that skill, legally", fmt=".2f"),
             Metric("goal", "the rollout reached its task's goal", fmt=".2f"),
             Metric("skills", "skills run in the rollout", fmt=".1f"),
             Metric("interactions", "steered skill boundaries of the rollout", fmt=".1f"),
