@@ -3,13 +3,12 @@
 One loader, :func:`load_pretrained`, for all of them: the Maze2D-Large
 Diffusion Policy and ACT (``"dp"``, ``"act"``, and ``"dp-w16"``, the
 previous, narrower Maze2D DP), the BlockStack and Kitchen skill Diffusion
-Policies (``"blockstack"``, ``"kitchen"``), the flow-matching policies of the
-Maze2D and BlockStack DPs' presets and data (``"flow"``,
-``"blockstack-flow"``), a checkpoint file of the same
+Policies (``"blockstack"``, ``"kitchen"``), the flow-matching policy of the
+BlockStack DP's preset and data (``"blockstack-flow"``), a checkpoint file of the same
 layout as a shipped one (``checkpoint=``), or any checkpoint file (a policy
 of a registered kind, or a GLiDE :class:`~steer_envs.baselines.glide.classifier.ModeClassifier`).
 
-``scripts/train_maze_checkpoints.sh``, ``scripts/train_maze_flow_checkpoint.sh``,
+``scripts/train_maze_checkpoints.sh``,
 ``scripts/train_blockstack_checkpoint.sh`` (``POLICY=flow`` for the flow)
 and ``scripts/train_kitchen_checkpoint.sh`` hold the exact commands that produced
 them (``python -m steer_envs.baselines.training``); each checkpoint's ``.json``
@@ -88,9 +87,7 @@ CHECKPOINTS: dict[str, ShippedCheckpoint] = {
     ),
     # ITPS §2.3: one door or bowl skill per plan, (32, 5) waypoints [x, y, z, yaw, gripper]
     "kitchen": ShippedCheckpoint("kitchen/dp.safetensors", "dp", "scripts/train_kitchen_checkpoint.sh", (0, 1, 2)),
-    # flow-matching policies of the same presets, networks and data as "dp" and "blockstack" (itps-flow-safety,
-    # itps-blockstack's FLOW-* methods)
-    "flow": ShippedCheckpoint("maze2d_large/flow.safetensors", "flow", "scripts/train_maze_flow_checkpoint.sh"),
+    # the flow-matching policy of the same preset, network and data as "blockstack" (itps-blockstack's FLOW-*)
     "blockstack-flow": ShippedCheckpoint(
         "blockstack/flow.safetensors", "flow", "POLICY=flow scripts/train_blockstack_checkpoint.sh", (0, 1, 2)
     ),
@@ -143,8 +140,7 @@ def load_pretrained(
     """The shipped checkpoint ``name``, a file of its layout (``checkpoint``), or the checkpoint file ``name``.
 
     ``name``: a key of :data:`CHECKPOINTS` (``"dp"``, ``"act"``, ``"dp-w16"``,
-    ``"blockstack"``, ``"kitchen"``, the flow policies ``"flow"`` and
-    ``"blockstack-flow"``) or a path. With a key and a ``checkpoint``
+    ``"blockstack"``, ``"kitchen"``, the flow policy ``"blockstack-flow"``) or a path. With a key and a ``checkpoint``
     file (e.g. a GPU training run), the file is loaded in the shipped one's
     place: it must hold the same policy kind and gets the same
     ``interaction_dims``. A path loads whatever it holds: a policy of a

@@ -37,7 +37,8 @@ def plan_with_policy(suite: Suite, request: TrialRequest, what: str, remedy: str
     """Every env x method x seed of ``request`` whose policy loads; the others skipped with a note.
 
     A method's policy is the params' ``policy_for(method)`` (or ``policy()``
-    for every method). ``what`` names the policy in the note (``"the Kitchen
+    for every method), loaded once per ``policy_key(method)`` (methods of one
+    key share a policy). ``what`` names the policy in the note (``"the Kitchen
     policy"``), ``remedy`` says how to make it (``"train it with
     scripts/train_kitchen_checkpoint.sh"``). A policy is missing while loading
     it raises one of :data:`~steer_envs.baselines.pretrained.POLICY_UNAVAILABLE`.
@@ -46,14 +47,23 @@ def plan_with_policy(suite: Suite, request: TrialRequest, what: str, remedy: str
 
     params: Any = suite.resolve_params(request.params, request.trials, base=request.base)
     policy_for = getattr(params, "policy_for", lambda method: params.policy())
+    key_of = getattr(params, "policy_key", lambda method: None)
+    failures: dict[Any, str | None] = {}  # policy key -> why it is missing (None: it loads)
     available: list[str | None] = []
     missing: dict[str, list[str]] = {}
     for method in request.methods:
-        try:
-            policy_for(method)
+        key = key_of(method)
+        if key not in failures:
+            try:
+                policy_for(method)
+                failures[key] = None
+            except POLICY_UNAVAILABLE as exc:
+                failures[key] = f"{type(exc).__name__}: {exc}"
+        reason = failures[key]
+        if reason is None:
             available.append(method)
-        except POLICY_UNAVAILABLE as exc:
-            missing.setdefault(f"{type(exc).__name__}: {exc}", []).append(str(method))
+        else:
+            missing.setdefault(reason, []).append(str(method))
     notes = []
     for reason, methods in missing.items():
         which = "every method" if not available else ", ".join(methods)
@@ -116,6 +126,10 @@ class SkillPolicyParams(SuiteParams):
     def policy_for(self, method: str | None) -> Any:
         """The policy ``method`` steers (here: :meth:`policy` for every method; a suite may choose per method)."""
         return self.policy()
+
+    def policy_key(self, method: str | None) -> str:
+        """Which policy ``method`` steers, by name: methods of one key share it (here: one for all)."""
+        return self.policy_name
 
     def thread_limits(self) -> AbstractContextManager[None]:
         """A trial's thread limits: one BLAS thread, ``torch_threads`` torch threads."""

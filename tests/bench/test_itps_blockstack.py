@@ -201,6 +201,7 @@ def test_a_missing_flow_policy_skips_only_the_flow_methods(monkeypatch: pytest.M
 
     missing = pretrained.ShippedCheckpoint("blockstack/no-such-flow.safetensors", "flow", "a recipe", (0, 1, 2))
     monkeypatch.setitem(pretrained.CHECKPOINTS, "blockstack-flow", missing)
+    monkeypatch.setattr(pretrained, "_SHARED", {})  # not the flow another test loaded in this process
     suite = get_suite(SUITE_NAME)
     plan = plan_trials(suite, build_request(suite, methods=["DP-PR", "FLOW-PR", "FLOW-GD"], seeds=1))
     assert [t.method for t in plan.trials] == ["DP-PR"]

@@ -38,13 +38,10 @@ def test_methods_and_names() -> None:
 
 
 def test_flow_rows_are_skipped_with_a_note_without_a_checkpoint(suite: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    from steer_envs.baselines import pretrained
-
-    missing = pretrained.ShippedCheckpoint("maze2d_large/no-such-flow.safetensors", "flow", "a recipe")
-    monkeypatch.setitem(pretrained.CHECKPOINTS, "flow", missing)
+    monkeypatch.setattr(flow_suite, "FLOW_FILE", ("checkpoints", "maze2d_large", "no-such-flow.safetensors"))
     plan = plan_trials(suite, build_request(suite, methods=["FLOW-GD", "DP-PR"], seeds=1))
     assert [t.method for t in plan.trials] == ["DP-PR"]
-    assert any("FLOW methods" in note and "no-such-flow" in note for note in plan.notes)
+    assert any("FLOW methods" in note and "train_maze_flow_checkpoint.sh" in note for note in plan.notes)
 
 
 def test_flow_steps_set_the_flows_euler_steps(suite: Any, tiny_flow: Path) -> None:

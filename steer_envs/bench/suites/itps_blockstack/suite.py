@@ -154,7 +154,8 @@ class SteerParams(SkillPolicyParams):
     :class:`~steer_envs.steering.GuidedDiffusion`);
     ``safety_weight`` the weight of the safety cost in the ``+safe`` methods;
     ``plot_seeds`` seeds that keep their plans for the figure; ``torch_threads``
-    per trial process (0: torch's default); ``loader`` the policy's loader (called with ``"blockstack"``):
+    per trial process (0: torch's default); ``loader`` the policy's loader (called with ``"blockstack"``, or
+    ``"blockstack-flow"`` for ``FLOW-*``):
     ``pretrained`` or, with ``--allow-import``, any ``module:function``; ``checkpoint`` a checkpoint file that
     replaces it. ``flow_checkpoint`` a flow policy file in place of the shipped one (``FLOW-*``), sampled
     with ``flow_steps`` Euler steps (0: the checkpoint's own, the DP's 100 DDIM steps).
@@ -187,13 +188,19 @@ class SteerParams(SkillPolicyParams):
         self.require("safety_weight", self.safety_weight > 0, "> 0")
         self.require_between(0, 1000, "flow_steps")
 
+    def policy_key(self, method: str | None) -> str:
+        """``"blockstack-flow"`` for the ``FLOW-*`` methods, ``"blockstack"`` for the others."""
+        return FLOW_POLICY if str(method).startswith("FLOW-") else self.policy_name
+
     def policy_for(self, method: str | None) -> Any:
         """The flow policy for ``FLOW-*`` methods, the DP (:meth:`policy`) for the others."""
         if not str(method).startswith("FLOW-"):
             return self.policy()
         from steer_envs.baselines.pretrained import shared_policy
 
-        return shared_policy(FLOW_POLICY, self.flow_checkpoint, self.accelerate, steps=self.flow_steps)
+        return shared_policy(
+            FLOW_POLICY, self.flow_checkpoint, self.accelerate, loader=self.loader, steps=self.flow_steps
+        )
 
 
 def run_steer_trial(trial: Trial) -> TrialResult:

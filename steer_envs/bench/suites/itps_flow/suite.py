@@ -4,9 +4,8 @@ Table 2.1's protocol (:func:`~steer_envs.steering.maze.steering_trial`: one
 start and one sketch per seed, a batch of 32 plans, distances over the maze
 extent, wall collisions, latency) on two policies of the same network and
 training budget, Diffusion Policy (``DP-*``, the shipped checkpoint) and the
-flow-matching policy (``FLOW-*``, :class:`~steer_envs.baselines.flow.FlowPolicy`,
-the shipped ``load_pretrained("flow")`` trained by
-``scripts/train_maze_flow_checkpoint.sh``, or ``flow_checkpoint``),
+flow-matching policy (``FLOW-*``, :class:`~steer_envs.baselines.flow.FlowPolicy`
+trained by ``scripts/train_maze_flow_checkpoint.sh``, or ``flow_checkpoint``),
 each sampler with and without the maze's safety cost (``+safe``: the walls of
 the env's ``TaskSpec`` through :func:`~steer_envs.steering.costs.safety_cost`,
 weight ``safety_weight``). Both policies run eagerly (no acceleration), so
@@ -49,8 +48,8 @@ class FlowSafetyParams(SuiteParams):
 
     ``batch`` plans per call; ``through_wall`` the share of sketches through
     walls; ``safety_weight`` the safety cost's weight in the ``+safe``
-    methods; ``flow_checkpoint`` the flow policy's file (default: the shipped
-    one, ``load_pretrained("flow")``); ``flow_steps`` its Euler steps per plan (0:
+    methods; ``flow_checkpoint`` the flow policy's file (default: the one the
+    recipe writes into the package); ``flow_steps`` its Euler steps per plan (0:
     the checkpoint's own, DP's 10 DDIM steps; fewer steer faster);
     ``dp_checkpoint`` another DP file (default: the shipped DP);
     ``torch_threads`` per trial process.
@@ -78,7 +77,23 @@ class FlowSafetyParams(SuiteParams):
 
         if kind == "dp":
             return shared_policy("dp", self.dp_checkpoint)
-        return shared_policy("flow", self.flow_checkpoint, steps=self.flow_steps)
+        return shared_policy(self.flow_checkpoint or _trained_flow(), steps=self.flow_steps)
+
+
+#: where ``scripts/train_maze_flow_checkpoint.sh`` writes the Maze2D flow policy (inside the package)
+FLOW_FILE = ("checkpoints", "maze2d_large", "flow.safetensors")
+
+
+def _trained_flow() -> str:
+    """The Maze2D flow policy the recipe wrote; ``FileNotFoundError`` (the suite skips ``FLOW-*``) before it has."""
+    from importlib import resources
+
+    path = resources.files("steer_envs.baselines").joinpath(*FLOW_FILE)
+    if not path.is_file():
+        raise FileNotFoundError(
+            "no Maze2D flow policy yet: train it with scripts/train_maze_flow_checkpoint.sh or set flow_checkpoint"
+        )
+    return str(path)
 
 
 def split_method(method: str) -> tuple[str, str, bool]:
