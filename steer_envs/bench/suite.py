@@ -491,14 +491,18 @@ class Suite:
         if self.generate is not None:
             out = self.generate(self, request)
             return out if isinstance(out, TrialPlan) else TrialPlan(tuple(out))
+        return TrialPlan(self.every_trial(request))
+
+    def every_trial(self, request: TrialRequest) -> tuple[Trial, ...]:
+        """Every env x method x seed of ``request`` with its resolved parameters (the default plan; a
+        ``generate`` hook that only adds notes starts from it)."""
         params = self.resolve_params(request.params, request.trials, base=request.base)
-        trials = tuple(
+        return tuple(
             self.trial(env, method, seed, params)
             for env in request.envs
             for method in request.methods
             for seed in self.seed_list(request)
         )
-        return TrialPlan(trials)
 
 
 def function_path(fn: Callable[..., Any]) -> str:

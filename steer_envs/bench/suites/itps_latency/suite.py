@@ -82,13 +82,7 @@ def _plan(suite: Suite, request: TrialRequest) -> TrialPlan:
     from steer_envs.utils.cpu import cpu_summary
 
     params = suite.resolve_params(request.params, request.trials, base=request.base)
-    trials = tuple(
-        suite.trial(env, method, seed, params)
-        for env in request.envs
-        for method in request.methods
-        for seed in suite.seed_list(request)
-    )
-    return TrialPlan(trials, (f"CPU: {cpu_summary()}; {params.threads} torch thread(s)",))
+    return TrialPlan(suite.every_trial(request), (f"CPU: {cpu_summary()}; {params.threads} torch thread(s)",))
 
 
 def run_latency_trial(trial: Trial) -> TrialResult:
