@@ -272,23 +272,20 @@ def shared_policy(
 
     mode = resolve_acceleration(accelerate, owner=owner)
     steps = integer(steps, "steps", low=0, high=100_000, owner="shared_policy")
-    key = (loader, name, str(checkpoint or ""), mode, steps)
+    key = (loader, name, str(checkpoint or ""), mode)
     with _SHARED_LOCK:
-        policy = _SHARED.get(key)
+        policy = _SHARED.get((*key, 0))
         if policy is None:
-            if steps:
-                policy = _SHARED.get((*key[:-1], 0))
-            if policy is None:
-                policy = resolve_policy(loader, name, checkpoint)
-                if accelerate != "none":
-                    policy = accelerated(policy, accelerate, owner=owner)
-                _SHARED[(*key[:-1], 0)] = policy
-            if steps:
-                with_steps = getattr(policy, "with_steps", None)
-                if not callable(with_steps):
-                    raise TypeError(
-                        f"shared_policy: steps={steps} needs a policy with with_steps, got {describe(policy)}"
-                    )
-                policy = with_steps(steps)
-            _SHARED[key] = policy
-        return policy
+            policy = resolve_policy(loader, name, checkpoint)
+            if accelerate != "none":
+                policy = accelerated(policy, accelerate, owner=owner)
+            _SHARED[(*key, 0)] = policy
+        if not steps:
+            return policy
+        stepped = _SHARED.get((*key, steps))
+        if stepped is None:
+            with_steps = getattr(policy, "with_steps", None)
+            if not callable(with_steps):
+                raise TypeError(f"shared_policy: steps={steps} needs a policy with with_steps, got {describe(policy)}")
+            stepped = _SHARED[(*key, steps)] = with_steps(steps)
+        return stepped

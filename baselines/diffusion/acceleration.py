@@ -342,8 +342,6 @@ def _openvino_model(
 
 def _quantized(graph: Any, calibration: list[dict[str, Any]]) -> Any:
     """``graph`` with int8 weights and activations: NNCF's post-training quantization on ``calibration``."""
-    import logging
-
     import nncf
 
     if not calibration:

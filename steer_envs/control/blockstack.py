@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import PlanOutcome, check_execution, check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, PlanRun, check_execution, check_plan, first_index
 from steer_envs.core.validation import integer, real_scalar
 from steer_envs.envs.robosuite.blockstack import (
     CUBE_HALF,
@@ -390,18 +390,16 @@ def _squaring(
     return None
 
 
-class _Tracker:
-    """One plan run: the env, the wrist's squaring target, and the outcome so far (steps, trail, violation)."""
+class _Tracker(PlanRun):
+    """One plan run: the env, the wrist's squaring target, and the outcome so far (:class:`PlanRun`)."""
+
+    base: BlockStackEnv
 
     def __init__(
         self, base: BlockStackEnv, square: tuple[str, int] | None, held_before: int | None, home: float
     ) -> None:
-        self.base, self.square, self.held_before, self.home_yaw = base, square, held_before, home
-        self.trail = [base.state]
-        self.violation = False
-        self.steps = 0
-        self.last_obs = base._obs()
-        self.regrasps = 0
+        super().__init__(base)
+        self.square, self.held_before, self.home_yaw = square, held_before, home
 
     def yaw_error(self, turning: bool) -> float:
         """The wrist's yaw change still to go (0 when not squaring)."""
@@ -421,10 +419,7 @@ class _Tracker:
         action, _ = move_action(self.base, target, g, self.yaw_error(turning))
         if turning and self.square is not None and self.square[0] == "place":
             action[5] = np.clip(action[5], -_YAW_CARRY, _YAW_CARRY)
-        self.last_obs, _, _, _, info = self.base.step(action)
-        self.violation |= bool(info["constraint_violation"])
-        self.trail.append(self.base.state)
-        self.steps += 1
+        self.advance(action)
 
     def settle(self, target: np.ndarray, g: float, turning: bool, most: int, *, square: bool = False) -> None:
         """Step toward ``target`` until on it (:data:`SWITCH_TOL`; square with ``square``), at most ``most`` steps."""

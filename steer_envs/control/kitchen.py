@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from steer_envs.control.plans import PlanOutcome, check_execution, check_plan, first_index
+from steer_envs.control.plans import PlanOutcome, PlanRun, check_execution, check_plan, first_index
 from steer_envs.core.validation import integer
 from steer_envs.envs.robosuite.kitchen import (
     DOOR_OPEN_ANGLE,
@@ -308,28 +308,20 @@ def _executed(before: str, after: str) -> str | None:
     return next((s for s in SKILLS if skill_target(before, s) == after), None)
 
 
-class _Tracker:
-    """One plan run: the env, the wrist's unwrapped yaw, and the outcome so far (steps, trail, violation)."""
+class _Tracker(PlanRun):
+    """One plan run: the env, the wrist's unwrapped yaw, and the outcome so far (:class:`PlanRun`)."""
 
     def __init__(self, base: Any) -> None:
-        self.base = base
+        super().__init__(base)
         self.yaw_now = eef_yaw(base)  # the wrist's yaw, unwrapped along the run
-        self.trail = [base.state]
-        self.violation = False
-        self.steps = 0
-        self.last_obs = base._obs()
-        self.regrasps = 0
 
     def step(self, target: np.ndarray, yaw: float, g: float) -> None:
         """One control step toward ``target`` and ``yaw`` (led by at most :data:`YAW_LEAD`) with gripper ``g``."""
         lead = self.yaw_now + float(np.clip(yaw - self.yaw_now, -YAW_LEAD, YAW_LEAD))
         action, _ = pose_action(self.base, target, rotation(lead, 0.0), g)
-        self.last_obs, _, _, _, info = self.base.step(action)
-        self.violation |= bool(info["constraint_violation"])
+        self.advance(action)
         now = eef_yaw(self.base)
         self.yaw_now += float((now - self.yaw_now + np.pi) % (2 * np.pi) - np.pi)
-        self.trail.append(self.base.state)
-        self.steps += 1
 
     def on(self, pos: np.ndarray, yaw: float, tol: float, yaw_tol: float) -> bool:
         """The eef is within ``tol`` (m) of ``pos`` and ``yaw_tol`` (rad) of ``yaw``."""

@@ -32,7 +32,7 @@ import numpy as np
 
 from steer_envs.core.validation import one_of, real_array
 
-__all__ = ["EXECUTIONS", "PlanOutcome", "check_execution", "check_plan", "first_index"]
+__all__ = ["EXECUTIONS", "PlanOutcome", "PlanRun", "check_execution", "check_plan", "first_index"]
 
 #: how a tracker runs a plan (module docstring); the first is the default.
 EXECUTIONS = ("open_loop", "closed_loop")
@@ -66,6 +66,29 @@ class PlanOutcome:
     def success(self) -> bool:
         """A skill happened and no step violated a constraint."""
         return self.executed is not None and not self.violation
+
+
+class PlanRun:
+    """What a tracker records while it runs one plan on ``base`` (an unwrapped arm env): the trail of eef
+    positions, the control steps, whether a step violated a constraint, the last observation, the re-grasps.
+
+    Each tracker computes its actions and sends them through :meth:`advance`.
+    """
+
+    def __init__(self, base: Any) -> None:
+        self.base = base
+        self.trail = [base.state]
+        self.violation = False
+        self.steps = 0
+        self.last_obs = base._obs()
+        self.regrasps = 0
+
+    def advance(self, action: np.ndarray) -> None:
+        """One control step of ``action``, recorded."""
+        self.last_obs, _, _, _, info = self.base.step(action)
+        self.violation |= bool(info["constraint_violation"])
+        self.trail.append(self.base.state)
+        self.steps += 1
 
 
 def check_plan(plan: Any, width: int, max_waypoints: int, owner: str) -> np.ndarray:

@@ -213,7 +213,7 @@ def _steer_skill(
         "target": target,
         "executed": outcome.executed,
         "aligned": on_target,
-        "skill_aligned": kinds[result.chosen] == skill.name,
+        "skill_aligned": planned == skill.name,
         "success": outcome.success,
         "valid": planned is not None,
         "executed_ok": planned is not None and outcome.executed == planned and not outcome.violation,

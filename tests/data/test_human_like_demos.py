@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
-from robosuite_helpers import ROBOSUITE_MARKS
+from robosuite_helpers import ROBOSUITE_MARKS, module_env
 
 from steer_envs.data import robosuite_replays as rr
 from steer_envs.data.experts.human_like import (
@@ -20,11 +18,7 @@ from steer_envs.data.experts.robosuite import LiftExpert
 pytestmark = ROBOSUITE_MARKS
 
 
-@pytest.fixture(scope="module")
-def lift() -> Iterator[rr.RobosuiteEnv]:
-    env = rr.make_arm_env("lift")
-    yield env
-    env.close()
+lift = module_env("steer_envs.data.robosuite_replays:make_arm_env", "lift")
 
 
 @pytest.mark.parametrize(

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from robosuite_helpers import ROBOSUITE_MARKS
+from robosuite_helpers import ROBOSUITE_MARKS, module_env
 
 from steer_envs.data import robosuite_replays as rr
 from steer_envs.io import DatasetError
@@ -15,11 +14,7 @@ from steer_envs.io import DatasetError
 pytestmark = ROBOSUITE_MARKS
 
 
-@pytest.fixture(scope="module")
-def lift() -> Iterator[rr.RobosuiteEnv]:
-    env = rr.make_arm_env("lift")
-    yield env
-    env.close()
+lift = module_env("steer_envs.data.robosuite_replays:make_arm_env", "lift")
 
 
 @pytest.fixture(scope="module")

@@ -6,13 +6,12 @@ One env per variant for the module; a public-code demo takes about a second.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from robosuite_helpers import ROBOSUITE_MARKS
+from robosuite_helpers import ROBOSUITE_MARKS, module_env
 
 import steer_envs  # noqa: F401  (registers the ids)
 from steer_envs.data import robosuite_replays as rr
@@ -30,18 +29,8 @@ from steer_envs.envs.robosuite.tasks import (
 pytestmark = ROBOSUITE_MARKS
 
 
-@pytest.fixture(scope="module")
-def public() -> Iterator[rr.RobosuiteEnv]:
-    env = rr.make_arm_env("lift", "public_code")
-    yield env
-    env.close()
-
-
-@pytest.fixture(scope="module")
-def thesis() -> Iterator[rr.RobosuiteEnv]:
-    env = rr.make_arm_env("lift")
-    yield env
-    env.close()
+public = module_env("steer_envs.data.robosuite_replays:make_arm_env", "lift", "public_code")
+thesis = module_env("steer_envs.data.robosuite_replays:make_arm_env", "lift")
 
 
 def runs(demo: rr.ArmTrajectory, names: tuple[str, ...]) -> list[tuple[str, int]]:

@@ -194,7 +194,7 @@ class SteerParams(SkillPolicyParams):
 
     def policy_for(self, method: str | None) -> Any:
         """The flow policy for ``FLOW-*`` methods, the DP (:meth:`policy`) for the others."""
-        if not str(method).startswith("FLOW-"):
+        if self.policy_key(method) != FLOW_POLICY:
             return self.policy()
         from steer_envs.baselines.pretrained import shared_policy
 
